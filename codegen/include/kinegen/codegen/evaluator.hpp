@@ -1,0 +1,103 @@
+// The in-process back end: runs a straight-line program on any scalar type (double for
+// analysis, std::complex<double> for complex-step checks), in exactly the order the emitted
+// C++ computes it, so both give the same bits.
+#pragma once
+
+#include <cmath>
+#include <complex>
+#include <cstdlib>
+#include <vector>
+
+#include "kinegen/codegen/program.hpp"
+
+namespace kinegen::codegen {
+
+template <class T>
+class ProgramEvaluator {
+ public:
+  explicit ProgramEvaluator(const Program& program)
+      : program_(&program), values_(program.nodes.size()) {}
+
+  // Inputs by kind; `qd` may be null when the program does not read it. Writes one value per
+  // program output. Allocates nothing.
+  void run(const T* q, const T* qd, T t, const T* params, T* out) {
+    using std::acos;
+    using std::asin;
+    using std::atan;
+    using std::cos;
+    using std::exp;
+    using std::log;
+    using std::pow;
+    using std::sin;
+    using std::sqrt;
+    using std::tan;
+    const auto& nodes = program_->nodes;
+    for (std::size_t k = 0; k < nodes.size(); ++k) {
+      const Node& n = nodes[k];
+      const auto arg = [&](int a) { return values_[n.args[a]]; };
+      T v{};
+      switch (n.kind) {
+        case OpKind::kConst:
+          v = T(n.value);
+          break;
+        case OpKind::kInput:
+          switch (n.input.kind) {
+            case InputKind::kQ: v = q[n.input.index]; break;
+            case InputKind::kQd: v = qd[n.input.index]; break;
+            case InputKind::kT: v = t; break;
+            case InputKind::kParam: v = params[n.input.index]; break;
+          }
+          break;
+        case OpKind::kAdd:
+          v = arg(0);
+          for (std::size_t a = 1; a < n.args.size(); ++a) v += values_[n.args[a]];
+          break;
+        case OpKind::kMul: {
+          bool have = false;
+          for (int a : n.args) {
+            if (is_divisor(nodes[a])) continue;
+            v = have ? v * values_[a] : values_[a];
+            have = true;
+          }
+          if (!have) v = T(1);
+          for (int a : n.args)
+            if (is_divisor(nodes[a])) v = v / power(values_[nodes[a].args[0]], -nodes[a].exponent);
+          break;
+        }
+        case OpKind::kPowInt:
+          v = n.exponent > 0 ? power(arg(0), n.exponent) : T(1) / power(arg(0), -n.exponent);
+          break;
+        case OpKind::kPow: v = pow(arg(0), arg(1)); break;
+        case OpKind::kSqrt: v = sqrt(arg(0)); break;
+        case OpKind::kSin: v = sin(arg(0)); break;
+        case OpKind::kCos: v = cos(arg(0)); break;
+        case OpKind::kTan: v = tan(arg(0)); break;
+        case OpKind::kAsin: v = asin(arg(0)); break;
+        case OpKind::kAcos: v = acos(arg(0)); break;
+        case OpKind::kAtan: v = atan(arg(0)); break;
+        case OpKind::kExp: v = exp(arg(0)); break;
+        case OpKind::kLog: v = log(arg(0)); break;
+      }
+      values_[k] = v;
+    }
+    for (std::size_t o = 0; o < program_->outputs.size(); ++o) {
+      const int id = program_->outputs[o];
+      out[o] = id == Program::kZero ? T(0) : values_[id];
+    }
+  }
+
+ private:
+  // x^n for n >= 1 as the emitted code writes it: left-to-right products, or pow beyond.
+  static T power(const T& x, int n) {
+    using std::pow;
+    if (n > kMaxUnrolledPower) return pow(x, T(n));
+    T r = x;
+    for (int k = 1; k < n; ++k) r = r * x;
+    return r;
+  }
+
+  const Program* program_;
+  std::vector<T> values_;
+};
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,105 @@
+// The mechanism stage: plain, validated data read from a mechanism file.
+//
+// Nothing here knows GiNaC. Expressions are kept as text with the place they came from, so the
+// symbolic stage can parse them and still point its errors at the YAML line.
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/diagnostics.hpp"
+
+namespace kinegen::codegen {
+
+// An expression as written in the file ("2.0", "omega*t", "x_crank - 1").
+struct Expr {
+  std::string text;
+  SourceLoc loc;
+};
+
+struct Vec2 {
+  Expr x, y;
+};
+
+struct Parameter {
+  std::string name;
+  Expr value;  // a constant expression
+  SourceLoc loc;
+};
+
+struct Body {
+  std::string name;
+  std::array<Expr, 3> q0;  // x, y, phi
+  SourceLoc loc;
+};
+
+enum class ConstraintType {
+  kRevolute,
+  kTranslational,
+  kDistance,
+  kRevoluteTranslational,
+  kAbsoluteX,
+  kAbsoluteY,
+  kAbsoluteAngle,
+  kRelativeAngle,
+  kExpression,
+};
+
+const char* to_string(ConstraintType type);
+
+// A body reference: an index into Mechanism::bodies, or kGround.
+inline constexpr int kGround = -1;
+
+// One joint or driver. Which members are meaningful depends on `type`; the loader fills the
+// defaults the format promises (s = [0, 0], angle = 0).
+struct Constraint {
+  ConstraintType type = ConstraintType::kExpression;
+  bool is_driver = false;
+  std::string name;  // optional, a validated identifier; "" when not given
+  std::string item;  // how messages name it: "joints[2] (revolute)"
+  SourceLoc loc;
+  int i = kGround;   // body i (or `body` for absolute_* types)
+  int j = kGround;   // body j
+  Vec2 si, sj, vi;   // local vectors (s of absolute_x/absolute_y is si)
+  Expr value;        // value / length / angle of a joint, or f(t) of a driver
+  std::vector<Expr> equations;  // expression constraints: each string = 0
+
+  // Number of scalar equations this constraint contributes.
+  int equation_count() const;
+};
+
+struct Point {
+  std::string name;
+  int body = kGround;
+  Vec2 s;
+  SourceLoc loc;
+};
+
+struct Mechanism {
+  std::string name;
+  std::string source;  // the file it was read from, as given by the user
+  std::vector<Parameter> parameters;
+  std::vector<Body> bodies;
+  std::vector<Constraint> joints;
+  std::vector<Constraint> drivers;
+  std::vector<Point> points;
+
+  int nq() const { return 3 * static_cast<int>(bodies.size()); }
+  int nc() const;
+  // Joints then drivers, in file order: the order of the rows of Phi.
+  std::vector<const Constraint*> constraints() const;
+  std::optional<int> find_body(const std::string& name) const;
+};
+
+// Reads and validates a mechanism file. Throws InputError naming the file, item and line.
+Mechanism load_mechanism(const std::string& path);
+// The same from text in memory (`source` names it in messages).
+Mechanism parse_mechanism(const std::string& yaml_text, const std::string& source);
+
+// Whether `name` may become a C++ identifier in generated code: a C identifier, not a C++
+// keyword, and not a reserved form (leading underscore, or "__" anywhere).
+bool is_valid_identifier(const std::string& name);
+
+}  // namespace kinegen::codegen

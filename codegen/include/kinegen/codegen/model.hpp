@@ -1,0 +1,118 @@
+// A mechanism compiled for in-process use: every stage from the file to the straight-line
+// programs, and an adapter that lets the runtime's solver drive the programs directly.
+#pragma once
+
+#include <Eigen/Dense>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/evaluator.hpp"
+#include "kinegen/codegen/mechanism.hpp"
+#include "kinegen/codegen/program.hpp"
+#include "kinegen/codegen/symbolic.hpp"
+
+namespace kinegen::codegen {
+
+// Owns the stages; not copyable because later stages point into earlier ones.
+class CompiledModel {
+ public:
+  // Reads, validates and derives; throws InputError.
+  static std::unique_ptr<CompiledModel> from_file(const std::string& path,
+                                                  const std::vector<ParamOverride>& overrides = {});
+  static std::unique_ptr<CompiledModel> from_mechanism(Mechanism mechanism,
+                                                       const std::vector<ParamOverride>& overrides = {});
+  CompiledModel(const CompiledModel&) = delete;
+  CompiledModel& operator=(const CompiledModel&) = delete;
+
+  const Mechanism& mechanism() const { return mechanism_; }
+  const SymbolTable& symbols() const { return *symbols_; }
+  const SymbolicModel& symbolic() const { return symbolic_; }
+  const ModelPrograms& programs() const { return programs_; }
+  int nq() const { return programs_.nq; }
+  int nc() const { return programs_.nc; }
+  // Parameter values in double, in file order.
+  const std::vector<double>& params() const { return params_; }
+  Eigen::VectorXd q0() const;
+  // Local offsets of the named points, evaluated.
+  const std::vector<Eigen::Vector2d>& point_offsets() const { return point_s_; }
+
+  // A label for the constraint behind row r ("joints[1] (revolute)", with its component).
+  std::string row_label(int row) const;
+
+ private:
+  explicit CompiledModel(Mechanism mechanism) : mechanism_(std::move(mechanism)) {}
+  void build(const std::vector<ParamOverride>& overrides);
+
+  Mechanism mechanism_;
+  std::unique_ptr<SymbolTable> symbols_;
+  SymbolicModel symbolic_;
+  ModelPrograms programs_;
+  std::vector<double> params_;
+  std::vector<Eigen::Vector2d> point_s_;
+};
+
+// Evaluates a compiled model's programs on scalar type T (dense Phi_q).
+template <class T>
+class ModelEvaluator {
+ public:
+  using Vector = Eigen::Matrix<T, Eigen::Dynamic, 1>;
+  using Matrix = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
+
+  explicit ModelEvaluator(const CompiledModel& model)
+      : model_(&model),
+        phi_(model.programs().phi),
+        phi_q_(model.programs().phi_q),
+        nu_(model.programs().nu),
+        gamma_(model.programs().gamma),
+        params_(model.params().begin(), model.params().end()),
+        jac_values_(model.programs().jac_rows.size()) {}
+
+  void phi(const T* q, T t, T* out) { phi_.run(q, nullptr, t, params_.data(), out); }
+  void nu(const T* q, T t, T* out) { nu_.run(q, nullptr, t, params_.data(), out); }
+  void gamma(const T* q, const T* qd, T t, T* out) { gamma_.run(q, qd, t, params_.data(), out); }
+  // The structural non-zeros in jac_rows/jac_cols order.
+  void phi_q_values(const T* q, T t, T* out) { phi_q_.run(q, nullptr, t, params_.data(), out); }
+  template <class M>
+  void jacobian(const T* q, T t, M& jac) {
+    phi_q_values(q, t, jac_values_.data());
+    const auto& p = model_->programs();
+    for (std::size_t k = 0; k < jac_values_.size(); ++k) jac(p.jac_rows[k], p.jac_cols[k]) = jac_values_[k];
+  }
+
+ private:
+  const CompiledModel* model_;
+  ProgramEvaluator<T> phi_, phi_q_, nu_, gamma_;
+  std::vector<T> params_;
+  std::vector<T> jac_values_;
+};
+
+// The runtime's view of a compiled model (sizes known at run time).
+class ProgramSystem {
+ public:
+  using Scalar = double;
+  static constexpr int kNq = Eigen::Dynamic;
+  static constexpr int kNc = Eigen::Dynamic;
+
+  explicit ProgramSystem(const CompiledModel& model) : model_(&model), eval_(model) {}
+  ProgramSystem(const ProgramSystem& other) : model_(other.model_), eval_(*other.model_) {}
+
+  int nq() const { return model_->nq(); }
+  int nc() const { return model_->nc(); }
+  double length_scale() const { return model_->symbolic().length_scale; }
+  void phi(const double* q, double t, double* out) const { eval_.phi(q, t, out); }
+  void nu(const double* q, double t, double* out) const { eval_.nu(q, t, out); }
+  void gamma(const double* q, const double* qd, double t, double* out) const {
+    eval_.gamma(q, qd, t, out);
+  }
+  template <class M>
+  void jacobian(const double* q, double t, M& jac) const {
+    eval_.jacobian(q, t, jac);
+  }
+
+ private:
+  const CompiledModel* model_;
+  mutable ModelEvaluator<double> eval_;  // scratch storage only
+};
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,103 @@
+// The symbolic stage: one symbol table for every GiNaC symbol, the constraint library turned
+// into Phi(q, t), and its derivatives Phi_q, nu = -Phi_t and
+// gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.
+#pragma once
+
+#include <ginac/ginac.h>
+
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "kinegen/codegen/mechanism.hpp"
+
+namespace kinegen::codegen {
+
+// What a symbol stands for in generated code and in the evaluator.
+enum class InputKind { kQ, kQd, kT, kParam };
+struct Input {
+  InputKind kind;
+  int index;  // coordinate or parameter index; 0 for t
+};
+
+// Which symbols an expression may use where it appears in the file.
+enum class Scope {
+  kConstant,    // numbers only: parameter values, --param overrides
+  kGeometry,    // parameters: joint data, q0, point offsets
+  kJoint,       // parameters and coordinates: expression joints
+  kDriverTime,  // parameters and t: f(t) of a driver
+  kDriver,      // parameters, coordinates and t: expression drivers
+};
+
+class SymbolTable {
+ public:
+  explicit SymbolTable(const Mechanism& mechanism);
+  SymbolTable(const SymbolTable&) = delete;
+  SymbolTable& operator=(const SymbolTable&) = delete;
+
+  const GiNaC::realsymbol& q(int k) const { return q_[k]; }
+  const GiNaC::realsymbol& qd(int k) const { return qd_[k]; }
+  const GiNaC::realsymbol& t() const { return t_; }
+  const GiNaC::realsymbol& param(int k) const { return params_[k]; }
+  int nq() const { return static_cast<int>(q_.size()); }
+  int num_params() const { return static_cast<int>(params_.size()); }
+  const std::string& param_name(int k) const { return param_names_[k]; }
+  const std::string& coord_name(int k) const { return coord_names_[k]; }
+
+  // Parses `expr` for use in `scope`: decimals become exact rationals, only the format's
+  // functions are known, and every failure is an InputError naming `item` and the line.
+  GiNaC::ex parse(const Expr& expr, Scope scope, const std::string& item) const;
+
+  // The role of a symbol created here; throws std::logic_error for a foreign symbol.
+  Input classify(const GiNaC::ex& symbol) const;
+
+ private:
+  std::string source_;
+  std::vector<GiNaC::realsymbol> q_, qd_, params_;
+  GiNaC::realsymbol t_;
+  std::vector<std::string> param_names_, coord_names_;
+  std::map<GiNaC::ex, Input, GiNaC::ex_is_less> roles_;
+};
+
+// One row of Phi and where it came from, for messages that name joints and drivers.
+struct RowOrigin {
+  const Constraint* constraint;
+  int component;  // 0-based within the constraint
+};
+
+struct JacobianEntry {
+  int row, col;
+  GiNaC::ex value;
+};
+
+struct SymbolicModel {
+  std::vector<GiNaC::ex> phi;            // nc
+  std::vector<RowOrigin> rows;           // nc
+  std::vector<JacobianEntry> phi_q;      // structural non-zeros, row-major
+  std::vector<GiNaC::ex> nu;             // nc
+  std::vector<GiNaC::ex> gamma;          // nc
+  std::vector<GiNaC::ex> q0;             // nq, in the parameters
+  std::vector<std::pair<GiNaC::ex, GiNaC::ex>> point_s;  // local offsets, in the parameters
+  std::vector<GiNaC::numeric> param_values;  // defaults (after overrides), exact
+  double length_scale = 1.0;  // a typical length of the mechanism, for tolerances
+};
+
+// A --param NAME=VALUE override.
+struct ParamOverride {
+  std::string name;
+  std::string value;
+};
+
+// Builds Phi and its derivatives. Throws InputError for bad expressions or overrides.
+SymbolicModel derive(const Mechanism& mechanism, const SymbolTable& symbols,
+                     const std::vector<ParamOverride>& overrides = {});
+
+// Substitutes the parameter values into `e` (exact where the values are exact).
+GiNaC::ex substitute_params(const GiNaC::ex& e, const SymbolTable& symbols,
+                            const std::vector<GiNaC::numeric>& values);
+
+// The double value of a constant expression (no symbols left).
+double to_double(const GiNaC::ex& e);
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,402 @@
+// Reads a mechanism file into plain data and validates its structure: keys, types, names,
+// references and vector lengths. Expressions stay text; the symbolic stage parses them.
+#include "kinegen/codegen/mechanism.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <unordered_set>
+
+namespace kinegen::codegen {
+
+namespace {
+
+SourceLoc loc_of(const YAML::Node& node) {
+  const YAML::Mark mark = node.Mark();
+  if (mark.line < 0) return {};
+  return {mark.line + 1, mark.column + 1};
+}
+
+struct TypeInfo {
+  ConstraintType type;
+  const char* name;
+  bool joint, driver;
+};
+
+constexpr TypeInfo kTypes[] = {
+    {ConstraintType::kRevolute, "revolute", true, false},
+    {ConstraintType::kTranslational, "translational", true, false},
+    {ConstraintType::kDistance, "distance", true, true},
+    {ConstraintType::kRevoluteTranslational, "revolute_translational", true, false},
+    {ConstraintType::kAbsoluteX, "absolute_x", true, true},
+    {ConstraintType::kAbsoluteY, "absolute_y", true, true},
+    {ConstraintType::kAbsoluteAngle, "absolute_angle", true, true},
+    {ConstraintType::kRelativeAngle, "relative_angle", true, true},
+    {ConstraintType::kExpression, "expression", true, true},
+};
+
+// The keys each constraint type takes (besides `type` and `name`); `value_key` is where the
+// constant (joints) lives; drivers use `f` instead.
+struct KeySpec {
+  std::vector<std::string> required, optional;
+  const char* value_key;  // nullptr when the type has no scalar value
+};
+
+KeySpec keys_for(ConstraintType type, bool driver) {
+  const char* fkey = "f";
+  switch (type) {
+    case ConstraintType::kRevolute:
+      return {{"i", "j"}, {"si", "sj"}, nullptr};
+    case ConstraintType::kTranslational:
+      return {{"i", "j", "vi"}, {"si", "sj", "angle"}, nullptr};
+    case ConstraintType::kDistance:
+      return {{"i", "j", driver ? fkey : "length"}, {"si", "sj"}, driver ? fkey : "length"};
+    case ConstraintType::kRevoluteTranslational:
+      return {{"i", "j", "vi"}, {"si", "sj"}, nullptr};
+    case ConstraintType::kAbsoluteX:
+    case ConstraintType::kAbsoluteY:
+      return {{"body", driver ? fkey : "value"}, {"s"}, driver ? fkey : "value"};
+    case ConstraintType::kAbsoluteAngle:
+      return {{"body", driver ? fkey : "value"}, {}, driver ? fkey : "value"};
+    case ConstraintType::kRelativeAngle:
+      return {{"i", "j", driver ? fkey : "value"}, {}, driver ? fkey : "value"};
+    case ConstraintType::kExpression:
+      return {{"equations"}, {}, nullptr};
+  }
+  return {};
+}
+
+// C++ keywords and alternative tokens (C++20), which a name must not be.
+const std::unordered_set<std::string>& cpp_keywords() {
+  static const std::unordered_set<std::string> kKeywords = {
+      "alignas",   "alignof",      "and",          "and_eq",      "asm",
+      "auto",      "bitand",       "bitor",        "bool",        "break",
+      "case",      "catch",        "char",         "char8_t",     "char16_t",
+      "char32_t",  "class",        "compl",        "concept",     "const",
+      "consteval", "constexpr",    "constinit",    "const_cast",  "continue",
+      "co_await",  "co_return",    "co_yield",     "decltype",    "default",
+      "delete",    "do",           "double",       "dynamic_cast", "else",
+      "enum",      "explicit",     "export",       "extern",      "false",
+      "float",     "for",          "friend",       "goto",        "if",
+      "inline",    "int",          "long",         "mutable",     "namespace",
+      "new",       "noexcept",     "not",          "not_eq",      "nullptr",
+      "operator",  "or",           "or_eq",        "private",     "protected",
+      "public",    "register",     "reinterpret_cast", "requires", "return",
+      "short",     "signed",       "sizeof",       "static",      "static_assert",
+      "static_cast", "struct",     "switch",       "template",    "this",
+      "thread_local", "throw",     "true",         "try",         "typedef",
+      "typeid",    "typename",     "union",        "unsigned",    "using",
+      "virtual",   "void",         "volatile",     "wchar_t",     "while",
+      "xor",       "xor_eq",       "final",        "override",    "import",
+      "module"};
+  return kKeywords;
+}
+
+// Names the expression language gives a meaning of its own.
+const std::unordered_set<std::string>& reserved_names() {
+  static const std::unordered_set<std::string> kReserved = {
+      "ground", "t",    "pi",   "Pi",  "I",   "Euler", "Catalan", "sin", "cos",
+      "tan",    "asin", "acos", "atan", "exp", "log",  "sqrt",    "pow"};
+  return kReserved;
+}
+
+class Loader {
+ public:
+  explicit Loader(std::string source) : source_(std::move(source)) {}
+
+  Mechanism load(const YAML::Node& root) {
+    if (!root.IsDefined() || root.IsNull()) fail("file", {}, "the file is empty");
+    if (!root.IsMap()) fail("file", loc_of(root), "the top level must be a mapping of keys");
+    check_keys(root, "file", {"name"}, {"parameters", "bodies", "joints", "drivers", "points"});
+    Mechanism m;
+    m.source = source_;
+    m.name = name_of(root["name"], "name");
+    if (m.name == "Params" || m.name == "Solver" || m.name == "models")
+      fail("name", loc_of(root["name"]), "'" + m.name + "' is reserved for the generated API");
+    if (root["parameters"]) read_parameters(root["parameters"], m);
+    if (!root["bodies"]) fail("file", loc_of(root), "missing key 'bodies' (the moving bodies)");
+    read_bodies(root["bodies"], m);
+    read_constraints(root["joints"], "joints", false, m);
+    read_constraints(root["drivers"], "drivers", true, m);
+    if (root["points"]) read_points(root["points"], m);
+    check_unique_names(m);
+    return m;
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& item, SourceLoc loc, const std::string& message) {
+    throw InputError(source_, item, loc, message);
+  }
+
+  // Every key must be known (catches misspellings) and appear once.
+  void check_keys(const YAML::Node& map, const std::string& item,
+                  const std::vector<std::string>& required,
+                  const std::vector<std::string>& optional) {
+    std::set<std::string> seen;
+    for (auto it = map.begin(); it != map.end(); ++it) {
+      if (!it->first.IsScalar()) fail(item, loc_of(it->first), "keys must be plain names");
+      const std::string key = it->first.Scalar();
+      if (!seen.insert(key).second) fail(item, loc_of(it->first), "duplicate key '" + key + "'");
+      const bool known = key == "type" || key == "name" ||
+                         std::find(required.begin(), required.end(), key) != required.end() ||
+                         std::find(optional.begin(), optional.end(), key) != optional.end();
+      if (!known) {
+        std::string allowed;
+        for (const auto& k : required) allowed += (allowed.empty() ? "" : ", ") + k;
+        for (const auto& k : optional) allowed += (allowed.empty() ? "" : ", ") + k;
+        fail(item, loc_of(it->first), "unknown key '" + key + "' (expected: " + allowed + ")");
+      }
+    }
+    for (const auto& k : required)
+      if (!seen.count(k)) fail(item, loc_of(map), "missing key '" + k + "'");
+  }
+
+  std::string name_of(const YAML::Node& node, const std::string& item) {
+    if (!node.IsScalar()) fail(item, loc_of(node), "a name must be a plain string");
+    const std::string name = node.Scalar();
+    if (!is_valid_identifier(name))
+      fail(item, loc_of(node),
+           "'" + name +
+               "' is not a valid name (a C identifier that is not a C++ keyword and does not "
+               "start with '_' or contain '__')");
+    if (reserved_names().count(name))
+      fail(item, loc_of(node), "'" + name + "' is reserved in expressions");
+    return name;
+  }
+
+  Expr expr_of(const YAML::Node& node, const std::string& item) {
+    if (!node.IsScalar() || node.Scalar().empty())
+      fail(item, loc_of(node), "expected a number or an expression string");
+    return Expr{node.Scalar(), loc_of(node)};
+  }
+
+  Vec2 vec2_of(const YAML::Node& node, const std::string& item) {
+    if (!node.IsSequence() || node.size() != 2)
+      fail(item, loc_of(node), "expected a vector of 2 numbers, e.g. [0, 0]");
+    return Vec2{expr_of(node[0], item), expr_of(node[1], item)};
+  }
+
+  void read_parameters(const YAML::Node& node, Mechanism& m) {
+    if (node.IsNull()) return;
+    if (!node.IsMap()) fail("parameters", loc_of(node), "expected a mapping name: value");
+    std::set<std::string> seen;
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      const std::string name = name_of(it->first, "parameters");
+      const std::string item = "parameters." + name;
+      if (!seen.insert(name).second) fail(item, loc_of(it->first), "duplicate parameter");
+      m.parameters.push_back({name, expr_of(it->second, item), loc_of(it->first)});
+    }
+  }
+
+  void read_bodies(const YAML::Node& node, Mechanism& m) {
+    if (!node.IsSequence() || node.size() == 0)
+      fail("bodies", loc_of(node), "expected a non-empty list of bodies");
+    for (std::size_t k = 0; k < node.size(); ++k) {
+      const YAML::Node b = node[k];
+      std::string item = "bodies[" + std::to_string(k) + "]";
+      if (!b.IsMap()) fail(item, loc_of(b), "expected a mapping with 'name' and 'q0'");
+      check_keys(b, item, {"name", "q0"}, {});
+      Body body;
+      body.name = name_of(b["name"], item);
+      item = "body '" + body.name + "'";
+      const YAML::Node q0 = b["q0"];
+      if (!q0.IsSequence() || q0.size() != 3)
+        fail(item, loc_of(q0), "q0 must be a vector of 3 numbers [x, y, phi]");
+      for (int c = 0; c < 3; ++c) body.q0[c] = expr_of(q0[c], item);
+      body.loc = loc_of(b);
+      if (m.find_body(body.name)) fail(item, loc_of(b["name"]), "duplicate body name");
+      m.bodies.push_back(std::move(body));
+    }
+  }
+
+  int body_ref(const YAML::Node& node, const Mechanism& m, const std::string& item,
+               bool allow_ground) {
+    if (!node.IsScalar()) fail(item, loc_of(node), "a body reference must be a name");
+    const std::string name = node.Scalar();
+    if (name == "ground") {
+      if (!allow_ground) fail(item, loc_of(node), "this constraint needs a moving body, not ground");
+      return kGround;
+    }
+    if (auto b = m.find_body(name)) return *b;
+    fail(item, loc_of(node), "unknown body '" + name + "'");
+  }
+
+  void read_constraints(const YAML::Node& node, const std::string& list, bool driver,
+                        Mechanism& m) {
+    if (!node || node.IsNull()) return;
+    if (!node.IsSequence()) fail(list, loc_of(node), "expected a list");
+    for (std::size_t k = 0; k < node.size(); ++k) {
+      const YAML::Node c = node[k];
+      std::string item = list + "[" + std::to_string(k) + "]";
+      if (!c.IsMap()) fail(item, loc_of(c), "expected a mapping with a 'type'");
+      if (!c["type"] || !c["type"].IsScalar()) fail(item, loc_of(c), "missing key 'type'");
+      const std::string type_name = c["type"].Scalar();
+      const TypeInfo* info = nullptr;
+      for (const auto& t : kTypes)
+        if (type_name == t.name && (driver ? t.driver : t.joint)) info = &t;
+      if (!info) {
+        std::string allowed;
+        for (const auto& t : kTypes)
+          if (driver ? t.driver : t.joint) allowed += (allowed.empty() ? "" : ", ") + std::string(t.name);
+        fail(item, loc_of(c["type"]),
+             "unknown " + std::string(driver ? "driver" : "joint") + " type '" + type_name +
+                 "' (expected one of: " + allowed + ")");
+      }
+      Constraint con;
+      con.type = info->type;
+      con.is_driver = driver;
+      con.loc = loc_of(c);
+      item += " (" + type_name + ")";
+      if (c["name"]) {
+        con.name = name_of(c["name"], item);
+        item = list + "[" + std::to_string(k) + "] '" + con.name + "' (" + type_name + ")";
+      }
+      con.item = item;
+      const KeySpec spec = keys_for(con.type, driver);
+      check_keys(c, item, spec.required, spec.optional);
+
+      const Expr zero{"0", con.loc};
+      con.si = con.sj = Vec2{zero, zero};
+      con.value = zero;
+      if (c["body"]) con.i = body_ref(c["body"], m, item, false);
+      if (c["i"]) con.i = body_ref(c["i"], m, item, true);
+      if (c["j"]) con.j = body_ref(c["j"], m, item, true);
+      if (c["i"] && c["j"] && con.i == con.j)
+        fail(item, loc_of(c["j"]), "i and j must be different bodies");
+      if (c["si"]) con.si = vec2_of(c["si"], item + " si");
+      if (c["sj"]) con.sj = vec2_of(c["sj"], item + " sj");
+      if (c["s"]) con.si = vec2_of(c["s"], item + " s");
+      if (c["vi"]) con.vi = vec2_of(c["vi"], item + " vi");
+      if (c["angle"]) con.value = expr_of(c["angle"], item + " angle");
+      if (spec.value_key) con.value = expr_of(c[spec.value_key], item + " " + spec.value_key);
+      if (con.type == ConstraintType::kExpression) {
+        const YAML::Node eqs = c["equations"];
+        if (eqs.IsScalar()) {
+          con.equations.push_back(expr_of(eqs, item));
+        } else if (eqs.IsSequence() && eqs.size() > 0) {
+          for (std::size_t e = 0; e < eqs.size(); ++e)
+            con.equations.push_back(
+                expr_of(eqs[e], item + " equations[" + std::to_string(e) + "]"));
+        } else {
+          fail(item, loc_of(eqs), "equations must be a non-empty list of expression strings");
+        }
+      }
+      (driver ? m.drivers : m.joints).push_back(std::move(con));
+    }
+  }
+
+  void read_points(const YAML::Node& node, Mechanism& m) {
+    if (node.IsNull()) return;
+    if (!node.IsSequence()) fail("points", loc_of(node), "expected a list of points");
+    for (std::size_t k = 0; k < node.size(); ++k) {
+      const YAML::Node p = node[k];
+      std::string item = "points[" + std::to_string(k) + "]";
+      if (!p.IsMap()) fail(item, loc_of(p), "expected a mapping with 'name', 'body' and 's'");
+      check_keys(p, item, {"name", "body"}, {"s"});
+      Point point;
+      point.name = name_of(p["name"], item);
+      item = "point '" + point.name + "'";
+      point.body = body_ref(p["body"], m, item, false);
+      const Expr zero{"0", loc_of(p)};
+      point.s = p["s"] ? vec2_of(p["s"], item + " s") : Vec2{zero, zero};
+      point.loc = loc_of(p);
+      m.points.push_back(std::move(point));
+    }
+  }
+
+  // Parameters, coordinates (x_<body>, ...) and points share one namespace in expressions and
+  // CSV headers; a clash would make an expression or a column ambiguous.
+  void check_unique_names(const Mechanism& m) {
+    std::set<std::string> taken;
+    for (const auto& b : m.bodies)
+      for (const char* prefix : {"x_", "y_", "phi_"}) taken.insert(prefix + b.name);
+    for (const auto& p : m.parameters) {
+      if (taken.count(p.name) || m.find_body(p.name))
+        fail("parameters." + p.name, p.loc,
+             "the name clashes with a body or a coordinate name (x_<body>, y_<body>, phi_<body>)");
+    }
+    std::set<std::string> points;
+    for (const auto& p : m.points) {
+      if (!points.insert(p.name).second) fail("point '" + p.name + "'", p.loc, "duplicate point name");
+      if (m.find_body(p.name))
+        fail("point '" + p.name + "'", p.loc, "the name clashes with a body (CSV columns would repeat)");
+    }
+    std::set<std::string> names;
+    for (const auto* c : m.constraints())
+      if (!c->name.empty() && !names.insert(c->name).second)
+        fail(c->item, c->loc, "duplicate joint or driver name '" + c->name + "'");
+  }
+
+  std::string source_;
+};
+
+}  // namespace
+
+const char* to_string(ConstraintType type) {
+  for (const auto& t : kTypes)
+    if (t.type == type) return t.name;
+  return "?";
+}
+
+int Constraint::equation_count() const {
+  switch (type) {
+    case ConstraintType::kRevolute:
+    case ConstraintType::kTranslational:
+      return 2;
+    case ConstraintType::kExpression:
+      return static_cast<int>(equations.size());
+    default:
+      return 1;
+  }
+}
+
+int Mechanism::nc() const {
+  int n = 0;
+  for (const auto* c : constraints()) n += c->equation_count();
+  return n;
+}
+
+std::vector<const Constraint*> Mechanism::constraints() const {
+  std::vector<const Constraint*> all;
+  for (const auto& c : joints) all.push_back(&c);
+  for (const auto& c : drivers) all.push_back(&c);
+  return all;
+}
+
+std::optional<int> Mechanism::find_body(const std::string& name) const {
+  for (std::size_t k = 0; k < bodies.size(); ++k)
+    if (bodies[k].name == name) return static_cast<int>(k);
+  return std::nullopt;
+}
+
+bool is_valid_identifier(const std::string& name) {
+  if (name.empty() || name.size() > 64) return false;
+  if (!(std::isalpha(static_cast<unsigned char>(name[0])))) return false;  // also rules out '_X'
+  for (char ch : name)
+    if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_')) return false;
+  if (name.find("__") != std::string::npos) return false;
+  return cpp_keywords().count(name) == 0;
+}
+
+Mechanism parse_mechanism(const std::string& yaml_text, const std::string& source) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::ParserException& e) {
+    throw InputError(source, "YAML syntax", {e.mark.line + 1, e.mark.column + 1}, e.msg);
+  }
+  return Loader(source).load(root);
+}
+
+Mechanism load_mechanism(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "file", {}, "cannot open the mechanism file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse_mechanism(text.str(), path);
+}
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,199 @@
+#include "kinegen/codegen/program.hpp"
+
+#include <algorithm>
+#include <cstdlib>
+#include <map>
+#include <stdexcept>
+
+namespace kinegen::codegen {
+
+using GiNaC::ex;
+
+namespace {
+
+const std::map<std::string, OpKind>& function_kinds() {
+  static const std::map<std::string, OpKind> kKinds = {
+      {"sin", OpKind::kSin},   {"cos", OpKind::kCos},   {"tan", OpKind::kTan},
+      {"asin", OpKind::kAsin}, {"acos", OpKind::kAcos}, {"atan", OpKind::kAtan},
+      {"exp", OpKind::kExp},   {"log", OpKind::kLog}};
+  return kKinds;
+}
+
+class Lowerer {
+ public:
+  explicit Lowerer(const SymbolTable& symbols) : symbols_(symbols) {}
+
+  int lower(const ex& e) {
+    const auto it = memo_.find(e);
+    if (it != memo_.end()) return it->second;
+    const int id = build(e);
+    memo_.emplace(e, id);
+    return id;
+  }
+
+  Program finish(std::vector<int> outputs) {
+    program_.outputs = std::move(outputs);
+    compact();
+    return std::move(program_);
+  }
+
+ private:
+  int add(Node n) {
+    program_.nodes.push_back(std::move(n));
+    return static_cast<int>(program_.nodes.size()) - 1;
+  }
+
+  int constant(const ex& e) {
+    Node n;
+    n.kind = OpKind::kConst;
+    n.exact = e;
+    n.value = to_double(e);
+    return add(std::move(n));
+  }
+
+  bool is_const(int id) const { return program_.nodes[id].kind == OpKind::kConst; }
+
+  int build(const ex& e) {
+    if (GiNaC::is_a<GiNaC::numeric>(e) || GiNaC::is_a<GiNaC::constant>(e)) return constant(e);
+    if (GiNaC::is_a<GiNaC::symbol>(e)) {
+      Node n;
+    n.kind = OpKind::kInput;
+      n.input = symbols_.classify(e);
+      return add(std::move(n));
+    }
+    Node n;
+    n.kind = OpKind::kAdd;
+    if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
+      n.kind = GiNaC::is_a<GiNaC::add>(e) ? OpKind::kAdd : OpKind::kMul;
+      for (std::size_t k = 0; k < e.nops(); ++k) n.args.push_back(lower(e.op(k)));
+      // A product's numeric coefficient goes first: it reads as `T(2)*x*y` and both back
+      // ends multiply in this order.
+      if (n.kind == OpKind::kMul)
+        std::stable_partition(n.args.begin(), n.args.end(), [&](int a) { return is_const(a); });
+    } else if (GiNaC::is_a<GiNaC::power>(e)) {
+      const ex base = e.op(0), exponent = e.op(1);
+      const int b = lower(base);
+      if (GiNaC::is_a<GiNaC::numeric>(exponent)) {
+        const GiNaC::numeric x = GiNaC::ex_to<GiNaC::numeric>(exponent);
+        if (x.is_integer()) {
+          n.kind = OpKind::kPowInt;
+          n.args = {b};
+          n.exponent = x.to_int();
+        } else if (x == GiNaC::numeric(1, 2) || x == GiNaC::numeric(-1, 2)) {
+          // x^(-1/2) = 1 / sqrt(x): a sqrt and a reciprocal, both exact to rounding.
+          n.kind = OpKind::kSqrt;
+          n.args = {b};
+          if (x.is_negative()) {
+            Node inv;
+            inv.kind = OpKind::kPowInt;
+            inv.args = {fold_or_add(std::move(n), GiNaC::sqrt(base))};
+            inv.exponent = -1;
+            return fold_or_add(std::move(inv), e);
+          }
+        } else {
+          n.kind = OpKind::kPow;
+          n.args = {b, lower(exponent)};
+        }
+      } else {
+        n.kind = OpKind::kPow;
+        n.args = {b, lower(exponent)};
+      }
+    } else if (GiNaC::is_a<GiNaC::function>(e)) {
+      const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
+      const auto it = function_kinds().find(name);
+      if (it == function_kinds().end() || e.nops() != 1)
+        throw std::logic_error("unsupported function in a derived expression: " + name);
+      n.kind = it->second;
+      n.args = {lower(e.op(0))};
+    } else {
+      throw std::logic_error("unsupported expression class: " +
+                             std::string(GiNaC::ex_to<GiNaC::basic>(e).class_name()));
+    }
+    return fold_or_add(std::move(n), e);
+  }
+
+  // A node whose arguments are all constants is itself a constant: fold it to one literal.
+  int fold_or_add(Node n, const ex& e) {
+    bool all_const = !n.args.empty();
+    for (int a : n.args) all_const = all_const && is_const(a);
+    if (all_const) return constant(e);
+    return add(std::move(n));
+  }
+
+  // Counts uses and drops nodes nothing refers to (children of folded constants), keeping
+  // dependency order.
+  void compact() {
+    auto& nodes = program_.nodes;
+    for (auto& n : nodes) n.uses = 0;
+    for (int o : program_.outputs)
+      if (o != Program::kZero) ++nodes[o].uses;
+    for (int k = static_cast<int>(nodes.size()) - 1; k >= 0; --k)
+      if (nodes[k].uses > 0)
+        for (int a : nodes[k].args) ++nodes[a].uses;
+    std::vector<int> remap(nodes.size(), -1);
+    std::vector<Node> kept;
+    for (std::size_t k = 0; k < nodes.size(); ++k) {
+      if (nodes[k].uses == 0) continue;
+      remap[k] = static_cast<int>(kept.size());
+      Node n = std::move(nodes[k]);
+      for (int& a : n.args) a = remap[a];
+      kept.push_back(std::move(n));
+    }
+    nodes = std::move(kept);
+    for (int& o : program_.outputs)
+      if (o != Program::kZero) o = remap[o];
+    const auto computed = [](const Node& n) {
+      return n.kind != OpKind::kConst && n.kind != OpKind::kInput;
+    };
+    for (auto& n : nodes) {
+      if (computed(n) && n.uses > 1) n.named = true;
+      if (n.kind == OpKind::kPowInt && std::abs(n.exponent) >= 2 &&
+          std::abs(n.exponent) <= kMaxUnrolledPower && computed(nodes[n.args[0]]))
+        nodes[n.args[0]].named = true;
+    }
+  }
+
+  const SymbolTable& symbols_;
+  Program program_;
+  std::map<ex, int, GiNaC::ex_is_less> memo_;
+};
+
+}  // namespace
+
+bool Program::reads(InputKind kind) const {
+  for (const auto& n : nodes)
+    if (n.kind == OpKind::kInput && n.input.kind == kind) return true;
+  return false;
+}
+
+int Program::operation_count() const {
+  int count = 0;
+  for (const auto& n : nodes) count += n.kind != OpKind::kConst && n.kind != OpKind::kInput;
+  return count;
+}
+
+Program lower(const std::vector<ex>& outputs, const SymbolTable& symbols) {
+  Lowerer lowerer(symbols);
+  std::vector<int> ids;
+  for (const auto& e : outputs) ids.push_back(e.is_zero() ? Program::kZero : lowerer.lower(e));
+  return lowerer.finish(std::move(ids));
+}
+
+ModelPrograms lower_model(const SymbolicModel& model, const SymbolTable& symbols, int nq) {
+  ModelPrograms p;
+  p.nq = nq;
+  p.nc = static_cast<int>(model.phi.size());
+  std::vector<ex> jac;
+  for (const auto& e : model.phi_q) {
+    p.jac_rows.push_back(e.row);
+    p.jac_cols.push_back(e.col);
+    jac.push_back(e.value);
+  }
+  p.phi = lower(model.phi, symbols);
+  p.phi_q = lower(jac, symbols);
+  p.nu = lower(model.nu, symbols);
+  p.gamma = lower(model.gamma, symbols);
+  return p;
+}
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,398 @@
+#include "kinegen/codegen/symbolic.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <set>
+
+namespace kinegen::codegen {
+
+using GiNaC::ex;
+
+namespace {
+
+// The functions the format allows, looked up in GiNaC's own reader table.
+GiNaC::prototype_table allowed_functions() {
+  static const std::set<std::string> kAllowed = {"sin",  "cos", "tan", "asin", "acos",
+                                                 "atan", "exp", "log", "sqrt"};
+  GiNaC::prototype_table table;
+  for (const auto& [proto, reader] : GiNaC::get_default_reader())
+    if (kAllowed.count(proto.first) && proto.second == 1) table[proto] = reader;
+  return table;
+}
+
+// Rewrites decimal literals as exact ratios ("1.25e-1" -> "(125/1000)"), so values are exact
+// in the symbolic stage and the high-precision path is not limited to double.
+std::string rationalize_literals(const std::string& text) {
+  std::string out;
+  std::size_t k = 0;
+  const auto digit = [&](std::size_t p) {
+    return p < text.size() && std::isdigit(static_cast<unsigned char>(text[p]));
+  };
+  while (k < text.size()) {
+    const bool starts_number =
+        (digit(k) || (text[k] == '.' && digit(k + 1))) &&
+        (k == 0 || !(std::isalnum(static_cast<unsigned char>(text[k - 1])) || text[k - 1] == '_'));
+    if (!starts_number) {
+      out += text[k++];
+      continue;
+    }
+    std::string mantissa;
+    long frac_digits = 0;
+    while (digit(k)) mantissa += text[k++];
+    if (k < text.size() && text[k] == '.') {
+      ++k;
+      while (digit(k)) {
+        mantissa += text[k++];
+        ++frac_digits;
+      }
+    }
+    long exponent = 0;
+    if (k < text.size() && (text[k] == 'e' || text[k] == 'E')) {
+      std::size_t p = k + 1;
+      bool negative = false;
+      if (p < text.size() && (text[p] == '+' || text[p] == '-')) negative = text[p++] == '-';
+      if (digit(p)) {
+        std::string e;
+        while (digit(p)) e += text[p++];
+        if (e.size() > 6) e = "999999";  // beyond any sensible input; keeps the ratio finite
+        exponent = std::stol(e) * (negative ? -1 : 1);
+        k = p;
+      }
+    }
+    const long scale = exponent - frac_digits;
+    std::string num = mantissa, den = "1";
+    if (scale > 0) num += std::string(static_cast<std::size_t>(scale), '0');
+    if (scale < 0) den += std::string(static_cast<std::size_t>(-scale), '0');
+    out += "(" + num + "/" + den + ")";
+  }
+  return out;
+}
+
+// Cleans GiNaC's messages of their source-location suffixes.
+std::string clean_message(const std::string& what) {
+  std::string m = what.substr(0, what.find('\n'));
+  const std::string parse_prefix = "GiNaC: parse error at line 0, column 0: ";
+  if (m.rfind(parse_prefix, 0) == 0) m = m.substr(parse_prefix.size());
+  const std::string unknown = "find_or_insert_symbol: symbol \"";
+  if (m.rfind(unknown, 0) == 0) {
+    const std::string name = m.substr(unknown.size(), m.find('"', unknown.size()) - unknown.size());
+    return "unknown symbol '" + name + "'";
+  }
+  if (m.find("division by zero") != std::string::npos) return "division by zero";
+  return m;
+}
+
+bool scope_allows(Scope scope, InputKind kind) {
+  switch (kind) {
+    case InputKind::kParam:
+      return scope != Scope::kConstant;
+    case InputKind::kQ:
+      return scope == Scope::kJoint || scope == Scope::kDriver;
+    case InputKind::kT:
+      return scope == Scope::kDriverTime || scope == Scope::kDriver;
+    case InputKind::kQd:
+      return false;
+  }
+  return false;
+}
+
+const char* scope_hint(Scope scope) {
+  switch (scope) {
+    case Scope::kConstant:
+      return "only numbers may be used here";
+    case Scope::kGeometry:
+      return "only numbers and parameters may be used here";
+    case Scope::kJoint:
+      return "joints do not depend on t; use a driver";
+    case Scope::kDriverTime:
+      return "f may use only t and the parameters";
+    case Scope::kDriver:
+      return "not allowed here";
+  }
+  return "";
+}
+
+}  // namespace
+
+SymbolTable::SymbolTable(const Mechanism& m) : source_(m.source), t_("t") {
+  for (const auto& b : m.bodies) {
+    for (const char* prefix : {"x_", "y_", "phi_"}) {
+      const std::string name = prefix + b.name;
+      coord_names_.push_back(name);
+      q_.emplace_back(name);
+      qd_.emplace_back(name + "_dot");
+    }
+  }
+  for (const auto& p : m.parameters) {
+    param_names_.push_back(p.name);
+    params_.emplace_back(p.name);
+  }
+  for (int k = 0; k < nq(); ++k) {
+    roles_.emplace(q_[k], Input{InputKind::kQ, k});
+    roles_.emplace(qd_[k], Input{InputKind::kQd, k});
+  }
+  roles_.emplace(t_, Input{InputKind::kT, 0});
+  for (int k = 0; k < num_params(); ++k) roles_.emplace(params_[k], Input{InputKind::kParam, k});
+}
+
+ex SymbolTable::parse(const Expr& expr, Scope scope, const std::string& item) const {
+  static const GiNaC::prototype_table kFunctions = allowed_functions();
+  GiNaC::symtab table;
+  for (int k = 0; k < nq(); ++k) table[coord_names_[k]] = q_[k];
+  for (int k = 0; k < num_params(); ++k) table[param_names_[k]] = params_[k];
+  table["t"] = t_;
+  table["pi"] = GiNaC::Pi;
+
+  ex e;
+  try {
+    GiNaC::parser reader(table, /*strict=*/true, kFunctions);
+    e = reader(rationalize_literals(expr.text));
+  } catch (const std::exception& err) {
+    throw InputError(source_, item, expr.loc,
+                     "cannot read '" + expr.text + "': " + clean_message(err.what()));
+  }
+  for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it) {
+    if (GiNaC::is_a<GiNaC::symbol>(*it)) {
+      const Input role = classify(*it);
+      if (!scope_allows(scope, role.kind))
+        throw InputError(source_, item, expr.loc,
+                         "'" + expr.text + "' uses '" + GiNaC::ex_to<GiNaC::symbol>(*it).get_name() +
+                             "': " + scope_hint(scope));
+    } else if (GiNaC::is_a<GiNaC::numeric>(*it) && !GiNaC::ex_to<GiNaC::numeric>(*it).is_real()) {
+      throw InputError(source_, item, expr.loc, "'" + expr.text + "' is not real");
+    } else if (GiNaC::is_a<GiNaC::constant>(*it) && !it->is_equal(GiNaC::Pi)) {
+      throw InputError(source_, item, expr.loc,
+                       "'" + expr.text + "' uses an unknown constant (only pi is known)");
+    }
+  }
+  return e;
+}
+
+Input SymbolTable::classify(const ex& symbol) const {
+  const auto it = roles_.find(symbol);
+  if (it == roles_.end()) throw std::logic_error("symbol not created by the symbol table");
+  return it->second;
+}
+
+ex substitute_params(const ex& e, const SymbolTable& symbols,
+                     const std::vector<GiNaC::numeric>& values) {
+  GiNaC::exmap map;
+  for (int k = 0; k < symbols.num_params(); ++k) map[symbols.param(k)] = values[k];
+  return e.subs(map);
+}
+
+double to_double(const ex& e) {
+  // Enough digits that rounding to double happens once, here.
+  const long saved = GiNaC::Digits;
+  GiNaC::Digits = 40;
+  const ex v = GiNaC::evalf(e);
+  GiNaC::Digits = saved;
+  if (!GiNaC::is_a<GiNaC::numeric>(v)) throw std::logic_error("not a constant expression");
+  return GiNaC::ex_to<GiNaC::numeric>(v).to_double();
+}
+
+namespace {
+
+// The library's equations, written once in the notation of the format.
+class Builder {
+ public:
+  Builder(const Mechanism& m, const SymbolTable& s, const std::vector<GiNaC::numeric>& values)
+      : m_(m), s_(s), values_(values) {}
+
+  struct Frame {
+    ex x, y, phi;
+  };
+
+  Frame frame(int body) const {
+    if (body == kGround) return {0, 0, 0};
+    return {s_.q(3 * body), s_.q(3 * body + 1), s_.q(3 * body + 2)};
+  }
+
+  // A(phi) s
+  static std::pair<ex, ex> rotate(const ex& phi, const std::pair<ex, ex>& s) {
+    return {GiNaC::cos(phi) * s.first - GiNaC::sin(phi) * s.second,
+            GiNaC::sin(phi) * s.first + GiNaC::cos(phi) * s.second};
+  }
+
+  std::pair<ex, ex> vec(const Vec2& v, const std::string& item) const {
+    return {geometry(v.x, item), geometry(v.y, item)};
+  }
+
+  // A constant of the geometry, checked to evaluate to a finite number.
+  ex geometry(const Expr& e, const std::string& item) const {
+    const ex value = s_.parse(e, Scope::kGeometry, item);
+    check_finite(value, e, item);
+    return value;
+  }
+
+  void check_finite(const ex& value, const Expr& e, const std::string& item) const {
+    double v = 0;
+    try {
+      v = to_double(substitute_params(value, s_, values_));
+    } catch (const std::exception& err) {
+      throw InputError(m_.source, item, e.loc,
+                       "'" + e.text + "' cannot be evaluated: " + clean_message(err.what()));
+    }
+    if (!std::isfinite(v))
+      throw InputError(m_.source, item, e.loc, "'" + e.text + "' is not a finite number");
+  }
+
+  std::vector<ex> equations(const Constraint& c) const {
+    const Frame fi = frame(c.i), fj = frame(c.j);
+    const auto d_ij = [&] {
+      const auto ai = rotate(fi.phi, vec(c.si, c.item + " si"));
+      const auto aj = rotate(fj.phi, vec(c.sj, c.item + " sj"));
+      return std::pair<ex, ex>{fj.x + aj.first - fi.x - ai.first,
+                               fj.y + aj.second - fi.y - ai.second};
+    };
+    // (A_i vi)^perp . d = -(A_i vi)_y d_x + (A_i vi)_x d_y
+    const auto perp_dot = [&](const std::pair<ex, ex>& d) {
+      const auto v = vec(c.vi, c.item + " vi");
+      if (to_double(substitute_params(GiNaC::pow(v.first, 2) + GiNaC::pow(v.second, 2), s_,
+                                      values_)) == 0.0)
+        throw InputError(m_.source, c.item, c.vi.x.loc, "vi must not be the zero vector");
+      const auto av = rotate(fi.phi, v);
+      return -av.second * d.first + av.first * d.second;
+    };
+    const Scope value_scope = c.is_driver ? Scope::kDriverTime : Scope::kGeometry;
+    const auto value = [&] {
+      const std::string item = c.item + (c.is_driver ? " f" : " value");
+      const ex v = s_.parse(c.value, value_scope, item);
+      if (!c.is_driver) check_finite(v, c.value, item);
+      return v;
+    };
+    switch (c.type) {
+      case ConstraintType::kRevolute: {
+        const auto d = d_ij();
+        return {d.first, d.second};
+      }
+      case ConstraintType::kTranslational: {
+        const auto d = d_ij();
+        return {perp_dot(d), fj.phi - fi.phi - value()};
+      }
+      case ConstraintType::kDistance: {
+        const auto d = d_ij();
+        return {GiNaC::pow(d.first, 2) + GiNaC::pow(d.second, 2) - GiNaC::pow(value(), 2)};
+      }
+      case ConstraintType::kRevoluteTranslational:
+        return {perp_dot(d_ij())};
+      case ConstraintType::kAbsoluteX:
+        return {fi.x + rotate(fi.phi, vec(c.si, c.item + " s")).first - value()};
+      case ConstraintType::kAbsoluteY:
+        return {fi.y + rotate(fi.phi, vec(c.si, c.item + " s")).second - value()};
+      case ConstraintType::kAbsoluteAngle:
+        return {fi.phi - value()};
+      case ConstraintType::kRelativeAngle:
+        return {fj.phi - fi.phi - value()};
+      case ConstraintType::kExpression: {
+        std::vector<ex> rows;
+        const Scope scope = c.is_driver ? Scope::kDriver : Scope::kJoint;
+        for (std::size_t k = 0; k < c.equations.size(); ++k)
+          rows.push_back(
+              s_.parse(c.equations[k], scope, c.item + " equations[" + std::to_string(k) + "]"));
+        return rows;
+      }
+    }
+    return {};
+  }
+
+ private:
+  const Mechanism& m_;
+  const SymbolTable& s_;
+  const std::vector<GiNaC::numeric>& values_;
+};
+
+std::vector<GiNaC::numeric> parameter_values(const Mechanism& m, const SymbolTable& s,
+                                             const std::vector<ParamOverride>& overrides) {
+  std::vector<GiNaC::numeric> values;
+  const auto constant = [&](const Expr& e, const std::string& item) {
+    const ex v = GiNaC::evalf(s.parse(e, Scope::kConstant, item));
+    // Exact values stay exact; anything irrational (pi, sqrt(2)) is taken at CLN's precision.
+    const ex exact = s.parse(e, Scope::kConstant, item);
+    if (GiNaC::is_a<GiNaC::numeric>(exact)) return GiNaC::ex_to<GiNaC::numeric>(exact);
+    if (!GiNaC::is_a<GiNaC::numeric>(v))
+      throw InputError(m.source, item, e.loc, "'" + e.text + "' is not a number");
+    return GiNaC::ex_to<GiNaC::numeric>(v);
+  };
+  for (const auto& p : m.parameters) values.push_back(constant(p.value, "parameters." + p.name));
+  for (const auto& o : overrides) {
+    const auto it = std::find_if(m.parameters.begin(), m.parameters.end(),
+                                 [&](const Parameter& p) { return p.name == o.name; });
+    if (it == m.parameters.end())
+      throw InputError(m.source, "--param " + o.name, {}, "the mechanism has no such parameter");
+    values[it - m.parameters.begin()] = constant(Expr{o.value, {}}, "--param " + o.name);
+  }
+  for (std::size_t k = 0; k < values.size(); ++k)
+    if (!std::isfinite(values[k].to_double()))
+      throw InputError(m.source, "parameters." + m.parameters[k].name, m.parameters[k].loc,
+                       "the value is not a finite number");
+  return values;
+}
+
+}  // namespace
+
+SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
+                     const std::vector<ParamOverride>& overrides) {
+  SymbolicModel model;
+  model.param_values = parameter_values(m, s, overrides);
+  const Builder builder(m, s, model.param_values);
+
+  for (const auto* c : m.constraints()) {
+    const auto rows = builder.equations(*c);
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      model.phi.push_back(rows[k]);
+      model.rows.push_back({c, static_cast<int>(k)});
+    }
+  }
+  const int nq = m.nq();
+  const int nc = static_cast<int>(model.phi.size());
+
+  for (int r = 0; r < nc; ++r)
+    for (int k = 0; k < nq; ++k) {
+      const ex d = model.phi[r].diff(s.q(k));
+      if (!d.is_zero()) model.phi_q.push_back({r, k, d});
+    }
+
+  // nu = -Phi_t. gamma = -(w_q qd + 2 w_t + Phi_tt), w = Phi_q qd, with w_q qd = sum_k dw/dq_k qd_k.
+  for (int r = 0; r < nc; ++r) {
+    const ex phi_t = model.phi[r].diff(s.t());
+    model.nu.push_back(-phi_t);
+    ex w = 0;
+    for (const auto& e : model.phi_q)
+      if (e.row == r) w += e.value * s.qd(e.col);
+    ex w_q_qd = 0;
+    for (int k = 0; k < nq; ++k) w_q_qd += w.diff(s.q(k)) * s.qd(k);
+    model.gamma.push_back(-(w_q_qd + 2 * w.diff(s.t()) + phi_t.diff(s.t())));
+  }
+
+  double scale = 0;
+  const auto grow = [&](const ex& e) {
+    scale = std::max(scale, std::abs(to_double(substitute_params(e, s, model.param_values))));
+  };
+  for (const auto& b : m.bodies) {
+    const std::string item = "body '" + b.name + "' q0";
+    for (int c = 0; c < 3; ++c) {
+      model.q0.push_back(builder.geometry(b.q0[c], item));
+      if (c < 2) grow(model.q0.back());
+    }
+  }
+  for (const auto& p : m.points) {
+    const auto v = builder.vec(p.s, "point '" + p.name + "' s");
+    model.point_s.push_back(v);
+    grow(v.first);
+    grow(v.second);
+  }
+  for (const auto* c : m.constraints()) {
+    if (c->type == ConstraintType::kExpression) continue;
+    for (const Vec2* v : {&c->si, &c->sj}) {
+      const auto lv = builder.vec(*v, c->item);
+      grow(lv.first);
+      grow(lv.second);
+    }
+  }
+  model.length_scale = scale > 0 ? scale : 1.0;
+  return model;
+}
+
+}  // namespace kinegen::codegen
