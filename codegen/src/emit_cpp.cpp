@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <sstream>
 
 namespace kinegen::codegen {
@@ -205,13 +206,27 @@ std::string join(const Container& values) {
 void emit_function(std::ostringstream& os, const char* name, const char* out_size,
                    const Program& program, const SymbolTable& symbols, bool with_qd) {
   os << "  template <class T>\n";
-  os << "  static void " << name << "([[maybe_unused]] const T* q, ";
-  if (with_qd) os << "[[maybe_unused]] const T* qd, ";
-  os << "[[maybe_unused]] T t, [[maybe_unused]] const Params& p,\n"
-     << "      [[maybe_unused]] T* out) noexcept {\n";
+  os << "  static void " << name << "([[maybe_unused]] const T* q,";
+  if (with_qd) os << " [[maybe_unused]] const T* qd,";
+  os << "\n      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {\n";
   os << "    // out[" << out_size << "]; " << program.operation_count() << " operations\n";
-  os << "    using std::acos, std::asin, std::atan, std::cos, std::exp, std::log, std::pow, "
-        "std::sin,\n        std::sqrt, std::tan;\n";
+  // Unqualified calls after using-declarations: std's overloads for float, double and
+  // std::complex, and argument-dependent lookup for other scalar types.
+  static const std::pair<OpKind, const char*> kFunctions[] = {
+      {OpKind::kAcos, "acos"}, {OpKind::kAsin, "asin"}, {OpKind::kAtan, "atan"},
+      {OpKind::kCos, "cos"},   {OpKind::kExp, "exp"},   {OpKind::kLog, "log"},
+      {OpKind::kPow, "pow"},   {OpKind::kSin, "sin"},   {OpKind::kSqrt, "sqrt"},
+      {OpKind::kTan, "tan"}};
+  std::string used;
+  for (const auto& [kind, fname] : kFunctions) {
+    bool uses = false;
+    for (const auto& n : program.nodes)
+      uses = uses || n.kind == kind ||
+             (kind == OpKind::kPow && n.kind == OpKind::kPowInt &&
+              std::abs(n.exponent) > kMaxUnrolledPower);
+    if (uses) used += std::string(used.empty() ? "" : ", ") + "std::" + fname;
+  }
+  if (!used.empty()) os << "    using " << used << ";\n";
   os << FunctionPrinter(program, symbols).body("    ");
   os << "  }\n";
 }
@@ -220,8 +235,12 @@ void emit_function(std::ostringstream& os, const char* name, const char* out_siz
 
 std::string format_double(double value) {
   if (value == 0) return "0";
+  // The shortest form that reads back to the same double.
   char buf[40];
-  std::snprintf(buf, sizeof buf, "%.17g", value);
+  for (int digits = 15; digits <= 17; ++digits) {
+    std::snprintf(buf, sizeof buf, "%.*g", digits, value);
+    if (std::strtod(buf, nullptr) == value) break;
+  }
   std::string s = buf;
   // Keep it a floating literal so T(...) never sees an integer that overflows int.
   if (s.find_first_of(".en") == std::string::npos) s += ".0";
@@ -246,15 +265,15 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
 
   os << "// Coordinates:";
   for (int k = 0; k < programs.nq; ++k)
-    os << (k % 3 == 0 ? "\n//  " : "") << " q[" << k << "] = " << symbols.coord_name(k);
+    os << (k % 3 == 0 ? "\n//  " : ",") << " q[" << k << "] = " << symbols.coord_name(k);
   os << "\n// Constraint rows:\n";
   for (int r = 0; r < programs.nc; ++r) {
     const Constraint* c = model.rows[r].constraint;
     if (model.rows[r].component > 0) continue;
     const int n = c->equation_count();
+    // c->item is built from validated names and the constraint type only.
     os << "//   " << (n == 1 ? std::to_string(r) : std::to_string(r) + "-" + std::to_string(r + n - 1))
-       << ": " << (c->is_driver ? "driver " : "joint ") << to_string(c->type)
-       << (c->name.empty() ? "" : " " + c->name) << "\n";
+       << ": " << c->item << "\n";
   }
   os << "struct " << m.name << " {\n";
   os << "  static constexpr int nq = " << programs.nq << ";\n";

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <map>
+#include <sstream>
 #include <stdexcept>
 
 namespace kinegen::codegen {
@@ -65,7 +66,13 @@ class Lowerer {
     n.kind = OpKind::kAdd;
     if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
       n.kind = GiNaC::is_a<GiNaC::add>(e) ? OpKind::kAdd : OpKind::kMul;
-      for (std::size_t k = 0; k < e.nops(); ++k) n.args.push_back(lower(e.op(k)));
+      // GiNaC orders operands by hashes that vary from run to run (they mix in addresses), so
+      // operands are put in an order of our own: the same program, and the same rounding,
+      // every time.
+      std::vector<ex> operands(e.begin(), e.end());
+      std::stable_sort(operands.begin(), operands.end(),
+                       [&](const ex& a, const ex& b) { return key(a) < key(b); });
+      for (const ex& operand : operands) n.args.push_back(lower(operand));
       // A product's numeric coefficient goes first: it reads as `T(2)*x*y` and both back
       // ends multiply in this order.
       if (n.kind == OpKind::kMul)
@@ -153,8 +160,39 @@ class Lowerer {
     }
   }
 
+  // A canonical text of `e`, independent of GiNaC's internal operand order.
+  const std::string& key(const ex& e) {
+    const auto it = keys_.find(e);
+    if (it != keys_.end()) return it->second;
+    std::string k;
+    if (GiNaC::is_a<GiNaC::symbol>(e)) {
+      const Input in = symbols_.classify(e);
+      static const char kPrefix[] = {'q', 'v', 't', 'p'};
+      k = kPrefix[static_cast<int>(in.kind)] + std::to_string(in.index);
+    } else if (GiNaC::is_a<GiNaC::numeric>(e) || GiNaC::is_a<GiNaC::constant>(e)) {
+      std::ostringstream os;
+      os << e;
+      k = "#" + os.str();
+    } else {
+      std::vector<std::string> parts;
+      for (const ex& operand : e) parts.push_back(key(operand));
+      const bool commutative = GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e);
+      if (commutative) std::sort(parts.begin(), parts.end());
+      if (GiNaC::is_a<GiNaC::add>(e)) k = "+";
+      else if (GiNaC::is_a<GiNaC::mul>(e)) k = "*";
+      else if (GiNaC::is_a<GiNaC::power>(e)) k = "^";
+      else if (GiNaC::is_a<GiNaC::function>(e)) k = GiNaC::ex_to<GiNaC::function>(e).get_name();
+      else k = GiNaC::ex_to<GiNaC::basic>(e).class_name();
+      k += "(";
+      for (std::size_t i = 0; i < parts.size(); ++i) k += (i ? "," : "") + parts[i];
+      k += ")";
+    }
+    return keys_.emplace(e, std::move(k)).first->second;
+  }
+
   const SymbolTable& symbols_;
   Program program_;
+  std::map<ex, std::string, GiNaC::ex_is_less> keys_;
   std::map<ex, int, GiNaC::ex_is_less> memo_;
 };
 

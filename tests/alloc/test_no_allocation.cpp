@@ -1,0 +1,55 @@
+// Solver<Model> allocates nothing after construction: the global operator new is replaced by
+// a counting one, and a full analysis loop must leave the count unchanged.
+#define CATCH_CONFIG_MAIN
+#include <catch2/catch.hpp>
+
+#include <atomic>
+#include <cmath>
+#include <cstdlib>
+#include <new>
+
+#include "four_bar.hpp"
+#include "quick_return.hpp"
+#include "slider_crank.hpp"
+#include <kinegen/solver.hpp>
+
+namespace {
+std::atomic<long> g_allocations{0};
+}
+
+void* operator new(std::size_t size) {
+  ++g_allocations;
+  if (void* p = std::malloc(size ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t size) { return operator new(size); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+
+TEMPLATE_TEST_CASE("Solver allocates nothing after construction", "[runtime][alloc]",
+                   kinegen::models::slider_crank, kinegen::models::four_bar,
+                   kinegen::models::quick_return) {
+  kinegen::Solver<TestType> solver;
+  auto q = solver.initial_estimate();
+  decltype(q) qd = decltype(q)::Zero(), qdd = decltype(q)::Zero();
+
+  const long before = g_allocations.load();
+  int solved = 0;
+  for (int k = 0; k <= 1000; ++k) {
+    const double t = 2 * M_PI * k / 1000;
+    if (!solver.position(q, t)) break;
+    if (!solver.velocity(q, t, qd)) break;
+    if (!solver.acceleration(q, qd, t, qdd)) break;
+    ++solved;
+  }
+  const long after = g_allocations.load();
+  REQUIRE(solved == 1001);
+  CHECK(after - before == 0);
+
+  // The counter works: a heap allocation is seen.
+  auto* probe = new double(1.0);
+  CHECK(g_allocations.load() == after + 1);
+  delete probe;
+}
