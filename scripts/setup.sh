@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Installs what kinegen needs to build and test, from Debian packages, and configures and
+# builds it in build/. Safe to run again.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+packages=(g++ cmake make pkg-config libginac-dev libcln-dev libeigen3-dev catch2
+          libyaml-cpp-dev libcli11-dev)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  SUDO=""
+  [[ $(id -u) -ne 0 ]] && SUDO="sudo"
+  $SUDO apt-get update
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
+fi
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
+cmake --build build -j"$(nproc)"
