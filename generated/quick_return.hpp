@@ -50,7 +50,7 @@ struct quick_return {
     out[3] = T(p.d) + q[4];
     out[4] = -cos(q[2])*T(p.r) - q[0] + q[6];
     out[5] = -T(p.r)*sin(q[2]) - q[1] + q[7];
-    out[6] = -(-q[3] + q[6])*sin(q[5]) + (-q[4] + q[7])*cos(q[5]);
+    out[6] = -(-q[7] + q[4])*cos(q[5]) + (-q[6] + q[3])*sin(q[5]);
     out[7] = -q[5] + q[8];
     out[8] = -T(p.omega)*t + q[2];
   }
@@ -77,7 +77,7 @@ struct quick_return {
     out[9] = T(1);
     out[10] = _t0;
     out[11] = -_t1;
-    out[12] = -(-q[3] + q[6])*_t1 - (-q[4] + q[7])*_t0;
+    out[12] = (-q[6] + q[3])*_t1 + (-q[7] + q[4])*_t0;
     out[13] = -_t0;
     out[14] = _t1;
     out[15] = T(-1);
@@ -118,7 +118,7 @@ struct quick_return {
     out[3] = T(0);
     out[4] = -_t0*cos(q[2])*T(p.r);
     out[5] = -_t0*T(p.r)*sin(q[2]);
-    out[6] = -_t1*qd[3]*qd[5] - _t2*qd[4]*qd[5] + (-(-(-q[4] + q[7])*_t1 + (-q[3] + q[6])*_t2)*qd[5] - _t1*qd[3] - _t2*qd[4] + _t1*qd[6] + _t2*qd[7])*qd[5] + _t1*qd[5]*qd[6] + _t2*qd[5]*qd[7];
+    out[6] = -_t1*qd[3]*qd[5] - _t2*qd[4]*qd[5] + (-_t1*qd[3] - _t2*qd[4] + (-(-q[7] + q[4])*_t1 + (-q[6] + q[3])*_t2)*qd[5] + _t1*qd[6] + _t2*qd[7])*qd[5] + _t1*qd[5]*qd[6] + _t2*qd[5]*qd[7];
     out[7] = T(0);
     out[8] = T(0);
   }

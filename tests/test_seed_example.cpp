@@ -4,10 +4,9 @@
 // (library joints): the committed generated headers and the in-process evaluator.
 //
 // q = [x1, y1, phi1, x2, y2, phi2] (crank, rod); crank length 1, rod length l.
-#include <catch2/catch.hpp>
-
 #include <Eigen/Dense>
 #include <array>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -72,12 +71,14 @@ Lecture lecture(const Vec6& q, const Vec6& qd, double t, const LectureParams& p)
       a(y2), a(phi1) + a(p.omega * t);
 
   // Phi_q as printed in the lecture.
+  // clang-format off
   v.phi_q << 1, 0, 0, 0, 0, 0,
              0, 1, 0, 0, 0, 0,
              1, 0, -s1, -1, 0, l * c2,
              0, 1, c1, 0, -1, l * s2,
              0, 0, 0, 0, 1, 0,
              0, 0, 1, 0, 0, 0;
+  // clang-format on
   s.phi_q = v.phi_q.cwiseAbs();
 
   // nu = -Phi_t
@@ -112,8 +113,8 @@ struct Worst {
 // manifold too (these are identities in q, qd, t). A fixed seed keeps failures reproducible.
 Worst compare_with_lecture(const Evaluator& eval, const LectureParams& p) {
   std::mt19937_64 rng(20240617);
-  std::uniform_real_distribution<double> length(-5.0, 5.0), angle(-7.0, 7.0),
-      rate(-4.0, 4.0), time(-10.0, 10.0);
+  std::uniform_real_distribution<double> length(-5.0, 5.0), angle(-7.0, 7.0), rate(-4.0, 4.0),
+      time(-10.0, 10.0);
   Worst w;
   for (int k = 0; k < kSamples; ++k) {
     Vec6 q, qd;
@@ -226,8 +227,8 @@ TEMPLATE_TEST_CASE("generated header reproduces Haug Example 3.2", "[seed]",
 }
 
 TEST_CASE("in-process evaluator reproduces Haug Example 3.2", "[seed]") {
-  const std::string file = GENERATE(std::string("slider_crank_lecture.yaml"),
-                                    std::string("slider_crank.yaml"));
+  const std::string file =
+      GENERATE(std::string("slider_crank_lecture.yaml"), std::string("slider_crank.yaml"));
   INFO("examples/" << file);
   const bool other = GENERATE(false, true);
   const LectureParams params = other ? kOtherParams : LectureParams{};

@@ -29,6 +29,17 @@ std::string singular_rows(const CompiledModel& model, const Eigen::MatrixXd& jac
   return os.str();
 }
 
+// The constraint furthest from being satisfied at q, for messages about failed assembly.
+std::string largest_residual(const CompiledModel& model, const Eigen::VectorXd& q, double t) {
+  ModelEvaluator<double> eval(model);
+  Eigen::VectorXd phi(model.nc());
+  eval.phi(q.data(), t, phi.data());
+  Eigen::Index row = 0;
+  phi.cwiseAbs().maxCoeff(&row);
+  return "; largest residual " + format_number(phi[row]) + " in " +
+         model.row_label(static_cast<int>(row));
+}
+
 }  // namespace
 
 std::string format_number(double value) {
@@ -78,7 +89,8 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
                           r.message();
     if (r.status == Status::kMaxIterations)
       message += " in " + std::to_string(r.iterations) + " iterations (last scaled step " +
-                 format_number(r.step) + "); the mechanism may not assemble here";
+                 format_number(r.step) + "); the mechanism may not assemble here" +
+                 largest_residual(model, row.q, t);
     if (r.status == Status::kSingular) message += singular_rows(model, solver.jacobian());
     throw AnalysisError(message);
   };

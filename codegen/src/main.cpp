@@ -68,6 +68,13 @@ std::vector<kc::ParamOverride> parse_overrides(const std::vector<std::string>& a
   return overrides;
 }
 
+// Messages quote user text, which may hold line breaks; an error stays one line.
+std::string one_line(std::string text) {
+  for (char& ch : text)
+    if (ch == '\n' || ch == '\r' || ch == '\t') ch = ' ';
+  return text;
+}
+
 std::string json_number(double v) { return std::isfinite(v) ? kc::format_number(v) : "null"; }
 
 std::string json_array(const Eigen::VectorXd& v) {
@@ -124,7 +131,7 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   try {
     kc::run_analysis(*model, {t0, t1, steps}, [&](const kc::StateRow& row) { out << kc::csv_row(row); });
   } catch (const kc::AnalysisError& e) {
-    std::cerr << "error: " << e.what() << "\n";
+    std::cerr << "error: " << one_line(e.what()) << "\n";
     status = kExitFailed;  // the rows solved so far are kept
   }
   out.flush();
@@ -235,16 +242,17 @@ int main(int argc, char** argv) {
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
     if (*check) return run_check(common, check_options, structure);
   } catch (const kc::InputError& e) {
-    std::cerr << "error: " << e.what() << "\n";
+    std::cerr << "error: " << one_line(e.what()) << "\n";
     return kExitInvalid;
   } catch (const kc::UsageError& e) {
-    std::cerr << "error: " << e.what() << "\n";
+    // Usage problems found after reading the file (--q length, --param form) name it too.
+    std::cerr << "error: " << one_line(common.file + ": " + e.what()) << "\n";
     return kExitInvalid;
   } catch (const kc::AnalysisError& e) {
-    std::cerr << "error: " << e.what() << "\n";
+    std::cerr << "error: " << one_line(e.what()) << "\n";
     return kExitFailed;
   } catch (const std::exception& e) {
-    std::cerr << "error: " << common.file << ": internal error: " << e.what() << "\n";
+    std::cerr << "error: " << one_line(common.file + ": internal error: " + e.what()) << "\n";
     return kExitFailed;
   }
   return 0;

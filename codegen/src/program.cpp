@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -64,8 +65,8 @@ class Lowerer {
     }
     Node n;
     n.kind = OpKind::kAdd;
-    if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
-      n.kind = GiNaC::is_a<GiNaC::add>(e) ? OpKind::kAdd : OpKind::kMul;
+    if (GiNaC::is_a<GiNaC::add>(e)) {
+      n.kind = OpKind::kAdd;
       // GiNaC orders operands by hashes that vary from run to run (they mix in addresses), so
       // operands are put in an order of our own: the same program, and the same rounding,
       // every time.
@@ -73,10 +74,34 @@ class Lowerer {
       std::stable_sort(operands.begin(), operands.end(),
                        [&](const ex& a, const ex& b) { return key(a) < key(b); });
       for (const ex& operand : operands) n.args.push_back(lower(operand));
-      // A product's numeric coefficient goes first: it reads as `T(2)*x*y` and both back
-      // ends multiply in this order.
-      if (n.kind == OpKind::kMul)
-        std::stable_partition(n.args.begin(), n.args.end(), [&](int a) { return is_const(a); });
+    } else if (GiNaC::is_a<GiNaC::mul>(e)) {
+      n.kind = OpKind::kMul;
+      // GiNaC may hold c*(a - b)*x as -c*(b - a)*x, again by hash order. Every sum inside a
+      // product (or an integer power in it) is taken with a positive leading term, the sign
+      // moving to the coefficient; this is done on our nodes, as GiNaC would undo it.
+      GiNaC::numeric sign = 1, coefficient = 1;
+      std::vector<std::pair<std::string, int>> factors;  // canonical key, node
+      for (const ex& factor : e) {
+        if (GiNaC::is_a<GiNaC::numeric>(factor)) {
+          coefficient *= GiNaC::ex_to<GiNaC::numeric>(factor);
+          continue;
+        }
+        const CanonicalFactor c = canonical_factor(factor);
+        if (c.negated) sign = -sign;
+        factors.emplace_back(c.key, c.node);
+      }
+      std::stable_sort(factors.begin(), factors.end());
+      coefficient *= sign;
+      // The coefficient goes first: it reads as `T(2)*x*y`, and both back ends multiply in
+      // this order.
+      if (coefficient != 1 || factors.size() < 2) n.args.push_back(lower(coefficient));
+      for (const auto& f : factors) n.args.push_back(f.second);
+      if (n.args.size() == 1) return n.args[0];
+    } else if (is_flipped_power(e)) {
+      const CanonicalFactor c = canonical_factor(e);
+      if (!c.negated) return c.node;
+      n.kind = OpKind::kMul;
+      n.args = {lower(ex(-1)), c.node};
     } else if (GiNaC::is_a<GiNaC::power>(e)) {
       const ex base = e.op(0), exponent = e.op(1);
       const int b = lower(base);
@@ -160,6 +185,89 @@ class Lowerer {
     }
   }
 
+  // Whether a sum's leading term, in an order that ignores signs, has a negative coefficient.
+  bool leading_negative(const ex& sum) {
+    ex lead;  // by value: GiNaC's iterators hand out temporaries
+    std::string lead_key;
+    bool first = true;
+    for (const ex& term : sum) {
+      std::string k = unsigned_key(term);
+      if (first || k < lead_key) {
+        lead = term;
+        lead_key = std::move(k);
+        first = false;
+      }
+    }
+    if (first) return false;
+    if (GiNaC::is_a<GiNaC::numeric>(lead)) return GiNaC::ex_to<GiNaC::numeric>(lead).is_negative();
+    // The sign the term has under the convention: its coefficient, flipped once for every
+    // factor that is itself taken negated.
+    bool negative = false;
+    if (GiNaC::is_a<GiNaC::mul>(lead)) {
+      for (const ex& factor : lead) {
+        if (GiNaC::is_a<GiNaC::numeric>(factor))
+          negative ^= GiNaC::ex_to<GiNaC::numeric>(factor).is_negative();
+        else
+          negative ^= factor_key(factor).second;
+      }
+    } else {
+      negative = factor_key(lead).second;
+    }
+    return negative;
+  }
+
+  std::string unsigned_key(const ex& term) {
+    if (GiNaC::is_a<GiNaC::numeric>(term)) return key(GiNaC::abs(GiNaC::ex_to<GiNaC::numeric>(term)));
+    // x and -x must get the same key, so a lone factor is keyed like a product too.
+    if (!GiNaC::is_a<GiNaC::mul>(term)) return "*(" + factor_key(term).first + ",)";
+    std::vector<std::string> parts;
+    for (const ex& factor : term)
+      if (!GiNaC::is_a<GiNaC::numeric>(factor)) parts.push_back(factor_key(factor).first);
+    std::sort(parts.begin(), parts.end());
+    std::string k = "*(";
+    for (const auto& part : parts) k += part + ",";
+    return k + ")";
+  }
+
+  struct CanonicalFactor {
+    std::string key;
+    int node;
+    bool negated;
+  };
+
+  // Whether a product's factor is taken negated under the sign convention: a sum, or an
+  // integer power of a sum, whose leading term is negative. Also its canonical key.
+  bool is_flipped_power(const ex& e) {
+    return GiNaC::is_a<GiNaC::power>(e) && GiNaC::is_a<GiNaC::add>(e.op(0)) &&
+           e.op(1).info(GiNaC::info_flags::integer) && leading_negative(e.op(0));
+  }
+
+  std::pair<std::string, bool> factor_key(const ex& factor) {
+    if (GiNaC::is_a<GiNaC::add>(factor) && leading_negative(factor)) return {key(-factor), true};
+    if (is_flipped_power(factor)) {
+      const GiNaC::numeric n = GiNaC::ex_to<GiNaC::numeric>(factor.op(1));
+      return {"^(" + key(-factor.op(0)) + "," + key(n) + ")", n.is_odd()};
+    }
+    return {key(factor), false};
+  }
+
+  // A product's factor lowered under the sign convention (GiNaC would undo the rewrite, so it
+  // is done on our nodes).
+  CanonicalFactor canonical_factor(const ex& factor) {
+    auto [k, negated] = factor_key(factor);
+    if (GiNaC::is_a<GiNaC::add>(factor) && negated) return {k, lower(-factor), true};
+    if (is_flipped_power(factor)) {
+      const ex base = -factor.op(0);
+      const GiNaC::numeric n = GiNaC::ex_to<GiNaC::numeric>(factor.op(1));
+      Node p;
+      p.kind = OpKind::kPowInt;
+      p.args = {lower(base)};
+      p.exponent = n.to_int();
+      return {k, fold_or_add(std::move(p), GiNaC::pow(base, n)), negated};
+    }
+    return {k, lower(factor), false};
+  }
+
   // A canonical text of `e`, independent of GiNaC's internal operand order.
   const std::string& key(const ex& e) {
     const auto it = keys_.find(e);
@@ -173,10 +281,38 @@ class Lowerer {
       std::ostringstream os;
       os << e;
       k = "#" + os.str();
+    } else if (GiNaC::is_a<GiNaC::mul>(e)) {
+      GiNaC::numeric coefficient = 1;
+      std::vector<std::string> parts;
+      for (const ex& factor : e) {
+        if (GiNaC::is_a<GiNaC::numeric>(factor)) {
+          coefficient *= GiNaC::ex_to<GiNaC::numeric>(factor);
+          continue;
+        }
+        auto [fk, negated] = factor_key(factor);
+        if (negated) coefficient = -coefficient;
+        parts.push_back(std::move(fk));
+      }
+      std::sort(parts.begin(), parts.end());
+      k = "*(" + key(coefficient);
+      for (const auto& part : parts) k += "," + part;
+      k += ")";
+    } else if (is_flipped_power(e)) {
+      const auto [pk, negated] = factor_key(e);
+      k = negated ? "-" + pk : pk;
     } else {
+      k = key_plain(e);
+    }
+    return keys_.emplace(e, std::move(k)).first->second;
+  }
+
+  // The key of a non-product, operands in canonical order.
+  std::string key_plain(const ex& e) {
+    std::string k;
+    {
       std::vector<std::string> parts;
       for (const ex& operand : e) parts.push_back(key(operand));
-      const bool commutative = GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e);
+      const bool commutative = GiNaC::is_a<GiNaC::add>(e);
       if (commutative) std::sort(parts.begin(), parts.end());
       if (GiNaC::is_a<GiNaC::add>(e)) k = "+";
       else if (GiNaC::is_a<GiNaC::mul>(e)) k = "*";
@@ -187,7 +323,7 @@ class Lowerer {
       for (std::size_t i = 0; i < parts.size(); ++i) k += (i ? "," : "") + parts[i];
       k += ")";
     }
-    return keys_.emplace(e, std::move(k)).first->second;
+    return k;
   }
 
   const SymbolTable& symbols_;

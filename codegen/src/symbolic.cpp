@@ -189,6 +189,8 @@ double to_double(const ex& e) {
   const ex v = GiNaC::evalf(e);
   GiNaC::Digits = saved;
   if (!GiNaC::is_a<GiNaC::numeric>(v)) throw std::logic_error("not a constant expression");
+  // GiNaC keeps asin(2) as a complex value; taking its real part would hide the mistake.
+  if (!GiNaC::ex_to<GiNaC::numeric>(v).is_real()) throw std::domain_error("the value is not real");
   return GiNaC::ex_to<GiNaC::numeric>(v).to_double();
 }
 
@@ -307,12 +309,21 @@ std::vector<GiNaC::numeric> parameter_values(const Mechanism& m, const SymbolTab
                                              const std::vector<ParamOverride>& overrides) {
   std::vector<GiNaC::numeric> values;
   const auto constant = [&](const Expr& e, const std::string& item) {
-    const ex v = GiNaC::evalf(s.parse(e, Scope::kConstant, item));
-    // Exact values stay exact; anything irrational (pi, sqrt(2)) is taken at CLN's precision.
     const ex exact = s.parse(e, Scope::kConstant, item);
-    if (GiNaC::is_a<GiNaC::numeric>(exact)) return GiNaC::ex_to<GiNaC::numeric>(exact);
-    if (!GiNaC::is_a<GiNaC::numeric>(v))
-      throw InputError(m.source, item, e.loc, "'" + e.text + "' is not a number");
+    // Exact values stay exact; anything irrational (pi, sqrt(2)) is taken at 40 digits.
+    const long saved = GiNaC::Digits;
+    GiNaC::Digits = 40;
+    ex v;
+    try {
+      v = GiNaC::is_a<GiNaC::numeric>(exact) ? exact : GiNaC::evalf(exact);
+    } catch (const std::exception& err) {
+      GiNaC::Digits = saved;
+      throw InputError(m.source, item, e.loc,
+                       "'" + e.text + "' cannot be evaluated: " + clean_message(err.what()));
+    }
+    GiNaC::Digits = saved;
+    if (!GiNaC::is_a<GiNaC::numeric>(v) || !GiNaC::ex_to<GiNaC::numeric>(v).is_real())
+      throw InputError(m.source, item, e.loc, "'" + e.text + "' is not a real number");
     return GiNaC::ex_to<GiNaC::numeric>(v);
   };
   for (const auto& p : m.parameters) values.push_back(constant(p.value, "parameters." + p.name));
