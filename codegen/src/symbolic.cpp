@@ -182,12 +182,25 @@ ex substitute_params(const ex& e, const SymbolTable& symbols,
   return e.subs(map);
 }
 
+namespace {
+// Raises GiNaC's working precision for a scope, restoring it however the scope ends.
+class DigitsGuard {
+ public:
+  explicit DigitsGuard(long digits) : saved_(GiNaC::Digits) { GiNaC::Digits = digits; }
+  ~DigitsGuard() { GiNaC::Digits = saved_; }
+  DigitsGuard(const DigitsGuard&) = delete;
+  DigitsGuard& operator=(const DigitsGuard&) = delete;
+
+ private:
+  long saved_;
+};
+constexpr long kEvalDigits = 40;
+}  // namespace
+
 double to_double(const ex& e) {
   // Enough digits that rounding to double happens once, here.
-  const long saved = GiNaC::Digits;
-  GiNaC::Digits = 40;
+  const DigitsGuard digits(kEvalDigits);
   const ex v = GiNaC::evalf(e);
-  GiNaC::Digits = saved;
   if (!GiNaC::is_a<GiNaC::numeric>(v)) throw std::logic_error("not a constant expression");
   // GiNaC keeps asin(2) as a complex value; taking its real part would hide the mistake.
   if (!GiNaC::ex_to<GiNaC::numeric>(v).is_real()) throw std::domain_error("the value is not real");
@@ -311,17 +324,14 @@ std::vector<GiNaC::numeric> parameter_values(const Mechanism& m, const SymbolTab
   const auto constant = [&](const Expr& e, const std::string& item) {
     const ex exact = s.parse(e, Scope::kConstant, item);
     // Exact values stay exact; anything irrational (pi, sqrt(2)) is taken at 40 digits.
-    const long saved = GiNaC::Digits;
-    GiNaC::Digits = 40;
+    const DigitsGuard digits(kEvalDigits);
     ex v;
     try {
       v = GiNaC::is_a<GiNaC::numeric>(exact) ? exact : GiNaC::evalf(exact);
     } catch (const std::exception& err) {
-      GiNaC::Digits = saved;
       throw InputError(m.source, item, e.loc,
                        "'" + e.text + "' cannot be evaluated: " + clean_message(err.what()));
     }
-    GiNaC::Digits = saved;
     if (!GiNaC::is_a<GiNaC::numeric>(v) || !GiNaC::ex_to<GiNaC::numeric>(v).is_real())
       throw InputError(m.source, item, e.loc, "'" + e.text + "' is not a real number");
     return GiNaC::ex_to<GiNaC::numeric>(v);
