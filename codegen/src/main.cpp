@@ -183,8 +183,9 @@ int run_check(const Common& c, const kc::CheckOptions& options, bool structure) 
                 r.max_abs, r.max_rel, r.bound, r.ok() ? "ok" : "FAILED");
     ok = ok && r.ok();
   }
-  std::printf("%d samples near q0 (seed %u); max rel = max abs / max(1, largest |numeric|)\n",
-              options.samples, options.seed);
+  std::printf("%d samples near q0 (seed %u, angles + 2 pi * %g); max rel = max abs / max(1, "
+              "largest |truth| in the block)\n",
+              options.samples, options.seed, options.turns);
   if (!ok) {
     std::cerr << "error: " << c.file
               << ": check: the symbolic derivatives differ from the numeric ones beyond their "
@@ -237,6 +238,10 @@ int main(int argc, char** argv) {
   check->add_option("--seed", check_options.seed, "Random seed (default 1)");
   check->add_option("--t", check_options.t, "Time around which to sample (default 0)");
   check->add_flag("--structure", structure, "Also print the structure of Phi_q");
+  check->add_option("--turns", check_options.turns,
+                    "Shift every angle by 2 pi K: check after many revolutions (default 0)");
+  check->add_option("--digits", check_options.digits,
+                    "Decimal digits of the CLN method (default 40)");
 
   try {
     app.parse(argc, argv);
