@@ -236,3 +236,19 @@ TEST_CASE("analyze --reference-digits: same columns, values at rounding level, e
   CHECK(bad.err.rfind("error: ", 0) == 0);
   CHECK_FALSE(fs::exists(bad_csv));  // no half-written output
 }
+
+TEST_CASE("analyze --reference-digits fails like analyze where the mechanism cannot assemble",
+          "[check][cli][reference]") {
+  const std::string four_bar = std::string(KINEGEN_SOURCE_DIR) + "/examples/four_bar.yaml";
+  for (const bool reference : {false, true}) {
+    std::vector<std::string> args = {"analyze", four_bar, "--param", "c=0.1",   "--t0",
+                                     "0",       "--t1",   "1",       "--steps", "3"};
+    if (reference) args.insert(args.end(), {"--reference-digits", "30"});
+    const auto r = kinegen_cli(args);
+    INFO(reference << ": " << r.err);
+    CHECK(r.exit_code == 1);
+    CHECK(r.err.rfind("error: ", 0) == 0);
+    CHECK(r.err.find("did not converge") != std::string::npos);
+    CHECK(r.out.rfind("t,crank.x", 0) == 0);  // the header, no rows
+  }
+}
