@@ -2,9 +2,11 @@
 // the ordinary header with run-time Params (to rounding: folding may combine constants that the
 // run-time code multiplies at run time), also with --param overrides; and the folded code does
 // not read Params.
+#include <algorithm>
 #include <array>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <kinegen/solver.hpp>
 #include <random>
@@ -20,6 +22,7 @@
 #include "quick_return_folded.hpp"
 #include "slider_crank.hpp"
 #include "slider_crank_folded.hpp"
+#include "support/run_command.hpp"
 
 namespace {
 
@@ -130,4 +133,34 @@ TEST_CASE("folded code does not read Params", "[fold]") {
   CHECK(folded.find("--fold-params") != std::string::npos);
   const std::string plain = read(KINEGEN_SOURCE_DIR "/generated/four_bar.hpp");
   CHECK(plain.find("T(p.a)") != std::string::npos);
+}
+
+TEST_CASE("generate: --verbose reports each stage, default only the result, --quiet nothing",
+          "[fold][messages]") {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "fold_messages";
+  fs::create_directories(dir);
+  const std::string mech = KINEGEN_SOURCE_DIR "/examples/four_bar.yaml";
+  const auto verbose = kinegen::test::run_command(
+      {KINEGEN_EXE, "generate", mech, "-o", dir.string(), "--fold-params", "--verbose"});
+  REQUIRE(verbose.exit_code == 0);
+  for (const char* stage :
+       {"kinegen: reading", "kinegen: deriving", "kinegen: folding 7 parameters",
+        "kinegen: lowering", "kinegen: emitting", "kinegen: wrote"})
+    CHECK(verbose.err.find(stage) != std::string::npos);
+  // Not a terminal: no progress lines, just what was written.
+  const auto normal =
+      kinegen::test::run_command({KINEGEN_EXE, "generate", mech, "-o", dir.string()});
+  REQUIRE(normal.exit_code == 0);
+  CHECK(normal.err.rfind("kinegen: wrote ", 0) == 0);
+  CHECK(std::count(normal.err.begin(), normal.err.end(), '\n') == 1);
+  const auto quiet =
+      kinegen::test::run_command({KINEGEN_EXE, "--quiet", "generate", mech, "-o", dir.string()});
+  CHECK(quiet.exit_code == 0);
+  CHECK(quiet.err.empty());
+  // Errors still print under --quiet.
+  const auto bad = kinegen::test::run_command(
+      {KINEGEN_EXE, "generate", mech + ".missing", "-o", dir.string(), "--quiet"});
+  CHECK(bad.exit_code == 2);
+  CHECK(bad.err.rfind("error: ", 0) == 0);
 }
