@@ -12,8 +12,10 @@
 #include <sstream>
 
 #include "kinegen/codegen/analysis.hpp"
+#include "kinegen/codegen/animate.hpp"
 #include "kinegen/codegen/check.hpp"
 #include "kinegen/codegen/emit_cpp.hpp"
+#include "kinegen/codegen/log.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/reference.hpp"
 
@@ -103,19 +105,54 @@ void add_common(CLI::App* cmd, Common& c) {
       ->type_name("NAME=VALUE");
 }
 
-int run_generate(const Common& c, const std::string& dir) {
-  const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
-  const std::string text = kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
-                                           model->programs());
+// --fold-params: the header says so where a reader looks (banner and Params).
+void note_folded_params(std::string& text) {
+  const auto banner_end = text.find('\n');
+  if (banner_end != std::string::npos)
+    text.insert(banner_end + 1,
+                "// Parameters folded into constants (--fold-params): Params is kept for the same "
+                "API, but its members are ignored.\n");
+  const std::string params = "  struct Params {\n";
+  if (const auto at = text.find(params); at != std::string::npos)
+    text.insert(at + params.size(),
+                "    // Ignored: these values were folded into the code at generation.\n");
+}
+
+int run_generate(const Common& c, const std::string& dir, bool fold_params) {
+  kc::BuildOptions options;
+  options.fold_params = fold_params;
+  const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params), options);
+  kc::StageScope stage("emitting C++");
+  std::string text = kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
+                                     model->programs());
+  if (fold_params) note_folded_params(text);
+  stage.done(std::to_string(text.size() / 1024) + " KiB");
   std::error_code ec;
   fs::create_directories(dir, ec);
   const fs::path target = fs::path(dir) / (model->mechanism().name + ".hpp");
   AtomicFile out(target);
   out.stream() << text;
   out.commit();
-  std::cerr << "kinegen: wrote " << target.string() << " (nq = " << model->nq()
-            << ", nc = " << model->nc() << ", " << model->programs().jac_rows.size()
-            << " Jacobian non-zeros)\n";
+  kc::Log::global().info("wrote " + target.string() + " (nq = " + std::to_string(model->nq()) +
+                         ", nc = " + std::to_string(model->nc()) + ", " +
+                         std::to_string(model->programs().jac_rows.size()) +
+                         " Jacobian non-zeros)");
+  return 0;
+}
+
+int run_animate(const Common& c, const kc::AnimateOptions& options, const std::string& output) {
+  const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
+  kc::require_driven(*model);
+  std::string svg;
+  {
+    kc::StageScope stage("analysis and drawing");
+    svg = kc::animate_svg(*model, options);
+    stage.done(std::to_string(svg.size() / 1024) + " KiB of SVG");
+  }
+  AtomicFile out(output);
+  out.stream() << svg;
+  out.commit();
+  kc::Log::global().info("wrote " + output);
   return 0;
 }
 
@@ -202,11 +239,20 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("kinegen ") + kc::kVersion);
 
+  bool quiet = false, verbose = false;
+  auto* quiet_flag =
+      app.add_flag("-q,--quiet", quiet, "Errors only: no warnings, progress or 'wrote' lines");
+  app.add_flag("-v,--verbose", verbose, "Every stage with its time and size")->excludes(quiet_flag);
+  app.fallthrough();  // the flags may also follow the subcommand
+
   Common common;
   std::string out_dir = ".";
+  bool fold_params = false;
   auto* generate = app.add_subcommand("generate", "Write <DIR>/<name>.hpp for a mechanism");
   add_common(generate, common);
   generate->add_option("-o,--output", out_dir, "Output directory (default: .)");
+  generate->add_flag("--fold-params", fold_params,
+                     "Fold the parameter values (with --param overrides) into constants");
 
   double t0 = 0, t1 = 0;
   int steps = 0;
@@ -243,6 +289,20 @@ int main(int argc, char** argv) {
   check->add_option("--digits", check_options.digits,
                     "Decimal digits of the CLN method (default 40)");
 
+  kc::AnimateOptions animate_options;
+  std::string svg_file;
+  auto* animate = app.add_subcommand("animate", "Draw the mechanism moving over an analysis (SVG)");
+  add_common(animate, common);
+  animate->add_option("--t0", animate_options.grid.t0, "Start time")->required();
+  animate->add_option("--t1", animate_options.grid.t1, "End time")->required();
+  animate->add_option("--steps", animate_options.grid.steps, "Number of steps N (N + 1 frames)")
+      ->required();
+  animate->add_option("-o,--output", svg_file, "SVG file")->required();
+  animate->add_option("--frame", animate_options.frame, "Draw only frame K (0..N), not animated");
+  animate->add_option("--width", animate_options.width, "Width in pixels (default 800)");
+  animate->add_option("--duration", animate_options.duration,
+                      "Seconds per pass (default: t1 - t0)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -256,8 +316,12 @@ int main(int argc, char** argv) {
     return kExitInvalid;
   }
 
+  kc::Log::global().set_verbosity(quiet     ? kc::Verbosity::kQuiet
+                                  : verbose ? kc::Verbosity::kVerbose
+                                            : kc::Verbosity::kNormal);
   try {
-    if (*generate) return run_generate(common, out_dir);
+    if (*generate) return run_generate(common, out_dir, fold_params);
+    if (*animate) return run_animate(common, animate_options, svg_file);
     if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
     if (*check) return run_check(common, check_options, structure);

@@ -1,23 +1,56 @@
 #include "kinegen/codegen/model.hpp"
 
+#include "kinegen/codegen/log.hpp"
+
 namespace kinegen::codegen {
 
 std::unique_ptr<CompiledModel> CompiledModel::from_file(const std::string& path,
-                                                        const std::vector<ParamOverride>& overrides) {
-  return from_mechanism(load_mechanism(path), overrides);
+                                                        const std::vector<ParamOverride>& overrides,
+                                                        const BuildOptions& options) {
+  StageScope stage("reading " + path);
+  Mechanism mechanism = load_mechanism(path);
+  stage.done(std::to_string(mechanism.bodies.size()) + " bodies, " +
+             std::to_string(mechanism.nq()) + " coordinates, " + std::to_string(mechanism.nc()) +
+             " equations");
+  return from_mechanism(std::move(mechanism), overrides, options);
 }
 
 std::unique_ptr<CompiledModel> CompiledModel::from_mechanism(
-    Mechanism mechanism, const std::vector<ParamOverride>& overrides) {
+    Mechanism mechanism, const std::vector<ParamOverride>& overrides,
+    const BuildOptions& options) {
   std::unique_ptr<CompiledModel> model(new CompiledModel(std::move(mechanism)));
-  model->build(overrides);
+  model->build(overrides, options);
   return model;
 }
 
-void CompiledModel::build(const std::vector<ParamOverride>& overrides) {
+void CompiledModel::build(const std::vector<ParamOverride>& overrides,
+                          const BuildOptions& options) {
   symbols_ = std::make_unique<SymbolTable>(mechanism_);
-  symbolic_ = derive(mechanism_, *symbols_, overrides);
-  programs_ = lower_model(symbolic_, *symbols_, mechanism_.nq());
+  {
+    StageScope stage("deriving Phi, Phi_q, nu and gamma (" + std::to_string(mechanism_.nc()) +
+                     " equations)");
+    symbolic_ = derive(mechanism_, *symbols_, overrides);
+    stage.done("Phi_q: " + std::to_string(symbolic_.phi_q.size()) + " structural non-zeros");
+  }
+  if (options.fold_params) {
+    // Exact values, so constant subtrees still fold to one correctly rounded literal.
+    StageScope stage("folding " + std::to_string(symbols_->num_params()) + " parameters");
+    const auto fold = [&](GiNaC::ex& e) { e = substitute_params(e, *symbols_, symbolic_.param_values); };
+    for (auto& e : symbolic_.phi) fold(e);
+    for (auto& e : symbolic_.phi_q) fold(e.value);
+    for (auto& e : symbolic_.nu) fold(e);
+    for (auto& e : symbolic_.gamma) fold(e);
+    stage.done("");
+  }
+  {
+    StageScope stage("lowering to straight-line code");
+    programs_ = lower_model(symbolic_, *symbols_, mechanism_.nq());
+    stage.done(std::to_string(programs_.phi.operation_count()) + " + " +
+               std::to_string(programs_.phi_q.operation_count()) + " + " +
+               std::to_string(programs_.nu.operation_count()) + " + " +
+               std::to_string(programs_.gamma.operation_count()) +
+               " operations (phi + phi_q + nu + gamma)");
+  }
   for (const auto& v : symbolic_.param_values) params_.push_back(v.to_double());
   for (const auto& [x, y] : symbolic_.point_s)
     point_s_.emplace_back(to_double(substitute_params(x, *symbols_, symbolic_.param_values)),

@@ -14,14 +14,23 @@
 
 namespace kinegen::codegen {
 
+struct BuildOptions {
+  // Substitute the parameter values (after overrides) into Phi and its derivatives before
+  // lowering, so they fold into literals (`kinegen generate --fold-params`). Params keeps its
+  // members, but the programs no longer read them.
+  bool fold_params = false;
+};
+
 // Owns the stages; not copyable because later stages point into earlier ones.
 class CompiledModel {
  public:
   // Reads, validates and derives; throws InputError.
   static std::unique_ptr<CompiledModel> from_file(const std::string& path,
-                                                  const std::vector<ParamOverride>& overrides = {});
+                                                  const std::vector<ParamOverride>& overrides = {},
+                                                  const BuildOptions& options = {});
   static std::unique_ptr<CompiledModel> from_mechanism(Mechanism mechanism,
-                                                       const std::vector<ParamOverride>& overrides = {});
+                                                       const std::vector<ParamOverride>& overrides = {},
+                                                       const BuildOptions& options = {});
   CompiledModel(const CompiledModel&) = delete;
   CompiledModel& operator=(const CompiledModel&) = delete;
 
@@ -42,7 +51,7 @@ class CompiledModel {
 
  private:
   explicit CompiledModel(Mechanism mechanism) : mechanism_(std::move(mechanism)) {}
-  void build(const std::vector<ParamOverride>& overrides);
+  void build(const std::vector<ParamOverride>& overrides, const BuildOptions& options);
 
   Mechanism mechanism_;
   std::unique_ptr<SymbolTable> symbols_;

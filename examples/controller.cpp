@@ -1,0 +1,115 @@
+// A controller's inner loop: at a fixed rate (1 kHz here), solve the four-bar's position,
+// velocity and acceleration for the next tick with a fixed Newton iteration budget, as an
+// embedded controller would. Built twice, for float and for double, with -fno-exceptions and
+// -fno-rtti (see examples/CMakeLists.txt); the header is generated at build time by
+// kinegen_add_model.
+//
+// Prints the median and worst-case time per call (position + velocity + acceleration) over N
+// calls (default 1e6), the worst constraint residual, and the number of heap allocations
+// during the loop, counted by a replaced global operator new. Exits 1 if anything was
+// allocated, a solve failed, or the residual is out of bounds.
+//
+//   build/examples/controller_double [calls]
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <kinegen/solver.hpp>
+#include <new>
+#include <vector>
+
+#include "four_bar.hpp"
+
+#ifndef KINEGEN_SCALAR
+#define KINEGEN_SCALAR double
+#endif
+
+namespace {
+long g_allocations = 0;  // single-threaded program
+}
+
+// Counting allocation; there are no exceptions to throw, so failure aborts.
+void* operator new(std::size_t size) {
+  ++g_allocations;
+  void* p = std::malloc(size ? size : 1);
+  if (!p) std::abort();
+  return p;
+}
+void* operator new[](std::size_t size) { return operator new(size); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+
+int main(int argc, char** argv) {
+  using Scalar = KINEGEN_SCALAR;
+  using Model = kinegen::models::four_bar;
+  using Solver = kinegen::Solver<Model, Scalar>;
+  const long calls = argc > 1 ? std::atol(argv[1]) : 1000000;
+  if (calls < 1) return 2;
+  constexpr bool kFloat = sizeof(Scalar) == sizeof(float);
+  constexpr double kRate = 1000.0;  // Hz
+  constexpr Scalar kDt = Scalar(1 / kRate);
+
+  // The fixed budget: at most this many Newton iterations per tick. From the Taylor prediction
+  // of the last tick's state, Newton needs 1-2 here; the tolerance is what the scalar can reach.
+  kinegen::SolverOptions options;
+  options.max_iterations = 3;
+  options.tolerance = kFloat ? 1e-5 : 1e-10;
+  Model::Params params;
+  params.omega = 2 * M_PI;  // one crank turn per second
+  Solver solver(params, options);
+
+  // Everything the loop needs is set up here, before it starts.
+  std::vector<long> ns(static_cast<std::size_t>(calls));
+  typename Solver::Vector q = solver.initial_estimate(), qd, qdd;
+  qd.setZero();
+  qdd.setZero();
+  // Assembly from the file's rough estimate, outside the loop and its budget.
+  solver.options().max_iterations = 30;
+  if (!solver.position(q, Scalar(0))) return 1;
+  solver.options().max_iterations = options.max_iterations;
+  Scalar phi[Model::nc];
+  double worst_residual = 0;
+  long budget_exhausted = 0, failures = 0;
+
+  const long allocations_before = g_allocations;
+  for (long k = 1; k <= calls; ++k) {
+    // The clock wraps with the crank (one turn per second), and so does the crank's angle:
+    // time and angles stay small, which float needs, for any number of calls.
+    const long tick = k % static_cast<long>(kRate);
+    const Scalar t = Scalar(tick) * kDt;
+    const auto start = std::chrono::steady_clock::now();
+    if (tick == 0) q[2] -= Scalar(2 * M_PI);
+    q += kDt * qd + Scalar(0.5) * kDt * kDt * qdd;  // predict from the last tick
+    const kinegen::Result r = solver.position(q, t);
+    const bool ok = r || r.status == kinegen::Status::kMaxIterations;  // budget spent: use it
+    const bool ok_v = ok && solver.velocity(q, t, qd);
+    const bool ok_a = ok_v && solver.acceleration(q, qd, t, qdd);
+    const auto stop = std::chrono::steady_clock::now();
+    ns[static_cast<std::size_t>(k - 1)] =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(stop - start).count();
+    budget_exhausted += r.status == kinegen::Status::kMaxIterations;
+    failures += !ok_a;
+    Model::phi(q.data(), t, solver.system().params(), phi);
+    for (Scalar v : phi) worst_residual = std::max(worst_residual, double(std::abs(v)));
+  }
+  const long allocations = g_allocations - allocations_before;
+
+  std::sort(ns.begin(), ns.end());
+  const long median = ns[ns.size() / 2];
+  const long p999 = ns[std::min(ns.size() - 1, ns.size() * 999 / 1000)];
+  const long worst = ns.back();
+  std::printf("controller_%s: %ld calls at %.0f Hz, budget %d Newton iterations\n",
+              kFloat ? "float" : "double", calls, kRate, options.max_iterations);
+  std::printf(
+      "  time per call (position + velocity + acceleration): median %ld ns, "
+      "99.9%% %ld ns, worst %ld ns\n",
+      median, p999, worst);
+  std::printf("  budget used up: %ld calls; failures: %ld; worst |Phi|: %.3g\n", budget_exhausted,
+              failures, worst_residual);
+  std::printf("  heap allocations in the loop: %ld\n", allocations);
+  const double residual_bound = kFloat ? 1e-4 : 1e-9;
+  return allocations == 0 && failures == 0 && worst_residual <= residual_bound ? 0 : 1;
+}

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Makes docs/figures/ with the tool itself: an SVG animation of every example over one crank
+# turn, a PNG still of the four-bar (headless Chromium) and a plot of its analysis (gnuplot).
+#   scripts/make_figures.sh [path/to/kinegen]   (default: build/codegen/kinegen)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+kinegen=${1:-build/codegen/kinegen}
+out=docs/figures
+mkdir -p "$out"
+turn=6.283185307179586
+for yaml in examples/*.yaml; do
+  name=$(basename "$yaml" .yaml)
+  "$kinegen" animate "$yaml" --t0 0 --t1 $turn --steps 120 --width 480 -o "$out/$name.svg"
+done
+"$kinegen" animate examples/four_bar.yaml --t0 0 --t1 $turn --steps 120 --frame 20 \
+  --width 480 -o "$out/four_bar_frame.svg"
+if command -v chromium >/dev/null; then
+  size=$(sed -n 's/.*<svg[^>]* width="\([0-9]*\)" height="\([0-9]*\)".*/\1,\2/p' "$out/four_bar_frame.svg")
+  profile=$(mktemp -d)
+  chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run \
+    --disable-background-networking --disable-component-update --disable-sync \
+    --hide-scrollbars --force-device-scale-factor=1 --user-data-dir="$profile" \
+    --screenshot="$PWD/$out/four_bar_frame.png" --window-size="$size" \
+    "file://$PWD/$out/four_bar_frame.svg" >/dev/null 2>&1
+  rm -rf "$profile"
+fi
+rm -f "$out/four_bar_frame.svg"
+csv=$(mktemp --suffix=.csv)
+"$kinegen" analyze examples/four_bar.yaml --t0 0 --t1 $turn --steps 360 -o "$csv"
+scripts/plot_analysis.sh "$csv" -o "$out/four_bar_analysis.png" --only coupler,rocker,P
+rm -f "$csv"

@@ -1,0 +1,211 @@
+// `kinegen animate`: the SVG is rendered by headless Chromium (Debian `chromium`) to PNG,
+// decoded with libpng, and must show the four-bar where its closed-form solution
+// (tests/support/closed_form.hpp) puts it: the link colour along each link, not at the
+// mirror images of those places. Also the animation's structure and the usage errors.
+// Skips, with a message, where Chromium or libpng is missing (CI installs both).
+#include <array>
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#ifdef KINEGEN_HAVE_PNG
+#include <png.h>
+#endif
+
+#include "support/closed_form.hpp"
+#include "support/run_command.hpp"
+
+namespace fs = std::filesystem;
+using kinegen::test::run_command;
+
+namespace {
+
+const std::string kFourBar = KINEGEN_SOURCE_DIR "/examples/four_bar.yaml";
+constexpr int kSteps = 72;
+const double kTwoPi = 2 * std::acos(-1.0);
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "animate" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string read(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+double attribute(const std::string& svg, const std::string& name) {
+  std::smatch m;
+  REQUIRE(std::regex_search(svg, m, std::regex(name + "=\"([-0-9.e+]+)\"")));
+  return std::stod(m[1].str());
+}
+
+std::string find_chromium() {
+  if (const char* env = std::getenv("KINEGEN_CHROMIUM")) return env;
+  for (const char* p : {"/usr/bin/chromium", "/usr/bin/chromium-browser", "/usr/bin/google-chrome"})
+    if (fs::exists(p)) return p;
+  return {};
+}
+
+struct Image {
+  int width = 0, height = 0;
+  std::vector<unsigned char> rgb;
+  std::array<int, 3> at(double x, double y) const {
+    const int i = static_cast<int>(std::lround(x)), j = static_cast<int>(std::lround(y));
+    if (i < 0 || j < 0 || i >= width || j >= height) return {-1, -1, -1};
+    const unsigned char* p = &rgb[3 * (static_cast<std::size_t>(j) * width + i)];
+    return {p[0], p[1], p[2]};
+  }
+};
+
+#ifdef KINEGEN_HAVE_PNG
+Image decode_png(const fs::path& path) {
+  png_image image{};
+  image.version = PNG_IMAGE_VERSION;
+  REQUIRE(png_image_begin_read_from_file(&image, path.c_str()) != 0);
+  image.format = PNG_FORMAT_RGB;
+  Image out;
+  out.width = static_cast<int>(image.width);
+  out.height = static_cast<int>(image.height);
+  out.rgb.resize(PNG_IMAGE_SIZE(image));
+  REQUIRE(png_image_finish_read(&image, nullptr, out.rgb.data(), 0, nullptr) != 0);
+  return out;
+}
+#endif
+
+// #1f77b4, the documented link colour, allowing for anti-aliasing at the edges.
+bool is_link_colour(const std::array<int, 3>& c) {
+  return std::abs(c[0] - 0x1f) <= 30 && std::abs(c[1] - 0x77) <= 30 && std::abs(c[2] - 0xb4) <= 30;
+}
+
+}  // namespace
+
+TEST_CASE("animate: a still frame rendered by Chromium shows the links where they are",
+          "[animate][chromium]") {
+  const std::string chromium = find_chromium();
+  if (chromium.empty()) {
+    WARN("SKIPPED: chromium not found (apt-get install chromium, or set KINEGEN_CHROMIUM)");
+    return;
+  }
+#ifndef KINEGEN_HAVE_PNG
+  WARN("SKIPPED: built without libpng (apt-get install libpng-dev)");
+  return;
+#else
+  for (const int frame : {10, 40}) {
+    const fs::path dir = scratch("frame" + std::to_string(frame));
+    const fs::path svg_file = dir / "four_bar.svg", png_file = dir / "four_bar.png";
+    const auto gen = run_command({KINEGEN_EXE, "animate", kFourBar, "--t0", "0", "--t1",
+                                  "6.283185307179586", "--steps", std::to_string(kSteps), "--frame",
+                                  std::to_string(frame), "-o", svg_file.string()});
+    INFO(gen.err);
+    REQUIRE(gen.exit_code == 0);
+    const std::string svg = read(svg_file);
+    CHECK(svg.find("<animate") == std::string::npos);  // a still picture
+    const double width = attribute(svg, "width"), height = attribute(svg, "height");
+    const double scale = attribute(svg, "data-kinegen-scale");
+    const double x0 = attribute(svg, "data-kinegen-x0"), y0 = attribute(svg, "data-kinegen-y0");
+
+    const auto shot = run_command(
+        {chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+         "--no-first-run", "--disable-background-networking", "--disable-component-update",
+         "--disable-sync", "--hide-scrollbars", "--force-device-scale-factor=1",
+         "--user-data-dir=" + (dir / "profile").string(), "--screenshot=" + png_file.string(),
+         "--window-size=" + std::to_string(std::lround(width)) + "," +
+             std::to_string(std::lround(height)),
+         "file://" + svg_file.string()});
+    INFO(shot.err);
+    REQUIRE(fs::exists(png_file));
+    const Image image = decode_png(png_file);
+    REQUIRE(image.width == std::lround(width));
+    REQUIRE(image.height == std::lround(height));
+
+    // Where the closed form puts the links at this frame's time.
+    const double t = kTwoPi * frame / kSteps;
+    const auto st = kinegen::closed_form::four_bar_state(t);
+    const kinegen::closed_form::FourBarParams p;
+    const std::array<double, 2> o2{0, 0}, o4{p.d, 0}, a{st.q[3], st.q[4]};
+    const std::array<double, 2> b{a[0] + p.b * std::cos(st.q[5]), a[1] + p.b * std::sin(st.q[5])};
+    const std::array<std::array<std::array<double, 2>, 2>, 3> links{{{o2, a}, {a, b}, {o4, b}}};
+    const auto px = [&](double x, double y) {
+      return std::array<double, 2>{x0 + scale * x, y0 - scale * y};
+    };
+    int checked = 0;
+    for (const auto& link : links)
+      for (const double f : {0.3, 0.5, 0.7}) {
+        const double x = link[0][0] + f * (link[1][0] - link[0][0]);
+        const double y = link[0][1] + f * (link[1][1] - link[0][1]);
+        const auto on = px(x, y);
+        const auto off = px(x, -y);  // the mirror image in the ground line: empty here
+        INFO("frame " << frame << " link point (" << x << ", " << y << ") at pixel (" << on[0]
+                      << ", " << on[1] << ")");
+        const auto c_on = image.at(on[0], on[1]), c_off = image.at(off[0], off[1]);
+        INFO("colour there " << c_on[0] << "," << c_on[1] << "," << c_on[2] << "; mirrored "
+                             << c_off[0] << "," << c_off[1] << "," << c_off[2]);
+        CHECK(is_link_colour(c_on));
+        CHECK_FALSE(is_link_colour(c_off));
+        ++checked;
+      }
+    CHECK(checked == 9);
+    // Away from the mechanism: the corners are background.
+    CHECK(image.at(2, height - 3) == std::array<int, 3>{255, 255, 255});
+    CHECK(image.at(width - 3, height - 3) == std::array<int, 3>{255, 255, 255});
+  }
+#endif
+}
+
+TEST_CASE("animate: the animation has one value per analysis row and loops", "[animate]") {
+  const fs::path dir = scratch("animation");
+  const fs::path svg_file = dir / "four_bar.svg";
+  const auto r = run_command({KINEGEN_EXE, "animate", kFourBar, "--t0", "0", "--t1",
+                              "6.283185307179586", "--steps", "36", "-o", svg_file.string()});
+  INFO(r.err);
+  REQUIRE(r.exit_code == 0);
+  const std::string svg = read(svg_file);
+  CHECK(svg.rfind("<?xml", 0) == 0);
+  CHECK(svg.find("</svg>") != std::string::npos);
+  // Every <animate> loops over 37 values (one per row); a crank pin (cx) starts at the closed
+  // form's A at t = 0 and is there again after one turn.
+  const std::regex animate_re(
+      "<animate attributeName=\"([a-z]+)\"[^>]*repeatCount=\"indefinite\"[^>]*values=\"([^\"]*)\"");
+  int count = 0;
+  for (auto it = std::sregex_iterator(svg.begin(), svg.end(), animate_re);
+       it != std::sregex_iterator(); ++it) {
+    const std::string values = (*it)[2].str();
+    CHECK(std::count(values.begin(), values.end(), ';') == 36);
+    ++count;
+  }
+  CHECK(count > 10);
+  // Traced path of the coupler point P: passes through the closed form's P at t = 0.
+  const double scale = attribute(svg, "data-kinegen-scale");
+  const double x0 = attribute(svg, "data-kinegen-x0"), y0 = attribute(svg, "data-kinegen-y0");
+  const auto p0 = kinegen::closed_form::four_bar_coupler_point(0.0);
+  char expected[64];
+  std::snprintf(expected, sizeof expected, "%.2f,%.2f", x0 + scale * p0.r[0], y0 - scale * p0.r[1]);
+  CHECK(svg.find(std::string("points=\"") + expected + " ") != std::string::npos);
+}
+
+TEST_CASE("animate: usage errors write nothing", "[animate]") {
+  const fs::path dir = scratch("errors");
+  const fs::path svg_file = dir / "out.svg";
+  const auto r = run_command({KINEGEN_EXE, "animate", kFourBar, "--t0", "0", "--t1", "1", "--steps",
+                              "10", "--frame", "11", "-o", svg_file.string()});
+  CHECK(r.exit_code == 2);
+  CHECK(r.err.rfind("error: ", 0) == 0);
+  CHECK(r.err.find("--frame") != std::string::npos);
+  CHECK_FALSE(fs::exists(svg_file));
+  const auto q = run_command({KINEGEN_EXE, "animate", kFourBar, "--t0", "0", "--t1", "1", "--steps",
+                              "10", "--quiet", "-o", svg_file.string()});
+  CHECK(q.exit_code == 0);
+  CHECK(q.err.empty());  // --quiet: not even the "wrote" line
+  CHECK(fs::exists(svg_file));
+}
