@@ -252,7 +252,11 @@ class Bench {
     const auto model = codegen::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
                                                          "/examples/" + name + ".yaml");
     const auto ref_start = std::chrono::steady_clock::now();
-    const std::vector<codegen::StateRow> ref = reference_rows(*model, g_.reference_grid());
+    const codegen::TimeGrid rg{g_.reference_grid().t0, g_.reference_grid().t1,
+                               g_.reference_grid().steps};
+    std::vector<Sample> ref;
+    for (const auto& row : reference_rows(*model, rg))
+      ref.push_back(Sample{row.q, row.qd, row.qdd});
     const double ref_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - ref_start).count();
     std::printf("reference: %zu times in %.1f s\n", ref.size(), ref_s);
@@ -342,8 +346,7 @@ class Bench {
   }
 
  private:
-  void add(const std::string& example, double L, const std::vector<codegen::StateRow>& ref,
-           RunResult run) {
+  void add(const std::string& example, double L, const std::vector<Sample>& ref, RunResult run) {
     Report rep{example, L, std::move(run), {}};
     if (rep.run.ok) rep.err = measure(rep.run.samples, ref, L);
     rep.run.samples.clear();

@@ -10,8 +10,6 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis.hpp"
-
 namespace kinegen::bench {
 
 // The state a solver reached at one of the reference times.
@@ -29,12 +27,20 @@ struct RunResult {
   std::vector<Sample> samples;  // at the reference times
 };
 
+// t_k = t0 + k (t1 - t0) / steps, the same formula as codegen::TimeGrid (this header stays free
+// of the generator so that peers can be compiled on their own, e.g. as C++17 for Simbody).
+struct TimeGrid {
+  double t0 = 0, t1 = 0;
+  int steps = 0;
+  double at(int k) const { return steps == 0 ? t0 : t0 + k * (t1 - t0) / steps; }
+};
+
 // The benchmark's grid: t_k = grid.at(k); the reference is computed at every `stride`-th time.
 struct BenchGrid {
-  codegen::TimeGrid grid;
+  TimeGrid grid;
   int stride = 128;
   int repetitions = 3;
-  codegen::TimeGrid reference_grid() const { return {grid.t0, grid.t1, grid.steps / stride}; }
+  TimeGrid reference_grid() const { return {grid.t0, grid.t1, grid.steps / stride}; }
 };
 
 struct Errors {
@@ -56,7 +62,7 @@ inline const char* kErrorDefinition =
     "and the reported error is max(e_q, e_v, e_a) (position-only solvers: e_q).";
 
 // Errors of `samples` against `ref` (same times) by the definition above.
-inline Errors measure(const std::vector<Sample>& samples, const std::vector<codegen::StateRow>& ref,
+inline Errors measure(const std::vector<Sample>& samples, const std::vector<Sample>& ref,
                       double length_scale) {
   Errors e;
   if (samples.size() != ref.size()) return e;
