@@ -15,6 +15,7 @@
 #include "kinegen/codegen/check.hpp"
 #include "kinegen/codegen/emit_cpp.hpp"
 #include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/reference.hpp"
 
 namespace kc = kinegen::codegen;
 namespace fs = std::filesystem;
@@ -118,18 +119,28 @@ int run_generate(const Common& c, const std::string& dir) {
   return 0;
 }
 
-int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output) {
+int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output,
+                int reference_digits) {
   const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
   kc::require_driven(*model);
   if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
   if (!std::isfinite(t0) || !std::isfinite(t1)) throw kc::UsageError("--t0 and --t1 must be finite");
+  if (reference_digits != 0 && (reference_digits < kc::kMinReferenceDigits ||
+                                reference_digits > kc::kMaxReferenceDigits))
+    throw kc::UsageError("--reference-digits must be between " +
+                         std::to_string(kc::kMinReferenceDigits) + " and " +
+                         std::to_string(kc::kMaxReferenceDigits));
   std::unique_ptr<AtomicFile> file;
   if (!output.empty()) file = std::make_unique<AtomicFile>(output);
   std::ostream& out = file ? file->stream() : std::cout;
   out << kc::csv_header(model->mechanism());
   int status = 0;
   try {
-    kc::run_analysis(*model, {t0, t1, steps}, [&](const kc::StateRow& row) { out << kc::csv_row(row); });
+    const auto sink = [&](const kc::StateRow& row) { out << kc::csv_row(row); };
+    if (reference_digits != 0)
+      kc::run_reference_analysis(*model, {t0, t1, steps}, reference_digits, sink);
+    else
+      kc::run_analysis(*model, {t0, t1, steps}, sink);
   } catch (const kc::AnalysisError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
     status = kExitFailed;  // the rows solved so far are kept
@@ -172,8 +183,9 @@ int run_check(const Common& c, const kc::CheckOptions& options, bool structure) 
                 r.max_abs, r.max_rel, r.bound, r.ok() ? "ok" : "FAILED");
     ok = ok && r.ok();
   }
-  std::printf("%d samples near q0 (seed %u); max rel = max abs / max(1, largest |numeric|)\n",
-              options.samples, options.seed);
+  std::printf("%d samples near q0 (seed %u, angles + 2 pi * %g); max rel = max abs / max(1, "
+              "largest |truth| in the block)\n",
+              options.samples, options.seed, options.turns);
   if (!ok) {
     std::cerr << "error: " << c.file
               << ": check: the symbolic derivatives differ from the numeric ones beyond their "
@@ -205,6 +217,10 @@ int main(int argc, char** argv) {
   analyze->add_option("--t1", t1, "End time")->required();
   analyze->add_option("--steps", steps, "Number of steps N (N + 1 rows)")->required();
   analyze->add_option("-o,--output", csv, "CSV file (default: standard output)");
+  int reference_digits = 0;
+  analyze->add_option("--reference-digits", reference_digits,
+                      "Solve in CLN arithmetic with N decimal digits (20 to 1000) instead of "
+                      "double: the high-precision reference");
 
   double t = 0;
   std::vector<double> q_arg, qd_arg;
@@ -222,6 +238,10 @@ int main(int argc, char** argv) {
   check->add_option("--seed", check_options.seed, "Random seed (default 1)");
   check->add_option("--t", check_options.t, "Time around which to sample (default 0)");
   check->add_flag("--structure", structure, "Also print the structure of Phi_q");
+  check->add_option("--turns", check_options.turns,
+                    "Shift every angle by 2 pi K: check after many revolutions (default 0)");
+  check->add_option("--digits", check_options.digits,
+                    "Decimal digits of the CLN method (default 40)");
 
   try {
     app.parse(argc, argv);
@@ -238,7 +258,7 @@ int main(int argc, char** argv) {
 
   try {
     if (*generate) return run_generate(common, out_dir);
-    if (*analyze) return run_analyze(common, t0, t1, steps, csv);
+    if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
     if (*check) return run_check(common, check_options, structure);
   } catch (const kc::InputError& e) {

@@ -183,17 +183,6 @@ ex substitute_params(const ex& e, const SymbolTable& symbols,
 }
 
 namespace {
-// Raises GiNaC's working precision for a scope, restoring it however the scope ends.
-class DigitsGuard {
- public:
-  explicit DigitsGuard(long digits) : saved_(GiNaC::Digits) { GiNaC::Digits = digits; }
-  ~DigitsGuard() { GiNaC::Digits = saved_; }
-  DigitsGuard(const DigitsGuard&) = delete;
-  DigitsGuard& operator=(const DigitsGuard&) = delete;
-
- private:
-  long saved_;
-};
 constexpr long kEvalDigits = 40;
 }  // namespace
 

@@ -97,6 +97,19 @@ SymbolicModel derive(const Mechanism& mechanism, const SymbolTable& symbols,
 GiNaC::ex substitute_params(const GiNaC::ex& e, const SymbolTable& symbols,
                             const std::vector<GiNaC::numeric>& values);
 
+// Sets GiNaC's working precision (decimal digits) for a scope and restores it on exit, also
+// when an evaluation throws.
+class DigitsGuard {
+ public:
+  explicit DigitsGuard(long digits) : saved_(GiNaC::Digits) { GiNaC::Digits = digits; }
+  ~DigitsGuard() { GiNaC::Digits = saved_; }
+  DigitsGuard(const DigitsGuard&) = delete;
+  DigitsGuard& operator=(const DigitsGuard&) = delete;
+
+ private:
+  long saved_;
+};
+
 // The double value of a constant expression (no symbols left).
 double to_double(const GiNaC::ex& e);
 
