@@ -17,10 +17,11 @@ set logscale xy
 set format x "10^{%L}"
 set format y "10^{%L}"
 set grid xtics ytics mxtics mytics lc rgb "#dddddd"
-set key top right font ",9" spacing 1.0
+set key top left font ",9" spacing 1.0
 set xlabel "largest error vs 40-digit reference (scaled)"
 set ylabel "ns per step (position + velocity + acceleration)"
 set xrange [1e-17:1e-3]
+set yrange [1e3:1e7]
 
 sel(ex, m, col) = (strcol(1) eq ex && strcol(2) eq m && strcol(9) eq "ok") ? column(col) : NaN
 err(ex, m) = (v = sel(ex, m, 8), v != v ? NaN : (v < 1e-17 ? 1e-17 : v))
@@ -38,7 +39,7 @@ do for [fmt in "png svg"] {
     ex = word(examples, e)
     set title ex noenhanced
     plot for [m = 1:words(methods)] csv using (err(ex, word(methods, m))):(sel(ex, word(methods, m), 4)) \
-         with linespoints lw 1.5 pt word(points, m)+0 ps 1.0 lc rgb word(colors, m) title word(methods, m)
+         with linespoints lw 1.5 pt (word(points, m)+0) ps 1.0 lc rgb word(colors, m) title word(methods, m)
   }
   unset multiplot
   unset output
