@@ -8,7 +8,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <kinegen/solver.hpp>
 #include <string>
 
 #include "four_bar.hpp"
@@ -16,6 +15,7 @@
 #include "offset_slider_crank.hpp"
 #include "quick_return.hpp"
 #include "slider_crank.hpp"
+#include <kinegen/solver.hpp>
 
 namespace {
 
@@ -50,8 +50,8 @@ void run(const char* name, double& checksum) {
   kinegen::Solver<Model> generated;
   const double t_gen = ns_per_step(generated, generated.initial_estimate(), checksum);
 
-  const auto model = kinegen::codegen::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
-                                                                "/examples/" + name + ".yaml");
+  const auto model = kinegen::codegen::CompiledModel::from_file(
+      std::string(KINEGEN_SOURCE_DIR) + "/examples/" + name + ".yaml");
   kinegen::BasicSolver<kinegen::codegen::ProgramSystem> inprocess{
       kinegen::codegen::ProgramSystem(*model)};
   const Eigen::VectorXd q0 = model->q0();
