@@ -1,0 +1,89 @@
+// Builds the generic solver's data description (numbers only) from kinegen's parsed and
+// compiled mechanism: parameters substituted, local vectors evaluated, drivers reduced to
+// f(t) = value + rate * t. The generic solver itself never sees an expression.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "generic_solver.hpp"
+#include "kinegen/codegen/model.hpp"
+
+namespace kinegen::generic {
+
+// The description of `model`, or nullopt with `why` set when the generic joint library cannot
+// express it (`expression` constraints, drivers not linear in t).
+inline std::optional<MechanismData> from_compiled_model(const codegen::CompiledModel& model,
+                                                        std::string& why) {
+  using codegen::ConstraintType;
+  const auto& mech = model.mechanism();
+  const auto& symbols = model.symbols();
+  const auto& values = model.symbolic().param_values;
+  auto number = [&](const codegen::Expr& e, const std::string& item) {
+    return codegen::to_double(codegen::substitute_params(
+        symbols.parse(e, codegen::Scope::kGeometry, item), symbols, values));
+  };
+  auto vec = [&](const codegen::Vec2& v, const std::string& item) {
+    return Eigen::Vector2d(number(v.x, item), number(v.y, item));
+  };
+
+  MechanismData data;
+  data.bodies = static_cast<int>(mech.bodies.size());
+  data.q0 = model.q0();
+  data.length_scale = model.symbolic().length_scale;
+  for (const codegen::Constraint* c : mech.constraints()) {
+    JointRecord jr;
+    jr.is_driver = c->is_driver;
+    jr.i = c->i;
+    jr.j = c->j;
+    switch (c->type) {
+      case ConstraintType::kRevolute:
+        jr.type = JointType::kRevolute;
+        break;
+      case ConstraintType::kTranslational:
+        jr.type = JointType::kTranslational;
+        break;
+      case ConstraintType::kDistance:
+        jr.type = JointType::kDistance;
+        break;
+      case ConstraintType::kRevoluteTranslational:
+        jr.type = JointType::kRevoluteTranslational;
+        break;
+      case ConstraintType::kAbsoluteX:
+        jr.type = JointType::kAbsoluteX;
+        break;
+      case ConstraintType::kAbsoluteY:
+        jr.type = JointType::kAbsoluteY;
+        break;
+      case ConstraintType::kAbsoluteAngle:
+        jr.type = JointType::kAbsoluteAngle;
+        break;
+      case ConstraintType::kRelativeAngle:
+        jr.type = JointType::kRelativeAngle;
+        break;
+      case ConstraintType::kExpression:
+        why = c->item + ": `expression` constraints are not in the generic joint library";
+        return std::nullopt;
+    }
+    jr.si = vec(c->si, c->item);
+    jr.sj = vec(c->sj, c->item);
+    if (!c->vi.x.text.empty()) jr.vi = vec(c->vi, c->item);
+    if (c->is_driver) {
+      const GiNaC::ex f = codegen::substitute_params(
+          symbols.parse(c->value, codegen::Scope::kDriverTime, c->item), symbols, values);
+      const GiNaC::ex rate = f.diff(symbols.t());
+      if (!rate.diff(symbols.t()).is_zero()) {
+        why = c->item + ": f(t) is not linear in t";
+        return std::nullopt;
+      }
+      jr.value = codegen::to_double(f.subs(symbols.t() == 0));
+      jr.rate = codegen::to_double(rate);
+    } else if (!c->value.text.empty()) {
+      jr.value = number(c->value, c->item);
+    }
+    data.joints.push_back(jr);
+  }
+  return data;
+}
+
+}  // namespace kinegen::generic
