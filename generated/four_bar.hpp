@@ -220,13 +220,12 @@ struct four_bar {
     }
   }
 
-  // Position: each block in turn, explicit or by Newton on the block alone; q holds the
-  // start (the previous solution or a prediction) and receives the solution.
+  // Position: each block in turn, explicit or by Newton on the block alone; q holds
+  // the start (the previous solution or a prediction) and receives the solution.
   template <class T>
   static BlockReport solve_position(T* q, [[maybe_unused]] T t,
       [[maybe_unused]] const Params& p,
       [[maybe_unused]] const BlockOptions& o) noexcept {
-    // 21 operations
     using std::cos, std::sin;
     BlockReport report;
     [[maybe_unused]] const double inv_length = 1.0 / length_scale;
@@ -237,21 +236,28 @@ struct four_bar {
     // Block 2: rows 8 -> q[2] (explicit)
     q[2] = T(p.omega)*t;
     // Block 3: rows 2 -> q[3] (explicit)
-    q[3] = cos(q[2])*T(p.a) + q[0];
+    const T _t0 = cos(q[2]);
+    q[3] = _t0*T(p.a) + q[0];
     // Block 4: rows 3 -> q[4] (explicit)
-    q[4] = T(p.a)*sin(q[2]) + q[1];
+    const T _t1 = sin(q[2]);
+    const T _t2 = T(p.a)*_t1;
+    q[4] = _t2 + q[1];
     // Block 5: rows 6 -> q[6] (explicit)
     q[6] = T(p.d);
     // Block 6: rows 7 -> q[7] (explicit)
     q[7] = T(0);
     // Block 7: rows 4, 5 -> q[5], q[8] (newton)
     for (int _it = 1;; ++_it) {
-      const T _t0 = -cos(q[5])*T(p.b);
-      const T _t1 = cos(q[8])*T(p.c);
-      const T _t2 = sin(q[5]);
-      const T _t3 = sin(q[8]);
-      T _r[2] = {_t0 - q[3] + _t1 + q[6], -T(p.b)*_t2 - q[4] + T(p.c)*_t3 + q[7]};
-      T _a[4] = {T(p.b)*_t2, -T(p.c)*_t3, _t0, _t1};
+      const T _t3 = cos(q[5]);
+      const T _t4 = -_t3*T(p.b);
+      const T _t5 = cos(q[8]);
+      const T _t6 = _t5*T(p.c);
+      const T _t7 = sin(q[5]);
+      const T _t8 = sin(q[8]);
+      const T _t9 = T(p.b)*_t7;
+      const T _t10 = -T(p.c)*_t8;
+      T _r[2] = {_t4 - q[3] + _t6 + q[6], -T(p.b)*_t7 - q[4] + T(p.c)*_t8 + q[7]};
+      T _a[4] = {_t9, _t10, _t4, _t6};
       int _piv[2];
       const double _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
@@ -289,20 +295,25 @@ struct four_bar {
     qd[2] = T(p.omega);
     // Block 3: rows 2 -> q[3]
     const T _t0 = sin(q[2]);
-    qd[3] = qd[0] - (T(p.a)*_t0)*qd[2];
+    const T _t1 = T(p.a)*_t0;
+    qd[3] = qd[0] - _t1*qd[2];
     // Block 4: rows 3 -> q[4]
-    const T _t1 = cos(q[2]);
-    qd[4] = qd[1] - (-_t1*T(p.a))*qd[2];
+    const T _t2 = cos(q[2]);
+    qd[4] = qd[1] - (-_t2*T(p.a))*qd[2];
     // Block 5: rows 6 -> q[6]
     qd[6] = T(0);
     // Block 6: rows 7 -> q[7]
     qd[7] = T(0);
     // Block 7: rows 4, 5 -> q[5], q[8]
-    const T _t2 = sin(q[5]);
-    const T _t3 = sin(q[8]);
-    const T _t4 = cos(q[5]);
-    const T _t5 = cos(q[8]);
-    T _a7[4] = {T(p.b)*_t2, -T(p.c)*_t3, -_t4*T(p.b), _t5*T(p.c)};
+    const T _t3 = sin(q[5]);
+    const T _t4 = T(p.b)*_t3;
+    const T _t5 = sin(q[8]);
+    const T _t6 = -T(p.c)*_t5;
+    const T _t7 = cos(q[5]);
+    const T _t8 = -_t7*T(p.b);
+    const T _t9 = cos(q[8]);
+    const T _t10 = _t9*T(p.c);
+    T _a7[4] = {_t4, _t6, _t8, _t10};
     int _piv7[2];
     const double _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
@@ -335,10 +346,14 @@ struct four_bar {
     // Block 6: rows 7 -> q[7]
     // Block 7: rows 4, 5 -> q[5], q[8]
     const T _t0 = sin(q[5]);
-    const T _t1 = sin(q[8]);
-    const T _t2 = cos(q[5]);
-    const T _t3 = cos(q[8]);
-    T _a7[4] = {T(p.b)*_t0, -T(p.c)*_t1, -_t2*T(p.b), _t3*T(p.c)};
+    const T _t1 = T(p.b)*_t0;
+    const T _t2 = sin(q[8]);
+    const T _t3 = -T(p.c)*_t2;
+    const T _t4 = cos(q[5]);
+    const T _t5 = -_t4*T(p.b);
+    const T _t6 = cos(q[8]);
+    const T _t7 = _t6*T(p.c);
+    T _a7[4] = {_t1, _t3, _t5, _t7};
     int _piv7[2];
     const double _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
@@ -346,17 +361,18 @@ struct four_bar {
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
-    const T _t4 = qd[2]*qd[2];
-    const T _t5 = cos(q[2]);
-    const T _t6 = sin(q[2]);
-    qdd[3] = -_t4*_t5*T(p.a) + qdd[0] - (T(p.a)*_t6)*qdd[2];
-    qdd[4] = -_t4*T(p.a)*_t6 + qdd[1] - (-_t5*T(p.a))*qdd[2];
+    const T _t8 = qd[2]*qd[2];
+    const T _t9 = cos(q[2]);
+    const T _t10 = sin(q[2]);
+    const T _t11 = T(p.a)*_t10;
+    qdd[3] = -_t8*_t9*T(p.a) + qdd[0] - _t11*qdd[2];
+    qdd[4] = -_t8*T(p.a)*_t10 + qdd[1] - (-_t9*T(p.a))*qdd[2];
     qdd[6] = T(0);
     qdd[7] = T(0);
-    const T _t7 = qd[5]*qd[5];
-    const T _t8 = qd[8]*qd[8];
+    const T _t12 = qd[5]*qd[5];
+    const T _t13 = qd[8]*qd[8];
     {
-      T _x[2] = {-_t7*_t2*T(p.b) + _t8*_t3*T(p.c) + qdd[3] - qdd[6], -_t7*T(p.b)*_t0 + _t8*T(p.c)*_t1 + qdd[4] - qdd[7]};
+      T _x[2] = {-_t12*_t4*T(p.b) + _t13*_t6*T(p.c) + qdd[3] - qdd[6], -_t12*T(p.b)*_t0 + _t13*T(p.c)*_t2 + qdd[4] - qdd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qdd[5] = _x[0];
       qdd[8] = _x[1];
@@ -382,20 +398,25 @@ struct four_bar {
     qd[2] = T(p.omega);
     // Block 3: rows 2 -> q[3]
     const T _t0 = sin(q[2]);
-    qd[3] = qd[0] - (T(p.a)*_t0)*qd[2];
+    const T _t1 = T(p.a)*_t0;
+    qd[3] = qd[0] - _t1*qd[2];
     // Block 4: rows 3 -> q[4]
-    const T _t1 = cos(q[2]);
-    qd[4] = qd[1] - (-_t1*T(p.a))*qd[2];
+    const T _t2 = cos(q[2]);
+    qd[4] = qd[1] - (-_t2*T(p.a))*qd[2];
     // Block 5: rows 6 -> q[6]
     qd[6] = T(0);
     // Block 6: rows 7 -> q[7]
     qd[7] = T(0);
     // Block 7: rows 4, 5 -> q[5], q[8]
-    const T _t2 = sin(q[5]);
-    const T _t3 = sin(q[8]);
-    const T _t4 = cos(q[5]);
-    const T _t5 = cos(q[8]);
-    T _a7[4] = {T(p.b)*_t2, -T(p.c)*_t3, -_t4*T(p.b), _t5*T(p.c)};
+    const T _t3 = sin(q[5]);
+    const T _t4 = T(p.b)*_t3;
+    const T _t5 = sin(q[8]);
+    const T _t6 = -T(p.c)*_t5;
+    const T _t7 = cos(q[5]);
+    const T _t8 = -_t7*T(p.b);
+    const T _t9 = cos(q[8]);
+    const T _t10 = _t9*T(p.c);
+    T _a7[4] = {_t4, _t6, _t8, _t10};
     int _piv7[2];
     const double _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
@@ -406,24 +427,138 @@ struct four_bar {
       qd[5] = _x[0];
       qd[8] = _x[1];
     }
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
-    const T _t6 = qd[2]*qd[2];
-    qdd[3] = -_t6*_t1*T(p.a) + qdd[0] - (T(p.a)*_t0)*qdd[2];
-    qdd[4] = -_t6*T(p.a)*_t0 + qdd[1] - (-_t1*T(p.a))*qdd[2];
+    const T _t11 = qd[2]*qd[2];
+    qdd[3] = -_t11*_t2*T(p.a) + qdd[0] - _t1*qdd[2];
+    qdd[4] = -_t11*T(p.a)*_t0 + qdd[1] - (-_t2*T(p.a))*qdd[2];
     qdd[6] = T(0);
     qdd[7] = T(0);
-    const T _t7 = qd[5]*qd[5];
-    const T _t8 = qd[8]*qd[8];
+    const T _t12 = qd[5]*qd[5];
+    const T _t13 = qd[8]*qd[8];
     {
-      T _x[2] = {-_t7*_t4*T(p.b) + _t8*_t5*T(p.c) + qdd[3] - qdd[6], -_t7*T(p.b)*_t2 + _t8*T(p.c)*_t3 + qdd[4] - qdd[7]};
+      T _x[2] = {-_t12*_t7*T(p.b) + _t13*_t9*T(p.c) + qdd[3] - qdd[6], -_t12*T(p.b)*_t3 + _t13*T(p.c)*_t5 + qdd[4] - qdd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qdd[5] = _x[0];
       qdd[8] = _x[1];
     }
     for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // A full step: solve_position, then solve_velocity_acceleration, in one function
+  // so that terms at the solved q are computed once.
+  template <class T>
+  static BlockReport solve_step(T* q, [[maybe_unused]] T t,
+      [[maybe_unused]] const Params& p, T* qd, T* qdd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    [[maybe_unused]] const double inv_length = 1.0 / length_scale;
+    // Block 0: rows 0 -> q[0] (explicit)
+    q[0] = T(0);
+    // Block 1: rows 1 -> q[1] (explicit)
+    q[1] = T(0);
+    // Block 2: rows 8 -> q[2] (explicit)
+    q[2] = T(p.omega)*t;
+    // Block 3: rows 2 -> q[3] (explicit)
+    const T _t0 = cos(q[2]);
+    q[3] = _t0*T(p.a) + q[0];
+    // Block 4: rows 3 -> q[4] (explicit)
+    const T _t1 = sin(q[2]);
+    const T _t2 = T(p.a)*_t1;
+    q[4] = _t2 + q[1];
+    // Block 5: rows 6 -> q[6] (explicit)
+    q[6] = T(p.d);
+    // Block 6: rows 7 -> q[7] (explicit)
+    q[7] = T(0);
+    // Block 7: rows 4, 5 -> q[5], q[8] (newton)
+    for (int _it = 1;; ++_it) {
+      const T _t3 = cos(q[5]);
+      const T _t4 = -_t3*T(p.b);
+      const T _t5 = cos(q[8]);
+      const T _t6 = _t5*T(p.c);
+      const T _t7 = sin(q[5]);
+      const T _t8 = sin(q[8]);
+      const T _t9 = T(p.b)*_t7;
+      const T _t10 = -T(p.c)*_t8;
+      T _r[2] = {_t4 - q[3] + _t6 + q[6], -T(p.b)*_t7 - q[4] + T(p.c)*_t8 + q[7]};
+      T _a[4] = {_t9, _t10, _t4, _t6};
+      int _piv[2];
+      const double _ratio = _lu_factor<2>(_a, _piv);
+      if (!(_ratio > o.singular_pivot_ratio))
+        return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
+      _lu_solve<2>(_a, _piv, _r);
+      double _step = 0;
+      q[5] -= _r[0];
+      _step = std::max(_step, _mag(_r[0]));
+      q[8] -= _r[1];
+      _step = std::max(_step, _mag(_r[1]));
+      if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
+      if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
+        _done(report, _it, _step);
+        break;
+      }
+      if (_it >= o.max_iterations) return _fail(report, 1, 7, _it, _step);
+    }
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
+    // Block 0: rows 0 -> q[0]
+    qd[0] = T(0);
+    // Block 1: rows 1 -> q[1]
+    qd[1] = T(0);
+    // Block 2: rows 8 -> q[2]
+    qd[2] = T(p.omega);
+    // Block 3: rows 2 -> q[3]
+    qd[3] = qd[0] - _t2*qd[2];
+    // Block 4: rows 3 -> q[4]
+    qd[4] = qd[1] - (-_t0*T(p.a))*qd[2];
+    // Block 5: rows 6 -> q[6]
+    qd[6] = T(0);
+    // Block 6: rows 7 -> q[7]
+    qd[7] = T(0);
+    // Block 7: rows 4, 5 -> q[5], q[8]
+    const T _t11 = sin(q[5]);
+    const T _t12 = T(p.b)*_t11;
+    const T _t13 = sin(q[8]);
+    const T _t14 = -T(p.c)*_t13;
+    const T _t15 = cos(q[5]);
+    const T _t16 = -_t15*T(p.b);
+    const T _t17 = cos(q[8]);
+    const T _t18 = _t17*T(p.c);
+    T _a7[4] = {_t12, _t14, _t16, _t18};
+    int _piv7[2];
+    const double _ratio7 = _lu_factor<2>(_a7, _piv7);
+    if (!(_ratio7 > o.singular_pivot_ratio))
+      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+    {
+      T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
+      _lu_solve<2>(_a7, _piv7, _x);
+      qd[5] = _x[0];
+      qd[8] = _x[1];
+    }
+    for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    qdd[0] = T(0);
+    qdd[1] = T(0);
+    qdd[2] = T(0);
+    const T _t19 = qd[2]*qd[2];
+    qdd[3] = -_t19*_t0*T(p.a) + qdd[0] - _t2*qdd[2];
+    qdd[4] = -_t19*T(p.a)*_t1 + qdd[1] - (-_t0*T(p.a))*qdd[2];
+    qdd[6] = T(0);
+    qdd[7] = T(0);
+    const T _t20 = qd[5]*qd[5];
+    const T _t21 = qd[8]*qd[8];
+    {
+      T _x[2] = {-_t20*_t15*T(p.b) + _t21*_t17*T(p.c) + qdd[3] - qdd[6], -_t20*T(p.b)*_t11 + _t21*T(p.c)*_t13 + qdd[4] - qdd[7]};
+      _lu_solve<2>(_a7, _piv7, _x);
+      qdd[5] = _x[0];
+      qdd[8] = _x[1];
+    }
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
     return report;

@@ -214,13 +214,12 @@ struct offset_slider_crank {
     }
   }
 
-  // Position: each block in turn, explicit or by Newton on the block alone; q holds the
-  // start (the previous solution or a prediction) and receives the solution.
+  // Position: each block in turn, explicit or by Newton on the block alone; q holds
+  // the start (the previous solution or a prediction) and receives the solution.
   template <class T>
   static BlockReport solve_position(T* q, [[maybe_unused]] T t,
       [[maybe_unused]] const Params& p,
       [[maybe_unused]] const BlockOptions& o) noexcept {
-    // 15 operations
     using std::cos, std::sin;
     BlockReport report;
     [[maybe_unused]] const double inv_length = 1.0 / length_scale;
@@ -231,16 +230,21 @@ struct offset_slider_crank {
     // Block 2: rows 8 -> q[2] (explicit)
     q[2] = T(p.omega)*t;
     // Block 3: rows 2 -> q[3] (explicit)
-    q[3] = cos(q[2])*T(p.r) + q[0];
+    const T _t0 = cos(q[2]);
+    q[3] = _t0*T(p.r) + q[0];
     // Block 4: rows 3 -> q[4] (explicit)
-    q[4] = T(p.r)*sin(q[2]) + q[1];
+    const T _t1 = sin(q[2]);
+    const T _t2 = T(p.r)*_t1;
+    q[4] = _t2 + q[1];
     // Block 5: rows 6 -> q[7] (explicit)
     q[7] = T(p.e);
     // Block 6: rows 5 -> q[5] (newton)
     for (int _it = 1;; ++_it) {
-      const T _t0 = cos(q[5]);
-      T _r[1] = {-T(p.l)*sin(q[5]) - q[4] + q[7]};
-      const T _a = -_t0*T(p.l);
+      const T _t3 = sin(q[5]);
+      const T _t4 = cos(q[5]);
+      const T _t5 = -_t4*T(p.l);
+      T _r[1] = {-T(p.l)*_t3 - q[4] + q[7]};
+      const T _a = _t5;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 6, _it);
       _r[0] /= _a;
       double _step = 0;
@@ -254,8 +258,8 @@ struct offset_slider_crank {
       if (_it >= o.max_iterations) return _fail(report, 1, 6, _it, _step);
     }
     // Block 7: rows 4 -> q[6] (explicit)
-    const T _t1 = cos(q[5]);
-    q[6] = _t1*T(p.l) + q[3];
+    const T _t6 = cos(q[5]);
+    q[6] = _t6*T(p.l) + q[3];
     // Block 8: rows 7 -> q[8] (explicit)
     q[8] = T(0);
     for (int _k = 0; _k < nq; ++_k)
@@ -278,20 +282,22 @@ struct offset_slider_crank {
     qd[2] = T(p.omega);
     // Block 3: rows 2 -> q[3]
     const T _t0 = sin(q[2]);
-    qd[3] = qd[0] - (T(p.r)*_t0)*qd[2];
+    const T _t1 = T(p.r)*_t0;
+    qd[3] = qd[0] - _t1*qd[2];
     // Block 4: rows 3 -> q[4]
-    const T _t1 = cos(q[2]);
-    qd[4] = qd[1] - (-_t1*T(p.r))*qd[2];
+    const T _t2 = cos(q[2]);
+    qd[4] = qd[1] - (-_t2*T(p.r))*qd[2];
     // Block 5: rows 6 -> q[7]
     qd[7] = T(0);
     // Block 6: rows 5 -> q[5]
-    const T _t2 = cos(q[5]);
-    const T _a6 = -_t2*T(p.l);
+    const T _t3 = cos(q[5]);
+    const T _t4 = -_t3*T(p.l);
+    const T _a6 = _t4;
     if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
     qd[5] = (qd[4] - qd[7]) / _a6;
     // Block 7: rows 4 -> q[6]
-    const T _t3 = sin(q[5]);
-    qd[6] = qd[3] - (T(p.l)*_t3)*qd[5];
+    const T _t5 = sin(q[5]);
+    qd[6] = qd[3] - (T(p.l)*_t5)*qd[5];
     // Block 8: rows 7 -> q[8]
     qd[8] = T(0);
     for (int _k = 0; _k < nq; ++_k)
@@ -315,23 +321,25 @@ struct offset_slider_crank {
     // Block 5: rows 6 -> q[7]
     // Block 6: rows 5 -> q[5]
     const T _t0 = cos(q[5]);
-    const T _a6 = -_t0*T(p.l);
+    const T _t1 = -_t0*T(p.l);
+    const T _a6 = _t1;
     if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
     // Block 7: rows 4 -> q[6]
     // Block 8: rows 7 -> q[8]
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
-    const T _t1 = qd[2]*qd[2];
-    const T _t2 = cos(q[2]);
-    const T _t3 = sin(q[2]);
-    qdd[3] = -_t1*_t2*T(p.r) + qdd[0] - (T(p.r)*_t3)*qdd[2];
-    qdd[4] = -_t1*T(p.r)*_t3 + qdd[1] - (-_t2*T(p.r))*qdd[2];
+    const T _t2 = qd[2]*qd[2];
+    const T _t3 = cos(q[2]);
+    const T _t4 = sin(q[2]);
+    const T _t5 = T(p.r)*_t4;
+    qdd[3] = -_t2*_t3*T(p.r) + qdd[0] - _t5*qdd[2];
+    qdd[4] = -_t2*T(p.r)*_t4 + qdd[1] - (-_t3*T(p.r))*qdd[2];
     qdd[7] = T(0);
-    const T _t4 = qd[5]*qd[5];
-    const T _t5 = sin(q[5]);
-    qdd[5] = (-_t4*T(p.l)*_t5 + qdd[4] - qdd[7]) / _a6;
-    qdd[6] = -_t4*_t0*T(p.l) + qdd[3] - (T(p.l)*_t5)*qdd[5];
+    const T _t6 = qd[5]*qd[5];
+    const T _t7 = sin(q[5]);
+    qdd[5] = (-_t6*T(p.l)*_t7 + qdd[4] - qdd[7]) / _a6;
+    qdd[6] = -_t6*_t0*T(p.l) + qdd[3] - (T(p.l)*_t7)*qdd[5];
     qdd[8] = T(0);
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
@@ -354,35 +362,127 @@ struct offset_slider_crank {
     qd[2] = T(p.omega);
     // Block 3: rows 2 -> q[3]
     const T _t0 = sin(q[2]);
-    qd[3] = qd[0] - (T(p.r)*_t0)*qd[2];
+    const T _t1 = T(p.r)*_t0;
+    qd[3] = qd[0] - _t1*qd[2];
     // Block 4: rows 3 -> q[4]
-    const T _t1 = cos(q[2]);
-    qd[4] = qd[1] - (-_t1*T(p.r))*qd[2];
+    const T _t2 = cos(q[2]);
+    qd[4] = qd[1] - (-_t2*T(p.r))*qd[2];
     // Block 5: rows 6 -> q[7]
     qd[7] = T(0);
     // Block 6: rows 5 -> q[5]
-    const T _t2 = cos(q[5]);
-    const T _a6 = -_t2*T(p.l);
+    const T _t3 = cos(q[5]);
+    const T _t4 = -_t3*T(p.l);
+    const T _a6 = _t4;
     if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
     qd[5] = (qd[4] - qd[7]) / _a6;
     // Block 7: rows 4 -> q[6]
-    const T _t3 = sin(q[5]);
-    qd[6] = qd[3] - (T(p.l)*_t3)*qd[5];
+    const T _t5 = sin(q[5]);
+    qd[6] = qd[3] - (T(p.l)*_t5)*qd[5];
     // Block 8: rows 7 -> q[8]
     qd[8] = T(0);
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
-    const T _t4 = qd[2]*qd[2];
-    qdd[3] = -_t4*_t1*T(p.r) + qdd[0] - (T(p.r)*_t0)*qdd[2];
-    qdd[4] = -_t4*T(p.r)*_t0 + qdd[1] - (-_t1*T(p.r))*qdd[2];
+    const T _t6 = qd[2]*qd[2];
+    qdd[3] = -_t6*_t2*T(p.r) + qdd[0] - _t1*qdd[2];
+    qdd[4] = -_t6*T(p.r)*_t0 + qdd[1] - (-_t2*T(p.r))*qdd[2];
     qdd[7] = T(0);
-    const T _t5 = qd[5]*qd[5];
-    qdd[5] = (-_t5*T(p.l)*_t3 + qdd[4] - qdd[7]) / _a6;
-    qdd[6] = -_t5*_t2*T(p.l) + qdd[3] - (T(p.l)*_t3)*qdd[5];
+    const T _t7 = qd[5]*qd[5];
+    qdd[5] = (-_t7*T(p.l)*_t5 + qdd[4] - qdd[7]) / _a6;
+    qdd[6] = -_t7*_t3*T(p.l) + qdd[3] - (T(p.l)*_t5)*qdd[5];
     qdd[8] = T(0);
     for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // A full step: solve_position, then solve_velocity_acceleration, in one function
+  // so that terms at the solved q are computed once.
+  template <class T>
+  static BlockReport solve_step(T* q, [[maybe_unused]] T t,
+      [[maybe_unused]] const Params& p, T* qd, T* qdd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    [[maybe_unused]] const double inv_length = 1.0 / length_scale;
+    // Block 0: rows 0 -> q[0] (explicit)
+    q[0] = T(0);
+    // Block 1: rows 1 -> q[1] (explicit)
+    q[1] = T(0);
+    // Block 2: rows 8 -> q[2] (explicit)
+    q[2] = T(p.omega)*t;
+    // Block 3: rows 2 -> q[3] (explicit)
+    const T _t0 = cos(q[2]);
+    q[3] = _t0*T(p.r) + q[0];
+    // Block 4: rows 3 -> q[4] (explicit)
+    const T _t1 = sin(q[2]);
+    const T _t2 = T(p.r)*_t1;
+    q[4] = _t2 + q[1];
+    // Block 5: rows 6 -> q[7] (explicit)
+    q[7] = T(p.e);
+    // Block 6: rows 5 -> q[5] (newton)
+    for (int _it = 1;; ++_it) {
+      const T _t3 = sin(q[5]);
+      const T _t4 = cos(q[5]);
+      const T _t5 = -_t4*T(p.l);
+      T _r[1] = {-T(p.l)*_t3 - q[4] + q[7]};
+      const T _a = _t5;
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 6, _it);
+      _r[0] /= _a;
+      double _step = 0;
+      q[5] -= _r[0];
+      _step = std::max(_step, _mag(_r[0]));
+      if (!(_step <= 1e300)) return _fail(report, 3, 6, _it);
+      if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
+        _done(report, _it, _step);
+        break;
+      }
+      if (_it >= o.max_iterations) return _fail(report, 1, 6, _it, _step);
+    }
+    // Block 7: rows 4 -> q[6] (explicit)
+    const T _t6 = cos(q[5]);
+    q[6] = _t6*T(p.l) + q[3];
+    // Block 8: rows 7 -> q[8] (explicit)
+    q[8] = T(0);
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
+    // Block 0: rows 0 -> q[0]
+    qd[0] = T(0);
+    // Block 1: rows 1 -> q[1]
+    qd[1] = T(0);
+    // Block 2: rows 8 -> q[2]
+    qd[2] = T(p.omega);
+    // Block 3: rows 2 -> q[3]
+    qd[3] = qd[0] - _t2*qd[2];
+    // Block 4: rows 3 -> q[4]
+    qd[4] = qd[1] - (-_t0*T(p.r))*qd[2];
+    // Block 5: rows 6 -> q[7]
+    qd[7] = T(0);
+    // Block 6: rows 5 -> q[5]
+    const T _t7 = -_t6*T(p.l);
+    const T _a6 = _t7;
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    qd[5] = (qd[4] - qd[7]) / _a6;
+    // Block 7: rows 4 -> q[6]
+    const T _t8 = sin(q[5]);
+    qd[6] = qd[3] - (T(p.l)*_t8)*qd[5];
+    // Block 8: rows 7 -> q[8]
+    qd[8] = T(0);
+    for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    qdd[0] = T(0);
+    qdd[1] = T(0);
+    qdd[2] = T(0);
+    const T _t9 = qd[2]*qd[2];
+    qdd[3] = -_t9*_t0*T(p.r) + qdd[0] - _t2*qdd[2];
+    qdd[4] = -_t9*T(p.r)*_t1 + qdd[1] - (-_t0*T(p.r))*qdd[2];
+    qdd[7] = T(0);
+    const T _t10 = qd[5]*qd[5];
+    qdd[5] = (-_t10*T(p.l)*_t8 + qdd[4] - qdd[7]) / _a6;
+    qdd[6] = -_t10*_t6*T(p.l) + qdd[3] - (T(p.l)*_t8)*qdd[5];
+    qdd[8] = T(0);
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
     return report;

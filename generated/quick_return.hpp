@@ -220,13 +220,12 @@ struct quick_return {
     }
   }
 
-  // Position: each block in turn, explicit or by Newton on the block alone; q holds the
-  // start (the previous solution or a prediction) and receives the solution.
+  // Position: each block in turn, explicit or by Newton on the block alone; q holds
+  // the start (the previous solution or a prediction) and receives the solution.
   template <class T>
   static BlockReport solve_position(T* q, [[maybe_unused]] T t,
       [[maybe_unused]] const Params& p,
       [[maybe_unused]] const BlockOptions& o) noexcept {
-    // 20 operations
     using std::cos, std::sin;
     BlockReport report;
     [[maybe_unused]] const double inv_length = 1.0 / length_scale;
@@ -241,17 +240,22 @@ struct quick_return {
     // Block 4: rows 8 -> q[2] (explicit)
     q[2] = T(p.omega)*t;
     // Block 5: rows 4 -> q[6] (explicit)
-    q[6] = cos(q[2])*T(p.r) + q[0];
+    const T _t0 = cos(q[2]);
+    q[6] = _t0*T(p.r) + q[0];
     // Block 6: rows 5 -> q[7] (explicit)
-    q[7] = T(p.r)*sin(q[2]) + q[1];
+    const T _t1 = sin(q[2]);
+    const T _t2 = T(p.r)*_t1;
+    q[7] = _t2 + q[1];
     // Block 7: rows 6 -> q[5] (newton)
-    const T _t0 = -q[7] + q[4];
-    const T _t1 = -q[6] + q[3];
+    const T _t3 = -q[7] + q[4];
+    const T _t4 = -q[6] + q[3];
     for (int _it = 1;; ++_it) {
-      const T _t2 = cos(q[5]);
-      const T _t3 = sin(q[5]);
-      T _r[1] = {-_t0*_t2 + _t1*_t3};
-      const T _a = _t1*_t2 + _t0*_t3;
+      const T _t5 = cos(q[5]);
+      const T _t6 = sin(q[5]);
+      const T _t7 = -_t3*_t5 + _t4*_t6;
+      const T _t8 = _t4*_t5 + _t3*_t6;
+      T _r[1] = {_t7};
+      const T _a = _t8;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 7, _it);
       _r[0] /= _a;
       double _step = 0;
@@ -290,18 +294,20 @@ struct quick_return {
     qd[2] = T(p.omega);
     // Block 5: rows 4 -> q[6]
     const T _t0 = sin(q[2]);
-    qd[6] = qd[0] - (T(p.r)*_t0)*qd[2];
+    const T _t1 = T(p.r)*_t0;
+    qd[6] = qd[0] - _t1*qd[2];
     // Block 6: rows 5 -> q[7]
-    const T _t1 = cos(q[2]);
-    qd[7] = qd[1] - (-_t1*T(p.r))*qd[2];
+    const T _t2 = cos(q[2]);
+    qd[7] = qd[1] - (-_t2*T(p.r))*qd[2];
     // Block 7: rows 6 -> q[5]
-    const T _t2 = -q[6] + q[3];
-    const T _t3 = cos(q[5]);
-    const T _t4 = -q[7] + q[4];
-    const T _t5 = sin(q[5]);
-    const T _a7 = _t2*_t3 + _t4*_t5;
+    const T _t3 = -q[6] + q[3];
+    const T _t4 = cos(q[5]);
+    const T _t5 = -q[7] + q[4];
+    const T _t6 = sin(q[5]);
+    const T _t7 = _t3*_t4 + _t5*_t6;
+    const T _a7 = _t7;
     if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
-    qd[5] = (-_t5*qd[3] - (-_t3)*qd[4] - (-_t5)*qd[6] - _t3*qd[7]) / _a7;
+    qd[5] = (-_t6*qd[3] - (-_t4)*qd[4] - (-_t6)*qd[6] - _t4*qd[7]) / _a7;
     // Block 8: rows 7 -> q[8]
     qd[8] = qd[5];
     for (int _k = 0; _k < nq; ++_k)
@@ -329,7 +335,8 @@ struct quick_return {
     const T _t1 = cos(q[5]);
     const T _t2 = -q[7] + q[4];
     const T _t3 = sin(q[5]);
-    const T _a7 = _t0*_t1 + _t2*_t3;
+    const T _t4 = _t0*_t1 + _t2*_t3;
+    const T _a7 = _t4;
     if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
     // Block 8: rows 7 -> q[8]
     qdd[0] = T(0);
@@ -337,12 +344,14 @@ struct quick_return {
     qdd[3] = T(0);
     qdd[4] = T(0);
     qdd[2] = T(0);
-    const T _t4 = qd[2]*qd[2];
-    const T _t5 = cos(q[2]);
-    const T _t6 = sin(q[2]);
-    qdd[6] = -_t4*_t5*T(p.r) + qdd[0] - (T(p.r)*_t6)*qdd[2];
-    qdd[7] = -_t4*T(p.r)*_t6 + qdd[1] - (-_t5*T(p.r))*qdd[2];
-    qdd[5] = (-_t1*qd[3]*qd[5] - _t3*qd[4]*qd[5] + (-_t1*qd[3] - _t3*qd[4] + (-_t2*_t1 + _t0*_t3)*qd[5] + _t1*qd[6] + _t3*qd[7])*qd[5] + _t1*qd[5]*qd[6] + _t3*qd[5]*qd[7] - _t3*qdd[3] - (-_t1)*qdd[4] - (-_t3)*qdd[6] - _t1*qdd[7]) / _a7;
+    const T _t5 = qd[2]*qd[2];
+    const T _t6 = cos(q[2]);
+    const T _t7 = sin(q[2]);
+    const T _t8 = T(p.r)*_t7;
+    qdd[6] = -_t5*_t6*T(p.r) + qdd[0] - _t8*qdd[2];
+    qdd[7] = -_t5*T(p.r)*_t7 + qdd[1] - (-_t6*T(p.r))*qdd[2];
+    const T _t9 = -_t2*_t1 + _t0*_t3;
+    qdd[5] = (-_t1*qd[3]*qd[5] - _t3*qd[4]*qd[5] + (-_t1*qd[3] - _t3*qd[4] + _t9*qd[5] + _t1*qd[6] + _t3*qd[7])*qd[5] + _t1*qd[5]*qd[6] + _t3*qd[5]*qd[7] - _t3*qdd[3] - (-_t1)*qdd[4] - (-_t3)*qdd[6] - _t1*qdd[7]) / _a7;
     qdd[8] = qdd[5];
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
@@ -369,32 +378,128 @@ struct quick_return {
     qd[2] = T(p.omega);
     // Block 5: rows 4 -> q[6]
     const T _t0 = sin(q[2]);
-    qd[6] = qd[0] - (T(p.r)*_t0)*qd[2];
+    const T _t1 = T(p.r)*_t0;
+    qd[6] = qd[0] - _t1*qd[2];
     // Block 6: rows 5 -> q[7]
-    const T _t1 = cos(q[2]);
-    qd[7] = qd[1] - (-_t1*T(p.r))*qd[2];
+    const T _t2 = cos(q[2]);
+    qd[7] = qd[1] - (-_t2*T(p.r))*qd[2];
     // Block 7: rows 6 -> q[5]
-    const T _t2 = -q[6] + q[3];
-    const T _t3 = cos(q[5]);
-    const T _t4 = -q[7] + q[4];
-    const T _t5 = sin(q[5]);
-    const T _a7 = _t2*_t3 + _t4*_t5;
+    const T _t3 = -q[6] + q[3];
+    const T _t4 = cos(q[5]);
+    const T _t5 = -q[7] + q[4];
+    const T _t6 = sin(q[5]);
+    const T _t7 = _t3*_t4 + _t5*_t6;
+    const T _a7 = _t7;
     if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
-    qd[5] = (-_t5*qd[3] - (-_t3)*qd[4] - (-_t5)*qd[6] - _t3*qd[7]) / _a7;
+    qd[5] = (-_t6*qd[3] - (-_t4)*qd[4] - (-_t6)*qd[6] - _t4*qd[7]) / _a7;
     // Block 8: rows 7 -> q[8]
     qd[8] = qd[5];
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
     qdd[4] = T(0);
     qdd[2] = T(0);
-    const T _t6 = qd[2]*qd[2];
-    qdd[6] = -_t6*_t1*T(p.r) + qdd[0] - (T(p.r)*_t0)*qdd[2];
-    qdd[7] = -_t6*T(p.r)*_t0 + qdd[1] - (-_t1*T(p.r))*qdd[2];
-    qdd[5] = (-_t3*qd[3]*qd[5] - _t5*qd[4]*qd[5] + (-_t3*qd[3] - _t5*qd[4] + (-_t4*_t3 + _t2*_t5)*qd[5] + _t3*qd[6] + _t5*qd[7])*qd[5] + _t3*qd[5]*qd[6] + _t5*qd[5]*qd[7] - _t5*qdd[3] - (-_t3)*qdd[4] - (-_t5)*qdd[6] - _t3*qdd[7]) / _a7;
+    const T _t8 = qd[2]*qd[2];
+    qdd[6] = -_t8*_t2*T(p.r) + qdd[0] - _t1*qdd[2];
+    qdd[7] = -_t8*T(p.r)*_t0 + qdd[1] - (-_t2*T(p.r))*qdd[2];
+    const T _t9 = -_t5*_t4 + _t3*_t6;
+    qdd[5] = (-_t4*qd[3]*qd[5] - _t6*qd[4]*qd[5] + (-_t4*qd[3] - _t6*qd[4] + _t9*qd[5] + _t4*qd[6] + _t6*qd[7])*qd[5] + _t4*qd[5]*qd[6] + _t6*qd[5]*qd[7] - _t6*qdd[3] - (-_t4)*qdd[4] - (-_t6)*qdd[6] - _t4*qdd[7]) / _a7;
     qdd[8] = qdd[5];
     for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // A full step: solve_position, then solve_velocity_acceleration, in one function
+  // so that terms at the solved q are computed once.
+  template <class T>
+  static BlockReport solve_step(T* q, [[maybe_unused]] T t,
+      [[maybe_unused]] const Params& p, T* qd, T* qdd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    [[maybe_unused]] const double inv_length = 1.0 / length_scale;
+    // Block 0: rows 0 -> q[0] (explicit)
+    q[0] = T(0);
+    // Block 1: rows 1 -> q[1] (explicit)
+    q[1] = T(0);
+    // Block 2: rows 2 -> q[3] (explicit)
+    q[3] = T(0);
+    // Block 3: rows 3 -> q[4] (explicit)
+    q[4] = -T(p.d);
+    // Block 4: rows 8 -> q[2] (explicit)
+    q[2] = T(p.omega)*t;
+    // Block 5: rows 4 -> q[6] (explicit)
+    const T _t0 = cos(q[2]);
+    q[6] = _t0*T(p.r) + q[0];
+    // Block 6: rows 5 -> q[7] (explicit)
+    const T _t1 = sin(q[2]);
+    const T _t2 = T(p.r)*_t1;
+    q[7] = _t2 + q[1];
+    // Block 7: rows 6 -> q[5] (newton)
+    const T _t3 = -q[7] + q[4];
+    const T _t4 = -q[6] + q[3];
+    for (int _it = 1;; ++_it) {
+      const T _t5 = cos(q[5]);
+      const T _t6 = sin(q[5]);
+      const T _t7 = -_t3*_t5 + _t4*_t6;
+      const T _t8 = _t4*_t5 + _t3*_t6;
+      T _r[1] = {_t7};
+      const T _a = _t8;
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 7, _it);
+      _r[0] /= _a;
+      double _step = 0;
+      q[5] -= _r[0];
+      _step = std::max(_step, _mag(_r[0]));
+      if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
+      if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
+        _done(report, _it, _step);
+        break;
+      }
+      if (_it >= o.max_iterations) return _fail(report, 1, 7, _it, _step);
+    }
+    // Block 8: rows 7 -> q[8] (explicit)
+    q[8] = q[5];
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
+    // Block 0: rows 0 -> q[0]
+    qd[0] = T(0);
+    // Block 1: rows 1 -> q[1]
+    qd[1] = T(0);
+    // Block 2: rows 2 -> q[3]
+    qd[3] = T(0);
+    // Block 3: rows 3 -> q[4]
+    qd[4] = T(0);
+    // Block 4: rows 8 -> q[2]
+    qd[2] = T(p.omega);
+    // Block 5: rows 4 -> q[6]
+    qd[6] = qd[0] - _t2*qd[2];
+    // Block 6: rows 5 -> q[7]
+    qd[7] = qd[1] - (-_t0*T(p.r))*qd[2];
+    // Block 7: rows 6 -> q[5]
+    const T _t9 = cos(q[5]);
+    const T _t10 = sin(q[5]);
+    const T _t11 = _t4*_t9 + _t3*_t10;
+    const T _a7 = _t11;
+    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
+    qd[5] = (-_t10*qd[3] - (-_t9)*qd[4] - (-_t10)*qd[6] - _t9*qd[7]) / _a7;
+    // Block 8: rows 7 -> q[8]
+    qd[8] = qd[5];
+    for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    qdd[0] = T(0);
+    qdd[1] = T(0);
+    qdd[3] = T(0);
+    qdd[4] = T(0);
+    qdd[2] = T(0);
+    const T _t12 = qd[2]*qd[2];
+    qdd[6] = -_t12*_t0*T(p.r) + qdd[0] - _t2*qdd[2];
+    qdd[7] = -_t12*T(p.r)*_t1 + qdd[1] - (-_t0*T(p.r))*qdd[2];
+    const T _t13 = -_t3*_t9 + _t4*_t10;
+    qdd[5] = (-_t9*qd[3]*qd[5] - _t10*qd[4]*qd[5] + (-_t9*qd[3] - _t10*qd[4] + _t13*qd[5] + _t9*qd[6] + _t10*qd[7])*qd[5] + _t9*qd[5]*qd[6] + _t10*qd[5]*qd[7] - _t10*qdd[3] - (-_t9)*qdd[4] - (-_t10)*qdd[6] - _t9*qdd[7]) / _a7;
+    qdd[8] = qdd[5];
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
     return report;

@@ -194,13 +194,12 @@ struct slider_crank_lecture {
     }
   }
 
-  // Position: each block in turn, explicit or by Newton on the block alone; q holds the
-  // start (the previous solution or a prediction) and receives the solution.
+  // Position: each block in turn, explicit or by Newton on the block alone; q holds
+  // the start (the previous solution or a prediction) and receives the solution.
   template <class T>
   static BlockReport solve_position(T* q, [[maybe_unused]] T t,
       [[maybe_unused]] const Params& p,
       [[maybe_unused]] const BlockOptions& o) noexcept {
-    // 10 operations
     using std::cos, std::sin;
     BlockReport report;
     [[maybe_unused]] const double inv_length = 1.0 / length_scale;
@@ -213,10 +212,13 @@ struct slider_crank_lecture {
     // Block 3: rows 4 -> q[4] (explicit)
     q[4] = T(0);
     // Block 4: rows 3 -> q[5] (newton)
+    const T _t0 = sin(q[2]);
     for (int _it = 1;; ++_it) {
-      const T _t0 = T(p.l)*sin(q[5]);
-      T _r[1] = {-cos(q[5])*T(p.l) - q[4] + q[1] + sin(q[2])};
-      const T _a = _t0;
+      const T _t1 = cos(q[5]);
+      const T _t2 = sin(q[5]);
+      const T _t3 = T(p.l)*_t2;
+      T _r[1] = {-_t1*T(p.l) - q[4] + q[1] + _t0};
+      const T _a = _t3;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 4, _it);
       _r[0] /= _a;
       double _step = 0;
@@ -230,8 +232,10 @@ struct slider_crank_lecture {
       if (_it >= o.max_iterations) return _fail(report, 1, 4, _it, _step);
     }
     // Block 5: rows 2 -> q[3] (explicit)
-    const T _t1 = T(p.l)*sin(q[5]);
-    q[3] = _t1 + cos(q[2]) + q[0];
+    const T _t4 = sin(q[5]);
+    const T _t5 = T(p.l)*_t4;
+    const T _t6 = cos(q[2]);
+    q[3] = _t5 + _t6 + q[0];
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
     return report;
@@ -254,14 +258,15 @@ struct slider_crank_lecture {
     qd[4] = T(0);
     // Block 4: rows 3 -> q[5]
     const T _t0 = sin(q[5]);
-    const T _a4 = T(p.l)*_t0;
+    const T _t1 = T(p.l)*_t0;
+    const T _a4 = _t1;
     if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? 2 : 3, 4);
-    const T _t1 = cos(q[2]);
-    qd[5] = (-qd[1] - _t1*qd[2] + qd[4]) / _a4;
+    const T _t2 = cos(q[2]);
+    qd[5] = (-qd[1] - _t2*qd[2] + qd[4]) / _a4;
     // Block 5: rows 2 -> q[3]
-    const T _t2 = sin(q[2]);
-    const T _t3 = cos(q[5]);
-    qd[3] = (-qd[0] - (-_t2)*qd[2] - (_t3*T(p.l))*qd[5]) / T(-1);
+    const T _t3 = sin(q[2]);
+    const T _t4 = cos(q[5]);
+    qd[3] = (-qd[0] - (-_t3)*qd[2] - (_t4*T(p.l))*qd[5]) / T(-1);
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
     return report;
@@ -281,20 +286,21 @@ struct slider_crank_lecture {
     // Block 3: rows 4 -> q[4]
     // Block 4: rows 3 -> q[5]
     const T _t0 = sin(q[5]);
-    const T _a4 = T(p.l)*_t0;
+    const T _t1 = T(p.l)*_t0;
+    const T _a4 = _t1;
     if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? 2 : 3, 4);
     // Block 5: rows 2 -> q[3]
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
     qdd[4] = T(0);
-    const T _t1 = qd[5]*qd[5];
-    const T _t2 = cos(q[5]);
-    const T _t3 = qd[2]*qd[2];
-    const T _t4 = sin(q[2]);
-    const T _t5 = cos(q[2]);
-    qdd[5] = (-_t1*_t2*T(p.l) + _t3*_t4 - qdd[1] - _t5*qdd[2] + qdd[4]) / _a4;
-    qdd[3] = (_t3*_t5 + _t1*T(p.l)*_t0 - qdd[0] - (-_t4)*qdd[2] - (_t2*T(p.l))*qdd[5]) / T(-1);
+    const T _t2 = qd[5]*qd[5];
+    const T _t3 = cos(q[5]);
+    const T _t4 = qd[2]*qd[2];
+    const T _t5 = sin(q[2]);
+    const T _t6 = cos(q[2]);
+    qdd[5] = (-_t2*_t3*T(p.l) + _t4*_t5 - qdd[1] - _t6*qdd[2] + qdd[4]) / _a4;
+    qdd[3] = (_t4*_t6 + _t2*T(p.l)*_t0 - qdd[0] - (-_t5)*qdd[2] - (_t3*T(p.l))*qdd[5]) / T(-1);
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
     return report;
@@ -318,24 +324,99 @@ struct slider_crank_lecture {
     qd[4] = T(0);
     // Block 4: rows 3 -> q[5]
     const T _t0 = sin(q[5]);
-    const T _a4 = T(p.l)*_t0;
+    const T _t1 = T(p.l)*_t0;
+    const T _a4 = _t1;
     if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? 2 : 3, 4);
-    const T _t1 = cos(q[2]);
-    qd[5] = (-qd[1] - _t1*qd[2] + qd[4]) / _a4;
+    const T _t2 = cos(q[2]);
+    qd[5] = (-qd[1] - _t2*qd[2] + qd[4]) / _a4;
     // Block 5: rows 2 -> q[3]
-    const T _t2 = sin(q[2]);
-    const T _t3 = cos(q[5]);
-    qd[3] = (-qd[0] - (-_t2)*qd[2] - (_t3*T(p.l))*qd[5]) / T(-1);
+    const T _t3 = sin(q[2]);
+    const T _t4 = cos(q[5]);
+    qd[3] = (-qd[0] - (-_t3)*qd[2] - (_t4*T(p.l))*qd[5]) / T(-1);
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
     qdd[4] = T(0);
-    const T _t4 = qd[5]*qd[5];
-    const T _t5 = qd[2]*qd[2];
-    qdd[5] = (-_t4*_t3*T(p.l) + _t5*_t2 - qdd[1] - _t1*qdd[2] + qdd[4]) / _a4;
-    qdd[3] = (_t5*_t1 + _t4*T(p.l)*_t0 - qdd[0] - (-_t2)*qdd[2] - (_t3*T(p.l))*qdd[5]) / T(-1);
+    const T _t5 = qd[5]*qd[5];
+    const T _t6 = qd[2]*qd[2];
+    qdd[5] = (-_t5*_t4*T(p.l) + _t6*_t3 - qdd[1] - _t2*qdd[2] + qdd[4]) / _a4;
+    qdd[3] = (_t6*_t2 + _t5*T(p.l)*_t0 - qdd[0] - (-_t3)*qdd[2] - (_t4*T(p.l))*qdd[5]) / T(-1);
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // A full step: solve_position, then solve_velocity_acceleration, in one function
+  // so that terms at the solved q are computed once.
+  template <class T>
+  static BlockReport solve_step(T* q, [[maybe_unused]] T t,
+      [[maybe_unused]] const Params& p, T* qd, T* qdd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    [[maybe_unused]] const double inv_length = 1.0 / length_scale;
+    // Block 0: rows 0 -> q[0] (explicit)
+    q[0] = T(0);
+    // Block 1: rows 1 -> q[1] (explicit)
+    q[1] = T(0);
+    // Block 2: rows 5 -> q[2] (explicit)
+    q[2] = T(p.omega)*t;
+    // Block 3: rows 4 -> q[4] (explicit)
+    q[4] = T(0);
+    // Block 4: rows 3 -> q[5] (newton)
+    const T _t0 = sin(q[2]);
+    for (int _it = 1;; ++_it) {
+      const T _t1 = cos(q[5]);
+      const T _t2 = sin(q[5]);
+      const T _t3 = T(p.l)*_t2;
+      T _r[1] = {-_t1*T(p.l) - q[4] + q[1] + _t0};
+      const T _a = _t3;
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 4, _it);
+      _r[0] /= _a;
+      double _step = 0;
+      q[5] -= _r[0];
+      _step = std::max(_step, _mag(_r[0]));
+      if (!(_step <= 1e300)) return _fail(report, 3, 4, _it);
+      if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
+        _done(report, _it, _step);
+        break;
+      }
+      if (_it >= o.max_iterations) return _fail(report, 1, 4, _it, _step);
+    }
+    // Block 5: rows 2 -> q[3] (explicit)
+    const T _t4 = sin(q[5]);
+    const T _t5 = T(p.l)*_t4;
+    const T _t6 = cos(q[2]);
+    q[3] = _t5 + _t6 + q[0];
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
+    // Block 0: rows 0 -> q[0]
+    qd[0] = T(0);
+    // Block 1: rows 1 -> q[1]
+    qd[1] = T(0);
+    // Block 2: rows 5 -> q[2]
+    qd[2] = T(p.omega);
+    // Block 3: rows 4 -> q[4]
+    qd[4] = T(0);
+    // Block 4: rows 3 -> q[5]
+    const T _a4 = _t5;
+    if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? 2 : 3, 4);
+    qd[5] = (-qd[1] - _t6*qd[2] + qd[4]) / _a4;
+    // Block 5: rows 2 -> q[3]
+    const T _t7 = cos(q[5]);
+    qd[3] = (-qd[0] - (-_t0)*qd[2] - (_t7*T(p.l))*qd[5]) / T(-1);
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    qdd[0] = T(0);
+    qdd[1] = T(0);
+    qdd[2] = T(0);
+    qdd[4] = T(0);
+    const T _t8 = qd[5]*qd[5];
+    const T _t9 = qd[2]*qd[2];
+    qdd[5] = (-_t8*_t7*T(p.l) + _t9*_t0 - qdd[1] - _t6*qdd[2] + qdd[4]) / _a4;
+    qdd[3] = (_t9*_t6 + _t8*T(p.l)*_t4 - qdd[0] - (-_t0)*qdd[2] - (_t7*T(p.l))*qdd[5]) / T(-1);
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
     return report;

@@ -379,123 +379,14 @@ std::vector<int> node_levels(const Program& prog, const BltOrder& order) {
   return level;
 }
 
-void emit_position(std::ostringstream& os, const SymbolicModel& model, const SymbolTable& symbols,
-                   const Structure& st) {
-  std::map<std::pair<int, int>, GiNaC::ex> jac;
-  for (const auto& e : model.phi_q) jac[{e.row, e.col}] = e.value;
-  std::vector<GiNaC::ex> outs;
-  std::vector<int> first;
-  for (const auto& plan : st.plans) {
-    first.push_back(static_cast<int>(outs.size()));
-    const Block& b = plan.block;
-    switch (plan.kind) {
-      case BlockKind::kExplicit: outs.push_back(-plan.rest / plan.coefficient); break;
-      case BlockKind::kExplicitGuarded:
-        outs.push_back(plan.coefficient);
-        outs.push_back(plan.rest);
-        break;
-      case BlockKind::kNewton:
-        for (int r : b.rows) outs.push_back(model.phi[r]);
-        for (int r : b.rows)
-          for (int c : b.cols) {
-            const auto it = jac.find({r, c});
-            outs.push_back(it == jac.end() ? GiNaC::ex(0) : it->second);
-          }
-        break;
-    }
-  }
-  const Program prog = lower(outs, symbols);
-  const std::vector<int> level = node_levels(prog, st.order);
-  FunctionPrinter pr(prog, symbols);
-  const std::string in = "    ";
-
-  os << "  // Position: each block in turn, explicit or by Newton on the block alone; q holds the\n"
-     << "  // start (the previous solution or a prediction) and receives the solution.\n";
-  os << "  template <class T>\n"
-     << "  static BlockReport solve_position(T* q, [[maybe_unused]] T t,\n"
-     << "      [[maybe_unused]] const Params& p,\n"
-     << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
-  os << "    // " << prog.operation_count() << " operations\n";
-  if (const std::string used = std_functions(prog); !used.empty())
-    os << in << "using " << used << ";\n";
-  os << in << "BlockReport report;\n";
-  if (st.newton_count() > 0)
-    os << in << "[[maybe_unused]] const double inv_length = 1.0 / length_scale;\n";
-  for (std::size_t bi = 0; bi < st.plans.size(); ++bi) {
-    const BlockPlan& plan = st.plans[bi];
-    const Block& b = plan.block;
-    const int f = first[bi];
-    const int k = static_cast<int>(b.rows.size());
-    os << in << "// Block " << bi << ": " << block_comment(b, to_string(plan.kind)) << "\n";
-    if (plan.kind == BlockKind::kExplicit) {
-      pr.ensure(prog.outputs[f], os, in);
-      os << in << "q[" << b.cols[0] << "] = " << pr.text(prog.outputs[f]) << ";\n";
-      continue;
-    }
-    if (plan.kind == BlockKind::kExplicitGuarded) {
-      pr.ensure(prog.outputs[f], os, in);
-      pr.ensure(prog.outputs[f + 1], os, in);
-      os << in << "{\n"
-         << in << "  const T _c = " << pr.text(prog.outputs[f]) << ";\n"
-         << in << "  if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? 2 : 3, " << bi
-         << ");\n"
-         << in << "  q[" << b.cols[0] << "] = -(" << pr.text(prog.outputs[f + 1]) << ") / _c;\n"
-         << in << "}\n";
-      continue;
-    }
-    const int n_out = k + k * k;
-    // Terms that do not read the block's own coordinates are computed once, before the loop.
-    for (int o = 0; o < n_out; ++o)
-      pr.ensure(prog.outputs[f + o], os, in, [&](int id) { return level[id] < static_cast<int>(bi); });
-    os << in << "for (int _it = 1;; ++_it) {\n";
-    pr.open_scope();
-    const std::string in2 = in + "  ";
-    for (int o = 0; o < n_out; ++o) pr.ensure(prog.outputs[f + o], os, in2);
-    std::vector<std::string> r, a;
-    for (int o = 0; o < k; ++o) r.push_back(pr.text(prog.outputs[f + o]));
-    for (int o = k; o < n_out; ++o) a.push_back(pr.text(prog.outputs[f + o]));
-    os << in2 << "T _r[" << k << "] = {" << join(r) << "};\n";
-    if (k == 1) {
-      os << in2 << "const T _a = " << a[0] << ";\n"
-         << in2 << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << bi
-         << ", _it);\n"
-         << in2 << "_r[0] /= _a;\n";
-    } else {
-      os << in2 << "T _a[" << k * k << "] = {" << join(a) << "};\n"
-         << in2 << "int _piv[" << k << "];\n"
-         << in2 << "const double _ratio = _lu_factor<" << k << ">(_a, _piv);\n"
-         << in2 << "if (!(_ratio > o.singular_pivot_ratio))\n"
-         << in2 << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << bi << ", _it);\n"
-         << in2 << "_lu_solve<" << k << ">(_a, _piv, _r);\n";
-    }
-    os << in2 << "double _step = 0;\n";
-    for (int i = 0; i < k; ++i) {
-      const bool angle = b.cols[i] % 3 == 2;
-      os << in2 << "q[" << b.cols[i] << "] -= _r[" << i << "];\n"
-         << in2 << "_step = std::max(_step, _mag(_r[" << i << "])" << (angle ? "" : " * inv_length")
-         << ");\n";
-    }
-    os << in2 << "if (!(_step <= 1e300)) return _fail(report, 3, " << bi << ", _it);\n"
-       << in2 << "if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {\n"
-       << in2 << "  _done(report, _it, _step);\n"
-       << in2 << "  break;\n"
-       << in2 << "}\n"
-       << in2 << "if (_it >= o.max_iterations) return _fail(report, 1, " << bi << ", _it, _step);\n";
-    pr.close_scope();
-    os << in << "}\n";
-  }
-  os << in << "for (int _k = 0; _k < nq; ++_k)\n"
-     << in << "  if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);\n"
-     << in << "return report;\n  }\n";
-}
-
-// Velocity and/or acceleration: per block, rhs = nu (gamma) of its rows minus the Jacobian
-// entries on earlier blocks' coordinates times their solved rates; one factorization per
-// block serves both.
-class MotionEmitter {
+// Position, velocity and acceleration block by block. One program holds every expression the
+// block functions need, so each function shares terms (sin and cos of an angle are computed
+// once per function) and the full-step function shares them between the phases. Terms are
+// printed where first needed; those inside a Newton loop go out of scope with it.
+class BlockEmitter {
  public:
-  MotionEmitter(const SymbolicModel& model, const SymbolTable& symbols, const Structure& st)
-      : st_(st) {
+  BlockEmitter(const SymbolicModel& model, const SymbolTable& symbols, const Structure& st)
+      : symbols_(symbols), st_(st) {
     std::map<std::pair<int, int>, GiNaC::ex> jac;
     for (const auto& e : model.phi_q) jac[{e.row, e.col}] = e.value;
     std::vector<GiNaC::ex> outs;
@@ -503,14 +394,31 @@ class MotionEmitter {
       outs.push_back(e);
       return static_cast<int>(outs.size()) - 1;
     };
+    const auto jac_at = [&](int r, int c) {
+      const auto it = jac.find({r, c});
+      return it == jac.end() ? GiNaC::ex(0) : it->second;
+    };
+    for (const auto& plan : st.plans) {
+      pos_first_.push_back(static_cast<int>(outs.size()));
+      const Block& b = plan.block;
+      switch (plan.kind) {
+        case BlockKind::kExplicit: add(-plan.rest / plan.coefficient); break;
+        case BlockKind::kExplicitGuarded:
+          add(plan.coefficient);
+          add(plan.rest);
+          break;
+        case BlockKind::kNewton:
+          for (int r : b.rows) add(model.phi[r]);
+          for (int r : b.rows)
+            for (int c : b.cols) add(jac_at(r, c));
+          break;
+      }
+    }
     for (std::size_t bi = 0; bi < st.plans.size(); ++bi) {
       const Block& b = st.plans[bi].block;
       BlockOuts bo;
       for (int r : b.rows) {
-        for (int c : b.cols) {
-          const auto it = jac.find({r, c});
-          bo.jbb.push_back(add(it == jac.end() ? GiNaC::ex(0) : it->second));
-        }
+        for (int c : b.cols) bo.jbb.push_back(add(jac_at(r, c)));
         std::vector<std::pair<int, int>> coupling;
         for (const auto& e : model.phi_q)
           if (e.row == r && st.order.col_block[e.col] < static_cast<int>(bi))
@@ -522,11 +430,24 @@ class MotionEmitter {
       blocks_.push_back(bo);
     }
     prog_ = lower(outs, symbols);
+    level_ = node_levels(prog_, st.order);
   }
 
-  void emit(std::ostringstream& os, const SymbolTable& symbols, bool velocity, bool acceleration) {
-    FunctionPrinter pr(prog_, symbols);
-    const std::string in = "    ";
+  void emit_position(std::ostringstream& os) {
+    os << "  // Position: each block in turn, explicit or by Newton on the block alone; q holds\n"
+       << "  // the start (the previous solution or a prediction) and receives the solution.\n"
+       << "  template <class T>\n"
+       << "  static BlockReport solve_position(T* q, [[maybe_unused]] T t,\n"
+       << "      [[maybe_unused]] const Params& p,\n"
+       << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+    FunctionPrinter pr(prog_, symbols_);
+    prologue(os);
+    position_body(os, pr);
+    finite_check(os, "q");
+    os << kIn << "return report;\n  }\n";
+  }
+
+  void emit_motion(std::ostringstream& os, bool velocity, bool acceleration) {
     if (velocity && acceleration) {
       os << "  // Velocity (Phi_q qd = nu) and acceleration (Phi_q qdd = gamma) at a solved q,\n"
          << "  // block by block with one factorization per block.\n"
@@ -546,18 +467,131 @@ class MotionEmitter {
          << "      [[maybe_unused]] const Params& p, T* qdd,\n";
     }
     os << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+    FunctionPrinter pr(prog_, symbols_);
+    prologue(os);
+    motion_body(os, pr, velocity, acceleration);
+    os << kIn << "return report;\n  }\n";
+  }
+
+  // The full step: position, then velocity and acceleration, sharing every term.
+  void emit_step(std::ostringstream& os) {
+    os << "  // A full step: solve_position, then solve_velocity_acceleration, in one function\n"
+       << "  // so that terms at the solved q are computed once.\n"
+       << "  template <class T>\n"
+       << "  static BlockReport solve_step(T* q, [[maybe_unused]] T t,\n"
+       << "      [[maybe_unused]] const Params& p, T* qd, T* qdd,\n"
+       << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+    FunctionPrinter pr(prog_, symbols_);
+    prologue(os);
+    position_body(os, pr);
+    finite_check(os, "q");
+    motion_body(os, pr, true, true);
+    os << kIn << "return report;\n  }\n";
+  }
+
+ private:
+  struct BlockOuts {
+    std::vector<int> jbb;                                     // output ids, row-major k x k
+    std::vector<std::vector<std::pair<int, int>>> coupling;  // per row: (col, output id)
+    std::vector<int> nu, gamma;                               // per row
+  };
+  static constexpr const char* kIn = "    ";
+
+  int out(int k) const { return prog_.outputs[k]; }
+
+  void prologue(std::ostringstream& os) {
     if (const std::string used = std_functions(prog_); !used.empty())
-      os << in << "using " << used << ";\n";
-    os << in << "BlockReport report;\n";
+      os << kIn << "using " << used << ";\n";
+    os << kIn << "BlockReport report;\n";
+  }
+
+  void finite_check(std::ostringstream& os, const char* v) {
+    os << kIn << "for (int _k = 0; _k < nq; ++_k)\n"
+       << kIn << "  if (!(_mag(" << v << "[_k]) <= 1e300)) return _fail(report, 3, -1);\n";
+  }
+
+  void position_body(std::ostringstream& os, FunctionPrinter& pr) {
+    const std::string in = kIn;
+    if (st_.newton_count() > 0)
+      os << in << "[[maybe_unused]] const double inv_length = 1.0 / length_scale;\n";
+    for (std::size_t bi = 0; bi < st_.plans.size(); ++bi) {
+      const BlockPlan& plan = st_.plans[bi];
+      const Block& b = plan.block;
+      const int f = pos_first_[bi];
+      const int k = static_cast<int>(b.rows.size());
+      os << in << "// Block " << bi << ": " << block_comment(b, to_string(plan.kind)) << "\n";
+      if (plan.kind == BlockKind::kExplicit) {
+        pr.ensure(out(f), os, in);
+        os << in << "q[" << b.cols[0] << "] = " << pr.text(out(f)) << ";\n";
+        continue;
+      }
+      if (plan.kind == BlockKind::kExplicitGuarded) {
+        pr.ensure(out(f), os, in);
+        pr.ensure(out(f + 1), os, in);
+        os << in << "{\n"
+           << in << "  const T _c = " << pr.text(out(f)) << ";\n"
+           << in << "  if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? 2 : 3, " << bi
+           << ");\n"
+           << in << "  q[" << b.cols[0] << "] = -(" << pr.text(out(f + 1)) << ") / _c;\n"
+           << in << "}\n";
+        continue;
+      }
+      const int n_out = k + k * k;
+      // Terms that do not read the block's own coordinates are computed once, before the loop.
+      for (int o = 0; o < n_out; ++o)
+        pr.ensure(out(f + o), os, in, [&](int id) { return level_[id] < static_cast<int>(bi); });
+      os << in << "for (int _it = 1;; ++_it) {\n";
+      pr.open_scope();
+      const std::string in2 = in + "  ";
+      for (int o = 0; o < n_out; ++o) pr.ensure(out(f + o), os, in2);
+      std::vector<std::string> r, a;
+      for (int o = 0; o < k; ++o) r.push_back(pr.text(out(f + o)));
+      for (int o = k; o < n_out; ++o) a.push_back(pr.text(out(f + o)));
+      os << in2 << "T _r[" << k << "] = {" << join(r) << "};\n";
+      if (k == 1) {
+        os << in2 << "const T _a = " << a[0] << ";\n"
+           << in2 << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << bi
+           << ", _it);\n"
+           << in2 << "_r[0] /= _a;\n";
+      } else {
+        os << in2 << "T _a[" << k * k << "] = {" << join(a) << "};\n"
+           << in2 << "int _piv[" << k << "];\n"
+           << in2 << "const double _ratio = _lu_factor<" << k << ">(_a, _piv);\n"
+           << in2 << "if (!(_ratio > o.singular_pivot_ratio))\n"
+           << in2 << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << bi << ", _it);\n"
+           << in2 << "_lu_solve<" << k << ">(_a, _piv, _r);\n";
+      }
+      os << in2 << "double _step = 0;\n";
+      for (int i = 0; i < k; ++i) {
+        const bool angle = b.cols[i] % 3 == 2;
+        os << in2 << "q[" << b.cols[i] << "] -= _r[" << i << "];\n"
+           << in2 << "_step = std::max(_step, _mag(_r[" << i << "])"
+           << (angle ? "" : " * inv_length") << ");\n";
+      }
+      os << in2 << "if (!(_step <= 1e300)) return _fail(report, 3, " << bi << ", _it);\n"
+         << in2
+         << "if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {\n"
+         << in2 << "  _done(report, _it, _step);\n"
+         << in2 << "  break;\n"
+         << in2 << "}\n"
+         << in2 << "if (_it >= o.max_iterations) return _fail(report, 1, " << bi
+         << ", _it, _step);\n";
+      pr.close_scope();
+      os << in << "}\n";
+    }
+  }
+
+  void motion_body(std::ostringstream& os, FunctionPrinter& pr, bool velocity, bool acceleration) {
+    const std::string in = kIn;
     divisor_.assign(blocks_.size(), "");
     for (std::size_t bi = 0; bi < blocks_.size(); ++bi) {
       const BlockOuts& bo = blocks_[bi];
       const int k = static_cast<int>(st_.plans[bi].block.rows.size());
       const std::string b = idx(static_cast<int>(bi));
       os << in << "// Block " << bi << ": " << block_comment(st_.plans[bi].block, "") << "\n";
-      for (int id : bo.jbb) pr.ensure(prog_.outputs[id], os, in);
+      for (int id : bo.jbb) pr.ensure(out(id), os, in);
       if (k == 1) {
-        const int id = prog_.outputs[bo.jbb[0]];
+        const int id = out(bo.jbb[0]);
         const Node& n = prog_.nodes[id];
         if (n.kind == OpKind::kConst) {
           divisor_[bi] = n.value == 1 ? "" : pr.atom_text(id);
@@ -569,7 +603,7 @@ class MotionEmitter {
         }
       } else {
         std::vector<std::string> a;
-        for (int id : bo.jbb) a.push_back(pr.text(prog_.outputs[id]));
+        for (int id : bo.jbb) a.push_back(pr.text(out(id)));
         os << in << "T _a" << b << "[" << k * k << "] = {" << join(a) << "};\n"
            << in << "int _piv" << b << "[" << k << "];\n"
            << in << "const double _ratio" << b << " = _lu_factor<" << k << ">(_a" << b << ", _piv"
@@ -580,38 +614,28 @@ class MotionEmitter {
       }
       if (velocity) solve_rows(os, pr, bi, bo.nu, "qd");
     }
-    if (acceleration)
-      for (std::size_t bi = 0; bi < blocks_.size(); ++bi) solve_rows(os, pr, bi, blocks_[bi].gamma, "qdd");
-    for (const char* v : {"qd", "qdd"}) {
-      if ((std::string(v) == "qd" && !velocity) || (std::string(v) == "qdd" && !acceleration))
-        continue;
-      os << in << "for (int _k = 0; _k < nq; ++_k)\n"
-         << in << "  if (!(_mag(" << v << "[_k]) <= 1e300)) return _fail(report, 3, -1);\n";
+    if (velocity) finite_check(os, "qd");
+    if (acceleration) {
+      for (std::size_t bi = 0; bi < blocks_.size(); ++bi)
+        solve_rows(os, pr, bi, blocks_[bi].gamma, "qdd");
+      finite_check(os, "qdd");
     }
-    os << in << "return report;\n  }\n";
   }
-
- private:
-  struct BlockOuts {
-    std::vector<int> jbb;                                       // output ids, row-major k x k
-    std::vector<std::vector<std::pair<int, int>>> coupling;    // per row: (col, output id)
-    std::vector<int> nu, gamma;                                 // per row
-  };
 
   void solve_rows(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
                   const std::vector<int>& rhs, const char* var) {
     const BlockOuts& bo = blocks_[bi];
     const Block& blk = st_.plans[bi].block;
     const int k = static_cast<int>(blk.rows.size());
-    const std::string in = "    ";
+    const std::string in = kIn;
     std::vector<std::string> texts;
     for (int i = 0; i < k; ++i) {
-      const int rid = prog_.outputs[rhs[i]];
+      const int rid = out(rhs[i]);
       pr.ensure(rid, os, in);
-      for (const auto& [c, out] : bo.coupling[i]) pr.ensure(prog_.outputs[out], os, in);
+      for (const auto& [c, o] : bo.coupling[i]) pr.ensure(out(o), os, in);
       std::string s = rid == Program::kZero ? "" : pr.text(rid);
-      for (const auto& [c, out] : bo.coupling[i]) {
-        const int id = prog_.outputs[out];
+      for (const auto& [c, o] : bo.coupling[i]) {
+        const int id = out(o);
         const Node& n = prog_.nodes[id];
         const std::string x = std::string(var) + "[" + idx(c) + "]";
         if (n.kind == OpKind::kConst && (n.value == 1 || n.value == -1)) {
@@ -630,16 +654,20 @@ class MotionEmitter {
       return;
     }
     const std::string b = idx(static_cast<int>(bi));
-    os << in << "{\n" << in << "  T _x[" << k << "] = {" << join(texts) << "};\n"
+    os << in << "{\n"
+       << in << "  T _x[" << k << "] = {" << join(texts) << "};\n"
        << in << "  _lu_solve<" << k << ">(_a" << b << ", _piv" << b << ", _x);\n";
     for (int i = 0; i < k; ++i)
       os << in << "  " << var << "[" << blk.cols[i] << "] = _x[" << i << "];\n";
     os << in << "}\n";
   }
 
+  const SymbolTable& symbols_;
   const Structure& st_;
+  std::vector<int> pos_first_;
   std::vector<BlockOuts> blocks_;
   Program prog_;
+  std::vector<int> level_;
   std::vector<std::string> divisor_;
 };
 
@@ -745,17 +773,19 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     os << "  static constexpr int num_explicit_blocks = " << st.explicit_count() << ";\n";
     os << "  static constexpr int max_block_size = " << st.largest_block() << ";\n\n";
     emit_block_helpers(os);
-    emit_position(os, model, symbols, st);
-    MotionEmitter motion(model, symbols, st);
+    BlockEmitter blocks(model, symbols, st);
+    blocks.emit_position(os);
     if (velocity) {
       os << "\n";
-      motion.emit(os, symbols, true, false);
+      blocks.emit_motion(os, true, false);
     }
     if (acceleration) {
       os << "\n";
-      motion.emit(os, symbols, false, true);
+      blocks.emit_motion(os, false, true);
       os << "\n";
-      motion.emit(os, symbols, true, true);
+      blocks.emit_motion(os, true, true);
+      os << "\n";
+      blocks.emit_step(os);
     }
   }
   os << "};\n\n}  // namespace kinegen::models\n";

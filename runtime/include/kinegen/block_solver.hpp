@@ -89,19 +89,26 @@ class Solver : public DenseSolver<Model, Scalar> {
       const Scalar h = t - t_previous_;
       q += h * qd + (h * h / Scalar(2)) * qdd;
     }
-    Result r = position(q, t);
-    if (!r) return r;
+    // Without a prediction the first solve iterates to convergence even when the options fix
+    // the iteration count.
     if constexpr (kBlockSolver && detail::HasAcceleration<Model>::value) {
-      const Result rv = detail::to_result(Model::solve_velocity_acceleration(
-          q.data(), t, this->system().params(), qd.data(), qdd.data(), block_options()));
-      if (!rv) return rv;
+      auto o = block_options();
+      if (!has_previous_) o.fixed_iterations = 0;
+      const Result r = detail::to_result(Model::solve_step(
+          q.data(), t, this->system().params(), qd.data(), qdd.data(), o));
+      if (!r) return r;
+      t_previous_ = t;
+      has_previous_ = true;
+      return r;
     } else {
+      const Result r = position(q, t);
+      if (!r) return r;
       if (const Result rv = velocity(q, t, qd); !rv) return rv;
       if (const Result ra = acceleration(q, qd, t, qdd); !ra) return ra;
+      t_previous_ = t;
+      has_previous_ = true;
+      return r;
     }
-    t_previous_ = t;
-    has_previous_ = true;
-    return r;
   }
   // Forgets the previous step: the next step() starts Newton from the q given.
   void reset() { has_previous_ = false; }
