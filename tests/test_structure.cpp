@@ -10,6 +10,7 @@
 
 #include "four_bar.hpp"
 #include "guarded_slider.hpp"
+#include "kinegen/codegen/emit_cpp.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/structure.hpp"
 #include "offset_slider_crank.hpp"
@@ -312,4 +313,39 @@ TEST_CASE("a singular Newton block is reported", "[structure]") {
   one.max_iterations = 1;
   double qm[M::nq] = {0, 0, 0, 3, 0, 1.0};
   CHECK(M::solve_position(qm, 0.0, M::Params{}, one).status == 1);
+}
+
+TEST_CASE("generate --outputs selects the analyses in the header", "[structure][emit]") {
+  const auto model = load("four_bar");
+  const auto text = [&](cg::Outputs outputs) {
+    cg::EmitOptions options;
+    options.outputs = outputs;
+    return cg::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
+                           model->programs(), options);
+  };
+  const auto has = [](const std::string& s, const char* what) {
+    return s.find(what) != std::string::npos;
+  };
+  const std::string all = text(cg::Outputs::kAll), pos = text(cg::Outputs::kPosition),
+                    vel = text(cg::Outputs::kVelocity);
+  // The default is everything, and the header the CLI writes by default.
+  CHECK(all == cg::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
+                               model->programs()));
+  for (const char* f : {"static void phi(", "static void phi_q(", "solve_position("}) {
+    CHECK(has(all, f));
+    CHECK(has(pos, f));
+    CHECK(has(vel, f));
+  }
+  CHECK(has(all, "static void gamma("));
+  CHECK(has(all, "solve_step("));
+  CHECK(has(all, "has_acceleration = true"));
+  CHECK_FALSE(has(pos, "static void nu("));
+  CHECK_FALSE(has(pos, "solve_velocity("));
+  CHECK_FALSE(has(pos, "static void gamma("));
+  CHECK(has(pos, "has_velocity = false"));
+  CHECK(has(vel, "static void nu("));
+  CHECK(has(vel, "solve_velocity("));
+  CHECK_FALSE(has(vel, "static void gamma("));
+  CHECK_FALSE(has(vel, "solve_acceleration("));
+  CHECK(has(vel, "has_acceleration = false"));
 }

@@ -102,10 +102,13 @@ void add_common(CLI::App* cmd, Common& c) {
       ->type_name("NAME=VALUE");
 }
 
-int run_generate(const Common& c, const std::string& dir) {
+int run_generate(const Common& c, const std::string& dir, const std::string& outputs) {
   const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
+  kc::EmitOptions options;
+  if (outputs == "position") options.outputs = kc::Outputs::kPosition;
+  if (outputs == "velocity") options.outputs = kc::Outputs::kVelocity;
   const std::string text = kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
-                                           model->programs());
+                                           model->programs(), options);
   std::error_code ec;
   fs::create_directories(dir, ec);
   const fs::path target = fs::path(dir) / (model->mechanism().name + ".hpp");
@@ -195,6 +198,12 @@ int main(int argc, char** argv) {
   auto* generate = app.add_subcommand("generate", "Write <DIR>/<name>.hpp for a mechanism");
   add_common(generate, common);
   generate->add_option("-o,--output", out_dir, "Output directory (default: .)");
+  std::string outputs = "acceleration";
+  generate
+      ->add_option("--outputs", outputs,
+                   "Analyses the header supports: position (phi, phi_q), velocity (adds nu) or "
+                   "acceleration (adds gamma; default)")
+      ->check(CLI::IsMember({"position", "velocity", "acceleration"}));
 
   double t0 = 0, t1 = 0;
   int steps = 0;
@@ -237,7 +246,7 @@ int main(int argc, char** argv) {
   }
 
   try {
-    if (*generate) return run_generate(common, out_dir);
+    if (*generate) return run_generate(common, out_dir, outputs);
     if (*analyze) return run_analyze(common, t0, t1, steps, csv);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
     if (*check) return run_check(common, check_options, structure);
