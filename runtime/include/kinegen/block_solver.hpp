@@ -86,14 +86,20 @@ class Solver : public DenseSolver<Model, Scalar> {
     }
   }
 
-  // One full step at time t: q is predicted from the previous step's q, qd and qdd (a
-  // second-order Taylor step over t - t_previous; none on the first call or after reset()),
-  // then solved, then qd and qdd. q, qd and qdd are the caller's state, passed back each step.
+  // One full step at time t: q is predicted from the previous step's q, qd and qdd (Taylor
+  // over h = t - t_previous, with the jerk estimated from the last two accelerations; none on
+  // the first call or after reset()), then solved, then qd and qdd. q, qd and qdd are the
+  // caller's state, passed back unchanged between steps (call reset() after changing them).
   Result step(Scalar t, Vector& q, Vector& qd, Vector& qdd) {
+    const Scalar h = has_previous_ ? t - t_previous_ : Scalar(0);
     if (has_previous_) {
-      const Scalar h = t - t_previous_;
       q += h * qd + (h * h / Scalar(2)) * qdd;
+      // Third order: the jerk from the last two accelerations. The prediction error is then
+      // O(h^4), below the tolerance at small steps, so one iteration converges.
+      if (has_two_ && h_previous_ != Scalar(0))
+        q += (h * h * h / (Scalar(6) * h_previous_)) * (qdd - qdd_previous_);
     }
+    qdd_last_ = qdd;
     // Without a prediction the first solve iterates to convergence even when the options fix
     // the iteration count.
     if constexpr (kBlockSolver && detail::HasAcceleration<Model>::value) {
@@ -106,21 +112,19 @@ class Solver : public DenseSolver<Model, Scalar> {
         qdd.setConstant(kNaN);
         return r;
       }
-      t_previous_ = t;
-      has_previous_ = true;
+      advance(t, h);
       return r;
     } else {
       const Result r = position(q, t);
       if (!r) return r;
       if (const Result rv = velocity(q, t, qd); !rv) return rv;
       if (const Result ra = acceleration(q, qd, t, qdd); !ra) return ra;
-      t_previous_ = t;
-      has_previous_ = true;
+      advance(t, h);
       return r;
     }
   }
   // Forgets the previous step: the next step() starts Newton from the q given.
-  void reset() { has_previous_ = false; }
+  void reset() { has_previous_ = has_two_ = false; }
 
  private:
   auto block_options() const {
@@ -133,9 +137,19 @@ class Solver : public DenseSolver<Model, Scalar> {
     return o;
   }
 
+  void advance(Scalar t, Scalar h) {
+    has_two_ = has_previous_;
+    h_previous_ = h;
+    qdd_previous_ = qdd_last_;
+    t_previous_ = t;
+    has_previous_ = true;
+  }
+
   static constexpr Scalar kNaN = std::numeric_limits<Scalar>::quiet_NaN();
   Scalar t_previous_ = Scalar(0);
-  bool has_previous_ = false;
+  bool has_previous_ = false, has_two_ = false;
+  Scalar h_previous_ = Scalar(0);
+  Vector qdd_last_, qdd_previous_;  // the caller's qdd at the last and the previous step
 };
 
 }  // namespace kinegen
