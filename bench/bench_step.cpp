@@ -22,6 +22,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <kinegen/solver.hpp>
 #include <string>
 
 #include "four_bar.hpp"
@@ -29,7 +30,6 @@
 #include "offset_slider_crank.hpp"
 #include "quick_return.hpp"
 #include "slider_crank.hpp"
-#include <kinegen/solver.hpp>
 
 #if __has_include("generic_from_mechanism.hpp")
 #include "generic_from_mechanism.hpp"
@@ -110,8 +110,9 @@ double max_difference(kinegen::SolverOptions block_options) {
     if (!dense.position(dq, t)) return NAN;
     dense.velocity(dq, t, dqd);
     dense.acceleration(dq, dqd, t, dqdd);
-    worst = std::max({worst, (q - dq).cwiseAbs().maxCoeff(), (qd - dqd).cwiseAbs().maxCoeff(),
-                      (qdd - dqdd).cwiseAbs().maxCoeff() / std::max(1.0, dqdd.cwiseAbs().maxCoeff())});
+    worst =
+        std::max({worst, (q - dq).cwiseAbs().maxCoeff(), (qd - dqd).cwiseAbs().maxCoeff(),
+                  (qdd - dqdd).cwiseAbs().maxCoeff() / std::max(1.0, dqdd.cwiseAbs().maxCoeff())});
   }
   return worst;
 }
@@ -129,8 +130,8 @@ void run(const char* name) {
   kinegen::DenseSolver<Model> dense;
   const double t_dense = calls_ns(dense, q0);
 
-  const auto model = kinegen::codegen::CompiledModel::from_file(
-      std::string(KINEGEN_SOURCE_DIR) + "/examples/" + name + ".yaml");
+  const auto model = kinegen::codegen::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
+                                                                "/examples/" + name + ".yaml");
   kinegen::BasicSolver<kinegen::codegen::ProgramSystem> inprocess{
       kinegen::codegen::ProgramSystem(*model)};
   const Eigen::VectorXd q0_dynamic = model->q0();
@@ -146,31 +147,34 @@ void run(const char* name) {
 #endif
   const double diff = max_difference<Model>({});
   const double diff_fixed = max_difference<Model>(fixed);
-  std::printf("%-20s %3d %2d/%-2d %9.0f %7.0f %7.0f %7.0f %10.0f %8.0f %7.1fx %7.1fx %7.1fx %9.1e %9.1e\n",
-              name, Model::nq, Model::num_blocks - Model::num_explicit_blocks, Model::num_blocks,
-              t_step, t_calls, t_fixed, t_dense, t_inprocess, t_generic, t_dense / t_step,
-              t_inprocess / t_step, t_generic / t_step, diff, diff_fixed);
+  std::printf(
+      "%-20s %3d %2d/%-2d %9.0f %7.0f %7.0f %7.0f %10.0f %8.0f %7.1fx %7.1fx %7.1fx %9.1e %9.1e\n",
+      name, Model::nq, Model::num_blocks - Model::num_explicit_blocks, Model::num_blocks, t_step,
+      t_calls, t_fixed, t_dense, t_inprocess, t_generic, t_dense / t_step, t_inprocess / t_step,
+      t_generic / t_step, diff, diff_fixed);
 }
 
 }  // namespace
 
 int main() {
   std::printf(
-      "ns per full step (position + velocity + acceleration), best of %d chunks of %d steps of 0.1 deg\n",
+      "ns per full step (position + velocity + acceleration), best of %d chunks of %d steps of 0.1 "
+      "deg\n",
       kChunks, kChunk);
 #ifndef KINEGEN_BENCH_GENERIC
   std::printf("(generic joint-library solver not built: bench/generic_solver.hpp is absent)\n");
 #endif
-  std::printf("%-20s %3s %5s %9s %7s %7s %7s %10s %8s %8s %8s %8s %9s %9s\n", "model", "nq",
-              "newt", "block+pred", "block", "fixed-1", "dense", "in-process", "generic",
-              "dense/", "inproc/", "generic/", "max diff", "diff fix1");
+  std::printf("%-20s %3s %5s %9s %7s %7s %7s %10s %8s %8s %8s %8s %9s %9s\n", "model", "nq", "newt",
+              "block+pred", "block", "fixed-1", "dense", "in-process", "generic", "dense/",
+              "inproc/", "generic/", "max diff", "diff fix1");
   run<kinegen::models::slider_crank>("slider_crank");
   run<kinegen::models::offset_slider_crank>("offset_slider_crank");
   run<kinegen::models::four_bar>("four_bar");
   run<kinegen::models::quick_return>("quick_return");
-  std::printf("(newt = Newton blocks / all blocks; ratios against block+pred; max diff: largest\n"
-              " |q|, |qd| and relative |qdd| difference from the dense solver at tolerance 1e-14;\n"
-              " checksum %g)\n",
-              g_checksum);
+  std::printf(
+      "(newt = Newton blocks / all blocks; ratios against block+pred; max diff: largest\n"
+      " |q|, |qd| and relative |qdd| difference from the dense solver at tolerance 1e-14;\n"
+      " checksum %g)\n",
+      g_checksum);
   return 0;
 }
