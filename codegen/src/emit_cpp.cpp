@@ -414,15 +414,17 @@ class BlockEmitter {
           break;
       }
     }
+    std::vector<std::vector<const JacobianEntry*>> row_entries(model.phi.size());
+    for (const auto& e : model.phi_q) row_entries[e.row].push_back(&e);
     for (std::size_t bi = 0; bi < st.plans.size(); ++bi) {
       const Block& b = st.plans[bi].block;
       BlockOuts bo;
       for (int r : b.rows) {
         for (int c : b.cols) bo.jbb.push_back(add(jac_at(r, c)));
         std::vector<std::pair<int, int>> coupling;
-        for (const auto& e : model.phi_q)
-          if (e.row == r && st.order.col_block[e.col] < static_cast<int>(bi))
-            coupling.push_back({e.col, add(e.value)});
+        for (const JacobianEntry* e : row_entries[r])
+          if (st.order.col_block[e->col] < static_cast<int>(bi))
+            coupling.push_back({e->col, add(e->value)});
         bo.coupling.push_back(coupling);
         bo.nu.push_back(add(model.nu[r]));
         bo.gamma.push_back(add(model.gamma[r]));

@@ -41,48 +41,57 @@ Result to_result(const Report& report) {
 // The solver for a generated model: `kinegen::Solver<kinegen::models::four_bar> solver;`.
 // position / velocity / acceleration as in BasicSolver; step() adds a predictor.
 template <class Model, class Scalar = double>
-class Solver : public DenseSolver<Model, Scalar> {
-  using Base = DenseSolver<Model, Scalar>;
-
+class Solver {
  public:
   using Params = typename Model::Params;
-  using typename Base::Vector;
+  using Vector = Eigen::Matrix<Scalar, Model::nq, 1>;
   // True when the generated block functions are used; false: dense Newton on Phi_q.
   static constexpr bool kBlockSolver = detail::HasBlockSolver<Model>::value;
 
   Solver() = default;
-  explicit Solver(const Params& params, SolverOptions options = {}) : Base(params, options) {}
+  explicit Solver(const Params& params, SolverOptions options = {}) : dense_(params, options) {}
+
+  // The model's initial estimates as a vector of this solver's scalar.
+  static Vector initial_estimate() {
+    Vector q;
+    for (int k = 0; k < Model::nq; ++k) q[k] = Scalar(Model::q0[k]);
+    return q;
+  }
+  const GeneratedSystem<Model, Scalar>& system() const { return dense_.system(); }
+  GeneratedSystem<Model, Scalar>& system() { return dense_.system(); }
+  const SolverOptions& options() const { return dense_.options(); }
+  SolverOptions& options() { return dense_.options(); }
 
   // Newton from the q given; q is overwritten with the solution (or the last iterate).
   // Result::iterations is the largest count of any block.
   Result position(Vector& q, Scalar t) {
     if constexpr (kBlockSolver) {
       return detail::to_result(
-          Model::solve_position(q.data(), t, this->system().params(), block_options()));
+          Model::solve_position(q.data(), t, dense_.system().params(), block_options()));
     } else {
-      return Base::position(q, t);
+      return dense_.position(q, t);
     }
   }
   // Solves Phi_q qd = nu at a solved q.
   Result velocity(const Vector& q, Scalar t, Vector& qd) {
     if constexpr (kBlockSolver) {
       const Result r = detail::to_result(
-          Model::solve_velocity(q.data(), t, this->system().params(), qd.data(), block_options()));
+          Model::solve_velocity(q.data(), t, dense_.system().params(), qd.data(), block_options()));
       if (!r) qd.setConstant(kNaN);  // no stale or partial values after a failure
       return r;
     } else {
-      return Base::velocity(q, t, qd);
+      return dense_.velocity(q, t, qd);
     }
   }
   // Solves Phi_q qdd = gamma at a solved q and qd.
   Result acceleration(const Vector& q, const Vector& qd, Scalar t, Vector& qdd) {
     if constexpr (kBlockSolver) {
       const Result r = detail::to_result(Model::solve_acceleration(
-          q.data(), qd.data(), t, this->system().params(), qdd.data(), block_options()));
+          q.data(), qd.data(), t, dense_.system().params(), qdd.data(), block_options()));
       if (!r) qdd.setConstant(kNaN);
       return r;
     } else {
-      return Base::acceleration(q, qd, t, qdd);
+      return dense_.acceleration(q, qd, t, qdd);
     }
   }
 
@@ -106,7 +115,7 @@ class Solver : public DenseSolver<Model, Scalar> {
       auto o = block_options();
       if (!has_previous_) o.fixed_iterations = 0;
       const Result r = detail::to_result(
-          Model::solve_step(q.data(), t, this->system().params(), qd.data(), qdd.data(), o));
+          Model::solve_step(q.data(), t, dense_.system().params(), qd.data(), qdd.data(), o));
       if (!r) {
         qd.setConstant(kNaN);
         qdd.setConstant(kNaN);
@@ -129,7 +138,7 @@ class Solver : public DenseSolver<Model, Scalar> {
  private:
   auto block_options() const {
     typename Model::BlockOptions o;
-    const SolverOptions& s = this->options();
+    const SolverOptions& s = dense_.options();
     o.tolerance = s.tolerance;
     o.max_iterations = s.max_iterations;
     o.fixed_iterations = s.fixed_iterations;
@@ -144,6 +153,19 @@ class Solver : public DenseSolver<Model, Scalar> {
     t_previous_ = t;
     has_previous_ = true;
   }
+
+  // The block solver needs no dense workspace (none of nq x nq is ever formed).
+  struct NoDense {
+    NoDense() = default;
+    NoDense(const Params& params, SolverOptions options) : system_(params), options_(options) {}
+    const GeneratedSystem<Model, Scalar>& system() const { return system_; }
+    GeneratedSystem<Model, Scalar>& system() { return system_; }
+    const SolverOptions& options() const { return options_; }
+    SolverOptions& options() { return options_; }
+    GeneratedSystem<Model, Scalar> system_;
+    SolverOptions options_;
+  };
+  std::conditional_t<kBlockSolver, NoDense, DenseSolver<Model, Scalar>> dense_;
 
   static constexpr Scalar kNaN = std::numeric_limits<Scalar>::quiet_NaN();
   Scalar t_previous_ = Scalar(0);
