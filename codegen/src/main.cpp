@@ -105,27 +105,18 @@ void add_common(CLI::App* cmd, Common& c) {
       ->type_name("NAME=VALUE");
 }
 
-// --fold-params: the header says so where a reader looks (banner and Params).
-void note_folded_params(std::string& text) {
-  const auto banner_end = text.find('\n');
-  if (banner_end != std::string::npos)
-    text.insert(banner_end + 1,
-                "// Parameters folded into constants (--fold-params): Params is kept for the same "
-                "API, but its members are ignored.\n");
-  const std::string params = "  struct Params {\n";
-  if (const auto at = text.find(params); at != std::string::npos)
-    text.insert(at + params.size(),
-                "    // Ignored: these values were folded into the code at generation.\n");
-}
-
-int run_generate(const Common& c, const std::string& dir, bool fold_params) {
-  kc::BuildOptions options;
-  options.fold_params = fold_params;
-  const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params), options);
+int run_generate(const Common& c, const std::string& dir, const std::string& outputs,
+                 bool fold_params) {
+  kc::BuildOptions build;
+  build.fold_params = fold_params;
+  const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params), build);
   kc::StageScope stage("emitting C++");
-  std::string text = kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
-                                     model->programs());
-  if (fold_params) note_folded_params(text);
+  kc::EmitOptions options;
+  if (outputs == "position") options.outputs = kc::Outputs::kPosition;
+  if (outputs == "velocity") options.outputs = kc::Outputs::kVelocity;
+  options.folded_params = fold_params;
+  const std::string text = kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
+                                           model->programs(), options);
   stage.done(std::to_string(text.size() / 1024) + " KiB");
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -253,6 +244,12 @@ int main(int argc, char** argv) {
   generate->add_option("-o,--output", out_dir, "Output directory (default: .)");
   generate->add_flag("--fold-params", fold_params,
                      "Fold the parameter values (with --param overrides) into constants");
+  std::string outputs = "acceleration";
+  generate
+      ->add_option("--outputs", outputs,
+                   "Analyses the header supports: position (phi, phi_q), velocity (adds nu) or "
+                   "acceleration (adds gamma; default)")
+      ->check(CLI::IsMember({"position", "velocity", "acceleration"}));
 
   double t0 = 0, t1 = 0;
   int steps = 0;
@@ -320,7 +317,7 @@ int main(int argc, char** argv) {
                                   : verbose ? kc::Verbosity::kVerbose
                                             : kc::Verbosity::kNormal);
   try {
-    if (*generate) return run_generate(common, out_dir, fold_params);
+    if (*generate) return run_generate(common, out_dir, outputs, fold_params);
     if (*animate) return run_animate(common, animate_options, svg_file);
     if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
