@@ -80,22 +80,25 @@ class Lowerer {
       // product (or an integer power in it) is taken with a positive leading term, the sign
       // moving to the coefficient; this is done on our nodes, as GiNaC would undo it.
       GiNaC::numeric sign = 1, coefficient = 1;
-      std::vector<std::pair<std::string, int>> factors;  // canonical key, node
+      // Factors are sorted by key before any is lowered: node numbers (and so the `_tK`
+      // names) follow the order of lowering, which must not be GiNaC's.
+      std::vector<std::pair<std::string, ex>> factors;  // canonical key, factor
       for (const ex& factor : e) {
         if (GiNaC::is_a<GiNaC::numeric>(factor)) {
           coefficient *= GiNaC::ex_to<GiNaC::numeric>(factor);
           continue;
         }
-        const CanonicalFactor c = canonical_factor(factor);
-        if (c.negated) sign = -sign;
-        factors.emplace_back(c.key, c.node);
+        const auto& [k, negated] = factor_key(factor);
+        if (negated) sign = -sign;
+        factors.emplace_back(k, factor);
       }
-      std::stable_sort(factors.begin(), factors.end());
+      std::stable_sort(factors.begin(), factors.end(),
+                       [](const auto& a, const auto& b) { return a.first < b.first; });
       coefficient *= sign;
       // The coefficient goes first: it reads as `T(2)*x*y`, and both back ends multiply in
       // this order.
       if (coefficient != 1 || factors.size() < 2) n.args.push_back(lower(coefficient));
-      for (const auto& f : factors) n.args.push_back(f.second);
+      for (const auto& f : factors) n.args.push_back(canonical_factor(f.second).node);
       if (n.args.size() == 1) return n.args[0];
     } else if (is_flipped_power(e)) {
       const CanonicalFactor c = canonical_factor(e);
