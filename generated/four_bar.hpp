@@ -5,8 +5,10 @@
 // nu = -Phi_t and gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <utility>
 
 namespace kinegen::models {
 
@@ -121,6 +123,445 @@ struct four_bar {
     out[6] = T(0);
     out[7] = T(0);
     out[8] = T(0);
+  }
+
+  // Which outputs were generated (kinegen generate --outputs).
+  static constexpr bool has_velocity = true;
+  static constexpr bool has_acceleration = true;
+
+  // Block solver: Phi(q, t) = 0 in block-lower-triangular order (maximum matching, then
+  // strongly connected components). Each block reads only its own and earlier blocks'
+  // coordinates.
+  static constexpr bool has_block_solver = true;
+  static constexpr int num_blocks = 8;
+  static constexpr int num_explicit_blocks = 7;
+  static constexpr int max_block_size = 2;
+
+  // Outcome of a block solve. status: 0 converged, 1 Newton did not converge within
+  // max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value appeared (the
+  // order of kinegen::Status).
+  struct BlockReport {
+    int status = 0;
+    int block = -1;            // the block that failed
+    int iterations = 0;        // largest Newton iteration count of any block
+    int total_iterations = 0;  // Newton iterations summed over the blocks
+    double step = 0;           // largest last scaled Newton step
+  };
+  struct BlockOptions {
+    // Newton on a block stops when its step, lengths divided by length_scale and angles in
+    // radians, is at most this; or after exactly fixed_iterations when that is positive.
+    double tolerance = 1e-10;
+    int max_iterations = 30;  // per block
+    int fixed_iterations = 0;
+    // A block's Jacobian counts as singular when its smallest LU pivot is below this times
+    // its largest (1 x 1 blocks: when it is zero).
+    double singular_pivot_ratio = 1e-13;
+  };
+
+  template <class T>
+  static double _mag(const T& x) noexcept {
+    using std::abs;
+    return static_cast<double>(abs(x));
+  }
+  static BlockReport _fail(BlockReport r, int status, int block, int iterations = 0,
+                           double step = 0) noexcept {
+    r.status = status;
+    r.block = block;
+    r.iterations = std::max(r.iterations, iterations);
+    r.total_iterations += iterations;
+    r.step = std::max(r.step, step);
+    return r;
+  }
+  static void _done(BlockReport& r, int iterations, double step) noexcept {
+    r.iterations = std::max(r.iterations, iterations);
+    r.total_iterations += iterations;
+    r.step = std::max(r.step, step);
+  }
+  // In-place LU with partial pivoting; returns smallest / largest |pivot| (0 when singular,
+  // NaN when a value is not finite).
+  template <int K, class T>
+  static double _lu_factor(T* a, int* piv) noexcept {
+    double largest = 0, smallest = 0;
+    for (int k = 0; k < K; ++k) {
+      int m = k;
+      double best = _mag(a[k * K + k]);
+      for (int i = k + 1; i < K; ++i) {
+        const double v = _mag(a[i * K + k]);
+        if (v > best) {
+          best = v;
+          m = i;
+        }
+      }
+      if (!(best == best)) return best;
+      piv[k] = m;
+      if (m != k)
+        for (int j = 0; j < K; ++j) std::swap(a[k * K + j], a[m * K + j]);
+      if (best == 0) return 0;
+      largest = k == 0 ? best : std::max(largest, best);
+      smallest = k == 0 ? best : std::min(smallest, best);
+      const T inv = T(1) / a[k * K + k];
+      for (int i = k + 1; i < K; ++i) {
+        const T f = a[i * K + k] * inv;
+        a[i * K + k] = f;
+        for (int j = k + 1; j < K; ++j) a[i * K + j] -= f * a[k * K + j];
+      }
+    }
+    return smallest / largest;
+  }
+  template <int K, class T>
+  static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
+    for (int k = 0; k < K; ++k) {
+      if (piv[k] != k) std::swap(b[k], b[piv[k]]);
+      for (int i = k + 1; i < K; ++i) b[i] -= a[i * K + k] * b[k];
+    }
+    for (int k = K - 1; k >= 0; --k) {
+      for (int j = k + 1; j < K; ++j) b[k] -= a[k * K + j] * b[j];
+      b[k] /= a[k * K + k];
+    }
+  }
+
+  // Position: each block in turn, explicit or by Newton on the block alone; q holds
+  // the start (the previous solution or a prediction) and receives the solution.
+  template <class T>
+  static BlockReport solve_position(T* q, [[maybe_unused]] T t,
+      [[maybe_unused]] const Params& p,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    [[maybe_unused]] const double inv_length = 1.0 / length_scale;
+    // Block 0: rows 0 -> q[0] (explicit)
+    q[0] = T(0);
+    // Block 1: rows 1 -> q[1] (explicit)
+    q[1] = T(0);
+    // Block 2: rows 8 -> q[2] (explicit)
+    q[2] = T(p.omega)*t;
+    // Block 3: rows 2 -> q[3] (explicit)
+    const T _t0 = cos(q[2]);
+    q[3] = _t0*T(p.a) + q[0];
+    // Block 4: rows 3 -> q[4] (explicit)
+    const T _t1 = sin(q[2]);
+    const T _t2 = T(p.a)*_t1;
+    q[4] = _t2 + q[1];
+    // Block 5: rows 6 -> q[6] (explicit)
+    q[6] = T(p.d);
+    // Block 6: rows 7 -> q[7] (explicit)
+    q[7] = T(0);
+    // Block 7: rows 4, 5 -> q[5], q[8] (newton)
+    for (int _it = 1;; ++_it) {
+      const T _t3 = cos(q[5]);
+      const T _t4 = -_t3*T(p.b);
+      const T _t5 = cos(q[8]);
+      const T _t6 = _t5*T(p.c);
+      const T _t7 = sin(q[5]);
+      const T _t8 = sin(q[8]);
+      const T _t9 = T(p.b)*_t7;
+      const T _t10 = -T(p.c)*_t8;
+      T _r[2] = {_t4 - q[3] + _t6 + q[6], -T(p.b)*_t7 - q[4] + T(p.c)*_t8 + q[7]};
+      T _a[4] = {_t9, _t10, _t4, _t6};
+      int _piv[2];
+      const double _ratio = _lu_factor<2>(_a, _piv);
+      if (!(_ratio > o.singular_pivot_ratio))
+        return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
+      _lu_solve<2>(_a, _piv, _r);
+      double _step = 0;
+      q[5] -= _r[0];
+      _step = std::max(_step, _mag(_r[0]));
+      q[8] -= _r[1];
+      _step = std::max(_step, _mag(_r[1]));
+      if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
+      if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
+        _done(report, _it, _step);
+        break;
+      }
+      if (_it >= o.max_iterations) return _fail(report, 1, 7, _it, _step);
+    }
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // Velocity: Phi_q qd = nu at a solved q, block by block.
+  template <class T>
+  static BlockReport solve_velocity([[maybe_unused]] const T* q,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    // Block 0: rows 0 -> q[0]
+    qd[0] = T(0);
+    // Block 1: rows 1 -> q[1]
+    qd[1] = T(0);
+    // Block 2: rows 8 -> q[2]
+    qd[2] = T(p.omega);
+    // Block 3: rows 2 -> q[3]
+    const T _t0 = sin(q[2]);
+    const T _t1 = T(p.a)*_t0;
+    qd[3] = qd[0] - _t1*qd[2];
+    // Block 4: rows 3 -> q[4]
+    const T _t2 = cos(q[2]);
+    qd[4] = qd[1] - (-_t2*T(p.a))*qd[2];
+    // Block 5: rows 6 -> q[6]
+    qd[6] = T(0);
+    // Block 6: rows 7 -> q[7]
+    qd[7] = T(0);
+    // Block 7: rows 4, 5 -> q[5], q[8]
+    const T _t3 = sin(q[5]);
+    const T _t4 = T(p.b)*_t3;
+    const T _t5 = sin(q[8]);
+    const T _t6 = -T(p.c)*_t5;
+    const T _t7 = cos(q[5]);
+    const T _t8 = -_t7*T(p.b);
+    const T _t9 = cos(q[8]);
+    const T _t10 = _t9*T(p.c);
+    T _a7[4] = {_t4, _t6, _t8, _t10};
+    int _piv7[2];
+    const double _ratio7 = _lu_factor<2>(_a7, _piv7);
+    if (!(_ratio7 > o.singular_pivot_ratio))
+      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+    {
+      T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
+      _lu_solve<2>(_a7, _piv7, _x);
+      qd[5] = _x[0];
+      qd[8] = _x[1];
+    }
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // Acceleration: Phi_q qdd = gamma at a solved q and qd, block by block.
+  template <class T>
+  static BlockReport solve_acceleration([[maybe_unused]] const T* q,
+      [[maybe_unused]] const T* qd, [[maybe_unused]] T t,
+      [[maybe_unused]] const Params& p, T* qdd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    // Block 0: rows 0 -> q[0]
+    // Block 1: rows 1 -> q[1]
+    // Block 2: rows 8 -> q[2]
+    // Block 3: rows 2 -> q[3]
+    // Block 4: rows 3 -> q[4]
+    // Block 5: rows 6 -> q[6]
+    // Block 6: rows 7 -> q[7]
+    // Block 7: rows 4, 5 -> q[5], q[8]
+    const T _t0 = sin(q[5]);
+    const T _t1 = T(p.b)*_t0;
+    const T _t2 = sin(q[8]);
+    const T _t3 = -T(p.c)*_t2;
+    const T _t4 = cos(q[5]);
+    const T _t5 = -_t4*T(p.b);
+    const T _t6 = cos(q[8]);
+    const T _t7 = _t6*T(p.c);
+    T _a7[4] = {_t1, _t3, _t5, _t7};
+    int _piv7[2];
+    const double _ratio7 = _lu_factor<2>(_a7, _piv7);
+    if (!(_ratio7 > o.singular_pivot_ratio))
+      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+    qdd[0] = T(0);
+    qdd[1] = T(0);
+    qdd[2] = T(0);
+    const T _t8 = qd[2]*qd[2];
+    const T _t9 = cos(q[2]);
+    const T _t10 = sin(q[2]);
+    const T _t11 = T(p.a)*_t10;
+    qdd[3] = -_t8*_t9*T(p.a) + qdd[0] - _t11*qdd[2];
+    qdd[4] = -_t8*T(p.a)*_t10 + qdd[1] - (-_t9*T(p.a))*qdd[2];
+    qdd[6] = T(0);
+    qdd[7] = T(0);
+    const T _t12 = qd[5]*qd[5];
+    const T _t13 = qd[8]*qd[8];
+    {
+      T _x[2] = {-_t12*_t4*T(p.b) + _t13*_t6*T(p.c) + qdd[3] - qdd[6], -_t12*T(p.b)*_t0 + _t13*T(p.c)*_t2 + qdd[4] - qdd[7]};
+      _lu_solve<2>(_a7, _piv7, _x);
+      qdd[5] = _x[0];
+      qdd[8] = _x[1];
+    }
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // Velocity (Phi_q qd = nu) and acceleration (Phi_q qdd = gamma) at a solved q,
+  // block by block with one factorization per block.
+  template <class T>
+  static BlockReport solve_velocity_acceleration([[maybe_unused]] const T* q,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd, T* qdd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    // Block 0: rows 0 -> q[0]
+    qd[0] = T(0);
+    // Block 1: rows 1 -> q[1]
+    qd[1] = T(0);
+    // Block 2: rows 8 -> q[2]
+    qd[2] = T(p.omega);
+    // Block 3: rows 2 -> q[3]
+    const T _t0 = sin(q[2]);
+    const T _t1 = T(p.a)*_t0;
+    qd[3] = qd[0] - _t1*qd[2];
+    // Block 4: rows 3 -> q[4]
+    const T _t2 = cos(q[2]);
+    qd[4] = qd[1] - (-_t2*T(p.a))*qd[2];
+    // Block 5: rows 6 -> q[6]
+    qd[6] = T(0);
+    // Block 6: rows 7 -> q[7]
+    qd[7] = T(0);
+    // Block 7: rows 4, 5 -> q[5], q[8]
+    const T _t3 = sin(q[5]);
+    const T _t4 = T(p.b)*_t3;
+    const T _t5 = sin(q[8]);
+    const T _t6 = -T(p.c)*_t5;
+    const T _t7 = cos(q[5]);
+    const T _t8 = -_t7*T(p.b);
+    const T _t9 = cos(q[8]);
+    const T _t10 = _t9*T(p.c);
+    T _a7[4] = {_t4, _t6, _t8, _t10};
+    int _piv7[2];
+    const double _ratio7 = _lu_factor<2>(_a7, _piv7);
+    if (!(_ratio7 > o.singular_pivot_ratio))
+      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+    {
+      T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
+      _lu_solve<2>(_a7, _piv7, _x);
+      qd[5] = _x[0];
+      qd[8] = _x[1];
+    }
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    qdd[0] = T(0);
+    qdd[1] = T(0);
+    qdd[2] = T(0);
+    const T _t11 = qd[2]*qd[2];
+    qdd[3] = -_t11*_t2*T(p.a) + qdd[0] - _t1*qdd[2];
+    qdd[4] = -_t11*T(p.a)*_t0 + qdd[1] - (-_t2*T(p.a))*qdd[2];
+    qdd[6] = T(0);
+    qdd[7] = T(0);
+    const T _t12 = qd[5]*qd[5];
+    const T _t13 = qd[8]*qd[8];
+    {
+      T _x[2] = {-_t12*_t7*T(p.b) + _t13*_t9*T(p.c) + qdd[3] - qdd[6], -_t12*T(p.b)*_t3 + _t13*T(p.c)*_t5 + qdd[4] - qdd[7]};
+      _lu_solve<2>(_a7, _piv7, _x);
+      qdd[5] = _x[0];
+      qdd[8] = _x[1];
+    }
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // A full step: solve_position, then solve_velocity_acceleration, in one function
+  // so that terms at the solved q are computed once.
+  template <class T>
+  static BlockReport solve_step(T* q, [[maybe_unused]] T t,
+      [[maybe_unused]] const Params& p, T* qd, T* qdd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    [[maybe_unused]] const double inv_length = 1.0 / length_scale;
+    // Block 0: rows 0 -> q[0] (explicit)
+    q[0] = T(0);
+    // Block 1: rows 1 -> q[1] (explicit)
+    q[1] = T(0);
+    // Block 2: rows 8 -> q[2] (explicit)
+    q[2] = T(p.omega)*t;
+    // Block 3: rows 2 -> q[3] (explicit)
+    const T _t0 = cos(q[2]);
+    q[3] = _t0*T(p.a) + q[0];
+    // Block 4: rows 3 -> q[4] (explicit)
+    const T _t1 = sin(q[2]);
+    const T _t2 = T(p.a)*_t1;
+    q[4] = _t2 + q[1];
+    // Block 5: rows 6 -> q[6] (explicit)
+    q[6] = T(p.d);
+    // Block 6: rows 7 -> q[7] (explicit)
+    q[7] = T(0);
+    // Block 7: rows 4, 5 -> q[5], q[8] (newton)
+    for (int _it = 1;; ++_it) {
+      const T _t3 = cos(q[5]);
+      const T _t4 = -_t3*T(p.b);
+      const T _t5 = cos(q[8]);
+      const T _t6 = _t5*T(p.c);
+      const T _t7 = sin(q[5]);
+      const T _t8 = sin(q[8]);
+      const T _t9 = T(p.b)*_t7;
+      const T _t10 = -T(p.c)*_t8;
+      T _r[2] = {_t4 - q[3] + _t6 + q[6], -T(p.b)*_t7 - q[4] + T(p.c)*_t8 + q[7]};
+      T _a[4] = {_t9, _t10, _t4, _t6};
+      int _piv[2];
+      const double _ratio = _lu_factor<2>(_a, _piv);
+      if (!(_ratio > o.singular_pivot_ratio))
+        return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
+      _lu_solve<2>(_a, _piv, _r);
+      double _step = 0;
+      q[5] -= _r[0];
+      _step = std::max(_step, _mag(_r[0]));
+      q[8] -= _r[1];
+      _step = std::max(_step, _mag(_r[1]));
+      if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
+      if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
+        _done(report, _it, _step);
+        break;
+      }
+      if (_it >= o.max_iterations) return _fail(report, 1, 7, _it, _step);
+    }
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
+    // Block 0: rows 0 -> q[0]
+    qd[0] = T(0);
+    // Block 1: rows 1 -> q[1]
+    qd[1] = T(0);
+    // Block 2: rows 8 -> q[2]
+    qd[2] = T(p.omega);
+    // Block 3: rows 2 -> q[3]
+    qd[3] = qd[0] - _t2*qd[2];
+    // Block 4: rows 3 -> q[4]
+    qd[4] = qd[1] - (-_t0*T(p.a))*qd[2];
+    // Block 5: rows 6 -> q[6]
+    qd[6] = T(0);
+    // Block 6: rows 7 -> q[7]
+    qd[7] = T(0);
+    // Block 7: rows 4, 5 -> q[5], q[8]
+    const T _t11 = sin(q[5]);
+    const T _t12 = T(p.b)*_t11;
+    const T _t13 = sin(q[8]);
+    const T _t14 = -T(p.c)*_t13;
+    const T _t15 = cos(q[5]);
+    const T _t16 = -_t15*T(p.b);
+    const T _t17 = cos(q[8]);
+    const T _t18 = _t17*T(p.c);
+    T _a7[4] = {_t12, _t14, _t16, _t18};
+    int _piv7[2];
+    const double _ratio7 = _lu_factor<2>(_a7, _piv7);
+    if (!(_ratio7 > o.singular_pivot_ratio))
+      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+    {
+      T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
+      _lu_solve<2>(_a7, _piv7, _x);
+      qd[5] = _x[0];
+      qd[8] = _x[1];
+    }
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    qdd[0] = T(0);
+    qdd[1] = T(0);
+    qdd[2] = T(0);
+    const T _t19 = qd[2]*qd[2];
+    qdd[3] = -_t19*_t0*T(p.a) + qdd[0] - _t2*qdd[2];
+    qdd[4] = -_t19*T(p.a)*_t1 + qdd[1] - (-_t0*T(p.a))*qdd[2];
+    qdd[6] = T(0);
+    qdd[7] = T(0);
+    const T _t20 = qd[5]*qd[5];
+    const T _t21 = qd[8]*qd[8];
+    {
+      T _x[2] = {-_t20*_t15*T(p.b) + _t21*_t17*T(p.c) + qdd[3] - qdd[6], -_t20*T(p.b)*_t11 + _t21*T(p.c)*_t13 + qdd[4] - qdd[7]};
+      _lu_solve<2>(_a7, _piv7, _x);
+      qdd[5] = _x[0];
+      qdd[8] = _x[1];
+    }
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
   }
 };
 

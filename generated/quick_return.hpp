@@ -5,8 +5,10 @@
 // nu = -Phi_t and gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <utility>
 
 namespace kinegen::models {
 
@@ -121,6 +123,386 @@ struct quick_return {
     out[6] = -_t1*qd[3]*qd[5] - _t2*qd[4]*qd[5] + (-_t1*qd[3] - _t2*qd[4] + (-(-q[7] + q[4])*_t1 + (-q[6] + q[3])*_t2)*qd[5] + _t1*qd[6] + _t2*qd[7])*qd[5] + _t1*qd[5]*qd[6] + _t2*qd[5]*qd[7];
     out[7] = T(0);
     out[8] = T(0);
+  }
+
+  // Which outputs were generated (kinegen generate --outputs).
+  static constexpr bool has_velocity = true;
+  static constexpr bool has_acceleration = true;
+
+  // Block solver: Phi(q, t) = 0 in block-lower-triangular order (maximum matching, then
+  // strongly connected components). Each block reads only its own and earlier blocks'
+  // coordinates.
+  static constexpr bool has_block_solver = true;
+  static constexpr int num_blocks = 9;
+  static constexpr int num_explicit_blocks = 8;
+  static constexpr int max_block_size = 1;
+
+  // Outcome of a block solve. status: 0 converged, 1 Newton did not converge within
+  // max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value appeared (the
+  // order of kinegen::Status).
+  struct BlockReport {
+    int status = 0;
+    int block = -1;            // the block that failed
+    int iterations = 0;        // largest Newton iteration count of any block
+    int total_iterations = 0;  // Newton iterations summed over the blocks
+    double step = 0;           // largest last scaled Newton step
+  };
+  struct BlockOptions {
+    // Newton on a block stops when its step, lengths divided by length_scale and angles in
+    // radians, is at most this; or after exactly fixed_iterations when that is positive.
+    double tolerance = 1e-10;
+    int max_iterations = 30;  // per block
+    int fixed_iterations = 0;
+    // A block's Jacobian counts as singular when its smallest LU pivot is below this times
+    // its largest (1 x 1 blocks: when it is zero).
+    double singular_pivot_ratio = 1e-13;
+  };
+
+  template <class T>
+  static double _mag(const T& x) noexcept {
+    using std::abs;
+    return static_cast<double>(abs(x));
+  }
+  static BlockReport _fail(BlockReport r, int status, int block, int iterations = 0,
+                           double step = 0) noexcept {
+    r.status = status;
+    r.block = block;
+    r.iterations = std::max(r.iterations, iterations);
+    r.total_iterations += iterations;
+    r.step = std::max(r.step, step);
+    return r;
+  }
+  static void _done(BlockReport& r, int iterations, double step) noexcept {
+    r.iterations = std::max(r.iterations, iterations);
+    r.total_iterations += iterations;
+    r.step = std::max(r.step, step);
+  }
+  // In-place LU with partial pivoting; returns smallest / largest |pivot| (0 when singular,
+  // NaN when a value is not finite).
+  template <int K, class T>
+  static double _lu_factor(T* a, int* piv) noexcept {
+    double largest = 0, smallest = 0;
+    for (int k = 0; k < K; ++k) {
+      int m = k;
+      double best = _mag(a[k * K + k]);
+      for (int i = k + 1; i < K; ++i) {
+        const double v = _mag(a[i * K + k]);
+        if (v > best) {
+          best = v;
+          m = i;
+        }
+      }
+      if (!(best == best)) return best;
+      piv[k] = m;
+      if (m != k)
+        for (int j = 0; j < K; ++j) std::swap(a[k * K + j], a[m * K + j]);
+      if (best == 0) return 0;
+      largest = k == 0 ? best : std::max(largest, best);
+      smallest = k == 0 ? best : std::min(smallest, best);
+      const T inv = T(1) / a[k * K + k];
+      for (int i = k + 1; i < K; ++i) {
+        const T f = a[i * K + k] * inv;
+        a[i * K + k] = f;
+        for (int j = k + 1; j < K; ++j) a[i * K + j] -= f * a[k * K + j];
+      }
+    }
+    return smallest / largest;
+  }
+  template <int K, class T>
+  static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
+    for (int k = 0; k < K; ++k) {
+      if (piv[k] != k) std::swap(b[k], b[piv[k]]);
+      for (int i = k + 1; i < K; ++i) b[i] -= a[i * K + k] * b[k];
+    }
+    for (int k = K - 1; k >= 0; --k) {
+      for (int j = k + 1; j < K; ++j) b[k] -= a[k * K + j] * b[j];
+      b[k] /= a[k * K + k];
+    }
+  }
+
+  // Position: each block in turn, explicit or by Newton on the block alone; q holds
+  // the start (the previous solution or a prediction) and receives the solution.
+  template <class T>
+  static BlockReport solve_position(T* q, [[maybe_unused]] T t,
+      [[maybe_unused]] const Params& p,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    [[maybe_unused]] const double inv_length = 1.0 / length_scale;
+    // Block 0: rows 0 -> q[0] (explicit)
+    q[0] = T(0);
+    // Block 1: rows 1 -> q[1] (explicit)
+    q[1] = T(0);
+    // Block 2: rows 2 -> q[3] (explicit)
+    q[3] = T(0);
+    // Block 3: rows 3 -> q[4] (explicit)
+    q[4] = -T(p.d);
+    // Block 4: rows 8 -> q[2] (explicit)
+    q[2] = T(p.omega)*t;
+    // Block 5: rows 4 -> q[6] (explicit)
+    const T _t0 = cos(q[2]);
+    q[6] = _t0*T(p.r) + q[0];
+    // Block 6: rows 5 -> q[7] (explicit)
+    const T _t1 = sin(q[2]);
+    const T _t2 = T(p.r)*_t1;
+    q[7] = _t2 + q[1];
+    // Block 7: rows 6 -> q[5] (newton)
+    const T _t3 = -q[7] + q[4];
+    const T _t4 = -q[6] + q[3];
+    for (int _it = 1;; ++_it) {
+      const T _t5 = cos(q[5]);
+      const T _t6 = sin(q[5]);
+      const T _t7 = -_t3*_t5 + _t4*_t6;
+      const T _t8 = _t4*_t5 + _t3*_t6;
+      T _r[1] = {_t7};
+      const T _a = _t8;
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 7, _it);
+      _r[0] /= _a;
+      double _step = 0;
+      q[5] -= _r[0];
+      _step = std::max(_step, _mag(_r[0]));
+      if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
+      if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
+        _done(report, _it, _step);
+        break;
+      }
+      if (_it >= o.max_iterations) return _fail(report, 1, 7, _it, _step);
+    }
+    // Block 8: rows 7 -> q[8] (explicit)
+    q[8] = q[5];
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // Velocity: Phi_q qd = nu at a solved q, block by block.
+  template <class T>
+  static BlockReport solve_velocity([[maybe_unused]] const T* q,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    // Block 0: rows 0 -> q[0]
+    qd[0] = T(0);
+    // Block 1: rows 1 -> q[1]
+    qd[1] = T(0);
+    // Block 2: rows 2 -> q[3]
+    qd[3] = T(0);
+    // Block 3: rows 3 -> q[4]
+    qd[4] = T(0);
+    // Block 4: rows 8 -> q[2]
+    qd[2] = T(p.omega);
+    // Block 5: rows 4 -> q[6]
+    const T _t0 = sin(q[2]);
+    const T _t1 = T(p.r)*_t0;
+    qd[6] = qd[0] - _t1*qd[2];
+    // Block 6: rows 5 -> q[7]
+    const T _t2 = cos(q[2]);
+    qd[7] = qd[1] - (-_t2*T(p.r))*qd[2];
+    // Block 7: rows 6 -> q[5]
+    const T _t3 = -q[6] + q[3];
+    const T _t4 = cos(q[5]);
+    const T _t5 = -q[7] + q[4];
+    const T _t6 = sin(q[5]);
+    const T _t7 = _t3*_t4 + _t5*_t6;
+    const T _a7 = _t7;
+    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
+    qd[5] = (-_t6*qd[3] - (-_t4)*qd[4] - (-_t6)*qd[6] - _t4*qd[7]) / _a7;
+    // Block 8: rows 7 -> q[8]
+    qd[8] = qd[5];
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // Acceleration: Phi_q qdd = gamma at a solved q and qd, block by block.
+  template <class T>
+  static BlockReport solve_acceleration([[maybe_unused]] const T* q,
+      [[maybe_unused]] const T* qd, [[maybe_unused]] T t,
+      [[maybe_unused]] const Params& p, T* qdd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    // Block 0: rows 0 -> q[0]
+    // Block 1: rows 1 -> q[1]
+    // Block 2: rows 2 -> q[3]
+    // Block 3: rows 3 -> q[4]
+    // Block 4: rows 8 -> q[2]
+    // Block 5: rows 4 -> q[6]
+    // Block 6: rows 5 -> q[7]
+    // Block 7: rows 6 -> q[5]
+    const T _t0 = -q[6] + q[3];
+    const T _t1 = cos(q[5]);
+    const T _t2 = -q[7] + q[4];
+    const T _t3 = sin(q[5]);
+    const T _t4 = _t0*_t1 + _t2*_t3;
+    const T _a7 = _t4;
+    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
+    // Block 8: rows 7 -> q[8]
+    qdd[0] = T(0);
+    qdd[1] = T(0);
+    qdd[3] = T(0);
+    qdd[4] = T(0);
+    qdd[2] = T(0);
+    const T _t5 = qd[2]*qd[2];
+    const T _t6 = cos(q[2]);
+    const T _t7 = sin(q[2]);
+    const T _t8 = T(p.r)*_t7;
+    qdd[6] = -_t5*_t6*T(p.r) + qdd[0] - _t8*qdd[2];
+    qdd[7] = -_t5*T(p.r)*_t7 + qdd[1] - (-_t6*T(p.r))*qdd[2];
+    const T _t9 = -_t2*_t1 + _t0*_t3;
+    qdd[5] = (-_t1*qd[3]*qd[5] - _t3*qd[4]*qd[5] + (-_t1*qd[3] - _t3*qd[4] + _t9*qd[5] + _t1*qd[6] + _t3*qd[7])*qd[5] + _t1*qd[5]*qd[6] + _t3*qd[5]*qd[7] - _t3*qdd[3] - (-_t1)*qdd[4] - (-_t3)*qdd[6] - _t1*qdd[7]) / _a7;
+    qdd[8] = qdd[5];
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // Velocity (Phi_q qd = nu) and acceleration (Phi_q qdd = gamma) at a solved q,
+  // block by block with one factorization per block.
+  template <class T>
+  static BlockReport solve_velocity_acceleration([[maybe_unused]] const T* q,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd, T* qdd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    // Block 0: rows 0 -> q[0]
+    qd[0] = T(0);
+    // Block 1: rows 1 -> q[1]
+    qd[1] = T(0);
+    // Block 2: rows 2 -> q[3]
+    qd[3] = T(0);
+    // Block 3: rows 3 -> q[4]
+    qd[4] = T(0);
+    // Block 4: rows 8 -> q[2]
+    qd[2] = T(p.omega);
+    // Block 5: rows 4 -> q[6]
+    const T _t0 = sin(q[2]);
+    const T _t1 = T(p.r)*_t0;
+    qd[6] = qd[0] - _t1*qd[2];
+    // Block 6: rows 5 -> q[7]
+    const T _t2 = cos(q[2]);
+    qd[7] = qd[1] - (-_t2*T(p.r))*qd[2];
+    // Block 7: rows 6 -> q[5]
+    const T _t3 = -q[6] + q[3];
+    const T _t4 = cos(q[5]);
+    const T _t5 = -q[7] + q[4];
+    const T _t6 = sin(q[5]);
+    const T _t7 = _t3*_t4 + _t5*_t6;
+    const T _a7 = _t7;
+    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
+    qd[5] = (-_t6*qd[3] - (-_t4)*qd[4] - (-_t6)*qd[6] - _t4*qd[7]) / _a7;
+    // Block 8: rows 7 -> q[8]
+    qd[8] = qd[5];
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    qdd[0] = T(0);
+    qdd[1] = T(0);
+    qdd[3] = T(0);
+    qdd[4] = T(0);
+    qdd[2] = T(0);
+    const T _t8 = qd[2]*qd[2];
+    qdd[6] = -_t8*_t2*T(p.r) + qdd[0] - _t1*qdd[2];
+    qdd[7] = -_t8*T(p.r)*_t0 + qdd[1] - (-_t2*T(p.r))*qdd[2];
+    const T _t9 = -_t5*_t4 + _t3*_t6;
+    qdd[5] = (-_t4*qd[3]*qd[5] - _t6*qd[4]*qd[5] + (-_t4*qd[3] - _t6*qd[4] + _t9*qd[5] + _t4*qd[6] + _t6*qd[7])*qd[5] + _t4*qd[5]*qd[6] + _t6*qd[5]*qd[7] - _t6*qdd[3] - (-_t4)*qdd[4] - (-_t6)*qdd[6] - _t4*qdd[7]) / _a7;
+    qdd[8] = qdd[5];
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
+  }
+
+  // A full step: solve_position, then solve_velocity_acceleration, in one function
+  // so that terms at the solved q are computed once.
+  template <class T>
+  static BlockReport solve_step(T* q, [[maybe_unused]] T t,
+      [[maybe_unused]] const Params& p, T* qd, T* qdd,
+      [[maybe_unused]] const BlockOptions& o) noexcept {
+    using std::cos, std::sin;
+    BlockReport report;
+    [[maybe_unused]] const double inv_length = 1.0 / length_scale;
+    // Block 0: rows 0 -> q[0] (explicit)
+    q[0] = T(0);
+    // Block 1: rows 1 -> q[1] (explicit)
+    q[1] = T(0);
+    // Block 2: rows 2 -> q[3] (explicit)
+    q[3] = T(0);
+    // Block 3: rows 3 -> q[4] (explicit)
+    q[4] = -T(p.d);
+    // Block 4: rows 8 -> q[2] (explicit)
+    q[2] = T(p.omega)*t;
+    // Block 5: rows 4 -> q[6] (explicit)
+    const T _t0 = cos(q[2]);
+    q[6] = _t0*T(p.r) + q[0];
+    // Block 6: rows 5 -> q[7] (explicit)
+    const T _t1 = sin(q[2]);
+    const T _t2 = T(p.r)*_t1;
+    q[7] = _t2 + q[1];
+    // Block 7: rows 6 -> q[5] (newton)
+    const T _t3 = -q[7] + q[4];
+    const T _t4 = -q[6] + q[3];
+    for (int _it = 1;; ++_it) {
+      const T _t5 = cos(q[5]);
+      const T _t6 = sin(q[5]);
+      const T _t7 = -_t3*_t5 + _t4*_t6;
+      const T _t8 = _t4*_t5 + _t3*_t6;
+      T _r[1] = {_t7};
+      const T _a = _t8;
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 7, _it);
+      _r[0] /= _a;
+      double _step = 0;
+      q[5] -= _r[0];
+      _step = std::max(_step, _mag(_r[0]));
+      if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
+      if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
+        _done(report, _it, _step);
+        break;
+      }
+      if (_it >= o.max_iterations) return _fail(report, 1, 7, _it, _step);
+    }
+    // Block 8: rows 7 -> q[8] (explicit)
+    q[8] = q[5];
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
+    // Block 0: rows 0 -> q[0]
+    qd[0] = T(0);
+    // Block 1: rows 1 -> q[1]
+    qd[1] = T(0);
+    // Block 2: rows 2 -> q[3]
+    qd[3] = T(0);
+    // Block 3: rows 3 -> q[4]
+    qd[4] = T(0);
+    // Block 4: rows 8 -> q[2]
+    qd[2] = T(p.omega);
+    // Block 5: rows 4 -> q[6]
+    qd[6] = qd[0] - _t2*qd[2];
+    // Block 6: rows 5 -> q[7]
+    qd[7] = qd[1] - (-_t0*T(p.r))*qd[2];
+    // Block 7: rows 6 -> q[5]
+    const T _t9 = cos(q[5]);
+    const T _t10 = sin(q[5]);
+    const T _t11 = _t4*_t9 + _t3*_t10;
+    const T _a7 = _t11;
+    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
+    qd[5] = (-_t10*qd[3] - (-_t9)*qd[4] - (-_t10)*qd[6] - _t9*qd[7]) / _a7;
+    // Block 8: rows 7 -> q[8]
+    qd[8] = qd[5];
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    qdd[0] = T(0);
+    qdd[1] = T(0);
+    qdd[3] = T(0);
+    qdd[4] = T(0);
+    qdd[2] = T(0);
+    const T _t12 = qd[2]*qd[2];
+    qdd[6] = -_t12*_t0*T(p.r) + qdd[0] - _t2*qdd[2];
+    qdd[7] = -_t12*T(p.r)*_t1 + qdd[1] - (-_t0*T(p.r))*qdd[2];
+    const T _t13 = -_t3*_t9 + _t4*_t10;
+    qdd[5] = (-_t9*qd[3]*qd[5] - _t10*qd[4]*qd[5] + (-_t9*qd[3] - _t10*qd[4] + _t13*qd[5] + _t9*qd[6] + _t10*qd[7])*qd[5] + _t9*qd[5]*qd[6] + _t10*qd[5]*qd[7] - _t10*qdd[3] - (-_t9)*qdd[4] - (-_t10)*qdd[6] - _t9*qdd[7]) / _a7;
+    qdd[8] = qdd[5];
+    for (int _k = 0; _k < nq; ++_k)
+      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    return report;
   }
 };
 

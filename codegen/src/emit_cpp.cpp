@@ -3,7 +3,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
+#include <map>
 #include <sstream>
+
+#include "kinegen/codegen/structure.hpp"
 
 namespace kinegen::codegen {
 
@@ -63,6 +67,30 @@ class FunctionPrinter {
          << ";\n";
     }
     return os.str();
+  }
+
+  // Demand-driven printing, for functions whose outputs are interleaved with solves: prints
+  // (as `const T _tK = ...;`) the named terms `id` needs that are not yet in scope, skipping
+  // those `allowed` rejects (they are printed later, nearer their use).
+  void ensure(int id, std::ostream& os, const std::string& indent,
+              const std::function<bool(int)>& allowed = nullptr) {
+    if (id == Program::kZero || !names_[id].empty()) return;
+    const Node& n = p_.nodes[id];
+    for (int a : n.args) ensure(a, os, indent, allowed);
+    if (!n.named || (allowed && !allowed(id))) return;
+    const std::string name = "_t" + std::to_string(next_++);
+    os << indent << "const T " << name << " = " << print(id).text << ";\n";
+    names_[id] = name;
+    if (!scopes_.empty()) scopes_.back().push_back(id);
+  }
+  // The text of a node whose named terms are in scope.
+  std::string text(int id) { return id == Program::kZero ? "T(0)" : print(id).text; }
+  std::string atom_text(int id) { return id == Program::kZero ? "T(0)" : atom(id); }
+  // Terms printed between open_scope and close_scope go out of scope at the close.
+  void open_scope() { scopes_.emplace_back(); }
+  void close_scope() {
+    for (int id : scopes_.back()) names_[id].clear();
+    scopes_.pop_back();
   }
 
  private:
@@ -194,6 +222,8 @@ class FunctionPrinter {
   const Program& p_;
   const SymbolTable& symbols_;
   std::vector<std::string> names_;
+  int next_ = 0;
+  std::vector<std::vector<int>> scopes_;
 };
 
 template <class Container>
@@ -203,15 +233,9 @@ std::string join(const Container& values) {
   return s;
 }
 
-void emit_function(std::ostringstream& os, const char* name, const char* out_size,
-                   const Program& program, const SymbolTable& symbols, bool with_qd) {
-  os << "  template <class T>\n";
-  os << "  static void " << name << "([[maybe_unused]] const T* q,";
-  if (with_qd) os << " [[maybe_unused]] const T* qd,";
-  os << "\n      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {\n";
-  os << "    // out[" << out_size << "]; " << program.operation_count() << " operations\n";
-  // Unqualified calls after using-declarations: std's overloads for float, double and
-  // std::complex, and argument-dependent lookup for other scalar types.
+// The std functions a program calls, for a using-declaration: unqualified calls then find
+// std's overloads for float, double and std::complex, and other scalar types by ADL.
+std::string std_functions(const Program& program) {
   static const std::pair<OpKind, const char*> kFunctions[] = {
       {OpKind::kAcos, "acos"}, {OpKind::kAsin, "asin"}, {OpKind::kAtan, "atan"},
       {OpKind::kCos, "cos"},   {OpKind::kExp, "exp"},   {OpKind::kLog, "log"},
@@ -226,10 +250,426 @@ void emit_function(std::ostringstream& os, const char* name, const char* out_siz
               std::abs(n.exponent) > kMaxUnrolledPower);
     if (uses) used += std::string(used.empty() ? "" : ", ") + "std::" + fname;
   }
-  if (!used.empty()) os << "    using " << used << ";\n";
+  return used;
+}
+
+void emit_function(std::ostringstream& os, const char* name, const char* out_size,
+                   const Program& program, const SymbolTable& symbols, bool with_qd) {
+  os << "  template <class T>\n";
+  os << "  static void " << name << "([[maybe_unused]] const T* q,";
+  if (with_qd) os << " [[maybe_unused]] const T* qd,";
+  os << "\n      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {\n";
+  os << "    // out[" << out_size << "]; " << program.operation_count() << " operations\n";
+  if (const std::string used = std_functions(program); !used.empty())
+    os << "    using " << used << ";\n";
   os << FunctionPrinter(program, symbols).body("    ");
   os << "  }\n";
 }
+
+// ---- Block solver (structure.hpp): position, velocity and acceleration block by block.
+
+std::string idx(int k) { return std::to_string(k); }
+
+// Runtime helpers shared by the block functions: magnitudes in double, a fixed-size LU with
+// partial pivoting (row-major K x K), and the report's bookkeeping.
+void emit_block_helpers(std::ostringstream& os) {
+  os << R"(  // Outcome of a block solve. status: 0 converged, 1 Newton did not converge within
+  // max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value appeared (the
+  // order of kinegen::Status).
+  struct BlockReport {
+    int status = 0;
+    int block = -1;            // the block that failed
+    int iterations = 0;        // largest Newton iteration count of any block
+    int total_iterations = 0;  // Newton iterations summed over the blocks
+    double step = 0;           // largest last scaled Newton step
+  };
+  struct BlockOptions {
+    // Newton on a block stops when its step, lengths divided by length_scale and angles in
+    // radians, is at most this; or after exactly fixed_iterations when that is positive.
+    double tolerance = 1e-10;
+    int max_iterations = 30;  // per block
+    int fixed_iterations = 0;
+    // A block's Jacobian counts as singular when its smallest LU pivot is below this times
+    // its largest (1 x 1 blocks: when it is zero).
+    double singular_pivot_ratio = 1e-13;
+  };
+
+  template <class T>
+  static double _mag(const T& x) noexcept {
+    using std::abs;
+    return static_cast<double>(abs(x));
+  }
+  static BlockReport _fail(BlockReport r, int status, int block, int iterations = 0,
+                           double step = 0) noexcept {
+    r.status = status;
+    r.block = block;
+    r.iterations = std::max(r.iterations, iterations);
+    r.total_iterations += iterations;
+    r.step = std::max(r.step, step);
+    return r;
+  }
+  static void _done(BlockReport& r, int iterations, double step) noexcept {
+    r.iterations = std::max(r.iterations, iterations);
+    r.total_iterations += iterations;
+    r.step = std::max(r.step, step);
+  }
+  // In-place LU with partial pivoting; returns smallest / largest |pivot| (0 when singular,
+  // NaN when a value is not finite).
+  template <int K, class T>
+  static double _lu_factor(T* a, int* piv) noexcept {
+    double largest = 0, smallest = 0;
+    for (int k = 0; k < K; ++k) {
+      int m = k;
+      double best = _mag(a[k * K + k]);
+      for (int i = k + 1; i < K; ++i) {
+        const double v = _mag(a[i * K + k]);
+        if (v > best) {
+          best = v;
+          m = i;
+        }
+      }
+      if (!(best == best)) return best;
+      piv[k] = m;
+      if (m != k)
+        for (int j = 0; j < K; ++j) std::swap(a[k * K + j], a[m * K + j]);
+      if (best == 0) return 0;
+      largest = k == 0 ? best : std::max(largest, best);
+      smallest = k == 0 ? best : std::min(smallest, best);
+      const T inv = T(1) / a[k * K + k];
+      for (int i = k + 1; i < K; ++i) {
+        const T f = a[i * K + k] * inv;
+        a[i * K + k] = f;
+        for (int j = k + 1; j < K; ++j) a[i * K + j] -= f * a[k * K + j];
+      }
+    }
+    return smallest / largest;
+  }
+  template <int K, class T>
+  static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
+    for (int k = 0; k < K; ++k) {
+      if (piv[k] != k) std::swap(b[k], b[piv[k]]);
+      for (int i = k + 1; i < K; ++i) b[i] -= a[i * K + k] * b[k];
+    }
+    for (int k = K - 1; k >= 0; --k) {
+      for (int j = k + 1; j < K; ++j) b[k] -= a[k * K + j] * b[j];
+      b[k] /= a[k * K + k];
+    }
+  }
+
+)";
+}
+
+std::string block_comment(const Block& b, const char* kind) {
+  std::vector<std::string> rows, cols;
+  for (int r : b.rows) rows.push_back(idx(r));
+  for (int c : b.cols) cols.push_back("q[" + idx(c) + "]");
+  return std::string("rows ") + join(rows) + " -> " + join(cols) +
+         (*kind ? std::string(" (") + kind + ")" : "");
+}
+
+// Level of each node: the last block whose coordinates it reads (-1: none).
+std::vector<int> node_levels(const Program& prog, const BltOrder& order) {
+  std::vector<int> level(prog.nodes.size(), -1);
+  for (std::size_t k = 0; k < prog.nodes.size(); ++k) {
+    const Node& n = prog.nodes[k];
+    if (n.kind == OpKind::kInput && n.input.kind == InputKind::kQ)
+      level[k] = order.col_block[n.input.index];
+    for (int a : n.args) level[k] = std::max(level[k], level[a]);
+  }
+  return level;
+}
+
+// Position, velocity and acceleration block by block. One program holds every expression the
+// block functions need, so each function shares terms (sin and cos of an angle are computed
+// once per function) and the full-step function shares them between the phases. Terms are
+// printed where first needed; those inside a Newton loop go out of scope with it.
+class BlockEmitter {
+ public:
+  BlockEmitter(const SymbolicModel& model, const SymbolTable& symbols, const Structure& st)
+      : symbols_(symbols), st_(st) {
+    std::map<std::pair<int, int>, GiNaC::ex> jac;
+    for (const auto& e : model.phi_q) jac[{e.row, e.col}] = e.value;
+    std::vector<GiNaC::ex> outs;
+    const auto add = [&](const GiNaC::ex& e) {
+      outs.push_back(e);
+      return static_cast<int>(outs.size()) - 1;
+    };
+    const auto jac_at = [&](int r, int c) {
+      const auto it = jac.find({r, c});
+      return it == jac.end() ? GiNaC::ex(0) : it->second;
+    };
+    for (const auto& plan : st.plans) {
+      pos_first_.push_back(static_cast<int>(outs.size()));
+      const Block& b = plan.block;
+      switch (plan.kind) {
+        case BlockKind::kExplicit: add(-plan.rest / plan.coefficient); break;
+        case BlockKind::kExplicitGuarded:
+          add(plan.coefficient);
+          add(plan.rest);
+          break;
+        case BlockKind::kNewton:
+          for (int r : b.rows) add(model.phi[r]);
+          for (int r : b.rows)
+            for (int c : b.cols) add(jac_at(r, c));
+          break;
+      }
+    }
+    for (std::size_t bi = 0; bi < st.plans.size(); ++bi) {
+      const Block& b = st.plans[bi].block;
+      BlockOuts bo;
+      for (int r : b.rows) {
+        for (int c : b.cols) bo.jbb.push_back(add(jac_at(r, c)));
+        std::vector<std::pair<int, int>> coupling;
+        for (const auto& e : model.phi_q)
+          if (e.row == r && st.order.col_block[e.col] < static_cast<int>(bi))
+            coupling.push_back({e.col, add(e.value)});
+        bo.coupling.push_back(coupling);
+        bo.nu.push_back(add(model.nu[r]));
+        bo.gamma.push_back(add(model.gamma[r]));
+      }
+      blocks_.push_back(bo);
+    }
+    prog_ = lower(outs, symbols);
+    level_ = node_levels(prog_, st.order);
+  }
+
+  void emit_position(std::ostringstream& os) {
+    os << "  // Position: each block in turn, explicit or by Newton on the block alone; q holds\n"
+       << "  // the start (the previous solution or a prediction) and receives the solution.\n"
+       << "  template <class T>\n"
+       << "  static BlockReport solve_position(T* q, [[maybe_unused]] T t,\n"
+       << "      [[maybe_unused]] const Params& p,\n"
+       << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+    FunctionPrinter pr(prog_, symbols_);
+    prologue(os);
+    position_body(os, pr);
+    finite_check(os, "q");
+    os << kIn << "return report;\n  }\n";
+  }
+
+  void emit_motion(std::ostringstream& os, bool velocity, bool acceleration) {
+    if (velocity && acceleration) {
+      os << "  // Velocity (Phi_q qd = nu) and acceleration (Phi_q qdd = gamma) at a solved q,\n"
+         << "  // block by block with one factorization per block.\n"
+         << "  template <class T>\n"
+         << "  static BlockReport solve_velocity_acceleration([[maybe_unused]] const T* q,\n"
+         << "      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd, T* qdd,\n";
+    } else if (velocity) {
+      os << "  // Velocity: Phi_q qd = nu at a solved q, block by block.\n"
+         << "  template <class T>\n"
+         << "  static BlockReport solve_velocity([[maybe_unused]] const T* q,\n"
+         << "      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd,\n";
+    } else {
+      os << "  // Acceleration: Phi_q qdd = gamma at a solved q and qd, block by block.\n"
+         << "  template <class T>\n"
+         << "  static BlockReport solve_acceleration([[maybe_unused]] const T* q,\n"
+         << "      [[maybe_unused]] const T* qd, [[maybe_unused]] T t,\n"
+         << "      [[maybe_unused]] const Params& p, T* qdd,\n";
+    }
+    os << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+    FunctionPrinter pr(prog_, symbols_);
+    prologue(os);
+    motion_body(os, pr, velocity, acceleration);
+    os << kIn << "return report;\n  }\n";
+  }
+
+  // The full step: position, then velocity and acceleration, sharing every term.
+  void emit_step(std::ostringstream& os) {
+    os << "  // A full step: solve_position, then solve_velocity_acceleration, in one function\n"
+       << "  // so that terms at the solved q are computed once.\n"
+       << "  template <class T>\n"
+       << "  static BlockReport solve_step(T* q, [[maybe_unused]] T t,\n"
+       << "      [[maybe_unused]] const Params& p, T* qd, T* qdd,\n"
+       << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+    FunctionPrinter pr(prog_, symbols_);
+    prologue(os);
+    position_body(os, pr);
+    finite_check(os, "q");
+    motion_body(os, pr, true, true);
+    os << kIn << "return report;\n  }\n";
+  }
+
+ private:
+  struct BlockOuts {
+    std::vector<int> jbb;                                     // output ids, row-major k x k
+    std::vector<std::vector<std::pair<int, int>>> coupling;  // per row: (col, output id)
+    std::vector<int> nu, gamma;                               // per row
+  };
+  static constexpr const char* kIn = "    ";
+
+  int out(int k) const { return prog_.outputs[k]; }
+
+  void prologue(std::ostringstream& os) {
+    if (const std::string used = std_functions(prog_); !used.empty())
+      os << kIn << "using " << used << ";\n";
+    os << kIn << "BlockReport report;\n";
+  }
+
+  void finite_check(std::ostringstream& os, const char* v) {
+    os << kIn << "for (int _k = 0; _k < nq; ++_k)\n"
+       << kIn << "  if (!(_mag(" << v << "[_k]) <= 1e300)) return _fail(report, 3, -1);\n";
+  }
+
+  void position_body(std::ostringstream& os, FunctionPrinter& pr) {
+    const std::string in = kIn;
+    if (st_.newton_count() > 0)
+      os << in << "[[maybe_unused]] const double inv_length = 1.0 / length_scale;\n";
+    for (std::size_t bi = 0; bi < st_.plans.size(); ++bi) {
+      const BlockPlan& plan = st_.plans[bi];
+      const Block& b = plan.block;
+      const int f = pos_first_[bi];
+      const int k = static_cast<int>(b.rows.size());
+      os << in << "// Block " << bi << ": " << block_comment(b, to_string(plan.kind)) << "\n";
+      if (plan.kind == BlockKind::kExplicit) {
+        pr.ensure(out(f), os, in);
+        os << in << "q[" << b.cols[0] << "] = " << pr.text(out(f)) << ";\n";
+        continue;
+      }
+      if (plan.kind == BlockKind::kExplicitGuarded) {
+        pr.ensure(out(f), os, in);
+        pr.ensure(out(f + 1), os, in);
+        os << in << "{\n"
+           << in << "  const T _c = " << pr.text(out(f)) << ";\n"
+           << in << "  if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? 2 : 3, " << bi
+           << ");\n"
+           << in << "  q[" << b.cols[0] << "] = -(" << pr.text(out(f + 1)) << ") / _c;\n"
+           << in << "}\n";
+        continue;
+      }
+      const int n_out = k + k * k;
+      // Terms that do not read the block's own coordinates are computed once, before the loop.
+      for (int o = 0; o < n_out; ++o)
+        pr.ensure(out(f + o), os, in, [&](int id) { return level_[id] < static_cast<int>(bi); });
+      os << in << "for (int _it = 1;; ++_it) {\n";
+      pr.open_scope();
+      const std::string in2 = in + "  ";
+      for (int o = 0; o < n_out; ++o) pr.ensure(out(f + o), os, in2);
+      std::vector<std::string> r, a;
+      for (int o = 0; o < k; ++o) r.push_back(pr.text(out(f + o)));
+      for (int o = k; o < n_out; ++o) a.push_back(pr.text(out(f + o)));
+      os << in2 << "T _r[" << k << "] = {" << join(r) << "};\n";
+      if (k == 1) {
+        os << in2 << "const T _a = " << a[0] << ";\n"
+           << in2 << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << bi
+           << ", _it);\n"
+           << in2 << "_r[0] /= _a;\n";
+      } else {
+        os << in2 << "T _a[" << k * k << "] = {" << join(a) << "};\n"
+           << in2 << "int _piv[" << k << "];\n"
+           << in2 << "const double _ratio = _lu_factor<" << k << ">(_a, _piv);\n"
+           << in2 << "if (!(_ratio > o.singular_pivot_ratio))\n"
+           << in2 << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << bi << ", _it);\n"
+           << in2 << "_lu_solve<" << k << ">(_a, _piv, _r);\n";
+      }
+      os << in2 << "double _step = 0;\n";
+      for (int i = 0; i < k; ++i) {
+        const bool angle = b.cols[i] % 3 == 2;
+        os << in2 << "q[" << b.cols[i] << "] -= _r[" << i << "];\n"
+           << in2 << "_step = std::max(_step, _mag(_r[" << i << "])"
+           << (angle ? "" : " * inv_length") << ");\n";
+      }
+      os << in2 << "if (!(_step <= 1e300)) return _fail(report, 3, " << bi << ", _it);\n"
+         << in2
+         << "if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {\n"
+         << in2 << "  _done(report, _it, _step);\n"
+         << in2 << "  break;\n"
+         << in2 << "}\n"
+         << in2 << "if (_it >= o.max_iterations) return _fail(report, 1, " << bi
+         << ", _it, _step);\n";
+      pr.close_scope();
+      os << in << "}\n";
+    }
+  }
+
+  void motion_body(std::ostringstream& os, FunctionPrinter& pr, bool velocity, bool acceleration) {
+    const std::string in = kIn;
+    divisor_.assign(blocks_.size(), "");
+    for (std::size_t bi = 0; bi < blocks_.size(); ++bi) {
+      const BlockOuts& bo = blocks_[bi];
+      const int k = static_cast<int>(st_.plans[bi].block.rows.size());
+      const std::string b = idx(static_cast<int>(bi));
+      os << in << "// Block " << bi << ": " << block_comment(st_.plans[bi].block, "") << "\n";
+      for (int id : bo.jbb) pr.ensure(out(id), os, in);
+      if (k == 1) {
+        const int id = out(bo.jbb[0]);
+        const Node& n = prog_.nodes[id];
+        if (n.kind == OpKind::kConst) {
+          divisor_[bi] = n.value == 1 ? "" : pr.atom_text(id);
+        } else {
+          os << in << "const T _a" << b << " = " << pr.text(id) << ";\n"
+             << in << "if (!(_mag(_a" << b << ") > 0)) return _fail(report, _mag(_a" << b
+             << ") == 0 ? 2 : 3, " << bi << ");\n";
+          divisor_[bi] = "_a" + b;
+        }
+      } else {
+        std::vector<std::string> a;
+        for (int id : bo.jbb) a.push_back(pr.text(out(id)));
+        os << in << "T _a" << b << "[" << k * k << "] = {" << join(a) << "};\n"
+           << in << "int _piv" << b << "[" << k << "];\n"
+           << in << "const double _ratio" << b << " = _lu_factor<" << k << ">(_a" << b << ", _piv"
+           << b << ");\n"
+           << in << "if (!(_ratio" << b << " > o.singular_pivot_ratio))\n"
+           << in << "  return _fail(report, _ratio" << b << " == _ratio" << b << " ? 2 : 3, " << bi
+           << ");\n";
+      }
+      if (velocity) solve_rows(os, pr, bi, bo.nu, "qd");
+    }
+    if (velocity) finite_check(os, "qd");
+    if (acceleration) {
+      for (std::size_t bi = 0; bi < blocks_.size(); ++bi)
+        solve_rows(os, pr, bi, blocks_[bi].gamma, "qdd");
+      finite_check(os, "qdd");
+    }
+  }
+
+  void solve_rows(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                  const std::vector<int>& rhs, const char* var) {
+    const BlockOuts& bo = blocks_[bi];
+    const Block& blk = st_.plans[bi].block;
+    const int k = static_cast<int>(blk.rows.size());
+    const std::string in = kIn;
+    std::vector<std::string> texts;
+    for (int i = 0; i < k; ++i) {
+      const int rid = out(rhs[i]);
+      pr.ensure(rid, os, in);
+      for (const auto& [c, o] : bo.coupling[i]) pr.ensure(out(o), os, in);
+      std::string s = rid == Program::kZero ? "" : pr.text(rid);
+      for (const auto& [c, o] : bo.coupling[i]) {
+        const int id = out(o);
+        const Node& n = prog_.nodes[id];
+        const std::string x = std::string(var) + "[" + idx(c) + "]";
+        if (n.kind == OpKind::kConst && (n.value == 1 || n.value == -1)) {
+          const bool minus = n.value == 1;
+          s += s.empty() ? (minus ? "-" + x : x) : (minus ? " - " : " + ") + x;
+        } else {
+          s += (s.empty() ? "-" : " - ") + pr.atom_text(id) + "*" + x;
+        }
+      }
+      texts.push_back(s.empty() ? "T(0)" : s);
+    }
+    if (k == 1) {
+      const std::string& d = divisor_[bi];
+      os << in << var << "[" << blk.cols[0] << "] = "
+         << (d.empty() ? texts[0] : "(" + texts[0] + ") / " + d) << ";\n";
+      return;
+    }
+    const std::string b = idx(static_cast<int>(bi));
+    os << in << "{\n"
+       << in << "  T _x[" << k << "] = {" << join(texts) << "};\n"
+       << in << "  _lu_solve<" << k << ">(_a" << b << ", _piv" << b << ", _x);\n";
+    for (int i = 0; i < k; ++i)
+      os << in << "  " << var << "[" << blk.cols[i] << "] = _x[" << i << "];\n";
+    os << in << "}\n";
+  }
+
+  const SymbolTable& symbols_;
+  const Structure& st_;
+  std::vector<int> pos_first_;
+  std::vector<BlockOuts> blocks_;
+  Program prog_;
+  std::vector<int> level_;
+  std::vector<std::string> divisor_;
+};
 
 }  // namespace
 
@@ -249,6 +689,16 @@ std::string format_double(double value) {
 
 std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
                         const ModelPrograms& programs) {
+  return emit_header(m, symbols, model, programs, EmitOptions{});
+}
+
+std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
+                        const ModelPrograms& programs, const EmitOptions& options) {
+  const bool velocity = options.outputs != Outputs::kPosition;
+  const bool acceleration = options.outputs == Outputs::kAll;
+  const Structure st = options.block_solver && programs.nq == programs.nc
+                           ? analyze_structure(model, symbols)
+                           : Structure{};
   std::string base = m.source;
   if (const auto slash = base.find_last_of("/\\"); slash != std::string::npos)
     base = base.substr(slash + 1);
@@ -260,7 +710,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
      << "//\n"
      << "// Planar Cartesian kinematics of mechanism '" << m.name << "': Phi(q, t) = 0 with\n"
      << "// nu = -Phi_t and gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.\n"
-     << "#pragma once\n\n#include <array>\n#include <cmath>\n\n"
+     << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include <utility>\n\n"
      << "namespace kinegen::models {\n\n";
 
   os << "// Coordinates:";
@@ -300,10 +750,44 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
   emit_function(os, "phi", "nc", programs.phi, symbols, false);
   os << "\n  // Phi_q(q, t) at (jac_rows[k], jac_cols[k])\n";
   emit_function(os, "phi_q", "jac_nnz", programs.phi_q, symbols, false);
-  os << "\n  // nu = -Phi_t\n";
-  emit_function(os, "nu", "nc", programs.nu, symbols, false);
-  os << "\n  // gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt\n";
-  emit_function(os, "gamma", "nc", programs.gamma, symbols, true);
+  if (velocity) {
+    os << "\n  // nu = -Phi_t\n";
+    emit_function(os, "nu", "nc", programs.nu, symbols, false);
+  }
+  if (acceleration) {
+    os << "\n  // gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt\n";
+    emit_function(os, "gamma", "nc", programs.gamma, symbols, true);
+  }
+
+  os << "\n  // Which outputs were generated (kinegen generate --outputs).\n";
+  os << "  static constexpr bool has_velocity = " << (velocity ? "true" : "false") << ";\n";
+  os << "  static constexpr bool has_acceleration = " << (acceleration ? "true" : "false")
+     << ";\n";
+  os << "\n  // Block solver: Phi(q, t) = 0 in block-lower-triangular order (maximum matching, then\n"
+     << "  // strongly connected components). Each block reads only its own and earlier blocks'\n"
+     << "  // coordinates.\n";
+  os << "  static constexpr bool has_block_solver = " << (st.order.perfect ? "true" : "false")
+     << ";\n";
+  os << "  static constexpr int num_blocks = " << st.plans.size() << ";\n";
+  if (st.order.perfect) {
+    os << "  static constexpr int num_explicit_blocks = " << st.explicit_count() << ";\n";
+    os << "  static constexpr int max_block_size = " << st.largest_block() << ";\n\n";
+    emit_block_helpers(os);
+    BlockEmitter blocks(model, symbols, st);
+    blocks.emit_position(os);
+    if (velocity) {
+      os << "\n";
+      blocks.emit_motion(os, true, false);
+    }
+    if (acceleration) {
+      os << "\n";
+      blocks.emit_motion(os, false, true);
+      os << "\n";
+      blocks.emit_motion(os, true, true);
+      os << "\n";
+      blocks.emit_step(os);
+    }
+  }
   os << "};\n\n}  // namespace kinegen::models\n";
   return os.str();
 }

@@ -50,6 +50,9 @@ struct SolverOptions {
   int max_iterations = 30;
   // Phi_q counts as singular when its smallest LU pivot is below this times its largest.
   double singular_pivot_ratio = 1e-13;
+  // Block solver (block_solver.hpp) only: when positive, exactly this many Newton iterations
+  // per block and no convergence test, for a fixed cost per step (real-time use).
+  int fixed_iterations = 0;
 };
 
 namespace detail {
@@ -244,17 +247,18 @@ class BasicSolver {
   detail::Workspace<Scalar, NQ, NC> ws_;
 };
 
-// The solver for a generated model: `kinegen::Solver<kinegen::models::four_bar> solver;`.
+// Dense Newton on a generated model (one LU of the whole Phi_q): the baseline, and the path
+// for models without a block solver. kinegen::Solver (block_solver.hpp) is the default.
 template <class Model, class Scalar = double>
-class Solver : public BasicSolver<GeneratedSystem<Model, Scalar>> {
+class DenseSolver : public BasicSolver<GeneratedSystem<Model, Scalar>> {
   using Base = BasicSolver<GeneratedSystem<Model, Scalar>>;
 
  public:
   using Params = typename Model::Params;
   using typename Base::Vector;
 
-  Solver() : Base(GeneratedSystem<Model, Scalar>()) {}
-  explicit Solver(const Params& params, SolverOptions options = {})
+  DenseSolver() : Base(GeneratedSystem<Model, Scalar>()) {}
+  explicit DenseSolver(const Params& params, SolverOptions options = {})
       : Base(GeneratedSystem<Model, Scalar>(params), options) {}
 
   // The model's initial estimates as a vector of this solver's scalar.
@@ -266,3 +270,6 @@ class Solver : public BasicSolver<GeneratedSystem<Model, Scalar>> {
 };
 
 }  // namespace kinegen
+
+// kinegen::Solver: the generated block solver where the model has one, else DenseSolver.
+#include "kinegen/block_solver.hpp"
