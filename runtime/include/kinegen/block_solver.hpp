@@ -4,6 +4,7 @@
 // predictor. Header-only, Eigen and std only, allocation-free.
 #pragma once
 
+#include <limits>
 #include <type_traits>
 
 #include "kinegen/solver.hpp"
@@ -65,8 +66,10 @@ class Solver : public DenseSolver<Model, Scalar> {
   // Solves Phi_q qd = nu at a solved q.
   Result velocity(const Vector& q, Scalar t, Vector& qd) {
     if constexpr (kBlockSolver) {
-      return detail::to_result(
+      const Result r = detail::to_result(
           Model::solve_velocity(q.data(), t, this->system().params(), qd.data(), block_options()));
+      if (!r) qd.setConstant(kNaN);  // no stale or partial values after a failure
+      return r;
     } else {
       return Base::velocity(q, t, qd);
     }
@@ -74,8 +77,10 @@ class Solver : public DenseSolver<Model, Scalar> {
   // Solves Phi_q qdd = gamma at a solved q and qd.
   Result acceleration(const Vector& q, const Vector& qd, Scalar t, Vector& qdd) {
     if constexpr (kBlockSolver) {
-      return detail::to_result(Model::solve_acceleration(
+      const Result r = detail::to_result(Model::solve_acceleration(
           q.data(), qd.data(), t, this->system().params(), qdd.data(), block_options()));
+      if (!r) qdd.setConstant(kNaN);
+      return r;
     } else {
       return Base::acceleration(q, qd, t, qdd);
     }
@@ -94,9 +99,13 @@ class Solver : public DenseSolver<Model, Scalar> {
     if constexpr (kBlockSolver && detail::HasAcceleration<Model>::value) {
       auto o = block_options();
       if (!has_previous_) o.fixed_iterations = 0;
-      const Result r = detail::to_result(Model::solve_step(
-          q.data(), t, this->system().params(), qd.data(), qdd.data(), o));
-      if (!r) return r;
+      const Result r = detail::to_result(
+          Model::solve_step(q.data(), t, this->system().params(), qd.data(), qdd.data(), o));
+      if (!r) {
+        qd.setConstant(kNaN);
+        qdd.setConstant(kNaN);
+        return r;
+      }
       t_previous_ = t;
       has_previous_ = true;
       return r;
@@ -124,6 +133,7 @@ class Solver : public DenseSolver<Model, Scalar> {
     return o;
   }
 
+  static constexpr Scalar kNaN = std::numeric_limits<Scalar>::quiet_NaN();
   Scalar t_previous_ = Scalar(0);
   bool has_previous_ = false;
 };
