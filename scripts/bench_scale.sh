@@ -5,7 +5,7 @@
 # also docs/figures/scale.svg and scale.png (gnuplot).
 #
 #   scripts/bench_scale.sh [--n "10 30 100 300 1000"] [--families "fourbar_chain ..."]
-#                          [--compile-max N] [--dense-max NQ] [--plot]
+#                          [--compile-max N] [--dense-max NQ] [--plot] [--plot-only]
 #
 # Columns: family, N, nq; generation wall time [s] and peak memory [MB] of `kinegen generate`;
 # compile time [s] of the generated functions alone (phi, phi_q, nu, gamma for double) and one
@@ -21,6 +21,7 @@ families="fourbar_chain scissor_lift closed_chain"
 compile_max=1000
 dense_max=400
 plot=0
+measure=1
 while (($#)); do
   case "$1" in
     --n) sizes="$2"; shift 2 ;;
@@ -28,6 +29,7 @@ while (($#)); do
     --compile-max) compile_max="$2"; shift 2 ;;
     --dense-max) dense_max="$2"; shift 2 ;;
     --plot) plot=1; shift ;;
+    --plot-only) plot=1; measure=0; shift ;;  # plot an existing out/bench/scale.csv
     *) echo "error: unknown option '$1' (see the header of $0)" >&2; exit 2 ;;
   esac
 done
@@ -52,6 +54,7 @@ timed() {
 }
 field() { awk -v k="$1" '{for (i = 1; i < NF; ++i) if ($i == k) print $(i + 1)}' "$2"; }
 
+if ((measure)); then
 echo "family,N,nq,gen_s,gen_mb,compile_functions_s,eval_ns,compile_step_s,step_ns,iterations,dense_step_ns" >"$csv"
 printf "%-14s %5s %6s %7s %6s %9s %10s %9s %10s %5s %12s\n" family N nq gen_s gen_MB \
   compile_fn eval_ns compile_st step_ns iter dense_ns
@@ -88,6 +91,7 @@ for family in $families; do
   done
 done
 echo "wrote $csv"
+fi
 
 if ((plot)); then
   mkdir -p docs/figures
@@ -96,6 +100,7 @@ if ((plot)); then
     gnuplot <<EOF
 set terminal $term
 set output 'docs/figures/scale.$ext'
+set termoption noenhanced
 set datafile separator ','
 set datafile missing '-'
 set key top left
