@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 packages=(g++ cmake make pkg-config libginac-dev libcln-dev libeigen3-dev catch2
-          libyaml-cpp-dev libcli11-dev
+          libyaml-cpp-dev libcli11-dev python3
           libpng-dev chromium gnuplot-nox)  # pictures: animate test (PNG decode, headless render), plots
 missing=()
 for p in "${packages[@]}"; do

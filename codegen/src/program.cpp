@@ -80,22 +80,25 @@ class Lowerer {
       // product (or an integer power in it) is taken with a positive leading term, the sign
       // moving to the coefficient; this is done on our nodes, as GiNaC would undo it.
       GiNaC::numeric sign = 1, coefficient = 1;
-      std::vector<std::pair<std::string, int>> factors;  // canonical key, node
+      // Factors are sorted by key before any is lowered: node numbers (and so the `_tK`
+      // names) follow the order of lowering, which must not be GiNaC's.
+      std::vector<std::pair<std::string, ex>> factors;  // canonical key, factor
       for (const ex& factor : e) {
         if (GiNaC::is_a<GiNaC::numeric>(factor)) {
           coefficient *= GiNaC::ex_to<GiNaC::numeric>(factor);
           continue;
         }
-        const CanonicalFactor c = canonical_factor(factor);
-        if (c.negated) sign = -sign;
-        factors.emplace_back(c.key, c.node);
+        const auto& [k, negated] = factor_key(factor);
+        if (negated) sign = -sign;
+        factors.emplace_back(k, factor);
       }
-      std::stable_sort(factors.begin(), factors.end());
+      std::stable_sort(factors.begin(), factors.end(),
+                       [](const auto& a, const auto& b) { return a.first < b.first; });
       coefficient *= sign;
       // The coefficient goes first: it reads as `T(2)*x*y`, and both back ends multiply in
       // this order.
       if (coefficient != 1 || factors.size() < 2) n.args.push_back(lower(coefficient));
-      for (const auto& f : factors) n.args.push_back(f.second);
+      for (const auto& f : factors) n.args.push_back(canonical_factor(f.second).node);
       if (n.args.size() == 1) return n.args[0];
     } else if (is_flipped_power(e)) {
       const CanonicalFactor c = canonical_factor(e);
@@ -187,6 +190,14 @@ class Lowerer {
 
   // Whether a sum's leading term, in an order that ignores signs, has a negative coefficient.
   bool leading_negative(const ex& sum) {
+    const auto it = leading_negative_.find(sum);
+    if (it != leading_negative_.end()) return it->second;
+    const bool negative = leading_negative_plain(sum);
+    leading_negative_.emplace(sum, negative);
+    return negative;
+  }
+
+  bool leading_negative_plain(const ex& sum) {
     ex lead;  // by value: GiNaC's iterators hand out temporaries
     std::string lead_key;
     bool first = true;
@@ -242,7 +253,15 @@ class Lowerer {
            e.op(1).info(GiNaC::info_flags::integer) && leading_negative(e.op(0));
   }
 
-  std::pair<std::string, bool> factor_key(const ex& factor) {
+  // Memoized like key(): a nested sum would otherwise be keyed again at every level above it.
+  const std::pair<std::string, bool>& factor_key(const ex& factor) {
+    const auto it = factor_keys_.find(factor);
+    if (it != factor_keys_.end()) return it->second;
+    auto k = factor_key_plain(factor);
+    return factor_keys_.emplace(factor, std::move(k)).first->second;
+  }
+
+  std::pair<std::string, bool> factor_key_plain(const ex& factor) {
     if (GiNaC::is_a<GiNaC::add>(factor) && leading_negative(factor)) return {key(-factor), true};
     if (is_flipped_power(factor)) {
       const GiNaC::numeric n = GiNaC::ex_to<GiNaC::numeric>(factor.op(1));
@@ -329,6 +348,8 @@ class Lowerer {
   const SymbolTable& symbols_;
   Program program_;
   std::map<ex, std::string, GiNaC::ex_is_less> keys_;
+  std::map<ex, std::pair<std::string, bool>, GiNaC::ex_is_less> factor_keys_;
+  std::map<ex, bool, GiNaC::ex_is_less> leading_negative_;
   std::map<ex, int, GiNaC::ex_is_less> memo_;
 };
 

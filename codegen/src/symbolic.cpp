@@ -134,13 +134,34 @@ SymbolTable::SymbolTable(const Mechanism& m) : source_(m.source), t_("t") {
   }
   roles_.emplace(t_, Input{InputKind::kT, 0});
   for (int k = 0; k < num_params(); ++k) roles_.emplace(params_[k], Input{InputKind::kParam, k});
+  for (int k = 0; k < nq(); ++k) names_[coord_names_[k]] = q_[k];
+  for (int k = 0; k < num_params(); ++k) names_[param_names_[k]] = params_[k];
 }
 
 ex SymbolTable::parse(const Expr& expr, Scope scope, const std::string& item) const {
   static const GiNaC::prototype_table kFunctions = allowed_functions();
+  // Only the names the text may mention go into the parser's table (any run of name
+  // characters, from any letter in it): a table of every coordinate, built for each of a
+  // large mechanism's expressions, would make reading it quadratic.
   GiNaC::symtab table;
-  for (int k = 0; k < nq(); ++k) table[coord_names_[k]] = q_[k];
-  for (int k = 0; k < num_params(); ++k) table[param_names_[k]] = params_[k];
+  const std::string& text = expr.text;
+  const auto name_char = [](char ch) {
+    return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_';
+  };
+  for (std::size_t k = 0; k < text.size();) {
+    if (!name_char(text[k])) {
+      ++k;
+      continue;
+    }
+    std::size_t end = k;
+    while (end < text.size() && name_char(text[end])) ++end;
+    for (std::size_t from = k; from < end; ++from) {
+      if (std::isdigit(static_cast<unsigned char>(text[from]))) continue;
+      const auto it = names_.find(text.substr(from, end - from));
+      if (it != names_.end()) table.insert(*it);
+    }
+    k = end;
+  }
   table["t"] = t_;
   table["pi"] = GiNaC::Pi;
 
@@ -340,6 +361,19 @@ std::vector<GiNaC::numeric> parameter_values(const Mechanism& m, const SymbolTab
   return values;
 }
 
+// The coordinates `e` reads, ascending.
+std::vector<int> coordinates_in(const ex& e, const SymbolTable& s) {
+  std::vector<int> coords;
+  for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it)
+    if (GiNaC::is_a<GiNaC::symbol>(*it)) {
+      const Input in = s.classify(*it);
+      if (in.kind == InputKind::kQ) coords.push_back(in.index);
+    }
+  std::sort(coords.begin(), coords.end());
+  coords.erase(std::unique(coords.begin(), coords.end()), coords.end());
+  return coords;
+}
+
 }  // namespace
 
 SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
@@ -355,24 +389,32 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
       model.rows.push_back({c, static_cast<int>(k)});
     }
   }
-  const int nq = m.nq();
   const int nc = static_cast<int>(model.phi.size());
 
-  for (int r = 0; r < nc; ++r)
-    for (int k = 0; k < nq; ++k) {
+  // Each row is differentiated only by the coordinates it reads (a joint reads at most two
+  // bodies): derivation stays linear in the size of the mechanism. Derivatives read no
+  // coordinate their expression does not, so w = Phi_q qd below needs no others either.
+  std::vector<std::vector<int>> row_coords(nc);
+  std::vector<std::size_t> row_begin(nc + 1, 0);  // row r's entries: [row_begin[r], row_begin[r+1])
+  for (int r = 0; r < nc; ++r) {
+    row_coords[r] = coordinates_in(model.phi[r], s);
+    row_begin[r] = model.phi_q.size();
+    for (int k : row_coords[r]) {
       const ex d = model.phi[r].diff(s.q(k));
       if (!d.is_zero()) model.phi_q.push_back({r, k, d});
     }
+  }
+  row_begin[nc] = model.phi_q.size();
 
   // nu = -Phi_t. gamma = -(w_q qd + 2 w_t + Phi_tt), w = Phi_q qd, with w_q qd = sum_k dw/dq_k qd_k.
   for (int r = 0; r < nc; ++r) {
     const ex phi_t = model.phi[r].diff(s.t());
     model.nu.push_back(-phi_t);
     ex w = 0;
-    for (const auto& e : model.phi_q)
-      if (e.row == r) w += e.value * s.qd(e.col);
+    for (std::size_t e = row_begin[r]; e < row_begin[r + 1]; ++e)
+      w += model.phi_q[e].value * s.qd(model.phi_q[e].col);
     ex w_q_qd = 0;
-    for (int k = 0; k < nq; ++k) w_q_qd += w.diff(s.q(k)) * s.qd(k);
+    for (int k : row_coords[r]) w_q_qd += w.diff(s.q(k)) * s.qd(k);
     model.gamma.push_back(-(w_q_qd + 2 * w.diff(s.t()) + phi_t.diff(s.t())));
   }
 

@@ -58,6 +58,7 @@ class SymbolTable {
   GiNaC::realsymbol t_;
   std::vector<std::string> param_names_, coord_names_;
   std::map<GiNaC::ex, Input, GiNaC::ex_is_less> roles_;
+  std::map<std::string, GiNaC::ex> names_;  // coordinates and parameters by name
 };
 
 // One row of Phi and where it came from, for messages that name joints and drivers.
