@@ -210,10 +210,11 @@ struct quick_return {
   }
   template <int K, class T>
   static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
-    for (int k = 0; k < K; ++k) {
+    // _lu_factor swaps whole rows (multipliers included), so b takes every swap first.
+    for (int k = 0; k < K; ++k)
       if (piv[k] != k) std::swap(b[k], b[piv[k]]);
+    for (int k = 0; k < K; ++k)
       for (int i = k + 1; i < K; ++i) b[i] -= a[i * K + k] * b[k];
-    }
     for (int k = K - 1; k >= 0; --k) {
       for (int j = k + 1; j < K; ++j) b[k] -= a[k * K + j] * b[j];
       b[k] /= a[k * K + k];

@@ -8,13 +8,16 @@
 #include <random>
 #include <string>
 
+#include "closed_chain_4.hpp"
 #include "four_bar.hpp"
+#include "fourbar_chain_3.hpp"
 #include "guarded_slider.hpp"
 #include "kinegen/codegen/emit_cpp.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/structure.hpp"
 #include "offset_slider_crank.hpp"
 #include "quick_return.hpp"
+#include "scissor_lift_3.hpp"
 #include "slider_crank.hpp"
 #include "slider_crank_lecture.hpp"
 
@@ -224,7 +227,10 @@ void compare_steps(int fixed_iterations) {
 TEMPLATE_TEST_CASE("block solver matches the dense solver", "[structure][solver]",
                    kinegen::models::slider_crank, kinegen::models::offset_slider_crank,
                    kinegen::models::four_bar, kinegen::models::quick_return,
-                   kinegen::models::slider_crank_lecture) {
+                   kinegen::models::slider_crank_lecture,
+                   // Blocks of 3 to 6 coordinates, where the block LU pivots.
+                   kinegen::models::fourbar_chain_3, kinegen::models::scissor_lift_3,
+                   kinegen::models::closed_chain_4) {
   STATIC_REQUIRE(kinegen::Solver<TestType>::kBlockSolver);
   compare_with_dense<TestType>(12345);
   compare_steps<TestType>(0);
