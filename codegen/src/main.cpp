@@ -118,7 +118,8 @@ int run_generate(const Common& c, const std::string& dir) {
   return 0;
 }
 
-int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output) {
+int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output,
+                bool strict) {
   const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
   kc::require_driven(*model);
   if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
@@ -128,14 +129,23 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   std::ostream& out = file ? file->stream() : std::cout;
   out << kc::csv_header(model->mechanism());
   int status = 0;
+  int rows = 0;
   try {
-    kc::run_analysis(*model, {t0, t1, steps}, [&](const kc::StateRow& row) { out << kc::csv_row(row); });
+    kc::AnalysisOptions options;
+    options.strict = strict;
+    options.warn = [](const std::string& w) { std::cerr << "warning: " << one_line(w) << "\n"; };
+    kc::run_analysis(*model, {t0, t1, steps},
+                     [&](const kc::StateRow& row) {
+                       out << kc::csv_row(row);
+                       ++rows;
+                     },
+                     options);
   } catch (const kc::AnalysisError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
     status = kExitFailed;  // the rows solved so far are kept
   }
   out.flush();
-  if (file) file->commit();
+  if (file && (rows > 0 || status == 0)) file->commit();  // nothing solved: nothing to keep
   return status;
 }
 
@@ -205,6 +215,8 @@ int main(int argc, char** argv) {
   analyze->add_option("--t1", t1, "End time")->required();
   analyze->add_option("--steps", steps, "Number of steps N (N + 1 rows)")->required();
   analyze->add_option("-o,--output", csv, "CSV file (default: standard output)");
+  bool strict = false;
+  analyze->add_flag("--strict", strict, "Redundant constraints are an error (exit 2), not a warning");
 
   double t = 0;
   std::vector<double> q_arg, qd_arg;
@@ -238,7 +250,7 @@ int main(int argc, char** argv) {
 
   try {
     if (*generate) return run_generate(common, out_dir);
-    if (*analyze) return run_analyze(common, t0, t1, steps, csv);
+    if (*analyze) return run_analyze(common, t0, t1, steps, csv, strict);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
     if (*check) return run_check(common, check_options, structure);
   } catch (const kc::InputError& e) {
