@@ -235,9 +235,16 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
       keep_turns_of_estimates(solver, model.q0(), row.q, t);
       check_redundancy(model, row.q, t, options);
     }
-    if (auto r = solver.velocity(row.q, t, row.qd); !r) fail("velocity", t, r);
+    if (auto r = solver.velocity(row.q, t, row.qd); !r) {
+      fail("velocity", t, r);
+    } else if (r.condition > options.max_condition) {
+      // Newton converges (slowly) onto a toggle point, where Phi_q is singular only in the
+      // limit: velocities there are meaningless, so it counts as singular.
+      r.status = Status::kSingular;
+      fail("position", t, r);
+    }
     if (auto r = solver.acceleration(row.q, row.qd, t, row.qdd); !r) fail("acceleration", t, r);
-    if (k > 0) {
+    if (k > 0 && options.check_jumps) {
       // q(t1) - q(t0) = h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 + O(h^5) on a smooth
       // motion (Euler-Maclaurin). A solution that breaks this by a large fraction of the
       // motion was not reached along the motion: Newton jumped to another branch.

@@ -41,6 +41,12 @@ struct AnalysisOptions {
   // A converged position whose change since the last step disagrees with the velocities by
   // more than this fraction of the motion counts as a jump to another branch (an error).
   double jump_fraction = 0.25;
+  // Off: neither the jump check nor the det(Phi_q) sign check (for tests that show what they
+  // prevent).
+  bool check_jumps = true;
+  // A solved position whose scaled Phi_q has a larger condition estimate is treated as
+  // singular (a toggle that Newton converged onto): cond * eps would reach 1e-8.
+  double max_condition = 1e8;
 };
 
 // Solves every time of the grid, handing each row to `sink` as soon as it is solved, so a
