@@ -142,8 +142,8 @@ void check_error(const CommandResult& r, const fs::path& file, const Case& c) {
 TEST_CASE("the base mechanism of the hostile-input cases is valid", "[hostile]") {
   const fs::path dir = scratch("base");
   write_text(dir / "m.yaml", kBase);
-  const auto r = run_kinegen({"analyze", (dir / "m.yaml").string(), "--t0", "0", "--t1", "1", "--steps",
-                          "2", "-o", (dir / "m.csv").string()});
+  const auto r = run_kinegen({"analyze", (dir / "m.yaml").string(), "--t0", "0", "--t1", "1",
+                              "--steps", "2", "-o", (dir / "m.csv").string()});
   CHECK(r.exit_code == 0);
   CHECK(fs::exists(dir / "m.csv"));
 }
@@ -157,8 +157,8 @@ TEST_CASE("every malformed file gives one error line, exit 2 and no output", "[h
       const fs::path out = dir / "out";
       fs::create_directories(out);
       check_error(run_kinegen({"generate", mech.string(), "-o", out.string()}), mech, c);
-      check_error(run_kinegen({"analyze", mech.string(), "--t0", "0", "--t1", "1", "--steps", "2", "-o",
-                           (out / "m.csv").string()}),
+      check_error(run_kinegen({"analyze", mech.string(), "--t0", "0", "--t1", "1", "--steps", "2",
+                               "-o", (out / "m.csv").string()}),
                   mech, c);
       check_error(run_kinegen({"eval", mech.string()}), mech, c);
       CHECK(fs::is_empty(out));
