@@ -263,7 +263,8 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
             ": the solution jumped (scaled change " + format_number(scaled_norm(dq, length)) +
             " since " + time_text(previous.t) + " disagrees with the velocities by " +
             format_number(miss) +
-            "): Newton left the assembly branch it started on; use smaller steps (--steps)");
+            "): Newton left the assembly branch it started on, or the step is too coarse to tell; "
+            "use smaller steps (--steps)");
       const int sign = solver.jacobian_sign();
       if (previous_sign != 0 && sign != 0 && sign != previous_sign)
         throw AnalysisError(file + ": position analysis failed at " + time_text(t) +
