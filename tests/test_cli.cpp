@@ -454,7 +454,8 @@ TEST_CASE("analyze -o FILE writes exactly what standard output gets", "[cli]") {
   CHECK(entries(dir) == std::vector<std::string>{"out.csv"});  // no temporary left beside it
 }
 
-TEST_CASE("analyze refuses a mechanism with too few or too many equations", "[cli]") {
+TEST_CASE("analyze refuses a mechanism with too few equations, and fails on contradictory ones",
+          "[cli]") {
   const fs::path dir = scratch_dir("analyze_not_driven");
   const fs::path under = dir / "under_driven.yaml";
   write_text(under, kUnderDriven);
@@ -465,17 +466,29 @@ TEST_CASE("analyze refuses a mechanism with too few or too many equations", "[cl
                        "  - type: absolute_x\n    body: rod\n    f: \"3 - t\"\n");
   const fs::path csv = dir / "out.csv";
 
-  for (const fs::path& mech : {under, over}) {
-    INFO(mech.filename());
+  {
     const auto r = kinegen(
-        {"analyze", mech.string(), "--t0", "0", "--t1", "1", "--steps", "2", "-o", csv.string()});
+        {"analyze", under.string(), "--t0", "0", "--t1", "1", "--steps", "2", "-o", csv.string()});
     CHECK(r.exit_code == 2);
     require_one_error_line(r);
-    CHECK(r.err.find(mech.string()) != std::string::npos);
+    CHECK(r.err.find(under.string()) != std::string::npos);
     CHECK(r.out.empty());
     CHECK_FALSE(fs::exists(csv));  // bad input writes no output file at all
   }
   CHECK(entries(dir) == std::vector<std::string>{"over_driven.yaml", "under_driven.yaml"});
+  // Seven equations for six coordinates agree at t = 0 (crank at 0, slider at 3): redundant,
+  // solved with a warning; from there on the two drivers contradict each other (exit 1, the
+  // row at t = 0 kept; docs/stability.md).
+  const auto r = kinegen(
+      {"analyze", over.string(), "--t0", "0", "--t1", "1", "--steps", "2", "-o", csv.string()});
+  CHECK(r.exit_code == 1);
+  INFO(r.err);
+  CHECK(r.err.rfind("warning: " + over.string() + ": redundant constraints", 0) == 0);
+  CHECK(r.err.find("\nerror: " + over.string() + ": position analysis failed at t = 0.5") !=
+        std::string::npos);
+  CHECK(r.err.find("not satisfied") != std::string::npos);
+  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 2);
+  CHECK(parse_csv(read_text(csv)).rows.size() == 1);
 }
 
 TEST_CASE("analyze on bad input leaves an existing output file untouched", "[cli]") {

@@ -2,8 +2,10 @@
 
 #include <kinegen/solver.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <sstream>
 
 namespace kinegen::codegen {
@@ -14,30 +16,91 @@ using Solver = BasicSolver<ProgramSystem>;
 
 std::string time_text(double t) { return "t = " + format_number(t); }
 
-// The constraints behind a singular Phi_q: rows that carry weight in its left null vector.
+// Phi_q with rows equilibrated and length columns multiplied by the length scale, as the
+// solver sees it: its singular values compare like with like (metres and radians).
+Eigen::MatrixXd scaled_jacobian(const CompiledModel& model, const Eigen::MatrixXd& jac) {
+  Eigen::MatrixXd s = jac;
+  const double length = model.symbolic().length_scale;
+  for (int k = 0; k < s.cols(); ++k)
+    if (k % 3 != 2) s.col(k) *= length;
+  for (int r = 0; r < s.rows(); ++r) {
+    const double n = s.row(r).cwiseAbs().maxCoeff();
+    if (n > 0) s.row(r) /= n;
+  }
+  return s;
+}
+
+Eigen::MatrixXd jacobian_at(const CompiledModel& model, const Eigen::VectorXd& q, double t) {
+  ModelEvaluator<double> eval(model);
+  Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(model.nc(), model.nq());
+  eval.jacobian(q.data(), t, jac);
+  return jac;
+}
+
+// The constraints behind a (near-)singular Phi_q: rows that carry weight in the left singular
+// vectors of its smallest singular values (those within a factor 10 of the smallest, and
+// always the smallest), with the scaled condition estimate.
 std::string singular_rows(const CompiledModel& model, const Eigen::MatrixXd& jac) {
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(jac, Eigen::ComputeFullU);
-  const Eigen::VectorXd u = svd.matrixU().col(svd.matrixU().cols() - 1);
-  const double s_max = svd.singularValues()(0);
-  const double s_min = svd.singularValues()(svd.singularValues().size() - 1);
+  if (!jac.allFinite()) return "";
+  const Eigen::MatrixXd s = scaled_jacobian(model, jac);
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(s, Eigen::ComputeFullU);
+  const Eigen::VectorXd sv = svd.singularValues();
+  const double s_max = sv.size() ? sv(0) : 0.0;
+  // With nc > nq the last nc - nq left singular vectors span the redundancy, not the
+  // singularity: look at the nq-th singular value.
+  const int k_min = static_cast<int>(std::min(s.rows(), s.cols())) - 1;
+  const double s_min = k_min >= 0 ? sv(k_min) : 0.0;
+  Eigen::VectorXd weight = Eigen::VectorXd::Zero(s.rows());
+  for (int k = 0; k <= k_min; ++k)
+    if (k == k_min || sv(k) <= 10 * s_min + 1e-14 * s_max)
+      weight = weight.cwiseMax(svd.matrixU().col(k).cwiseAbs());
   std::string rows;
-  for (int r = 0; r < u.size(); ++r)
-    if (std::abs(u[r]) > 0.1) rows += (rows.empty() ? "" : "; ") + model.row_label(r);
+  for (int r = 0; r < weight.size(); ++r)
+    if (weight[r] > 0.1) rows += (rows.empty() ? "" : "; ") + model.row_label(r);
   std::ostringstream os;
   os << " (condition estimate " << (s_min > 0 ? format_number(s_max / s_min) : "inf")
      << "; involved: " << rows << ")";
   return os.str();
 }
 
-// The constraint furthest from being satisfied at q, for messages about failed assembly.
+// The constraints furthest from being satisfied at q, for messages about failed assembly: the
+// largest residual and every row within a factor 10 of it.
 std::string largest_residual(const CompiledModel& model, const Eigen::VectorXd& q, double t) {
   ModelEvaluator<double> eval(model);
   Eigen::VectorXd phi(model.nc());
   eval.phi(q.data(), t, phi.data());
   Eigen::Index row = 0;
-  phi.cwiseAbs().maxCoeff(&row);
+  const double largest = phi.cwiseAbs().maxCoeff(&row);
+  std::string others;
+  for (int r = 0; r < phi.size(); ++r)
+    if (r != row && std::abs(phi[r]) > 0.1 * largest)
+      others += "; " + format_number(phi[r]) + " in " + model.row_label(r);
   return "; largest residual " + format_number(phi[row]) + " in " +
-         model.row_label(static_cast<int>(row));
+         model.row_label(static_cast<int>(row)) + others;
+}
+
+// Rows of Phi_q that depend on earlier rows (file order): adding them does not raise the rank.
+std::vector<int> dependent_rows(const Eigen::MatrixXd& scaled, double tol) {
+  std::vector<int> dependent;
+  Eigen::MatrixXd kept(0, scaled.cols());
+  for (int r = 0; r < scaled.rows(); ++r) {
+    Eigen::MatrixXd trial(kept.rows() + 1, scaled.cols());
+    trial << kept, scaled.row(r);
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(trial.transpose());
+    qr.setThreshold(tol);
+    if (qr.rank() == trial.rows())
+      kept = trial;
+    else
+      dependent.push_back(r);
+  }
+  return dependent;
+}
+
+// Scaled infinity norm of a q-sized vector: lengths over the length scale, angles in radians.
+double scaled_norm(const Eigen::VectorXd& v, double length) {
+  double n = 0;
+  for (int k = 0; k < v.size(); ++k) n = std::max(n, std::abs(k % 3 == 2 ? v[k] : v[k] / length));
+  return n;
 }
 
 }  // namespace
@@ -51,16 +114,13 @@ std::string format_number(double value) {
 void require_driven(const CompiledModel& model) {
   const int nq = model.nq(), nc = model.nc();
   const std::string& file = model.mechanism().source;
+  // More equations than coordinates is allowed: run_analysis checks at the assembled position
+  // whether they are consistent and redundant (solved by least squares, with a warning) or not.
   if (nc < nq)
     throw InputError(file, "drivers", {},
                      "the mechanism is not kinematically driven: " + std::to_string(nc) +
                          " equations for " + std::to_string(nq) + " coordinates leave " +
                          std::to_string(nq - nc) + " degree(s) of freedom undriven");
-  if (nc > nq)
-    throw InputError(file, "joints", {},
-                     std::to_string(nc) + " equations for " + std::to_string(nq) +
-                         " coordinates: the constraints are redundant or contradictory; remove "
-                         "the extra equations");
 }
 
 PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,
@@ -75,11 +135,63 @@ PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,
   return p;
 }
 
+namespace {
+
+// At the assembled configuration: the rank of Phi_q, and the equations that repeat earlier
+// ones. Consistent redundancy is solved by least squares with a warning (an error under
+// --strict); a rank below nq is left to the solver, which reports it as singular.
+void check_redundancy(const CompiledModel& model, const Eigen::VectorXd& q, double t,
+                      const AnalysisOptions& options) {
+  if (model.nc() <= model.nq()) return;
+  const Eigen::MatrixXd scaled = scaled_jacobian(model, jacobian_at(model, q, t));
+  const std::vector<int> dependent = dependent_rows(scaled, 1e-9);
+  if (dependent.empty()) return;
+  std::string names;
+  for (int r : dependent) names += (names.empty() ? "" : "; ") + model.row_label(r);
+  const int rank = model.nc() - static_cast<int>(dependent.size());
+  const std::string what = std::to_string(model.nc()) + " equations for " +
+                           std::to_string(model.nq()) + " coordinates, rank " +
+                           std::to_string(rank) + " at " + time_text(t) + ": redundant: " + names;
+  const std::string& file = model.mechanism().source;
+  if (options.strict)
+    throw InputError(file, "joints", {},
+                     "redundant constraints (" + what + "); --strict rejects them: remove them");
+  if (options.warn)
+    options.warn(file + ": redundant constraints (" + what +
+                 "); solving the consistent system by least squares");
+}
+
+// Newton's first steps can move an angle by many turns (a driver at t = 2 pi 1e6 moves its
+// crank by 1e6 turns in one step, and the coupler's angle follows by some arbitrary amount).
+// Where an angle enters only through sin and cos, whole turns are not seen by Phi: bring each
+// such angle back into the turn of its estimate q0, so the first row reads as the file meant.
+void keep_turns_of_estimates(Solver& solver, const Eigen::VectorXd& q0, Eigen::VectorXd& q,
+                             double t) {
+  const double two_pi = 2 * std::acos(-1.0);
+  for (int k = 2; k < q.size(); k += 3) {
+    const double turns = std::round((q[k] - q0[k]) / two_pi);
+    if (turns == 0) continue;
+    Eigen::VectorXd trial = q;
+    trial[k] -= turns * two_pi;
+    const double wanted = trial[k];
+    if (solver.position(trial, t) && std::abs(trial[k] - wanted) < 1e-6) q = trial;
+  }
+}
+
+}  // namespace
+
 void run_analysis(const CompiledModel& model, const TimeGrid& grid,
                   const std::function<void(const StateRow&)>& sink) {
+  run_analysis(model, grid, sink, AnalysisOptions{});
+}
+
+void run_analysis(const CompiledModel& model, const TimeGrid& grid,
+                  const std::function<void(const StateRow&)>& sink,
+                  const AnalysisOptions& options) {
   require_driven(model);
   Solver solver{ProgramSystem(model)};
   const std::string& file = model.mechanism().source;
+  const double length = model.symbolic().length_scale;
   StateRow row;
   row.q = model.q0();
   row.qd = Eigen::VectorXd::Zero(model.nq());
@@ -87,13 +199,23 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
   const auto fail = [&](const char* stage, double t, const Result& r) {
     std::string message = file + ": " + stage + " analysis failed at " + time_text(t) + ": " +
                           r.message();
-    if (r.status == Status::kMaxIterations)
-      message += " in " + std::to_string(r.iterations) + " iterations (last scaled step " +
-                 format_number(r.step) + "); the mechanism may not assemble here" +
-                 largest_residual(model, row.q, t);
-    if (r.status == Status::kSingular) message += singular_rows(model, solver.jacobian());
+    if (r.status == Status::kMaxIterations || r.status == Status::kInconsistent) {
+      if (r.status == Status::kMaxIterations)
+        message += " in " + std::to_string(r.iterations) + " iterations (last scaled step " +
+                   format_number(r.step) + "); the mechanism may not assemble here";
+      message += largest_residual(model, row.q, t) + " (condition estimate of Phi_q " +
+                 format_number(r.condition) + " at the last iterate)";
+    }
+    if (r.status == Status::kSingular) {
+      message += singular_rows(model, solver.jacobian());
+      if (std::string(stage) == "position")
+        message += "; a toggle or dead-centre position (a driver past what the mechanism can "
+                   "reach), or constraints that leave a motion undriven";
+    }
     throw AnalysisError(message);
   };
+  StateRow previous;
+  int previous_sign = 0;
   for (int k = 0; k <= grid.steps; ++k) {
     const double t = grid.at(k);
     if (k > 0) {
@@ -102,9 +224,55 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
       row.q += h * row.qd + 0.5 * h * h * row.qdd;
     }
     row.t = t;
-    if (auto r = solver.position(row.q, t); !r) fail("position", t, r);
-    if (auto r = solver.velocity(row.q, t, row.qd); !r) fail("velocity", t, r);
+    if (auto r = solver.position(row.q, t); !r) {
+      // A coarse step can predict a point from which Newton cannot find its way; start once
+      // more from the last solution before giving up (the jump check below still applies).
+      if (k == 0) fail("position", t, r);
+      row.q = previous.q;
+      if (auto r2 = solver.position(row.q, t); !r2) fail("position", t, r2);
+    }
+    if (k == 0) {
+      keep_turns_of_estimates(solver, model.q0(), row.q, t);
+      check_redundancy(model, row.q, t, options);
+    }
+    if (auto r = solver.velocity(row.q, t, row.qd); !r) {
+      fail("velocity", t, r);
+    } else if (r.condition > options.max_condition) {
+      // Newton converges (slowly) onto a toggle point, where Phi_q is singular only in the
+      // limit: velocities there are meaningless, so it counts as singular.
+      r.status = Status::kSingular;
+      fail("position", t, r);
+    }
     if (auto r = solver.acceleration(row.q, row.qd, t, row.qdd); !r) fail("acceleration", t, r);
+    if (k > 0 && options.check_jumps) {
+      // q(t1) - q(t0) = h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 + O(h^5) on a smooth
+      // motion (Euler-Maclaurin). A solution that breaks this by a large fraction of the
+      // motion was not reached along the motion: Newton jumped to another branch.
+      const double h = t - previous.t;
+      const Eigen::VectorXd dq = row.q - previous.q;
+      const Eigen::VectorXd mismatch =
+          dq - 0.5 * h * (previous.qd + row.qd) - h * h / 12 * (previous.qdd - row.qdd);
+      const double motion = std::max({scaled_norm(dq, length), scaled_norm(h * previous.qd, length),
+                                      scaled_norm(h * row.qd, length)});
+      const double miss = scaled_norm(mismatch, length);
+      const double eps = std::numeric_limits<double>::epsilon();
+      const double floor = 1e-6 + 64 * eps * scaled_norm(row.q.cwiseAbs(), length);
+      if (miss > options.jump_fraction * motion + floor)
+        throw AnalysisError(
+            file + ": position analysis failed at " + time_text(t) +
+            ": the solution jumped (scaled change " + format_number(scaled_norm(dq, length)) +
+            " since " + time_text(previous.t) + " disagrees with the velocities by " +
+            format_number(miss) +
+            "): Newton left the assembly branch it started on, or the step is too coarse to tell; "
+            "use smaller steps (--steps)");
+      const int sign = solver.jacobian_sign();
+      if (previous_sign != 0 && sign != 0 && sign != previous_sign)
+        throw AnalysisError(file + ": position analysis failed at " + time_text(t) +
+                            ": det(Phi_q) changed sign since " + time_text(previous.t) +
+                            ": the solution crossed a singular configuration or jumped to "
+                            "another assembly branch; use smaller steps (--steps)");
+    }
+    previous_sign = solver.jacobian_sign();
     row.points.clear();
     const auto& points = model.mechanism().points;
     for (std::size_t p = 0; p < points.size(); ++p) {
@@ -113,6 +281,7 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
                                        row.qdd.segment<3>(b), model.point_offsets()[p]));
     }
     sink(row);
+    previous = row;
   }
 }
 

@@ -148,7 +148,7 @@ int run_animate(const Common& c, const kc::AnimateOptions& options, const std::s
 }
 
 int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output,
-                int reference_digits) {
+                int reference_digits, bool strict) {
   const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
   kc::require_driven(*model);
   if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
@@ -163,18 +163,28 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   std::ostream& out = file ? file->stream() : std::cout;
   out << kc::csv_header(model->mechanism());
   int status = 0;
+  int rows = 0;
   try {
-    const auto sink = [&](const kc::StateRow& row) { out << kc::csv_row(row); };
-    if (reference_digits != 0)
+    const auto sink = [&](const kc::StateRow& row) {
+      out << kc::csv_row(row);
+      ++rows;
+    };
+    if (reference_digits != 0) {
       kc::run_reference_analysis(*model, {t0, t1, steps}, reference_digits, sink);
-    else
-      kc::run_analysis(*model, {t0, t1, steps}, sink);
+    } else {
+      kc::AnalysisOptions options;
+      options.strict = strict;
+      options.warn = [](const std::string& w) {
+        std::cerr << "warning: " << one_line(w) << "\n";
+      };
+      kc::run_analysis(*model, {t0, t1, steps}, sink, options);
+    }
   } catch (const kc::AnalysisError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
     status = kExitFailed;  // the rows solved so far are kept
   }
   out.flush();
-  if (file) file->commit();
+  if (file && (rows > 0 || status == 0)) file->commit();  // nothing solved: nothing to keep
   return status;
 }
 
@@ -264,6 +274,8 @@ int main(int argc, char** argv) {
   analyze->add_option("--reference-digits", reference_digits,
                       "Solve in CLN arithmetic with N decimal digits (20 to 1000) instead of "
                       "double: the high-precision reference");
+  bool strict = false;
+  analyze->add_flag("--strict", strict, "Redundant constraints are an error (exit 2), not a warning");
 
   double t = 0;
   std::vector<double> q_arg, qd_arg;
@@ -319,7 +331,7 @@ int main(int argc, char** argv) {
   try {
     if (*generate) return run_generate(common, out_dir, outputs, fold_params);
     if (*animate) return run_animate(common, animate_options, svg_file);
-    if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits);
+    if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits, strict);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
     if (*check) return run_check(common, check_options, structure);
   } catch (const kc::InputError& e) {

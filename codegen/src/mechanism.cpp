@@ -5,6 +5,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cctype>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -103,6 +104,10 @@ const std::unordered_set<std::string>& reserved_names() {
   return kReserved;
 }
 
+constexpr std::size_t kMaxExpressionLength = 4096;
+constexpr int kMaxNesting = 64;
+constexpr std::size_t kMaxFileSize = 1 << 20;
+
 class Loader {
  public:
   explicit Loader(std::string source) : source_(std::move(source)) {}
@@ -170,7 +175,26 @@ class Loader {
   Expr expr_of(const YAML::Node& node, const std::string& item) {
     if (!node.IsScalar() || node.Scalar().empty())
       fail(item, loc_of(node), "expected a number or an expression string");
-    return Expr{node.Scalar(), loc_of(node)};
+    const std::string& text = node.Scalar();
+    // YAML's special floats (.nan, .inf, -.Inf, ...) are numbers to YAML but not to kinegen.
+    std::string bare = text.substr(text[0] == '+' || text[0] == '-' ? 1 : 0);
+    for (char& ch : bare) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (bare == ".nan" || bare == ".inf")
+      fail(item, loc_of(node), "'" + text + "' is not a finite number");
+    // Bounds that keep the symbolic stage fast and its recursion shallow on hostile input;
+    // real mechanisms are far inside them.
+    if (text.size() > kMaxExpressionLength)
+      fail(item, loc_of(node),
+           "the expression is longer than " + std::to_string(kMaxExpressionLength) + " characters");
+    int depth = 0, deepest = 0;
+    for (char ch : text) {
+      depth += ch == '(' ? 1 : (ch == ')' ? -1 : 0);
+      deepest = std::max(deepest, depth);
+    }
+    if (deepest > kMaxNesting)
+      fail(item, loc_of(node),
+           "the expression nests parentheses deeper than " + std::to_string(kMaxNesting));
+    return Expr{text, loc_of(node)};
   }
 
   Vec2 vec2_of(const YAML::Node& node, const std::string& item) {
@@ -382,6 +406,10 @@ bool is_valid_identifier(const std::string& name) {
 }
 
 Mechanism parse_mechanism(const std::string& yaml_text, const std::string& source) {
+  if (yaml_text.size() > kMaxFileSize)
+    throw InputError(source, "file", {},
+                     "the file is larger than " + std::to_string(kMaxFileSize) +
+                         " bytes; a mechanism file is far smaller");
   YAML::Node root;
   try {
     root = YAML::Load(yaml_text);

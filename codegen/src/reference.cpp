@@ -374,6 +374,11 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
                      " and " + std::to_string(kMaxReferenceDigits) + ", not " +
                      std::to_string(digits));
   require_driven(model);
+  // Redundant constraints (nc > nq) need the double analysis' least squares.
+  if (model.nc() != model.nq())
+    throw UsageError("the reference analysis needs as many equations as coordinates (" +
+                     std::to_string(model.nc()) + " equations, " + std::to_string(model.nq()) +
+                     " coordinates); analyze without --reference-digits handles redundancy");
   const DigitsGuard guard(digits);
   HighPrecisionEvaluator eval(model, digits);
   const int nq = model.nq();

@@ -263,6 +263,23 @@ class Builder {
       throw InputError(m_.source, item, e.loc, "'" + e.text + "' is not a finite number");
   }
 
+  // An expression in t or q with the parameters put in: no division by zero appears, and every
+  // number in it is finite (1e999 * t is not).
+  void check_defined(const ex& value, const Expr& e, const std::string& item) const {
+    try {
+      const ex v = substitute_params(value, s_, values_);
+      for (auto it = v.preorder_begin(); it != v.preorder_end(); ++it)
+        if (GiNaC::is_a<GiNaC::numeric>(*it) &&
+            !std::isfinite(GiNaC::ex_to<GiNaC::numeric>(*it).to_double()))
+          throw InputError(m_.source, item, e.loc, "'" + e.text + "' holds a number that is not finite");
+    } catch (const InputError&) {
+      throw;
+    } catch (const std::exception& err) {
+      throw InputError(m_.source, item, e.loc,
+                       "'" + e.text + "' cannot be evaluated: " + clean_message(err.what()));
+    }
+  }
+
   std::vector<ex> equations(const Constraint& c) const {
     const Frame fi = frame(c.i), fj = frame(c.j);
     const auto d_ij = [&] {
@@ -285,6 +302,7 @@ class Builder {
       const std::string item = c.item + (c.is_driver ? " f" : " value");
       const ex v = s_.parse(c.value, value_scope, item);
       if (!c.is_driver) check_finite(v, c.value, item);
+      if (c.is_driver) check_defined(v, c.value, item);
       return v;
     };
     switch (c.type) {
@@ -313,9 +331,11 @@ class Builder {
       case ConstraintType::kExpression: {
         std::vector<ex> rows;
         const Scope scope = c.is_driver ? Scope::kDriver : Scope::kJoint;
-        for (std::size_t k = 0; k < c.equations.size(); ++k)
-          rows.push_back(
-              s_.parse(c.equations[k], scope, c.item + " equations[" + std::to_string(k) + "]"));
+        for (std::size_t k = 0; k < c.equations.size(); ++k) {
+          const std::string item = c.item + " equations[" + std::to_string(k) + "]";
+          rows.push_back(s_.parse(c.equations[k], scope, item));
+          check_defined(rows.back(), c.equations[k], item);
+        }
         return rows;
       }
     }

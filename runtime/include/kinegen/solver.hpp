@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 namespace kinegen {
 
@@ -19,6 +20,7 @@ enum class Status {
   kMaxIterations,  // Newton did not converge within the iteration budget
   kSingular,       // Phi_q is singular or nearly so at the current configuration
   kNonFinite,      // a residual, Jacobian or step contained NaN or infinity
+  kInconsistent,   // Newton's step vanished but Phi is not zero: no solution near here
 };
 
 inline const char* to_string(Status s) {
@@ -27,6 +29,9 @@ inline const char* to_string(Status s) {
     case Status::kMaxIterations: return "Newton iteration did not converge";
     case Status::kSingular: return "the constraint Jacobian Phi_q is singular";
     case Status::kNonFinite: return "a non-finite value (NaN or infinity) appeared";
+    case Status::kInconsistent:
+      return "Newton's step vanished but the constraints are not satisfied (they contradict "
+             "each other, or the mechanism cannot reach this position)";
   }
   return "unknown";
 }
@@ -36,7 +41,13 @@ struct Result {
   Status status = Status::kConverged;
   int iterations = 0;   // Newton iterations taken (position only)
   double step = 0;      // the last scaled Newton step (position only)
-  double pivot_ratio = 1;  // smallest / largest |pivot| of the last factorization
+  double pivot_ratio = 1;  // smallest / largest |pivot| of the last (scaled) factorization
+  // Estimated condition number of the scaled Phi_q of the last factorization (rows equilibrated,
+  // length columns multiplied by the length scale, angle columns as they are): infinity when
+  // singular.
+  double condition = 1;
+  double residual = 0;  // largest scaled |Phi| after the last step (position only)
+  int rank = 0;         // numerical rank of Phi_q at the last factorization
 
   explicit operator bool() const { return status == Status::kConverged; }
   const char* message() const { return to_string(status); }
@@ -44,11 +55,22 @@ struct Result {
 
 struct SolverOptions {
   // Newton stops when the step, with lengths divided by the model's length scale and angles
-  // in radians, is at most this. Convergence is quadratic, so the position is then accurate
-  // to far below it.
+  // in radians, is at most this (plus the rounding of the coordinate itself, 4 eps |q|, which no
+  // solver can beat: an angle of 6e6 rad is only known to about 1e-9). Convergence is
+  // quadratic, so the position is then accurate to far below it.
   double tolerance = 1e-10;
   int max_iterations = 30;
-  // Phi_q counts as singular when its smallest LU pivot is below this times its largest.
+  // Phi_q counts as singular when the reciprocal of its scaled condition estimate is below this.
+  double min_rcond = 1e-12;
+  // After the step criterion holds, every |Phi_r| must also be at most this times the row's
+  // scale (|Phi_q row| with lengths scaled) plus the rounding of its terms; the step alone can
+  // miss a stalled least-squares iteration on contradictory constraints.
+  double residual_tolerance = 1e-8;
+  // Backtracking: a Newton step that increases the scaled residual is halved up to this many
+  // times, which keeps large updates from throwing the iteration onto another branch.
+  int max_halvings = 8;
+  // The LU pivot ratio below which Phi_q (or a block of it, in the block solver) counts as
+  // singular; the dense path also checks min_rcond, so this is only its backstop there.
   double singular_pivot_ratio = 1e-13;
   // Block solver (block_solver.hpp) only: when positive, exactly this many Newton iterations
   // per block and no convergence test, for a fixed cost per step (real-time use).
@@ -57,24 +79,54 @@ struct SolverOptions {
 
 namespace detail {
 
-// Storage for one analysis: Phi_q, its factorization and the vectors around it.
+// Storage for one analysis: Phi_q, its factorization and the vectors around it. When the sizes
+// may differ (nc > nq: redundant constraints, run-time sizes only), a column-pivoted QR gives the
+// least-squares Newton step, which is the exact step for a consistent redundant system.
 template <class Scalar, int NQ, int NC>
 struct Workspace {
   using Jacobian = Eigen::Matrix<Scalar, NC, NQ>;
   using Square = Eigen::Matrix<Scalar, NQ, NQ>;
   using VectorQ = Eigen::Matrix<Scalar, NQ, 1>;
   using VectorC = Eigen::Matrix<Scalar, NC, 1>;
+  static constexpr bool kMayBeRectangular =
+      NQ == Eigen::Dynamic || NC == Eigen::Dynamic || NQ != NC;
+  struct NoQr {
+    explicit NoQr(int, int) {}
+  };
+  using Qr = std::conditional_t<kMayBeRectangular, Eigen::ColPivHouseholderQR<Jacobian>, NoQr>;
 
   explicit Workspace(int nq = NQ, int nc = NC)
-      : jac(Jacobian::Zero(nc, nq)), rhs(nc), dq(nq), q_factored(nq), lu(nq) {}
+      : jac(Jacobian::Zero(nc, nq)),
+        scaled(Jacobian::Zero(nc, nq)),
+        rhs(nc),
+        rhs_new(nc),
+        row_scale(nc),
+        col_scale(nq),
+        dq(nq),
+        q_factored(nq),
+        q_trial(nq),
+        est_x(nq),
+        est_y(nq),
+        est_z(nq),
+        lu(nq),
+        qr(nc, nq) {}
 
-  Jacobian jac;
-  VectorC rhs;
+  bool rectangular() const { return jac.rows() != jac.cols(); }
+
+  Jacobian jac;     // Phi_q
+  Jacobian scaled;  // R Phi_q D: rows equilibrated, length columns times the length scale
+  VectorC rhs, rhs_new;
+  VectorC row_scale;  // R (1 / row norm of Phi_q D)
+  VectorQ col_scale;  // D (length scale for x, y; 1 for phi)
   VectorQ dq;
   VectorQ q_factored;  // where the factorization was computed
+  VectorQ q_trial;
+  VectorQ est_x, est_y, est_z;  // condition estimate
   Scalar t_factored = Scalar(0);
   bool factored = false;
+  int det_sign = 0;  // sign of det(Phi_q) at the last square factorization (0 if unknown)
   Eigen::PartialPivLU<Square> lu;
+  Qr qr;
 };
 
 template <class Derived>
@@ -82,25 +134,95 @@ bool all_finite(const Eigen::MatrixBase<Derived>& v) {
   return v.allFinite();
 }
 
-// Evaluates Phi_q at (q, t) and factors it. Fills `result` on failure.
+// Hager's estimate of 1 / (|A|_1 |A^-1|_1) for the factored scaled Phi_q (as Eigen's rcond(),
+// written out because GCC warns inside Eigen's version for fixed sizes; no allocation).
+template <class WS>
+double reciprocal_condition(WS& ws) {
+  using Scalar = typename WS::VectorQ::Scalar;
+  const int n = static_cast<int>(ws.scaled.cols());
+  const double norm_a = static_cast<double>(ws.scaled.cwiseAbs().colwise().sum().maxCoeff());
+  if (!(norm_a > 0)) return 0.0;
+  ws.est_x.setConstant(Scalar(1) / Scalar(n));
+  double estimate = 0;
+  int last = -1;
+  for (int iter = 0; iter < 5; ++iter) {
+    ws.est_y = ws.lu.solve(ws.est_x);  // A^-1 x
+    const double norm_y = static_cast<double>(ws.est_y.cwiseAbs().sum());
+    if (iter > 0 && norm_y <= estimate) break;
+    estimate = norm_y;
+    for (int k = 0; k < n; ++k) ws.est_x[k] = ws.est_y[k] >= Scalar(0) ? Scalar(1) : Scalar(-1);
+    ws.est_z = ws.lu.transpose().solve(ws.est_x);  // A^-T sign(y)
+    int j = 0;
+    ws.est_z.cwiseAbs().maxCoeff(&j);
+    if (j == last) break;
+    last = j;
+    ws.est_x.setZero();
+    ws.est_x[j] = Scalar(1);
+  }
+  if (!std::isfinite(estimate) || !(estimate > 0)) return 0.0;
+  return 1.0 / (norm_a * estimate);
+}
+
+// Evaluates Phi_q at (q, t), scales it and factors it. Fills `result` (condition, rank; status
+// on failure).
 template <class System, class WS, class VQ>
 bool factor(const System& sys, WS& ws, const VQ& q, typename System::Scalar t,
             const SolverOptions& options, Result& result) {
+  using Scalar = typename System::Scalar;
   sys.jacobian(q.data(), t, ws.jac);
   ws.factored = false;
+  ws.det_sign = 0;
   if (!all_finite(ws.jac)) {
     result.status = Status::kNonFinite;
     return false;
   }
-  ws.lu.compute(ws.jac);
+  const Scalar length = Scalar(sys.length_scale());
+  for (int k = 0; k < ws.col_scale.size(); ++k)
+    ws.col_scale[k] = k % 3 == 2 ? Scalar(1) : length;
+  ws.scaled = ws.jac * ws.col_scale.asDiagonal();
+  for (int r = 0; r < ws.scaled.rows(); ++r) {
+    const Scalar n = ws.scaled.row(r).cwiseAbs().maxCoeff();
+    ws.row_scale[r] = n > Scalar(0) ? Scalar(1) / n : Scalar(1);
+  }
+  ws.scaled = ws.row_scale.asDiagonal() * ws.scaled;
+  const int nq = static_cast<int>(ws.jac.cols());
+  double rcond = 0;
+  if constexpr (WS::kMayBeRectangular) {
+    if (ws.rectangular()) {
+      ws.qr.setThreshold(options.min_rcond);
+      ws.qr.compute(ws.scaled);
+      const auto diag = ws.qr.matrixR().diagonal().cwiseAbs();
+      const double largest = static_cast<double>(diag.maxCoeff());
+      const double smallest = static_cast<double>(diag.minCoeff());
+      rcond = largest > 0 ? smallest / largest : 0.0;
+      result.pivot_ratio = rcond;
+      result.rank = static_cast<int>(ws.qr.rank());
+      result.condition = rcond > 0 ? 1 / rcond : std::numeric_limits<double>::infinity();
+      if (ws.jac.rows() < nq || !(rcond > options.min_rcond)) {
+        result.status = Status::kSingular;
+        return false;
+      }
+      ws.q_factored = q;
+      ws.t_factored = t;
+      ws.factored = true;
+      return true;
+    }
+  }
+  ws.lu.compute(ws.scaled);
   const auto diag = ws.lu.matrixLU().diagonal().cwiseAbs();
   const double largest = static_cast<double>(diag.maxCoeff());
   const double smallest = static_cast<double>(diag.minCoeff());
   result.pivot_ratio = largest > 0 ? smallest / largest : 0.0;
-  if (!(result.pivot_ratio > options.singular_pivot_ratio)) {
+  rcond = result.pivot_ratio > 0 ? reciprocal_condition(ws) : 0.0;
+  result.condition = rcond > 0 ? 1 / rcond : std::numeric_limits<double>::infinity();
+  result.rank = nq;
+  if (!(rcond > options.min_rcond) || !(result.pivot_ratio > options.singular_pivot_ratio)) {
+    result.rank = nq - 1;  // at least
     result.status = Status::kSingular;
     return false;
   }
+  const double det = static_cast<double>(std::real(ws.lu.determinant()));
+  ws.det_sign = det > 0 ? 1 : (det < 0 ? -1 : 0);
   ws.q_factored = q;
   ws.t_factored = t;
   ws.factored = true;
@@ -114,28 +236,92 @@ bool ensure_factored(const System& sys, WS& ws, const VQ& q, typename System::Sc
   return factor(sys, ws, q, t, options, result);
 }
 
-// Newton's method on Phi(q, t) = 0 from the q given.
+// Solves Phi_q x = ws.rhs (least squares when redundant) with the scaled factorization.
+template <class WS, class VQ>
+void solve_factored(WS& ws, VQ& x) {
+  ws.rhs = ws.row_scale.asDiagonal() * ws.rhs;
+  if constexpr (WS::kMayBeRectangular) {
+    if (ws.rectangular()) {
+      x = ws.qr.solve(ws.rhs);
+      x = ws.col_scale.asDiagonal() * x;
+      return;
+    }
+  }
+  x = ws.lu.solve(ws.rhs);
+  x = ws.col_scale.asDiagonal() * x;
+}
+
+// Largest |Phi_r| measured against the row's scale; the rounding of the row's terms
+// (eps |Phi_q row| |q|) is allowed on top, so huge angles are judged fairly.
+template <class WS, class V, class VQ>
+double scaled_residual(const WS& ws, const V& phi, const VQ& q, double& rounding) {
+  using Real = typename Eigen::NumTraits<typename V::Scalar>::Real;
+  const double eps = static_cast<double>(std::numeric_limits<Real>::epsilon());
+  double worst = 0;
+  rounding = 0;
+  for (int r = 0; r < phi.size(); ++r) {
+    const double scale = static_cast<double>(std::abs(ws.row_scale[r]));
+    double terms = 0;
+    for (int k = 0; k < q.size(); ++k)
+      terms += static_cast<double>(std::abs(ws.jac(r, k)) * std::abs(q[k]));
+    const double round = 16 * eps * terms * scale;
+    const double excess = static_cast<double>(std::abs(phi[r])) * scale - round;
+    worst = std::max(worst, excess);
+    rounding = std::max(rounding, round);
+  }
+  return worst;
+}
+
+template <class WS, class V>
+double residual_norm(const WS& ws, const V& phi) {
+  double n = 0;
+  for (int r = 0; r < phi.size(); ++r)
+    n = std::max(n, static_cast<double>(std::abs(phi[r] * ws.row_scale[r])));
+  return n;
+}
+
+// Damped Newton's method on Phi(q, t) = 0 from the q given (Gauss-Newton when redundant).
 template <class System, class WS, class VQ>
 Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
                 const SolverOptions& options) {
   using Scalar = typename System::Scalar;
+  using std::abs;
   Result result;
+  const double eps =
+      static_cast<double>(std::numeric_limits<typename Eigen::NumTraits<Scalar>::Real>::epsilon());
   const Scalar inv_length = Scalar(1) / Scalar(sys.length_scale());
+  sys.phi(q.data(), t, ws.rhs.data());
   for (int it = 1; it <= options.max_iterations; ++it) {
-    sys.phi(q.data(), t, ws.rhs.data());
     if (!all_finite(ws.rhs) || !all_finite(q)) {
       result.status = Status::kNonFinite;
       return result;
     }
     if (!factor(sys, ws, q, t, options, result)) return result;
-    ws.dq = ws.lu.solve(ws.rhs);
-    q -= ws.dq;
+    const double old_norm = residual_norm(ws, ws.rhs);
+    solve_factored(ws, ws.dq);  // scales ws.rhs in place
+    // Backtracking: halve a step that makes the residual grow (never below 1/2^max_halvings).
+    Scalar alpha = Scalar(1);
+    for (int h = 0;; ++h) {
+      ws.q_trial = q - alpha * ws.dq;
+      sys.phi(ws.q_trial.data(), t, ws.rhs_new.data());
+      const double new_norm = residual_norm(ws, ws.rhs_new);
+      if (h >= options.max_halvings || (std::isfinite(new_norm) && new_norm <= old_norm) ||
+          old_norm <= 1e3 * eps)
+        break;
+      alpha /= Scalar(2);
+    }
+    q = ws.q_trial;
+    ws.rhs = ws.rhs_new;
     ws.factored = false;  // q moved
     // Scaled step: coordinates come as [x, y, phi] per body.
     double step = 0;
+    bool small = true;
     for (int k = 0; k < q.size(); ++k) {
-      const Scalar d = k % 3 == 2 ? ws.dq[k] : ws.dq[k] * inv_length;
-      step = std::max(step, static_cast<double>(std::abs(d)));
+      const Scalar d = alpha * (k % 3 == 2 ? ws.dq[k] : ws.dq[k] * inv_length);
+      const double scale_k = k % 3 == 2 ? 1.0 : static_cast<double>(abs(Scalar(1) / inv_length));
+      step = std::max(step, static_cast<double>(abs(d)));
+      small = small && static_cast<double>(abs(alpha * ws.dq[k])) <=
+                           options.tolerance * scale_k + 4 * eps * static_cast<double>(abs(q[k]));
     }
     result.iterations = it;
     result.step = step;
@@ -143,8 +329,20 @@ Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
       result.status = Status::kNonFinite;
       return result;
     }
-    if (step <= options.tolerance) return result;
+    if (small && alpha == Scalar(1)) {
+      double rounding = 0;
+      result.residual = scaled_residual(ws, ws.rhs, q, rounding);
+      if (result.residual <= options.residual_tolerance) return result;
+      // The step vanished yet Phi did not: a least-squares minimum that is not a solution
+      // (contradictory constraints), or a square system stuck at a fold. One more look decides.
+      if (step <= 1e-3 * options.tolerance + 4 * eps) {
+        result.status = Status::kInconsistent;
+        return result;
+      }
+    }
   }
+  double rounding = 0;
+  result.residual = scaled_residual(ws, ws.rhs, q, rounding);
   result.status = Status::kMaxIterations;
   return result;
 }
@@ -156,7 +354,7 @@ Result velocity(const System& sys, WS& ws, const VQ& q, typename System::Scalar 
   Result result;
   if (!ensure_factored(sys, ws, q, t, options, result)) return result;
   sys.nu(q.data(), t, ws.rhs.data());
-  qd = ws.lu.solve(ws.rhs);
+  solve_factored(ws, qd);
   if (!all_finite(qd)) result.status = Status::kNonFinite;
   return result;
 }
@@ -168,7 +366,7 @@ Result acceleration(const System& sys, WS& ws, const VQ& q, const VQ& qd,
   Result result;
   if (!ensure_factored(sys, ws, q, t, options, result)) return result;
   sys.gamma(q.data(), qd.data(), t, ws.rhs.data());
-  qdd = ws.lu.solve(ws.rhs);
+  solve_factored(ws, qdd);
   if (!all_finite(qdd)) result.status = Status::kNonFinite;
   return result;
 }
@@ -240,6 +438,10 @@ class BasicSolver {
   SolverOptions& options() { return options_; }
   // Phi_q as last evaluated (valid after a velocity or acceleration call).
   const auto& jacobian() const { return ws_.jac; }
+  // Sign of det(Phi_q) at the last square factorization (0 when unknown or not square): it
+  // changes only through a singular configuration, so a change between two solved steps
+  // means the solution crossed one or jumped to another assembly branch.
+  int jacobian_sign() const { return ws_.det_sign; }
 
  private:
   System system_;

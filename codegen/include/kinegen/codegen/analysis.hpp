@@ -29,13 +29,36 @@ struct StateRow {
   std::vector<PointState> points;
 };
 
-// Throws InputError unless the model is kinematically driven (nc == nq).
+// Throws InputError when the model has fewer equations than coordinates (nc < nq). More
+// equations are allowed: run_analysis checks them for redundancy at the assembled position.
 void require_driven(const CompiledModel& model);
+
+struct AnalysisOptions {
+  // Redundant (consistent) constraints are an error (InputError, exit 2) rather than a warning.
+  bool strict = false;
+  // Receives warnings (one line each, without the "warning: " prefix).
+  std::function<void(const std::string&)> warn;
+  // A converged position whose change since the last step disagrees with the velocities by
+  // more than this fraction of the motion counts as a jump to another branch (an error).
+  double jump_fraction = 0.25;
+  // Off: neither the jump check nor the det(Phi_q) sign check (for tests that show what they
+  // prevent).
+  bool check_jumps = true;
+  // A solved position whose scaled Phi_q has a larger condition estimate is treated as
+  // singular (a toggle that Newton converged onto): cond * eps would reach 1e-8.
+  double max_condition = 1e8;
+};
 
 // Solves every time of the grid, handing each row to `sink` as soon as it is solved, so a
 // failure keeps what came before. Throws AnalysisError naming the file and time on failure.
+// Singular or near-singular Phi_q (scaled condition estimate), contradictory constraints,
+// Newton failures and jumps between assembly branches are AnalysisErrors; redundant
+// constraints are warned about (or, with options.strict, an InputError before any row).
 void run_analysis(const CompiledModel& model, const TimeGrid& grid,
                   const std::function<void(const StateRow&)>& sink);
+void run_analysis(const CompiledModel& model, const TimeGrid& grid,
+                  const std::function<void(const StateRow&)>& sink,
+                  const AnalysisOptions& options);
 
 // Position, velocity and acceleration of a point at local offset s on a body.
 PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,

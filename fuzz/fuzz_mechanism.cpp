@@ -1,0 +1,35 @@
+// libFuzzer target: the loader, the expression parser and the symbolic pipeline on arbitrary
+// text. Any input must end in a model or an InputError; anything else (a crash, a sanitizer
+// report, another exception) is a bug.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "kinegen/codegen/diagnostics.hpp"
+#include "kinegen/codegen/emit_cpp.hpp"
+#include "kinegen/codegen/model.hpp"
+
+namespace kc = kinegen::codegen;
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  // The loader rejects files above its size limit itself; keep the fuzzer's inputs near the
+  // sizes of real mechanism files so time goes into structure, not length.
+  if (size > 8192) return 0;
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  try {
+    auto model = kc::CompiledModel::from_mechanism(kc::parse_mechanism(text, "fuzz.yaml"));
+    (void)kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
+                          model->programs());
+    // Evaluate once at q0 so the lowered programs run too.
+    kc::ModelEvaluator<double> eval(*model);
+    Eigen::VectorXd q = model->q0(), out(model->nc());
+    Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(model->nc(), model->nq());
+    eval.phi(q.data(), 0.5, out.data());
+    eval.jacobian(q.data(), 0.5, jac);
+    Eigen::VectorXd qd = Eigen::VectorXd::Ones(model->nq());
+    eval.gamma(q.data(), qd.data(), 0.5, out.data());
+  } catch (const kc::InputError&) {
+    // Expected for invalid input.
+  }
+  return 0;
+}
