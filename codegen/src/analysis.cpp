@@ -12,6 +12,13 @@ namespace kinegen::codegen {
 
 namespace {
 
+// Estimates (condition numbers, step sizes) read better with three digits than seventeen.
+std::string format_estimate(double value) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", value);
+  return buf;
+}
+
 using Solver = BasicSolver<ProgramSystem>;
 
 std::string time_text(double t) { return "t = " + format_number(t); }
@@ -58,7 +65,7 @@ std::string singular_rows(const CompiledModel& model, const Eigen::MatrixXd& jac
   for (int r = 0; r < weight.size(); ++r)
     if (weight[r] > 0.1) rows += (rows.empty() ? "" : "; ") + model.row_label(r);
   std::ostringstream os;
-  os << " (condition estimate " << (s_min > 0 ? format_number(s_max / s_min) : "inf")
+  os << " (condition estimate " << (s_min > 0 ? format_estimate(s_max / s_min) : "inf")
      << "; involved: " << rows << ")";
   return os.str();
 }
@@ -202,9 +209,9 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
     if (r.status == Status::kMaxIterations || r.status == Status::kInconsistent) {
       if (r.status == Status::kMaxIterations)
         message += " in " + std::to_string(r.iterations) + " iterations (last scaled step " +
-                   format_number(r.step) + "); the mechanism may not assemble here";
+                   format_estimate(r.step) + "); the mechanism may not assemble here";
       message += largest_residual(model, row.q, t) + " (condition estimate of Phi_q " +
-                 format_number(r.condition) + " at the last iterate)";
+                 format_estimate(r.condition) + " at the last iterate)";
     }
     if (r.status == Status::kSingular) {
       message += singular_rows(model, solver.jacobian());
