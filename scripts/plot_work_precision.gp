@@ -21,7 +21,7 @@ set key top left font ",9" spacing 1.0
 set xlabel "largest error vs 40-digit reference (scaled)"
 set ylabel "ns per step (position + velocity + acceleration)"
 set xrange [1e-17:1e-3]
-set yrange [1e3:1e7]
+set yrange [1e1:1e7]
 
 sel(ex, m, col) = (strcol(1) eq ex && strcol(2) eq m && strcol(9) eq "ok") ? column(col) : NaN
 err(ex, m) = (v = sel(ex, m, 8), v != v ? NaN : (v < 1e-17 ? 1e-17 : v))
