@@ -16,7 +16,7 @@ inline constexpr const char* kVersion = "0.1.0";
 enum class Outputs { kPosition, kVelocity, kAll };
 
 // The default of EmitOptions::max_function_ops (kinegen generate --max-function-ops).
-inline constexpr int kDefaultMaxFunctionOps = 2000;
+inline constexpr int kDefaultMaxFunctionOps = 1000;
 
 struct EmitOptions {
   Outputs outputs = Outputs::kAll;
