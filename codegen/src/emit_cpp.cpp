@@ -1,5 +1,6 @@
 #include "kinegen/codegen/emit_cpp.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -48,7 +49,8 @@ class FunctionPrinter {
       : p_(program), symbols_(symbols), names_(program.nodes.size()) {}
 
   // The body of a generated function: the intermediate terms, then `out[k] = ...;`.
-  std::string body(const char* indent) {
+  // first_output: the index of the program's first output in `out` (a part of a split function).
+  std::string body(const char* indent, int first_output = 0) {
     std::ostringstream os;
     int count = 0;
     for (const auto& n : p_.nodes) count += n.named;
@@ -63,7 +65,7 @@ class FunctionPrinter {
     if (count > 0 && !p_.outputs.empty()) os << "\n";
     for (std::size_t o = 0; o < p_.outputs.size(); ++o) {
       const int id = p_.outputs[o];
-      os << indent << "out[" << o << "] = " << (id == Program::kZero ? "T(0)" : print(id).text)
+      os << indent << "out[" << first_output + static_cast<int>(o) << "] = " << (id == Program::kZero ? "T(0)" : print(id).text)
          << ";\n";
     }
     return os.str();
@@ -253,8 +255,97 @@ std::string std_functions(const Program& program) {
   return used;
 }
 
+// A part of a program split for compile time: a contiguous range of outputs and every node they
+// read, in the program's order. Nodes keep their kind, arguments and `named` flags, so a part
+// evaluates each output exactly as the whole program does; terms shared with other parts are
+// recomputed.
+struct ProgramPart {
+  int first_output = 0;
+  Program program;
+};
+
+// Splits `program` into parts of about max_ops operations each (a part ends with the output
+// that reaches max_ops; one output's terms are never split).
+std::vector<ProgramPart> split_program(const Program& program, int max_ops) {
+  std::vector<ProgramPart> parts;
+  std::vector<int> part_of(program.nodes.size(), -1);
+  std::vector<int> stack;
+  std::size_t o = 0;
+  while (o < program.outputs.size()) {
+    const int part = static_cast<int>(parts.size());
+    ProgramPart pp;
+    pp.first_output = static_cast<int>(o);
+    std::vector<int> members;
+    int ops = 0;
+    std::vector<int> outs;
+    for (; o < program.outputs.size() && ops < max_ops; ++o) {
+      const int id = program.outputs[o];
+      outs.push_back(id);
+      if (id == Program::kZero || part_of[id] == part) continue;
+      stack.assign(1, id);
+      part_of[id] = part;
+      while (!stack.empty()) {
+        const int k = stack.back();
+        stack.pop_back();
+        members.push_back(k);
+        const Node& n = program.nodes[k];
+        ops += n.kind != OpKind::kConst && n.kind != OpKind::kInput;
+        for (int a : n.args)
+          if (part_of[a] != part) {
+            part_of[a] = part;
+            stack.push_back(a);
+          }
+      }
+    }
+    std::sort(members.begin(), members.end());
+    std::vector<int> remap(program.nodes.size(), -1);
+    for (int k : members) {
+      remap[k] = static_cast<int>(pp.program.nodes.size());
+      Node n = program.nodes[k];
+      for (int& a : n.args) a = remap[a];
+      pp.program.nodes.push_back(std::move(n));
+    }
+    for (int id : outs) pp.program.outputs.push_back(id == Program::kZero ? id : remap[id]);
+    parts.push_back(std::move(pp));
+  }
+  return parts;
+}
+
+void emit_signature(std::ostringstream& os, const std::string& name, bool with_qd) {
+  os << "  template <class T>\n";
+  os << "  static void " << name << "([[maybe_unused]] const T* q,";
+  if (with_qd) os << " [[maybe_unused]] const T* qd,";
+  os << "\n      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {\n";
+}
+
+// One function, or when the program has more than max_ops operations (max_ops > 0), private
+// parts that the function calls in order: g++ -O2 takes time superlinear in a function's size.
 void emit_function(std::ostringstream& os, const char* name, const char* out_size,
-                   const Program& program, const SymbolTable& symbols, bool with_qd) {
+                   const Program& program, const SymbolTable& symbols, bool with_qd,
+                   int max_ops) {
+  if (max_ops > 0 && program.operation_count() > max_ops) {
+    const std::vector<ProgramPart> parts = split_program(program, max_ops);
+    os << " private:\n";
+    for (std::size_t k = 0; k < parts.size(); ++k) {
+      const Program& part = parts[k].program;
+      const int last = parts[k].first_output + static_cast<int>(part.outputs.size()) - 1;
+      emit_signature(os, "_" + std::string(name) + "_part" + std::to_string(k), with_qd);
+      os << "    // out[" << parts[k].first_output << ".." << last << "]; "
+         << part.operation_count() << " operations\n";
+      if (const std::string used = std_functions(part); !used.empty())
+        os << "    using " << used << ";\n";
+      os << FunctionPrinter(part, symbols).body("    ", parts[k].first_output);
+      os << "  }\n";
+    }
+    os << "\n public:\n";
+    emit_signature(os, name, with_qd);
+    os << "    // out[" << out_size << "]; " << program.operation_count() << " operations in "
+       << parts.size() << " parts\n";
+    for (std::size_t k = 0; k < parts.size(); ++k)
+      os << "    _" << name << "_part" << k << "(q, " << (with_qd ? "qd, " : "") << "t, p, out);\n";
+    os << "  }\n";
+    return;
+  }
   os << "  template <class T>\n";
   os << "  static void " << name << "([[maybe_unused]] const T* q,";
   if (with_qd) os << " [[maybe_unused]] const T* qd,";
@@ -386,7 +477,8 @@ std::vector<int> node_levels(const Program& prog, const BltOrder& order) {
 // printed where first needed; those inside a Newton loop go out of scope with it.
 class BlockEmitter {
  public:
-  BlockEmitter(const SymbolicModel& model, const SymbolTable& symbols, const Structure& st)
+  BlockEmitter(const SymbolicModel& model, const SymbolTable& symbols, const Structure& st,
+               int max_ops)
       : symbols_(symbols), st_(st) {
     std::map<std::pair<int, int>, GiNaC::ex> jac;
     for (const auto& e : model.phi_q) jac[{e.row, e.col}] = e.value;
@@ -434,6 +526,7 @@ class BlockEmitter {
     }
     prog_ = lower(outs, symbols);
     level_ = node_levels(prog_, st.order);
+    if (max_ops > 0 && prog_.operation_count() > max_ops) split_blocks(max_ops);
   }
 
   void emit_position(std::ostringstream& os) {
@@ -443,9 +536,17 @@ class BlockEmitter {
        << "  static BlockReport solve_position(T* q, [[maybe_unused]] T t,\n"
        << "      [[maybe_unused]] const Params& p,\n"
        << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+    if (!ranges_.empty()) {
+      os << kIn << "BlockReport report;\n";
+      call_parts(os, "_solve_position_part", "q, t, p, o, report");
+      finite_check(os, "q");
+      os << kIn << "return report;\n  }\n";
+      emit_position_parts(os);
+      return;
+    }
     FunctionPrinter pr(prog_, symbols_);
     prologue(os);
-    position_body(os, pr);
+    position_body(os, pr, 0, static_cast<int>(st_.plans.size()));
     finite_check(os, "q");
     os << kIn << "return report;\n  }\n";
   }
@@ -470,9 +571,19 @@ class BlockEmitter {
          << "      [[maybe_unused]] const Params& p, T* qdd,\n";
     }
     os << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+    if (!ranges_.empty()) {
+      const std::string name = motion_name(velocity, acceleration);
+      os << kIn << "BlockReport report;\n";
+      call_parts(os, "_" + name + "_part", motion_args(velocity, acceleration, false));
+      if (velocity) finite_check(os, "qd");
+      if (acceleration) finite_check(os, "qdd");
+      os << kIn << "return report;\n  }\n";
+      emit_motion_parts(os, velocity, acceleration);
+      return;
+    }
     FunctionPrinter pr(prog_, symbols_);
     prologue(os);
-    motion_body(os, pr, velocity, acceleration);
+    motion_body(os, pr, velocity, acceleration, 0, static_cast<int>(blocks_.size()), true);
     os << kIn << "return report;\n  }\n";
   }
 
@@ -484,11 +595,23 @@ class BlockEmitter {
        << "  static BlockReport solve_step(T* q, [[maybe_unused]] T t,\n"
        << "      [[maybe_unused]] const Params& p, T* qd, T* qdd,\n"
        << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+    if (!ranges_.empty()) {
+      // Split: the parts of solve_position and solve_velocity_acceleration (emitted with them).
+      os << kIn << "BlockReport report;\n";
+      call_parts(os, "_solve_position_part", "q, t, p, o, report");
+      finite_check(os, "q");
+      call_parts(os, "_solve_velocity_acceleration_part", motion_args(true, true, false));
+      finite_check(os, "qd");
+      finite_check(os, "qdd");
+      os << kIn << "return report;\n  }\n";
+      return;
+    }
     FunctionPrinter pr(prog_, symbols_);
     prologue(os);
-    position_body(os, pr);
+    const int n = static_cast<int>(st_.plans.size());
+    position_body(os, pr, 0, n);
     finite_check(os, "q");
-    motion_body(os, pr, true, true);
+    motion_body(os, pr, true, true, 0, n, true);
     os << kIn << "return report;\n  }\n";
   }
 
@@ -502,6 +625,117 @@ class BlockEmitter {
 
   int out(int k) const { return prog_.outputs[k]; }
 
+  // Runs of consecutive blocks of about max_ops operations each, for the parts of a split
+  // solver. Later blocks read earlier blocks' coordinates from q (qd, qdd), so a part needs
+  // nothing from the parts before it but memory; its terms are its own.
+  void split_blocks(int max_ops) {
+    const int n = static_cast<int>(st_.plans.size());
+    std::vector<int> part_of(prog_.nodes.size(), -1), stack;
+    int ops = 0, first = 0;
+    const auto count = [&](int output) {
+      const int id = out(output);
+      const int part = static_cast<int>(ranges_.size());
+      if (id == Program::kZero || part_of[id] == part) return;
+      stack.assign(1, id);
+      part_of[id] = part;
+      while (!stack.empty()) {
+        const Node& node = prog_.nodes[stack.back()];
+        stack.pop_back();
+        ops += node.kind != OpKind::kConst && node.kind != OpKind::kInput;
+        for (int a : node.args)
+          if (part_of[a] != part) {
+            part_of[a] = part;
+            stack.push_back(a);
+          }
+      }
+    };
+    for (int bi = 0; bi < n; ++bi) {
+      const int end = bi + 1 < n ? pos_first_[bi + 1] : static_cast<int>(prog_.outputs.size());
+      for (int o = pos_first_[bi]; o < end && o < pos_end(); ++o) count(o);
+      const BlockOuts& bo = blocks_[bi];
+      for (int o : bo.jbb) count(o);
+      for (const auto& row : bo.coupling)
+        for (const auto& [c, o] : row) count(o);
+      for (int o : bo.nu) count(o);
+      for (int o : bo.gamma) count(o);
+      if (ops >= max_ops || bi + 1 == n) {
+        ranges_.push_back({first, bi + 1});
+        first = bi + 1;
+        ops = 0;
+      }
+    }
+  }
+  // One past the last position output.
+  int pos_end() const { return blocks_.empty() ? 0 : blocks_[0].jbb.empty() ? 0 : blocks_[0].jbb[0]; }
+
+  static std::string motion_name(bool velocity, bool acceleration) {
+    return velocity && acceleration ? "solve_velocity_acceleration"
+           : velocity               ? "solve_velocity"
+                                    : "solve_acceleration";
+  }
+  // The arguments of a motion part: the public function's, then the report.
+  static std::string motion_args(bool velocity, bool acceleration, bool declare) {
+    const char* mu = "[[maybe_unused]] ";
+    std::vector<std::string> a;
+    const auto arg = [&](const std::string& type, const std::string& name) {
+      a.push_back(declare ? mu + type + " " + name : name);
+    };
+    arg("const T*", "q");
+    if (!velocity) arg("const T*", "qd");
+    arg("T", "t");
+    arg("const Params&", "p");
+    if (velocity) arg("T*", "qd");
+    if (acceleration) arg("T*", "qdd");
+    arg("const BlockOptions&", "o");
+    arg("BlockReport", "report");
+    std::string s;
+    for (std::size_t k = 0; k < a.size(); ++k)
+      s += (k == 0 ? "" : declare && k % 2 == 0 ? ",\n      " : ", ") + a[k];
+    return s;
+  }
+
+  void call_parts(std::ostringstream& os, const std::string& name, const std::string& args) {
+    for (std::size_t k = 0; k < ranges_.size(); ++k) {
+      os << kIn << "report = " << name << k << "(" << args << ");\n";
+      if (k + 1 < ranges_.size()) os << kIn << "if (report.status != 0) return report;\n";
+    }
+  }
+
+  void part_header(std::ostringstream& os, const std::string& name, std::size_t k,
+                   const std::string& params) {
+    os << "  // Blocks " << ranges_[k].first << " to " << ranges_[k].second - 1 << " of "
+       << name.substr(1) << ".\n"
+       << "  template <class T>\n"
+       << "  static BlockReport " << name << "_part" << k << "(" << params << ") noexcept {\n";
+    if (const std::string used = std_functions(prog_); !used.empty())
+      os << kIn << "using " << used << ";\n";
+  }
+
+  void emit_position_parts(std::ostringstream& os) {
+    os << "\n private:\n";
+    for (std::size_t k = 0; k < ranges_.size(); ++k) {
+      part_header(os, "_solve_position", k,
+                  "T* q, [[maybe_unused]] T t, [[maybe_unused]] const Params& p,\n"
+                  "      [[maybe_unused]] const BlockOptions& o, BlockReport report");
+      FunctionPrinter pr(prog_, symbols_);
+      position_body(os, pr, ranges_[k].first, ranges_[k].second);
+      os << kIn << "return report;\n  }\n";
+    }
+    os << "\n public:\n";
+  }
+
+  void emit_motion_parts(std::ostringstream& os, bool velocity, bool acceleration) {
+    os << "\n private:\n";
+    for (std::size_t k = 0; k < ranges_.size(); ++k) {
+      part_header(os, "_" + motion_name(velocity, acceleration), k,
+                  motion_args(velocity, acceleration, true));
+      FunctionPrinter pr(prog_, symbols_);
+      motion_body(os, pr, velocity, acceleration, ranges_[k].first, ranges_[k].second, false);
+      os << kIn << "return report;\n  }\n";
+    }
+    os << "\n public:\n";
+  }
+
   void prologue(std::ostringstream& os) {
     if (const std::string used = std_functions(prog_); !used.empty())
       os << kIn << "using " << used << ";\n";
@@ -513,11 +747,12 @@ class BlockEmitter {
        << kIn << "  if (!(_mag(" << v << "[_k]) <= 1e300)) return _fail(report, 3, -1);\n";
   }
 
-  void position_body(std::ostringstream& os, FunctionPrinter& pr) {
+  // Blocks [b0, b1).
+  void position_body(std::ostringstream& os, FunctionPrinter& pr, int b0, int b1) {
     const std::string in = kIn;
     if (st_.newton_count() > 0)
       os << in << "[[maybe_unused]] const double inv_length = 1.0 / length_scale;\n";
-    for (std::size_t bi = 0; bi < st_.plans.size(); ++bi) {
+    for (std::size_t bi = b0; bi < static_cast<std::size_t>(b1); ++bi) {
       const BlockPlan& plan = st_.plans[bi];
       const Block& b = plan.block;
       const int f = pos_first_[bi];
@@ -584,10 +819,12 @@ class BlockEmitter {
     }
   }
 
-  void motion_body(std::ostringstream& os, FunctionPrinter& pr, bool velocity, bool acceleration) {
+  // Blocks [b0, b1); checks: end with the finite checks of qd and qdd.
+  void motion_body(std::ostringstream& os, FunctionPrinter& pr, bool velocity, bool acceleration,
+                   int b0, int b1, bool checks) {
     const std::string in = kIn;
     divisor_.assign(blocks_.size(), "");
-    for (std::size_t bi = 0; bi < blocks_.size(); ++bi) {
+    for (std::size_t bi = b0; bi < static_cast<std::size_t>(b1); ++bi) {
       const BlockOuts& bo = blocks_[bi];
       const int k = static_cast<int>(st_.plans[bi].block.rows.size());
       const std::string b = idx(static_cast<int>(bi));
@@ -617,11 +854,11 @@ class BlockEmitter {
       }
       if (velocity) solve_rows(os, pr, bi, bo.nu, "qd");
     }
-    if (velocity) finite_check(os, "qd");
+    if (velocity && checks) finite_check(os, "qd");
     if (acceleration) {
-      for (std::size_t bi = 0; bi < blocks_.size(); ++bi)
+      for (std::size_t bi = b0; bi < static_cast<std::size_t>(b1); ++bi)
         solve_rows(os, pr, bi, blocks_[bi].gamma, "qdd");
-      finite_check(os, "qdd");
+      if (checks) finite_check(os, "qdd");
     }
   }
 
@@ -672,6 +909,7 @@ class BlockEmitter {
   Program prog_;
   std::vector<int> level_;
   std::vector<std::string> divisor_;
+  std::vector<std::pair<int, int>> ranges_;  // the parts' blocks [first, second); empty: one function
 };
 
 }  // namespace
@@ -759,16 +997,20 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
   os << "  };\n\n";
 
   os << "  // Phi(q, t)\n";
-  emit_function(os, "phi", "nc", programs.phi, symbols, false);
+  emit_function(os, "phi", "nc", programs.phi, symbols, false,
+                options.max_function_ops);
   os << "\n  // Phi_q(q, t) at (jac_rows[k], jac_cols[k])\n";
-  emit_function(os, "phi_q", "jac_nnz", programs.phi_q, symbols, false);
+  emit_function(os, "phi_q", "jac_nnz", programs.phi_q, symbols, false,
+                options.max_function_ops);
   if (velocity) {
     os << "\n  // nu = -Phi_t\n";
-    emit_function(os, "nu", "nc", programs.nu, symbols, false);
+    emit_function(os, "nu", "nc", programs.nu, symbols, false,
+                options.max_function_ops);
   }
   if (acceleration) {
     os << "\n  // gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt\n";
-    emit_function(os, "gamma", "nc", programs.gamma, symbols, true);
+    emit_function(os, "gamma", "nc", programs.gamma, symbols, true,
+                options.max_function_ops);
   }
 
   os << "\n  // Which outputs were generated (kinegen generate --outputs).\n";
@@ -785,7 +1027,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     os << "  static constexpr int num_explicit_blocks = " << st.explicit_count() << ";\n";
     os << "  static constexpr int max_block_size = " << st.largest_block() << ";\n\n";
     emit_block_helpers(os);
-    BlockEmitter blocks(model, symbols, st);
+    BlockEmitter blocks(model, symbols, st, options.max_function_ops);
     blocks.emit_position(os);
     if (velocity) {
       os << "\n";

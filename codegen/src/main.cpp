@@ -106,7 +106,7 @@ void add_common(CLI::App* cmd, Common& c) {
 }
 
 int run_generate(const Common& c, const std::string& dir, const std::string& outputs,
-                 bool fold_params) {
+                 bool fold_params, int max_function_ops = kc::kDefaultMaxFunctionOps) {
   kc::BuildOptions build;
   build.fold_params = fold_params;
   const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params), build);
@@ -115,6 +115,7 @@ int run_generate(const Common& c, const std::string& dir, const std::string& out
   if (outputs == "position") options.outputs = kc::Outputs::kPosition;
   if (outputs == "velocity") options.outputs = kc::Outputs::kVelocity;
   options.folded_params = fold_params;
+  options.max_function_ops = max_function_ops;
   const std::string text = kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
                                            model->programs(), options);
   stage.done(std::to_string(text.size() / 1024) + " KiB");
@@ -260,6 +261,13 @@ int main(int argc, char** argv) {
                    "Analyses the header supports: position (phi, phi_q), velocity (adds nu) or "
                    "acceleration (adds gamma; default)")
       ->check(CLI::IsMember({"position", "velocity", "acceleration"}));
+  int max_function_ops = kc::kDefaultMaxFunctionOps;
+  generate
+      ->add_option("--max-function-ops", max_function_ops,
+                   "Split generated functions with more operations than this into parts, for "
+                   "compile time (default " + std::to_string(kc::kDefaultMaxFunctionOps) +
+                       "; 0: never split)")
+      ->check(CLI::NonNegativeNumber);
 
   double t0 = 0, t1 = 0;
   int steps = 0;
@@ -329,7 +337,7 @@ int main(int argc, char** argv) {
                                   : verbose ? kc::Verbosity::kVerbose
                                             : kc::Verbosity::kNormal);
   try {
-    if (*generate) return run_generate(common, out_dir, outputs, fold_params);
+    if (*generate) return run_generate(common, out_dir, outputs, fold_params, max_function_ops);
     if (*animate) return run_animate(common, animate_options, svg_file);
     if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits, strict);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);

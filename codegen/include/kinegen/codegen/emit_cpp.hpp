@@ -15,6 +15,9 @@ inline constexpr const char* kVersion = "0.1.0";
 // position and velocity (adds nu), or all (adds gamma); the default is all.
 enum class Outputs { kPosition, kVelocity, kAll };
 
+// The default of EmitOptions::max_function_ops (kinegen generate --max-function-ops).
+inline constexpr int kDefaultMaxFunctionOps = 1000;
+
 struct EmitOptions {
   Outputs outputs = Outputs::kAll;
   // The block solver (structure.hpp) besides the section-4 functions.
@@ -22,6 +25,10 @@ struct EmitOptions {
   // The parameters were folded into constants (--fold-params): the header says so, and keeps
   // Params only for the same API.
   bool folded_params = false;
+  // Functions with more operations than this are split into private parts that the public
+  // function calls in order (g++ -O2 compile time grows superlinearly with a function's size);
+  // 0: never split. The block solver is split at block boundaries. See docs/scale.md.
+  int max_function_ops = kDefaultMaxFunctionOps;
 };
 
 // The generated header's text. Only validated identifiers and numbers from the mechanism reach

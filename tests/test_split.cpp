@@ -1,0 +1,143 @@
+// Split functions (kinegen generate --max-function-ops, docs/scale.md): the test mechanisms
+// generated with a threshold of 8 operations, so that the functions and the block solvers
+// come in several parts, compute what the unsplit headers compute. The parts evaluate the same
+// expression trees in the same order, so the results agree to rounding at most.
+#include <algorithm>
+#include <array>
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "all_types.hpp"
+#include "all_types_split.hpp"
+#include "closed_chain_4.hpp"
+#include "closed_chain_4_split.hpp"
+#include "fourbar_chain_3.hpp"
+#include "fourbar_chain_3_split.hpp"
+#include "guarded_slider.hpp"
+#include "guarded_slider_split.hpp"
+#include "scissor_lift_3.hpp"
+#include "scissor_lift_3_split.hpp"
+
+namespace {
+
+using namespace kinegen::models;
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+template <std::size_t N>
+void check_close(const std::array<double, N>& a, const std::array<double, N>& b, int n,
+                 const char* what) {
+  INFO(what);
+  for (int k = 0; k < n; ++k) {
+    INFO("index " << k << ": " << a[k] << " vs " << b[k]);
+    CHECK(std::isfinite(a[k]));
+    CHECK(std::abs(a[k] - b[k]) <= 1e-14 * std::max(1.0, std::abs(a[k])));
+  }
+}
+
+template <class RW, class RS>
+void check_reports(const RW& a, const RS& b) {
+  CHECK(a.status == b.status);
+  CHECK(a.block == b.block);
+  CHECK(a.iterations == b.iterations);
+  CHECK(a.total_iterations == b.total_iterations);
+}
+
+template <class Whole, class Split>
+void compare(const std::string& name) {
+  static_assert(Whole::nq == Split::nq && Whole::nc == Split::nc &&
+                Whole::jac_nnz == Split::jac_nnz);
+  constexpr int nq = Whole::nq, nc = Whole::nc, n_out = nc + Whole::jac_nnz + 1;
+  INFO(name);
+  // The split header really is split (the comparison would pass trivially otherwise).
+  const std::string text = read_text(std::string(KINEGEN_SPLIT_DIR) + "/" + name + "_split.hpp");
+  CHECK(text.find("_part1(") != std::string::npos);
+
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const typename Whole::Params pw{};
+  const typename Split::Params ps{};
+  for (int sample = 0; sample < 6; ++sample) {
+    const double t = 0.37 * sample;
+    std::array<double, nq> q{}, qd{};
+    for (int k = 0; k < nq; ++k) {
+      q[k] = Whole::q0[k] + (sample == 0 ? 0 : 0.2 * u(rng));
+      qd[k] = u(rng);
+    }
+    std::array<double, n_out> a{}, b{};
+    Whole::phi(q.data(), t, pw, a.data());
+    Split::phi(q.data(), t, ps, b.data());
+    check_close(a, b, nc, "phi");
+    Whole::phi_q(q.data(), t, pw, a.data());
+    Split::phi_q(q.data(), t, ps, b.data());
+    check_close(a, b, Whole::jac_nnz, "phi_q");
+    Whole::nu(q.data(), t, pw, a.data());
+    Split::nu(q.data(), t, ps, b.data());
+    check_close(a, b, nc, "nu");
+    Whole::gamma(q.data(), qd.data(), t, pw, a.data());
+    Split::gamma(q.data(), qd.data(), t, ps, b.data());
+    check_close(a, b, nc, "gamma");
+
+    if constexpr (Whole::has_block_solver) {
+      // From a start near the assembled configuration: solve, then the motion solves.
+      std::array<double, nq> qa{}, qb{};
+      for (int k = 0; k < nq; ++k) qa[k] = qb[k] = Whole::q0[k] + 1e-3 * u(rng);
+      const typename Whole::BlockOptions ow{};
+      const typename Split::BlockOptions os{};
+      const double ts = 0.05 * sample;
+      const auto rw = Whole::solve_position(qa.data(), ts, pw, ow);
+      const auto rs = Split::solve_position(qb.data(), ts, ps, os);
+      check_reports(rw, rs);
+      REQUIRE(rw.status == 0);  // a converged solve, so that the motion solves mean something
+      check_close(qa, qb, nq, "solve_position q");
+      std::array<double, nq> va{}, vb{}, aa{}, ab{};
+      check_reports(Whole::solve_velocity(qa.data(), ts, pw, va.data(), ow),
+                    Split::solve_velocity(qa.data(), ts, ps, vb.data(), os));
+      check_close(va, vb, nq, "solve_velocity qd");
+      check_reports(Whole::solve_acceleration(qa.data(), va.data(), ts, pw, aa.data(), ow),
+                    Split::solve_acceleration(qa.data(), va.data(), ts, ps, ab.data(), os));
+      check_close(aa, ab, nq, "solve_acceleration qdd");
+      va.fill(0), vb.fill(0), aa.fill(0), ab.fill(0);
+      check_reports(
+          Whole::solve_velocity_acceleration(qa.data(), ts, pw, va.data(), aa.data(), ow),
+          Split::solve_velocity_acceleration(qa.data(), ts, ps, vb.data(), ab.data(), os));
+      check_close(va, vb, nq, "solve_velocity_acceleration qd");
+      check_close(aa, ab, nq, "solve_velocity_acceleration qdd");
+      // Full steps from the solved configuration.
+      for (int step = 1; step <= 3; ++step) {
+        const double ti = ts + 0.01 * step;
+        check_reports(Whole::solve_step(qa.data(), ti, pw, va.data(), aa.data(), ow),
+                      Split::solve_step(qb.data(), ti, ps, vb.data(), ab.data(), os));
+        check_close(qa, qb, nq, "solve_step q");
+        check_close(va, vb, nq, "solve_step qd");
+        check_close(aa, ab, nq, "solve_step qdd");
+      }
+    }
+  }
+}
+
+}  // namespace
+
+TEST_CASE("split functions compute what the whole functions compute", "[split]") {
+  // The chains have several blocks, so their block solvers are split too.
+  for (const char* name : {"fourbar_chain_3", "scissor_lift_3"}) {
+    const std::string text = read_text(std::string(KINEGEN_SPLIT_DIR) + "/" + name + "_split.hpp");
+    CHECK(text.find("static void _gamma_part1(") != std::string::npos);
+    CHECK(text.find("static BlockReport _solve_position_part1(") != std::string::npos);
+    CHECK(text.find("static BlockReport _solve_velocity_acceleration_part1(") != std::string::npos);
+  }
+  compare<fourbar_chain_3, fourbar_chain_3_split>("fourbar_chain_3");
+  compare<scissor_lift_3, scissor_lift_3_split>("scissor_lift_3");
+  compare<closed_chain_4, closed_chain_4_split>("closed_chain_4");
+  compare<all_types, all_types_split>("all_types");
+  compare<guarded_slider, guarded_slider_split>("guarded_slider");
+}
