@@ -136,6 +136,8 @@ struct four_bar {
   static constexpr int num_blocks = 8;
   static constexpr int num_explicit_blocks = 7;
   static constexpr int max_block_size = 2;
+  // The largest system a Newton iteration solves (torn blocks: their tear variables).
+  static constexpr int max_newton_size = 2;
 
   // Outcome of a block solve. status: 0 converged, 1 Newton did not converge within
   // max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value appeared (the
@@ -208,6 +210,24 @@ struct four_bar {
     }
     return smallest / largest;
   }
+  // sin and cos of an angle after a Newton update d (angle = the new value): rotated by d when
+  // it is small, so an iteration needs no new sin or cos (on |d| <= 2^-10 the series below are
+  // exact to double rounding), else evaluated afresh.
+  template <class T>
+  static void _rotate(T& s, T& c, const T& d, const T& angle) noexcept {
+    if (_mag(d) <= 1.0 / 1024) {
+      const T d2 = d * d;
+      const T sd = d * (T(1) - d2 / T(6) * (T(1) - d2 / T(20)));               // sin d
+      const T cm = d2 / T(2) * (T(1) - d2 / T(12) * (T(1) - d2 / T(30)));  // 1 - cos d
+      const T s1 = s + (c * sd - s * cm);
+      c = c - (s * sd + c * cm);
+      s = s1;
+    } else {
+      using std::cos, std::sin;
+      s = sin(angle);
+      c = cos(angle);
+    }
+  }
   template <int K, class T>
   static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
     // _lu_factor swaps whole rows (multipliers included), so b takes every swap first.
@@ -248,26 +268,28 @@ struct four_bar {
     // Block 6: rows 7 -> q[7] (explicit)
     q[7] = T(0);
     // Block 7: rows 4, 5 -> q[5], q[8] (newton)
+    T _sin5 = sin(q[5]), _cos5 = cos(q[5]);
+    T _sin8 = sin(q[8]), _cos8 = cos(q[8]);
     for (int _it = 1;; ++_it) {
-      const T _t3 = cos(q[5]);
-      const T _t4 = -_t3*T(p.b);
-      const T _t5 = cos(q[8]);
-      const T _t6 = _t5*T(p.c);
-      const T _t7 = sin(q[5]);
-      const T _t8 = sin(q[8]);
-      const T _t9 = T(p.b)*_t7;
-      const T _t10 = -T(p.c)*_t8;
-      T _r[2] = {_t4 - q[3] + _t6 + q[6], -T(p.b)*_t7 - q[4] + T(p.c)*_t8 + q[7]};
-      T _a[4] = {_t9, _t10, _t4, _t6};
+      const T _t3 = -_cos5*T(p.b);
+      const T _t4 = _cos8*T(p.c);
+      const T _t5 = T(p.b)*_sin5;
+      const T _t6 = -T(p.c)*_sin8;
+      T _r[2] = {_t3 - q[3] + _t4 + q[6], -T(p.b)*_sin5 - q[4] + T(p.c)*_sin8 + q[7]};
+      T _a[4] = {_t5, _t6, _t3, _t4};
       int _piv[2];
       const double _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
         return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
       _lu_solve<2>(_a, _piv, _r);
       double _step = 0;
-      q[5] -= _r[0];
+      const T _old5 = q[5];
+      q[5] = q[5] - _r[0];
+      _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
       _step = std::max(_step, _mag(_r[0]));
-      q[8] -= _r[1];
+      const T _old8 = q[8];
+      q[8] = q[8] - _r[1];
+      _rotate(_sin8, _cos8, q[8] - _old8, q[8]);
       _step = std::max(_step, _mag(_r[1]));
       if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
@@ -478,26 +500,28 @@ struct four_bar {
     // Block 6: rows 7 -> q[7] (explicit)
     q[7] = T(0);
     // Block 7: rows 4, 5 -> q[5], q[8] (newton)
+    T _sin5 = sin(q[5]), _cos5 = cos(q[5]);
+    T _sin8 = sin(q[8]), _cos8 = cos(q[8]);
     for (int _it = 1;; ++_it) {
-      const T _t3 = cos(q[5]);
-      const T _t4 = -_t3*T(p.b);
-      const T _t5 = cos(q[8]);
-      const T _t6 = _t5*T(p.c);
-      const T _t7 = sin(q[5]);
-      const T _t8 = sin(q[8]);
-      const T _t9 = T(p.b)*_t7;
-      const T _t10 = -T(p.c)*_t8;
-      T _r[2] = {_t4 - q[3] + _t6 + q[6], -T(p.b)*_t7 - q[4] + T(p.c)*_t8 + q[7]};
-      T _a[4] = {_t9, _t10, _t4, _t6};
+      const T _t3 = -_cos5*T(p.b);
+      const T _t4 = _cos8*T(p.c);
+      const T _t5 = T(p.b)*_sin5;
+      const T _t6 = -T(p.c)*_sin8;
+      T _r[2] = {_t3 - q[3] + _t4 + q[6], -T(p.b)*_sin5 - q[4] + T(p.c)*_sin8 + q[7]};
+      T _a[4] = {_t5, _t6, _t3, _t4};
       int _piv[2];
       const double _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
         return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
       _lu_solve<2>(_a, _piv, _r);
       double _step = 0;
-      q[5] -= _r[0];
+      const T _old5 = q[5];
+      q[5] = q[5] - _r[0];
+      _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
       _step = std::max(_step, _mag(_r[0]));
-      q[8] -= _r[1];
+      const T _old8 = q[8];
+      q[8] = q[8] - _r[1];
+      _rotate(_sin8, _cos8, q[8] - _old8, q[8]);
       _step = std::max(_step, _mag(_r[1]));
       if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
@@ -523,15 +547,11 @@ struct four_bar {
     // Block 6: rows 7 -> q[7]
     qd[7] = T(0);
     // Block 7: rows 4, 5 -> q[5], q[8]
-    const T _t11 = sin(q[5]);
-    const T _t12 = T(p.b)*_t11;
-    const T _t13 = sin(q[8]);
-    const T _t14 = -T(p.c)*_t13;
-    const T _t15 = cos(q[5]);
-    const T _t16 = -_t15*T(p.b);
-    const T _t17 = cos(q[8]);
-    const T _t18 = _t17*T(p.c);
-    T _a7[4] = {_t12, _t14, _t16, _t18};
+    const T _t7 = T(p.b)*_sin5;
+    const T _t8 = -T(p.c)*_sin8;
+    const T _t9 = -_cos5*T(p.b);
+    const T _t10 = _cos8*T(p.c);
+    T _a7[4] = {_t7, _t8, _t9, _t10};
     int _piv7[2];
     const double _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
@@ -547,15 +567,15 @@ struct four_bar {
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
-    const T _t19 = qd[2]*qd[2];
-    qdd[3] = -_t19*_t0*T(p.a) + qdd[0] - _t2*qdd[2];
-    qdd[4] = -_t19*T(p.a)*_t1 + qdd[1] - (-_t0*T(p.a))*qdd[2];
+    const T _t11 = qd[2]*qd[2];
+    qdd[3] = -_t11*_t0*T(p.a) + qdd[0] - _t2*qdd[2];
+    qdd[4] = -_t11*T(p.a)*_t1 + qdd[1] - (-_t0*T(p.a))*qdd[2];
     qdd[6] = T(0);
     qdd[7] = T(0);
-    const T _t20 = qd[5]*qd[5];
-    const T _t21 = qd[8]*qd[8];
+    const T _t12 = qd[5]*qd[5];
+    const T _t13 = qd[8]*qd[8];
     {
-      T _x[2] = {-_t20*_t15*T(p.b) + _t21*_t17*T(p.c) + qdd[3] - qdd[6], -_t20*T(p.b)*_t11 + _t21*T(p.c)*_t13 + qdd[4] - qdd[7]};
+      T _x[2] = {-_t12*_cos5*T(p.b) + _t13*_cos8*T(p.c) + qdd[3] - qdd[6], -_t12*T(p.b)*_sin5 + _t13*T(p.c)*_sin8 + qdd[4] - qdd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qdd[5] = _x[0];
       qdd[8] = _x[1];

@@ -130,6 +130,8 @@ struct offset_slider_crank {
   static constexpr int num_blocks = 9;
   static constexpr int num_explicit_blocks = 8;
   static constexpr int max_block_size = 1;
+  // The largest system a Newton iteration solves (torn blocks: their tear variables).
+  static constexpr int max_newton_size = 1;
 
   // Outcome of a block solve. status: 0 converged, 1 Newton did not converge within
   // max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value appeared (the
@@ -202,6 +204,24 @@ struct offset_slider_crank {
     }
     return smallest / largest;
   }
+  // sin and cos of an angle after a Newton update d (angle = the new value): rotated by d when
+  // it is small, so an iteration needs no new sin or cos (on |d| <= 2^-10 the series below are
+  // exact to double rounding), else evaluated afresh.
+  template <class T>
+  static void _rotate(T& s, T& c, const T& d, const T& angle) noexcept {
+    if (_mag(d) <= 1.0 / 1024) {
+      const T d2 = d * d;
+      const T sd = d * (T(1) - d2 / T(6) * (T(1) - d2 / T(20)));               // sin d
+      const T cm = d2 / T(2) * (T(1) - d2 / T(12) * (T(1) - d2 / T(30)));  // 1 - cos d
+      const T s1 = s + (c * sd - s * cm);
+      c = c - (s * sd + c * cm);
+      s = s1;
+    } else {
+      using std::cos, std::sin;
+      s = sin(angle);
+      c = cos(angle);
+    }
+  }
   template <int K, class T>
   static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
     // _lu_factor swaps whole rows (multipliers included), so b takes every swap first.
@@ -240,16 +260,17 @@ struct offset_slider_crank {
     // Block 5: rows 6 -> q[7] (explicit)
     q[7] = T(p.e);
     // Block 6: rows 5 -> q[5] (newton)
+    T _sin5 = sin(q[5]), _cos5 = cos(q[5]);
     for (int _it = 1;; ++_it) {
-      const T _t3 = sin(q[5]);
-      const T _t4 = cos(q[5]);
-      const T _t5 = -_t4*T(p.l);
-      T _r[1] = {-T(p.l)*_t3 - q[4] + q[7]};
-      const T _a = _t5;
+      const T _t3 = -_cos5*T(p.l);
+      T _r[1] = {-T(p.l)*_sin5 - q[4] + q[7]};
+      const T _a = _t3;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 6, _it);
       _r[0] /= _a;
       double _step = 0;
-      q[5] -= _r[0];
+      const T _old5 = q[5];
+      q[5] = q[5] - _r[0];
+      _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
       _step = std::max(_step, _mag(_r[0]));
       if (!(_step <= 1e300)) return _fail(report, 3, 6, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
@@ -259,8 +280,7 @@ struct offset_slider_crank {
       if (_it >= o.max_iterations) return _fail(report, 1, 6, _it, _step);
     }
     // Block 7: rows 4 -> q[6] (explicit)
-    const T _t6 = cos(q[5]);
-    q[6] = _t6*T(p.l) + q[3];
+    q[6] = _cos5*T(p.l) + q[3];
     // Block 8: rows 7 -> q[8] (explicit)
     q[8] = T(0);
     for (int _k = 0; _k < nq; ++_k)
@@ -424,16 +444,17 @@ struct offset_slider_crank {
     // Block 5: rows 6 -> q[7] (explicit)
     q[7] = T(p.e);
     // Block 6: rows 5 -> q[5] (newton)
+    T _sin5 = sin(q[5]), _cos5 = cos(q[5]);
     for (int _it = 1;; ++_it) {
-      const T _t3 = sin(q[5]);
-      const T _t4 = cos(q[5]);
-      const T _t5 = -_t4*T(p.l);
-      T _r[1] = {-T(p.l)*_t3 - q[4] + q[7]};
-      const T _a = _t5;
+      const T _t3 = -_cos5*T(p.l);
+      T _r[1] = {-T(p.l)*_sin5 - q[4] + q[7]};
+      const T _a = _t3;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 6, _it);
       _r[0] /= _a;
       double _step = 0;
-      q[5] -= _r[0];
+      const T _old5 = q[5];
+      q[5] = q[5] - _r[0];
+      _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
       _step = std::max(_step, _mag(_r[0]));
       if (!(_step <= 1e300)) return _fail(report, 3, 6, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
@@ -443,8 +464,7 @@ struct offset_slider_crank {
       if (_it >= o.max_iterations) return _fail(report, 1, 6, _it, _step);
     }
     // Block 7: rows 4 -> q[6] (explicit)
-    const T _t6 = cos(q[5]);
-    q[6] = _t6*T(p.l) + q[3];
+    q[6] = _cos5*T(p.l) + q[3];
     // Block 8: rows 7 -> q[8] (explicit)
     q[8] = T(0);
     for (int _k = 0; _k < nq; ++_k)
@@ -462,13 +482,12 @@ struct offset_slider_crank {
     // Block 5: rows 6 -> q[7]
     qd[7] = T(0);
     // Block 6: rows 5 -> q[5]
-    const T _t7 = -_t6*T(p.l);
-    const T _a6 = _t7;
+    const T _t4 = -_cos5*T(p.l);
+    const T _a6 = _t4;
     if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
     qd[5] = (qd[4] - qd[7]) / _a6;
     // Block 7: rows 4 -> q[6]
-    const T _t8 = sin(q[5]);
-    qd[6] = qd[3] - (T(p.l)*_t8)*qd[5];
+    qd[6] = qd[3] - (T(p.l)*_sin5)*qd[5];
     // Block 8: rows 7 -> q[8]
     qd[8] = T(0);
     for (int _k = 0; _k < nq; ++_k)
@@ -476,13 +495,13 @@ struct offset_slider_crank {
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
-    const T _t9 = qd[2]*qd[2];
-    qdd[3] = -_t9*_t0*T(p.r) + qdd[0] - _t2*qdd[2];
-    qdd[4] = -_t9*T(p.r)*_t1 + qdd[1] - (-_t0*T(p.r))*qdd[2];
+    const T _t5 = qd[2]*qd[2];
+    qdd[3] = -_t5*_t0*T(p.r) + qdd[0] - _t2*qdd[2];
+    qdd[4] = -_t5*T(p.r)*_t1 + qdd[1] - (-_t0*T(p.r))*qdd[2];
     qdd[7] = T(0);
-    const T _t10 = qd[5]*qd[5];
-    qdd[5] = (-_t10*T(p.l)*_t8 + qdd[4] - qdd[7]) / _a6;
-    qdd[6] = -_t10*_t6*T(p.l) + qdd[3] - (T(p.l)*_t8)*qdd[5];
+    const T _t6 = qd[5]*qd[5];
+    qdd[5] = (-_t6*T(p.l)*_sin5 + qdd[4] - qdd[7]) / _a6;
+    qdd[6] = -_t6*_cos5*T(p.l) + qdd[3] - (T(p.l)*_sin5)*qdd[5];
     qdd[8] = T(0);
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);

@@ -136,6 +136,8 @@ struct quick_return {
   static constexpr int num_blocks = 9;
   static constexpr int num_explicit_blocks = 8;
   static constexpr int max_block_size = 1;
+  // The largest system a Newton iteration solves (torn blocks: their tear variables).
+  static constexpr int max_newton_size = 1;
 
   // Outcome of a block solve. status: 0 converged, 1 Newton did not converge within
   // max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value appeared (the
@@ -208,6 +210,24 @@ struct quick_return {
     }
     return smallest / largest;
   }
+  // sin and cos of an angle after a Newton update d (angle = the new value): rotated by d when
+  // it is small, so an iteration needs no new sin or cos (on |d| <= 2^-10 the series below are
+  // exact to double rounding), else evaluated afresh.
+  template <class T>
+  static void _rotate(T& s, T& c, const T& d, const T& angle) noexcept {
+    if (_mag(d) <= 1.0 / 1024) {
+      const T d2 = d * d;
+      const T sd = d * (T(1) - d2 / T(6) * (T(1) - d2 / T(20)));               // sin d
+      const T cm = d2 / T(2) * (T(1) - d2 / T(12) * (T(1) - d2 / T(30)));  // 1 - cos d
+      const T s1 = s + (c * sd - s * cm);
+      c = c - (s * sd + c * cm);
+      s = s1;
+    } else {
+      using std::cos, std::sin;
+      s = sin(angle);
+      c = cos(angle);
+    }
+  }
   template <int K, class T>
   static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
     // _lu_factor swaps whole rows (multipliers included), so b takes every swap first.
@@ -250,17 +270,18 @@ struct quick_return {
     // Block 7: rows 6 -> q[5] (newton)
     const T _t3 = -q[7] + q[4];
     const T _t4 = -q[6] + q[3];
+    T _sin5 = sin(q[5]), _cos5 = cos(q[5]);
     for (int _it = 1;; ++_it) {
-      const T _t5 = cos(q[5]);
-      const T _t6 = sin(q[5]);
-      const T _t7 = -_t3*_t5 + _t4*_t6;
-      const T _t8 = _t4*_t5 + _t3*_t6;
-      T _r[1] = {_t7};
-      const T _a = _t8;
+      const T _t5 = -_t3*_cos5 + _t4*_sin5;
+      const T _t6 = _t4*_cos5 + _t3*_sin5;
+      T _r[1] = {_t5};
+      const T _a = _t6;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 7, _it);
       _r[0] /= _a;
       double _step = 0;
-      q[5] -= _r[0];
+      const T _old5 = q[5];
+      q[5] = q[5] - _r[0];
+      _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
       _step = std::max(_step, _mag(_r[0]));
       if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
@@ -442,17 +463,18 @@ struct quick_return {
     // Block 7: rows 6 -> q[5] (newton)
     const T _t3 = -q[7] + q[4];
     const T _t4 = -q[6] + q[3];
+    T _sin5 = sin(q[5]), _cos5 = cos(q[5]);
     for (int _it = 1;; ++_it) {
-      const T _t5 = cos(q[5]);
-      const T _t6 = sin(q[5]);
-      const T _t7 = -_t3*_t5 + _t4*_t6;
-      const T _t8 = _t4*_t5 + _t3*_t6;
-      T _r[1] = {_t7};
-      const T _a = _t8;
+      const T _t5 = -_t3*_cos5 + _t4*_sin5;
+      const T _t6 = _t4*_cos5 + _t3*_sin5;
+      T _r[1] = {_t5};
+      const T _a = _t6;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 7, _it);
       _r[0] /= _a;
       double _step = 0;
-      q[5] -= _r[0];
+      const T _old5 = q[5];
+      q[5] = q[5] - _r[0];
+      _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
       _step = std::max(_step, _mag(_r[0]));
       if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
@@ -480,12 +502,10 @@ struct quick_return {
     // Block 6: rows 5 -> q[7]
     qd[7] = qd[1] - (-_t0*T(p.r))*qd[2];
     // Block 7: rows 6 -> q[5]
-    const T _t9 = cos(q[5]);
-    const T _t10 = sin(q[5]);
-    const T _t11 = _t4*_t9 + _t3*_t10;
-    const T _a7 = _t11;
+    const T _t7 = _t4*_cos5 + _t3*_sin5;
+    const T _a7 = _t7;
     if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
-    qd[5] = (-_t10*qd[3] - (-_t9)*qd[4] - (-_t10)*qd[6] - _t9*qd[7]) / _a7;
+    qd[5] = (-_sin5*qd[3] - (-_cos5)*qd[4] - (-_sin5)*qd[6] - _cos5*qd[7]) / _a7;
     // Block 8: rows 7 -> q[8]
     qd[8] = qd[5];
     for (int _k = 0; _k < nq; ++_k)
@@ -495,11 +515,11 @@ struct quick_return {
     qdd[3] = T(0);
     qdd[4] = T(0);
     qdd[2] = T(0);
-    const T _t12 = qd[2]*qd[2];
-    qdd[6] = -_t12*_t0*T(p.r) + qdd[0] - _t2*qdd[2];
-    qdd[7] = -_t12*T(p.r)*_t1 + qdd[1] - (-_t0*T(p.r))*qdd[2];
-    const T _t13 = -_t3*_t9 + _t4*_t10;
-    qdd[5] = (-_t9*qd[3]*qd[5] - _t10*qd[4]*qd[5] + (-_t9*qd[3] - _t10*qd[4] + _t13*qd[5] + _t9*qd[6] + _t10*qd[7])*qd[5] + _t9*qd[5]*qd[6] + _t10*qd[5]*qd[7] - _t10*qdd[3] - (-_t9)*qdd[4] - (-_t10)*qdd[6] - _t9*qdd[7]) / _a7;
+    const T _t8 = qd[2]*qd[2];
+    qdd[6] = -_t8*_t0*T(p.r) + qdd[0] - _t2*qdd[2];
+    qdd[7] = -_t8*T(p.r)*_t1 + qdd[1] - (-_t0*T(p.r))*qdd[2];
+    const T _t9 = -_t3*_cos5 + _t4*_sin5;
+    qdd[5] = (-_cos5*qd[3]*qd[5] - _sin5*qd[4]*qd[5] + (-_cos5*qd[3] - _sin5*qd[4] + _t9*qd[5] + _cos5*qd[6] + _sin5*qd[7])*qd[5] + _cos5*qd[5]*qd[6] + _sin5*qd[5]*qd[7] - _sin5*qdd[3] - (-_cos5)*qdd[4] - (-_sin5)*qdd[6] - _cos5*qdd[7]) / _a7;
     qdd[8] = qdd[5];
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);

@@ -110,6 +110,8 @@ struct slider_crank_lecture {
   static constexpr int num_blocks = 6;
   static constexpr int num_explicit_blocks = 5;
   static constexpr int max_block_size = 1;
+  // The largest system a Newton iteration solves (torn blocks: their tear variables).
+  static constexpr int max_newton_size = 1;
 
   // Outcome of a block solve. status: 0 converged, 1 Newton did not converge within
   // max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value appeared (the
@@ -182,6 +184,24 @@ struct slider_crank_lecture {
     }
     return smallest / largest;
   }
+  // sin and cos of an angle after a Newton update d (angle = the new value): rotated by d when
+  // it is small, so an iteration needs no new sin or cos (on |d| <= 2^-10 the series below are
+  // exact to double rounding), else evaluated afresh.
+  template <class T>
+  static void _rotate(T& s, T& c, const T& d, const T& angle) noexcept {
+    if (_mag(d) <= 1.0 / 1024) {
+      const T d2 = d * d;
+      const T sd = d * (T(1) - d2 / T(6) * (T(1) - d2 / T(20)));               // sin d
+      const T cm = d2 / T(2) * (T(1) - d2 / T(12) * (T(1) - d2 / T(30)));  // 1 - cos d
+      const T s1 = s + (c * sd - s * cm);
+      c = c - (s * sd + c * cm);
+      s = s1;
+    } else {
+      using std::cos, std::sin;
+      s = sin(angle);
+      c = cos(angle);
+    }
+  }
   template <int K, class T>
   static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
     // _lu_factor swaps whole rows (multipliers included), so b takes every swap first.
@@ -214,16 +234,17 @@ struct slider_crank_lecture {
     q[4] = T(0);
     // Block 4: rows 3 -> q[5] (newton)
     const T _t0 = sin(q[2]);
+    T _sin5 = sin(q[5]), _cos5 = cos(q[5]);
     for (int _it = 1;; ++_it) {
-      const T _t1 = cos(q[5]);
-      const T _t2 = sin(q[5]);
-      const T _t3 = T(p.l)*_t2;
-      T _r[1] = {-_t1*T(p.l) - q[4] + q[1] + _t0};
-      const T _a = _t3;
+      const T _t1 = T(p.l)*_sin5;
+      T _r[1] = {-_cos5*T(p.l) - q[4] + q[1] + _t0};
+      const T _a = _t1;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 4, _it);
       _r[0] /= _a;
       double _step = 0;
-      q[5] -= _r[0];
+      const T _old5 = q[5];
+      q[5] = q[5] - _r[0];
+      _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
       _step = std::max(_step, _mag(_r[0]));
       if (!(_step <= 1e300)) return _fail(report, 3, 4, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
@@ -233,10 +254,9 @@ struct slider_crank_lecture {
       if (_it >= o.max_iterations) return _fail(report, 1, 4, _it, _step);
     }
     // Block 5: rows 2 -> q[3] (explicit)
-    const T _t4 = sin(q[5]);
-    const T _t5 = T(p.l)*_t4;
-    const T _t6 = cos(q[2]);
-    q[3] = _t5 + _t6 + q[0];
+    const T _t2 = T(p.l)*_sin5;
+    const T _t3 = cos(q[2]);
+    q[3] = _t2 + _t3 + q[0];
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
     return report;
@@ -368,16 +388,17 @@ struct slider_crank_lecture {
     q[4] = T(0);
     // Block 4: rows 3 -> q[5] (newton)
     const T _t0 = sin(q[2]);
+    T _sin5 = sin(q[5]), _cos5 = cos(q[5]);
     for (int _it = 1;; ++_it) {
-      const T _t1 = cos(q[5]);
-      const T _t2 = sin(q[5]);
-      const T _t3 = T(p.l)*_t2;
-      T _r[1] = {-_t1*T(p.l) - q[4] + q[1] + _t0};
-      const T _a = _t3;
+      const T _t1 = T(p.l)*_sin5;
+      T _r[1] = {-_cos5*T(p.l) - q[4] + q[1] + _t0};
+      const T _a = _t1;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 4, _it);
       _r[0] /= _a;
       double _step = 0;
-      q[5] -= _r[0];
+      const T _old5 = q[5];
+      q[5] = q[5] - _r[0];
+      _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
       _step = std::max(_step, _mag(_r[0]));
       if (!(_step <= 1e300)) return _fail(report, 3, 4, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
@@ -387,10 +408,9 @@ struct slider_crank_lecture {
       if (_it >= o.max_iterations) return _fail(report, 1, 4, _it, _step);
     }
     // Block 5: rows 2 -> q[3] (explicit)
-    const T _t4 = sin(q[5]);
-    const T _t5 = T(p.l)*_t4;
-    const T _t6 = cos(q[2]);
-    q[3] = _t5 + _t6 + q[0];
+    const T _t2 = T(p.l)*_sin5;
+    const T _t3 = cos(q[2]);
+    q[3] = _t2 + _t3 + q[0];
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
     // Block 0: rows 0 -> q[0]
@@ -402,22 +422,21 @@ struct slider_crank_lecture {
     // Block 3: rows 4 -> q[4]
     qd[4] = T(0);
     // Block 4: rows 3 -> q[5]
-    const T _a4 = _t5;
+    const T _a4 = _t2;
     if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? 2 : 3, 4);
-    qd[5] = (-qd[1] - _t6*qd[2] + qd[4]) / _a4;
+    qd[5] = (-qd[1] - _t3*qd[2] + qd[4]) / _a4;
     // Block 5: rows 2 -> q[3]
-    const T _t7 = cos(q[5]);
-    qd[3] = (-qd[0] - (-_t0)*qd[2] - (_t7*T(p.l))*qd[5]) / T(-1);
+    qd[3] = (-qd[0] - (-_t0)*qd[2] - (_cos5*T(p.l))*qd[5]) / T(-1);
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
     qdd[4] = T(0);
-    const T _t8 = qd[5]*qd[5];
-    const T _t9 = qd[2]*qd[2];
-    qdd[5] = (-_t8*_t7*T(p.l) + _t9*_t0 - qdd[1] - _t6*qdd[2] + qdd[4]) / _a4;
-    qdd[3] = (_t9*_t6 + _t8*T(p.l)*_t4 - qdd[0] - (-_t0)*qdd[2] - (_t7*T(p.l))*qdd[5]) / T(-1);
+    const T _t4 = qd[5]*qd[5];
+    const T _t5 = qd[2]*qd[2];
+    qdd[5] = (-_t4*_cos5*T(p.l) + _t5*_t0 - qdd[1] - _t3*qdd[2] + qdd[4]) / _a4;
+    qdd[3] = (_t5*_t3 + _t4*T(p.l)*_sin5 - qdd[0] - (-_t0)*qdd[2] - (_cos5*T(p.l))*qdd[5]) / T(-1);
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
     return report;

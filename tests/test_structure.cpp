@@ -5,7 +5,9 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <kinegen/solver.hpp>
+#include <map>
 #include <random>
+#include <set>
 #include <string>
 
 #include "closed_chain_4.hpp"
@@ -142,6 +144,56 @@ TEST_CASE("blt_order: cycles, chains, structural singularity, large sizes", "[st
   }
 }
 
+TEST_CASE("tearing: a closed chain's block is solved on two tear variables",
+          "[structure][tearing]") {
+  for (const char* file : {"closed_chain_4", "scissor_lift_3"}) {
+    INFO(file);
+    const auto model = cg::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
+                                                    "/tests/mechanisms/" + file + ".yaml");
+    const cg::Structure st = cg::analyze_structure(model->symbolic(), model->symbols());
+    std::map<std::pair<int, int>, GiNaC::ex> jac;
+    for (const auto& e : model->symbolic().phi_q) jac[{e.row, e.col}] = e.value;
+    int torn = 0;
+    for (const auto& plan : st.plans) {
+      if (!plan.torn()) continue;
+      ++torn;
+      const auto& b = plan.block;
+      // Tears and assigned coordinates partition the block; residual and assigned rows too.
+      CHECK(plan.tears.size() == plan.residuals.size());
+      CHECK(plan.tears.size() + plan.assigned.size() == b.cols.size());
+      CHECK(plan.tears.size() < b.cols.size());
+      std::set<int> known(plan.tears.begin(), plan.tears.end());
+      std::set<int> rows(plan.residuals.begin(), plan.residuals.end());
+      for (std::size_t a = 0; a < plan.assigned.size(); ++a) {
+        const auto [r, c] = plan.assigned[a];
+        CHECK(rows.insert(r).second);
+        CHECK(!known.count(c));
+        // The row reads only known coordinates of the block besides c, and is linear in c
+        // with a non-zero constant coefficient: the assignment is exact, no iteration.
+        for (int other : b.cols)
+          if (other != c && jac.count({r, other})) CHECK(known.count(other));
+        REQUIRE(jac.count({r, c}));
+        CHECK(GiNaC::is_a<GiNaC::numeric>(jac.at({r, c})));
+        CHECK(!jac.at({r, c}).is_zero());
+        // q[c] = value solves the row whatever the other coordinates are.
+        const GiNaC::ex& x = model->symbols().q(c);
+        CHECK(model->symbolic().phi[r].subs(x == plan.assigned_value[a]).expand().is_zero());
+        known.insert(c);
+      }
+      CHECK(rows.size() == b.rows.size());
+    }
+    CHECK(torn > 0);
+  }
+  // The closed chain's loop block (5 coordinates) needs Newton on 2 of them only: the first
+  // coupler's angle and the rocker's; the rest follow from them.
+  CHECK(kinegen::models::closed_chain_4::max_block_size == 5);
+  CHECK(kinegen::models::closed_chain_4::max_newton_size == 2);
+  CHECK(kinegen::models::scissor_lift_3::max_newton_size <
+        kinegen::models::scissor_lift_3::max_block_size);
+  // A block that cannot be torn keeps Newton on the whole block.
+  CHECK(kinegen::models::four_bar::max_newton_size == 2);
+}
+
 namespace {
 
 // Block solver (Solver) against the dense solver (DenseSolver) from random starts near the
@@ -239,7 +291,7 @@ TEMPLATE_TEST_CASE("block solver matches the dense solver", "[structure][solver]
 
 TEMPLATE_TEST_CASE("block solver works in float", "[structure][float]",
                    kinegen::models::slider_crank, kinegen::models::four_bar,
-                   kinegen::models::quick_return) {
+                   kinegen::models::quick_return, kinegen::models::closed_chain_4) {
   kinegen::SolverOptions options;
   options.tolerance = 1e-5;
   kinegen::Solver<TestType, float> fsolver({}, options);

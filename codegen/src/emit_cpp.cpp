@@ -85,6 +85,8 @@ class FunctionPrinter {
     names_[id] = name;
     if (!scopes_.empty()) scopes_.back().push_back(id);
   }
+  // Names `id` (a named term) by a variable the caller declares and keeps up to date.
+  void bind(int id, const std::string& name) { names_[id] = name; }
   // The text of a node whose named terms are in scope.
   std::string text(int id) { return id == Program::kZero ? "T(0)" : print(id).text; }
   std::string atom_text(int id) { return id == Program::kZero ? "T(0)" : atom(id); }
@@ -435,6 +437,24 @@ void emit_block_helpers(std::ostringstream& os) {
     }
     return smallest / largest;
   }
+  // sin and cos of an angle after a Newton update d (angle = the new value): rotated by d when
+  // it is small, so an iteration needs no new sin or cos (on |d| <= 2^-10 the series below are
+  // exact to double rounding), else evaluated afresh.
+  template <class T>
+  static void _rotate(T& s, T& c, const T& d, const T& angle) noexcept {
+    if (_mag(d) <= 1.0 / 1024) {
+      const T d2 = d * d;
+      const T sd = d * (T(1) - d2 / T(6) * (T(1) - d2 / T(20)));               // sin d
+      const T cm = d2 / T(2) * (T(1) - d2 / T(12) * (T(1) - d2 / T(30)));  // 1 - cos d
+      const T s1 = s + (c * sd - s * cm);
+      c = c - (s * sd + c * cm);
+      s = s1;
+    } else {
+      using std::cos, std::sin;
+      s = sin(angle);
+      c = cos(angle);
+    }
+  }
   template <int K, class T>
   static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
     // _lu_factor swaps whole rows (multipliers included), so b takes every swap first.
@@ -501,19 +521,39 @@ class BlockEmitter {
           add(plan.rest);
           break;
         case BlockKind::kNewton:
+          if (plan.torn()) {
+            // Assigned values, residuals, then the block's Phi_q entries (for the sensitivities
+            // of the assigned coordinates to the tears and the tears' Jacobian).
+            for (const GiNaC::ex& v : plan.assigned_value) add(v);
+            for (int r : plan.residuals) add(model.phi[r]);
+            std::map<std::pair<int, int>, int> entries;
+            for (int r : b.rows)
+              for (int c : b.cols)
+                if (jac.count({r, c})) entries[{r, c}] = add(jac_at(r, c));
+            pos_tjac_.push_back(std::move(entries));
+            break;
+          }
           for (int r : b.rows) add(model.phi[r]);
           for (int r : b.rows)
             for (int c : b.cols) add(jac_at(r, c));
           break;
       }
+      if (!plan.torn()) pos_tjac_.emplace_back();
     }
+    pos_end_ = static_cast<int>(outs.size());
     std::vector<std::vector<const JacobianEntry*>> row_entries(model.phi.size());
     for (const auto& e : model.phi_q) row_entries[e.row].push_back(&e);
     for (std::size_t bi = 0; bi < st.plans.size(); ++bi) {
       const Block& b = st.plans[bi].block;
       BlockOuts bo;
+      const bool torn = st.plans[bi].torn();
       for (int r : b.rows) {
-        for (int c : b.cols) bo.jbb.push_back(add(jac_at(r, c)));
+        for (int c : b.cols) {
+          if (!torn)
+            bo.jbb.push_back(add(jac_at(r, c)));
+          else if (jac.count({r, c}))
+            bo.tjac[{r, c}] = add(jac_at(r, c));
+        }
         std::vector<std::pair<int, int>> coupling;
         for (const JacobianEntry* e : row_entries[r])
           if (st.order.col_block[e->col] < static_cast<int>(bi))
@@ -526,6 +566,17 @@ class BlockEmitter {
     }
     prog_ = lower(outs, symbols);
     level_ = node_levels(prog_, st.order);
+    // sin and cos nodes of each coordinate, for the rotation update in Newton loops.
+    const int nq = static_cast<int>(st.order.col_block.size());
+    sin_of_.assign(nq, -1);
+    cos_of_.assign(nq, -1);
+    for (std::size_t k = 0; k < prog_.nodes.size(); ++k) {
+      const Node& n = prog_.nodes[k];
+      if (n.kind != OpKind::kSin && n.kind != OpKind::kCos) continue;
+      const Node& a = prog_.nodes[n.args[0]];
+      if (a.kind != OpKind::kInput || a.input.kind != InputKind::kQ) continue;
+      (n.kind == OpKind::kSin ? sin_of_ : cos_of_)[a.input.index] = static_cast<int>(k);
+    }
     if (max_ops > 0 && prog_.operation_count() > max_ops) split_blocks(max_ops);
   }
 
@@ -618,6 +669,7 @@ class BlockEmitter {
  private:
   struct BlockOuts {
     std::vector<int> jbb;                                     // output ids, row-major k x k
+    std::map<std::pair<int, int>, int> tjac;                  // torn blocks: (row, col) -> id
     std::vector<std::vector<std::pair<int, int>>> coupling;  // per row: (col, output id)
     std::vector<int> nu, gamma;                               // per row
   };
@@ -654,6 +706,7 @@ class BlockEmitter {
       for (int o = pos_first_[bi]; o < end && o < pos_end(); ++o) count(o);
       const BlockOuts& bo = blocks_[bi];
       for (int o : bo.jbb) count(o);
+      for (const auto& [rc, o] : bo.tjac) count(o);
       for (const auto& row : bo.coupling)
         for (const auto& [c, o] : row) count(o);
       for (int o : bo.nu) count(o);
@@ -666,7 +719,7 @@ class BlockEmitter {
     }
   }
   // One past the last position output.
-  int pos_end() const { return blocks_.empty() ? 0 : blocks_[0].jbb.empty() ? 0 : blocks_[0].jbb[0]; }
+  int pos_end() const { return pos_end_; }
 
   static std::string motion_name(bool velocity, bool acceleration) {
     return velocity && acceleration ? "solve_velocity_acceleration"
@@ -758,6 +811,13 @@ class BlockEmitter {
       const int f = pos_first_[bi];
       const int k = static_cast<int>(b.rows.size());
       os << in << "// Block " << bi << ": " << block_comment(b, to_string(plan.kind)) << "\n";
+      if (plan.torn()) {
+        std::vector<std::string> tears;
+        for (int c : plan.tears) tears.push_back("q[" + idx(c) + "]");
+        os << in << "// Torn: Newton on " << join(tears) << "; " << plan.assigned.size()
+           << " coordinates assigned in order from them, " << plan.residuals.size()
+           << " residual rows.\n";
+      }
       if (plan.kind == BlockKind::kExplicit) {
         pr.ensure(out(f), os, in);
         os << in << "q[" << b.cols[0] << "] = " << pr.text(out(f)) << ";\n";
@@ -774,10 +834,15 @@ class BlockEmitter {
            << in << "}\n";
         continue;
       }
-      const int n_out = k + k * k;
+      const int n_out = (bi + 1 < st_.plans.size() ? pos_first_[bi + 1] : pos_end_) - f;
       // Terms that do not read the block's own coordinates are computed once, before the loop.
       for (int o = 0; o < n_out; ++o)
         pr.ensure(out(f + o), os, in, [&](int id) { return level_[id] < static_cast<int>(bi); });
+      const std::vector<int> rotated = declare_rotations(os, pr, b);
+      if (plan.torn()) {
+        torn_position(os, pr, bi, rotated);
+        continue;
+      }
       os << in << "for (int _it = 1;; ++_it) {\n";
       pr.open_scope();
       const std::string in2 = in + "  ";
@@ -801,10 +866,10 @@ class BlockEmitter {
       }
       os << in2 << "double _step = 0;\n";
       for (int i = 0; i < k; ++i) {
-        const bool angle = b.cols[i] % 3 == 2;
-        os << in2 << "q[" << b.cols[i] << "] -= _r[" << i << "];\n"
-           << in2 << "_step = std::max(_step, _mag(_r[" << i << "])"
-           << (angle ? "" : " * inv_length") << ");\n";
+        const int c = b.cols[i];
+        update(os, in2, rotated, c, "q[" + idx(c) + "] - _r[" + idx(i) + "]");
+        os << in2 << "_step = std::max(_step, _mag(_r[" << i << "])"
+           << (c % 3 == 2 ? "" : " * inv_length") << ");\n";
       }
       os << in2 << "if (!(_step <= 1e300)) return _fail(report, 3, " << bi << ", _it);\n"
          << in2
@@ -819,6 +884,177 @@ class BlockEmitter {
     }
   }
 
+  // sin and cos of the block's angles: evaluated once at the start, then rotated by each
+  // Newton update (_rotate), and left in scope for the terms after the loop.
+  std::vector<int> declare_rotations(std::ostringstream& os, FunctionPrinter& pr,
+                                     const Block& b) {
+    std::vector<int> rotated;
+    for (int c : b.cols) {
+      if (sin_of_[c] < 0 && cos_of_[c] < 0) continue;
+      rotated.push_back(c);
+      const std::string s = "_sin" + idx(c), co = "_cos" + idx(c);
+      os << kIn << "T " << s << " = sin(q[" << c << "]), " << co << " = cos(q[" << c << "]);\n";
+      if (sin_of_[c] >= 0) pr.bind(sin_of_[c], s);
+      if (cos_of_[c] >= 0) pr.bind(cos_of_[c], co);
+    }
+    return rotated;
+  }
+
+  // q[c] = value, keeping the rotated sin and cos of q[c] current.
+  static void update(std::ostringstream& os, const std::string& in,
+                     const std::vector<int>& rotated, int c, const std::string& value) {
+    const bool rotate = std::find(rotated.begin(), rotated.end(), c) != rotated.end();
+    const std::string q = "q[" + idx(c) + "]";
+    if (rotate) os << in << "const T _old" << c << " = " << q << ";\n";
+    os << in << q << " = " << value << ";\n";
+    if (rotate)
+      os << in << "_rotate(_sin" << c << ", _cos" << c << ", " << q << " - _old" << c << ", " << q
+         << ");\n";
+  }
+
+  // Appends `coefficient * x` (a Phi_q output) to a sum's text, folding +-1; x empty: the
+  // coefficient alone.
+  void add_product(std::string& sum, FunctionPrinter& pr, int output, const std::string& x) {
+    const int id = out(output);
+    if (id == Program::kZero) return;
+    const Node& n = prog_.nodes[id];
+    if (x.empty()) {  // the coefficient alone
+      sum += (sum.empty() ? "" : " + ") + pr.atom_text(id);
+    } else if (n.kind == OpKind::kConst && (n.value == 1 || n.value == -1)) {
+      const bool minus = n.value == -1;
+      sum += sum.empty() ? (minus ? "-" + x : x) : (minus ? " - " : " + ") + x;
+    } else {
+      sum += (sum.empty() ? "" : " + ") + pr.atom_text(id) + "*" + x;
+    }
+  }
+
+  // `-(sum) / coefficient` for an assigned row's constant coefficient (an output).
+  std::string divide_negated(FunctionPrinter& pr, const std::string& sum, int output,
+                             bool negate) {
+    const Node& n = prog_.nodes[out(output)];
+    if (sum.empty()) return "T(0)";
+    const bool one = n.kind == OpKind::kConst && (n.value == 1 || n.value == -1);
+    const bool minus = negate != (one && n.value == -1);
+    const std::string body = minus ? "-(" + sum + ")" : "(" + sum + ")";
+    return one ? body : body + " / " + pr.atom_text(out(output));
+  }
+
+  // Which tears each of a torn block's coordinates depends on (dependency[col][j]).
+  std::map<int, std::vector<char>> tear_dependency(std::size_t bi) const {
+    const BlockPlan& plan = st_.plans[bi];
+    const std::size_t m = plan.tears.size();
+    std::map<int, std::vector<char>> dep;
+    for (std::size_t j = 0; j < m; ++j) {
+      dep[plan.tears[j]].assign(m, 0);
+      dep[plan.tears[j]][j] = 1;
+    }
+    for (const auto& [r, c] : plan.assigned) {
+      std::vector<char> d(m, 0);
+      for (const auto& [rc, o] : pos_tjac_[bi])
+        if (rc.first == r && rc.second != c)
+          for (std::size_t j = 0; j < m; ++j) d[j] |= dep.at(rc.second)[j];
+      dep[c] = d;
+    }
+    return dep;
+  }
+
+  // Sensitivities of the assigned coordinates to the tears (dq[c]/dq[tear j], from the
+  // assigned rows in order: the rows stay satisfied) and the tears' Jacobian (the Schur
+  // complement), printed as `prefix<j>_<c>` terms and the row-major text of the m x m matrix.
+  std::vector<std::string> schur(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                                 const std::map<std::pair<int, int>, int>& entries,
+                                 const std::string& in, const std::string& prefix) {
+    const BlockPlan& plan = st_.plans[bi];
+    const std::size_t m = plan.tears.size();
+    const auto dep = tear_dependency(bi);
+    for (const auto& [rc, o] : entries) pr.ensure(out(o), os, in);
+    const auto d_name = [&](std::size_t j, int c) {
+      return prefix + std::to_string(j) + "_" + idx(c);
+    };
+    // The sum over a row's block coordinates (but `skip`) of Phi_q * dq/dtear_j.
+    const auto row_sum = [&](int r, int skip, std::size_t j) {
+      std::string sum;
+      for (const auto& [rc, o] : entries) {
+        if (rc.first != r || rc.second == skip || !dep.at(rc.second)[j]) continue;
+        add_product(sum, pr, o, rc.second == plan.tears[j] ? "" : d_name(j, rc.second));
+      }
+      return sum;
+    };
+    for (std::size_t j = 0; j < m; ++j) {
+      for (std::size_t a = 0; a < plan.assigned.size(); ++a) {
+        const auto [r, c] = plan.assigned[a];
+        if (!dep.at(c)[j]) continue;
+        const std::string sum = row_sum(r, c, j);
+        os << in << "const T " << d_name(j, c) << " = "
+           << divide_negated(pr, sum, entries.at({r, c}), true) << ";\n";
+      }
+    }
+    std::vector<std::string> a;
+    for (int r : plan.residuals)
+      for (std::size_t j = 0; j < m; ++j) {
+        const std::string sum = row_sum(r, -1, j);
+        a.push_back(sum.empty() ? "T(0)" : sum);
+      }
+    return a;
+  }
+
+  // Newton on a torn block's tears: each pass assigns the other coordinates from the tears,
+  // then (unless converged) evaluates the residuals and the tears' Jacobian and updates them.
+  void torn_position(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                     const std::vector<int>& rotated) {
+    const BlockPlan& plan = st_.plans[bi];
+    const int m = static_cast<int>(plan.tears.size());
+    const int f = pos_first_[bi];
+    const int n_assigned = static_cast<int>(plan.assigned.size());
+    const std::string in = kIn, in2 = in + "  ", b = idx(static_cast<int>(bi));
+    os << in << "double _step" << b << " = 0;\n"
+       << in << "bool _converged" << b << " = false;\n"
+       << in << "for (int _it = 1;; ++_it) {\n";
+    pr.open_scope();
+    for (int a = 0; a < n_assigned; ++a) {
+      pr.ensure(out(f + a), os, in2);
+      update(os, in2, rotated, plan.assigned[a].second, pr.text(out(f + a)));
+    }
+    os << in2 << "if (_converged" << b << ") {\n"
+       << in2 << "  _done(report, _it - 1, _step" << b << ");\n"
+       << in2 << "  break;\n"
+       << in2 << "}\n";
+    std::vector<std::string> r;
+    for (int i = 0; i < m; ++i) {
+      pr.ensure(out(f + n_assigned + i), os, in2);
+      r.push_back(pr.text(out(f + n_assigned + i)));
+    }
+    os << in2 << "T _r[" << m << "] = {" << join(r) << "};\n";
+    const std::vector<std::string> a = schur(os, pr, bi, pos_tjac_[bi], in2, "_d");
+    if (m == 1) {
+      os << in2 << "const T _a = " << a[0] << ";\n"
+         << in2 << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << bi
+         << ", _it);\n"
+         << in2 << "_r[0] /= _a;\n";
+    } else {
+      os << in2 << "T _a[" << m * m << "] = {" << join(a) << "};\n"
+         << in2 << "int _piv[" << m << "];\n"
+         << in2 << "const double _ratio = _lu_factor<" << m << ">(_a, _piv);\n"
+         << in2 << "if (!(_ratio > o.singular_pivot_ratio))\n"
+         << in2 << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << bi << ", _it);\n"
+         << in2 << "_lu_solve<" << m << ">(_a, _piv, _r);\n";
+    }
+    os << in2 << "_step" << b << " = 0;\n";
+    for (int i = 0; i < m; ++i) {
+      const int c = plan.tears[i];
+      update(os, in2, rotated, c, "q[" + idx(c) + "] - _r[" + idx(i) + "]");
+      os << in2 << "_step" << b << " = std::max(_step" << b << ", _mag(_r[" << i << "])"
+         << (c % 3 == 2 ? "" : " * inv_length") << ");\n";
+    }
+    os << in2 << "if (!(_step" << b << " <= 1e300)) return _fail(report, 3, " << bi << ", _it);\n"
+       << in2 << "_converged" << b << " = o.fixed_iterations > 0 ? _it >= o.fixed_iterations\n"
+       << in2 << "                                        : _step" << b << " <= o.tolerance;\n"
+       << in2 << "if (!_converged" << b << " && _it >= o.max_iterations)\n"
+       << in2 << "  return _fail(report, 1, " << bi << ", _it, _step" << b << ");\n";
+    pr.close_scope();
+    os << in << "}\n";
+  }
+
   // Blocks [b0, b1); checks: end with the finite checks of qd and qdd.
   void motion_body(std::ostringstream& os, FunctionPrinter& pr, bool velocity, bool acceleration,
                    int b0, int b1, bool checks) {
@@ -829,6 +1065,25 @@ class BlockEmitter {
       const int k = static_cast<int>(st_.plans[bi].block.rows.size());
       const std::string b = idx(static_cast<int>(bi));
       os << in << "// Block " << bi << ": " << block_comment(st_.plans[bi].block, "") << "\n";
+      if (st_.plans[bi].torn()) {
+        const int m = static_cast<int>(st_.plans[bi].tears.size());
+        const std::vector<std::string> a = schur(os, pr, bi, bo.tjac, in, "_D" + b + "_");
+        if (m == 1) {
+          os << in << "const T _a" << b << " = " << a[0] << ";\n"
+             << in << "if (!(_mag(_a" << b << ") > 0)) return _fail(report, _mag(_a" << b
+             << ") == 0 ? 2 : 3, " << bi << ");\n";
+        } else {
+          os << in << "T _a" << b << "[" << m * m << "] = {" << join(a) << "};\n"
+             << in << "int _piv" << b << "[" << m << "];\n"
+             << in << "const double _ratio" << b << " = _lu_factor<" << m << ">(_a" << b
+             << ", _piv" << b << ");\n"
+             << in << "if (!(_ratio" << b << " > o.singular_pivot_ratio))\n"
+             << in << "  return _fail(report, _ratio" << b << " == _ratio" << b << " ? 2 : 3, "
+             << bi << ");\n";
+        }
+        if (velocity) solve_rows(os, pr, bi, bo.nu, "qd");
+        continue;
+      }
       for (int id : bo.jbb) pr.ensure(out(id), os, in);
       if (k == 1) {
         const int id = out(bo.jbb[0]);
@@ -887,6 +1142,10 @@ class BlockEmitter {
       }
       texts.push_back(s.empty() ? "T(0)" : s);
     }
+    if (st_.plans[bi].torn()) {
+      solve_torn_rows(os, pr, bi, texts, var);
+      return;
+    }
     if (k == 1) {
       const std::string& d = divisor_[bi];
       os << in << var << "[" << blk.cols[0] << "] = "
@@ -902,12 +1161,70 @@ class BlockEmitter {
     os << in << "}\n";
   }
 
+  // A torn block's linear system (Phi_q x = rhs on the block): a particular solution with the
+  // tears at zero through the assigned rows, the tears from the Schur complement factored in
+  // motion_body, then the assigned coordinates corrected by their sensitivities.
+  void solve_torn_rows(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                       const std::vector<std::string>& texts, const char* var) {
+    const BlockPlan& plan = st_.plans[bi];
+    const Block& blk = plan.block;
+    const BlockOuts& bo = blocks_[bi];
+    const int m = static_cast<int>(plan.tears.size());
+    const std::string in = kIn, b = idx(static_cast<int>(bi));
+    const auto x = [&](int c) { return std::string(var) + "[" + idx(c) + "]"; };
+    const auto rhs = [&](int r) {
+      const auto it = std::lower_bound(blk.rows.begin(), blk.rows.end(), r);
+      return texts[it - blk.rows.begin()];
+    };
+    const auto is_tear = [&](int c) {
+      return std::find(plan.tears.begin(), plan.tears.end(), c) != plan.tears.end();
+    };
+    // rhs - sum of the row's non-tear block entries times x (other than `skip`).
+    const auto reduced = [&](int r, int skip) {
+      std::string sum;
+      for (const auto& [rc, o] : bo.tjac)
+        if (rc.first == r && rc.second != skip && !is_tear(rc.second))
+          add_product(sum, pr, o, x(rc.second));
+      const std::string t = rhs(r);
+      if (sum.empty()) return t;
+      return t == "T(0)" ? "-(" + sum + ")" : t + " - (" + sum + ")";
+    };
+    for (const auto& [r, c] : plan.assigned) {
+      const std::string s = reduced(r, c);
+      os << in << x(c) << " = " << divide_negated(pr, s == "T(0)" ? "" : s, bo.tjac.at({r, c}), false)
+         << ";\n";
+    }
+    std::vector<std::string> g;
+    for (int r : plan.residuals) g.push_back(reduced(r, -1));
+    if (m == 1) {
+      os << in << x(plan.tears[0]) << " = (" << g[0] << ") / _a" << b << ";\n";
+    } else {
+      os << in << "{\n"
+         << in << "  T _x[" << m << "] = {" << join(g) << "};\n"
+         << in << "  _lu_solve<" << m << ">(_a" << b << ", _piv" << b << ", _x);\n";
+      for (int j = 0; j < m; ++j) os << in << "  " << x(plan.tears[j]) << " = _x[" << j << "];\n";
+      os << in << "}\n";
+    }
+    const auto dep = tear_dependency(bi);
+    for (const auto& [r, c] : plan.assigned) {
+      std::string sum;
+      for (int j = 0; j < m; ++j)
+        if (dep.at(c)[j])
+          sum += (sum.empty() ? "" : " + ") + ("_D" + b + "_" + std::to_string(j) + "_" + idx(c)) +
+                 "*" + x(plan.tears[j]);
+      if (!sum.empty()) os << in << x(c) << " += " << sum << ";\n";
+    }
+  }
+
   const SymbolTable& symbols_;
   const Structure& st_;
   std::vector<int> pos_first_;
   std::vector<BlockOuts> blocks_;
   Program prog_;
   std::vector<int> level_;
+  std::vector<int> sin_of_, cos_of_;  // per coordinate: its named sin / cos node, or -1
+  std::vector<std::map<std::pair<int, int>, int>> pos_tjac_;  // torn blocks' Phi_q outputs
+  int pos_end_ = 0;
   std::vector<std::string> divisor_;
   std::vector<std::pair<int, int>> ranges_;  // the parts' blocks [first, second); empty: one function
 };
@@ -1025,7 +1342,9 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
   os << "  static constexpr int num_blocks = " << st.plans.size() << ";\n";
   if (st.order.perfect) {
     os << "  static constexpr int num_explicit_blocks = " << st.explicit_count() << ";\n";
-    os << "  static constexpr int max_block_size = " << st.largest_block() << ";\n\n";
+    os << "  static constexpr int max_block_size = " << st.largest_block() << ";\n";
+    os << "  // The largest system a Newton iteration solves (torn blocks: their tear variables).\n";
+    os << "  static constexpr int max_newton_size = " << st.largest_newton() << ";\n\n";
     emit_block_helpers(os);
     BlockEmitter blocks(model, symbols, st, options.max_function_ops);
     blocks.emit_position(os);

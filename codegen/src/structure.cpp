@@ -1,6 +1,7 @@
 #include "kinegen/codegen/structure.hpp"
 
 #include <algorithm>
+#include <map>
 #include <utility>
 
 namespace kinegen::codegen {
@@ -72,6 +73,96 @@ bool perfect_matching(const Graph& g, int nrows, int ncols, std::vector<int>& ma
     }
   }
   return true;
+}
+
+// Tearing of a Newton block (greedy, as in Modelica tools): assign every row that has one
+// unknown coordinate left and is linear in it with a constant coefficient; when none is left,
+// make one unknown a tear variable (the one found in most rows that cannot be solved for it,
+// then in most rows), and go on. Rows never assigned are the residuals. Newton then iterates
+// on the tears only; the Schur complement of the assigned (triangular, constant-diagonal)
+// part is the tears' Jacobian, and it is non-singular exactly when the block's is.
+void tear_block(BlockPlan& plan, const SymbolicModel& model, const SymbolTable& symbols,
+                const std::map<std::pair<int, int>, GiNaC::ex>& jac) {
+  const Block& b = plan.block;
+  const int k = static_cast<int>(b.rows.size());
+  std::map<int, int> local;
+  for (int j = 0; j < k; ++j) local[b.cols[j]] = j;
+  std::vector<std::vector<int>> row_cols(k), col_rows(k);
+  std::vector<std::vector<char>> solvable(k);
+  for (int i = 0; i < k; ++i) {
+    const auto first = jac.lower_bound({b.rows[i], -1});
+    for (auto it = first; it != jac.end() && it->first.first == b.rows[i]; ++it) {
+      const auto c = local.find(it->first.second);
+      if (c == local.end()) continue;
+      row_cols[i].push_back(c->second);
+      col_rows[c->second].push_back(i);
+      solvable[i].push_back(GiNaC::is_a<GiNaC::numeric>(it->second) && !it->second.is_zero());
+    }
+  }
+  std::vector<char> known(k, 0), used(k, 0);
+  std::vector<int> unknown(k), tears, order_rows, order_cols;
+  for (int i = 0; i < k; ++i) unknown[i] = static_cast<int>(row_cols[i].size());
+  std::vector<int> ready;
+  const auto make_known = [&](int j) {
+    known[j] = 1;
+    for (int i : col_rows[j])
+      if (--unknown[i] == 1 && !used[i]) ready.push_back(i);
+  };
+  for (int i = 0; i < k; ++i)
+    if (unknown[i] == 1) ready.push_back(i);
+  int n_known = 0;
+  while (n_known < k) {
+    while (!ready.empty()) {
+      const int i = ready.back();
+      ready.pop_back();
+      if (used[i] || unknown[i] != 1) continue;
+      for (std::size_t a = 0; a < row_cols[i].size(); ++a) {
+        const int j = row_cols[i][a];
+        if (known[j]) continue;
+        if (solvable[i][a]) {
+          used[i] = 1;
+          order_rows.push_back(i);
+          order_cols.push_back(j);
+          make_known(j);
+          ++n_known;
+        }
+        break;
+      }
+    }
+    if (n_known == k) break;
+    int best = -1;
+    long best_score = -1;
+    for (int j = 0; j < k; ++j) {
+      if (known[j]) continue;
+      long hard = 0, all = 0;
+      for (int i : col_rows[j]) {
+        if (used[i]) continue;
+        ++all;
+        for (std::size_t a = 0; a < row_cols[i].size(); ++a)
+          if (row_cols[i][a] == j && !solvable[i][a]) ++hard;
+      }
+      const long score = hard * (k + 1) + all;
+      if (score > best_score) {
+        best_score = score;
+        best = j;
+      }
+    }
+    tears.push_back(best);
+    make_known(best);
+    ++n_known;
+  }
+  if (static_cast<int>(tears.size()) >= k) return;  // nothing gained
+  for (int j : tears) plan.tears.push_back(b.cols[j]);
+  for (int i = 0; i < k; ++i)
+    if (!used[i]) plan.residuals.push_back(b.rows[i]);
+  for (std::size_t a = 0; a < order_rows.size(); ++a) {
+    const int r = b.rows[order_rows[a]], c = b.cols[order_cols[a]];
+    const GiNaC::ex coefficient = jac.at({r, c});
+    const GiNaC::ex& x = symbols.q(c);
+    plan.assigned.push_back({r, c});
+    plan.assigned_coefficient.push_back(coefficient);
+    plan.assigned_value.push_back(-model.phi[r].subs(x == 0) / coefficient);
+  }
 }
 
 }  // namespace
@@ -146,6 +237,12 @@ int Structure::explicit_count() const {
 
 int Structure::newton_count() const { return static_cast<int>(plans.size()) - explicit_count(); }
 
+int Structure::largest_newton() const {
+  int n = 0;
+  for (const auto& p : plans) n = std::max(n, p.newton_size());
+  return n;
+}
+
 int Structure::largest_block() const {
   int n = 0;
   for (const auto& p : plans) n = std::max(n, static_cast<int>(p.block.rows.size()));
@@ -173,6 +270,8 @@ Structure analyze_structure(const SymbolicModel& model, const SymbolTable& symbo
   }
   s.order = blt_order(static_cast<int>(model.phi.size()), symbols.nq(), rows, cols);
   if (!s.order.perfect) return s;
+  std::map<std::pair<int, int>, GiNaC::ex> jac;
+  for (const auto& e : model.phi_q) jac[{e.row, e.col}] = e.value;
   for (const auto& b : s.order.blocks) {
     BlockPlan plan;
     plan.block = b;
@@ -191,6 +290,7 @@ Structure analyze_structure(const SymbolicModel& model, const SymbolTable& symbo
         }
       }
     }
+    if (plan.kind == BlockKind::kNewton && b.rows.size() > 1) tear_block(plan, model, symbols, jac);
     s.plans.push_back(std::move(plan));
   }
   return s;

@@ -45,6 +45,20 @@ struct BlockPlan {
   BlockKind kind = BlockKind::kNewton;
   // Explicit kinds: q[col] = -rest / coefficient.
   GiNaC::ex coefficient, rest;
+  // Tearing (Newton blocks only; empty when the block is not torn): Newton iterates on the
+  // `tears` alone. Each `assigned` (row, col) pair is solved explicitly, in order, from the
+  // tears, earlier assignments and earlier blocks: the row is linear in col with the constant
+  // coefficient `assigned_coefficient` (a numeric Phi_q entry), q[col] = `assigned_value`.
+  // The `residuals` (as many as tears) are the rows left for Newton.
+  std::vector<int> tears, residuals;
+  std::vector<std::pair<int, int>> assigned;
+  std::vector<GiNaC::ex> assigned_value, assigned_coefficient;
+  bool torn() const { return !assigned.empty(); }
+  int newton_size() const {
+    return kind != BlockKind::kNewton ? 0
+           : torn()                   ? static_cast<int>(tears.size())
+                                      : static_cast<int>(block.rows.size());
+  }
 };
 
 // The BLT order of a model and each block's kind. `plans` is empty when `order.perfect` is
@@ -55,6 +69,7 @@ struct Structure {
   int explicit_count() const;
   int newton_count() const;
   int largest_block() const;
+  int largest_newton() const;  // the largest system Newton solves (torn blocks: their tears)
 };
 
 Structure analyze_structure(const SymbolicModel& model, const SymbolTable& symbols);
