@@ -132,6 +132,9 @@ struct offset_slider_crank {
   static constexpr int max_block_size = 1;
   // The largest system a Newton iteration solves (torn blocks: their tear variables).
   static constexpr int max_newton_size = 1;
+  // Values in the optional sin/cos cache of solve_position and solve_step (3 per
+  // coordinate whose sin or cos the model uses).
+  static constexpr int trig_cache_size = 6;
 
   // Outcome of a block solve. status: 0 converged, 1 Newton did not converge within
   // max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value appeared (the
@@ -177,6 +180,25 @@ struct offset_slider_crank {
   // NaN when a value is not finite).
   template <int K, class T>
   static double _lu_factor(T* a, int* piv) noexcept {
+    if constexpr (K == 2) {
+      // The loop below for K = 2, written out: small enough to be inlined (a loop of two
+      // bodies is the most common block).
+      const bool swap = _mag(a[2]) > _mag(a[0]);
+      piv[0] = swap ? 1 : 0;
+      piv[1] = 1;
+      if (swap) {
+        std::swap(a[0], a[2]);
+        std::swap(a[1], a[3]);
+      }
+      const double p0 = _mag(a[0]);
+      if (!(p0 > 0)) return p0;  // 0, or NaN
+      const T f = a[2] * (T(1) / a[0]);
+      a[2] = f;
+      a[3] -= f * a[1];
+      const double p1 = _mag(a[3]);
+      if (!(p1 > 0)) return p1;
+      return p0 < p1 ? p0 / p1 : p1 / p0;
+    }
     double largest = 0, smallest = 0;
     for (int k = 0; k < K; ++k) {
       int m = k;
@@ -204,23 +226,61 @@ struct offset_slider_crank {
     }
     return smallest / largest;
   }
-  // sin and cos of an angle after a Newton update d (angle = the new value): rotated by d when
-  // it is small, so an iteration needs no new sin or cos (on |d| <= 2^-10 the series below are
-  // exact to double rounding), else evaluated afresh.
+  // Rotations of sin and cos by a small angle d, so that a Newton update or the step from a
+  // cached angle needs no new sin or cos: on |d| <= 1/32 the series below are exact to double
+  // rounding (the first omitted terms are below 1e-22 relative).
+  static constexpr double kRotateLimit = 1.0 / 32;
+  template <class T>
+  static void _rotated(const T& s0, const T& c0, const T& d, T& s, T& c) noexcept {
+    // Horner forms; the reciprocals are constants the compiler folds (no division at run time).
+    const T d2 = d * d;
+    const T sd = d * (T(1) - d2 * (T(1) / T(6)) *  // sin d
+                                 (T(1) - d2 * (T(1) / T(20)) *
+                                             (T(1) - d2 * (T(1) / T(42)) *
+                                                         (T(1) - d2 * (T(1) / T(72))))));
+    const T cm = d2 * (T(1) / T(2)) *  // 1 - cos d
+                 (T(1) - d2 * (T(1) / T(12)) *
+                             (T(1) - d2 * (T(1) / T(30)) *
+                                         (T(1) - d2 * (T(1) / T(56)) *
+                                                     (T(1) - d2 * (T(1) / T(90))))));
+    s = s0 + (c0 * sd - s0 * cm);
+    c = c0 - (s0 * sd + c0 * cm);
+  }
+  // sin and cos of an angle after a Newton update d (angle = the new value).
   template <class T>
   static void _rotate(T& s, T& c, const T& d, const T& angle) noexcept {
-    if (_mag(d) <= 1.0 / 1024) {
-      const T d2 = d * d;
-      const T sd = d * (T(1) - d2 / T(6) * (T(1) - d2 / T(20)));               // sin d
-      const T cm = d2 / T(2) * (T(1) - d2 / T(12) * (T(1) - d2 / T(30)));  // 1 - cos d
-      const T s1 = s + (c * sd - s * cm);
-      c = c - (s * sd + c * cm);
-      s = s1;
+    if (_mag(d) <= kRotateLimit) {
+      _rotated(T(s), T(c), d, s, c);
     } else {
       using std::cos, std::sin;
       s = sin(angle);
       c = cos(angle);
     }
+  }
+  // sin and cos of a coordinate at the start of a solve. With a cache (trig_cache_size values,
+  // 3 per cached coordinate: an anchor angle and its exact sin and cos; NaN anchors are empty),
+  // a coordinate within kRotateLimit of its anchor is rotated from it, so a step along a smooth
+  // motion costs no sin or cos; otherwise they are evaluated and become the new anchor. Always
+  // one rotation from exact values, so no error accumulates over many steps.
+  template <class T>
+  static void _trig(T& s, T& c, const T& angle, T* cache, int slot) noexcept {
+    using std::cos, std::sin;
+    if (cache) {
+      T* a = cache + 3 * slot;
+      const T d = angle - a[0];
+      if (_mag(d) <= kRotateLimit) {
+        _rotated(a[1], a[2], d, s, c);
+        return;
+      }
+      s = sin(angle);
+      c = cos(angle);
+      a[0] = angle;
+      a[1] = s;
+      a[2] = c;
+      return;
+    }
+    s = sin(angle);
+    c = cos(angle);
   }
   template <int K, class T>
   static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
@@ -237,10 +297,13 @@ struct offset_slider_crank {
 
   // Position: each block in turn, explicit or by Newton on the block alone; q holds
   // the start (the previous solution or a prediction) and receives the solution.
+  // trig: optional cache of trig_cache_size values, kept by the caller from call to call
+  // (fill it with NaN first), so that sin and cos near the last values are rotations.
   template <class T>
   static BlockReport solve_position(T* q, [[maybe_unused]] T t,
       [[maybe_unused]] const Params& p,
-      [[maybe_unused]] const BlockOptions& o) noexcept {
+      [[maybe_unused]] const BlockOptions& o,
+      [[maybe_unused]] T* trig = nullptr) noexcept {
     using std::cos, std::sin;
     BlockReport report;
     [[maybe_unused]] const double inv_length = 1.0 / length_scale;
@@ -250,21 +313,22 @@ struct offset_slider_crank {
     q[1] = T(0);
     // Block 2: rows 8 -> q[2] (explicit)
     q[2] = T(p.omega)*t;
+    T _sin2, _cos2;
+    _trig(_sin2, _cos2, q[2], trig, 0);
     // Block 3: rows 2 -> q[3] (explicit)
-    const T _t0 = cos(q[2]);
-    q[3] = _t0*T(p.r) + q[0];
+    q[3] = _cos2*T(p.r) + q[0];
     // Block 4: rows 3 -> q[4] (explicit)
-    const T _t1 = sin(q[2]);
-    const T _t2 = T(p.r)*_t1;
-    q[4] = _t2 + q[1];
+    const T _t0 = T(p.r)*_sin2;
+    q[4] = _t0 + q[1];
     // Block 5: rows 6 -> q[7] (explicit)
     q[7] = T(p.e);
     // Block 6: rows 5 -> q[5] (newton)
-    T _sin5 = sin(q[5]), _cos5 = cos(q[5]);
+    T _sin5, _cos5;
+    _trig(_sin5, _cos5, q[5], trig, 1);
     for (int _it = 1;; ++_it) {
-      const T _t3 = -_cos5*T(p.l);
+      const T _t1 = -_cos5*T(p.l);
       T _r[1] = {-T(p.l)*_sin5 - q[4] + q[7]};
-      const T _a = _t3;
+      const T _a = _t1;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 6, _it);
       _r[0] /= _a;
       double _step = 0;
@@ -424,7 +488,8 @@ struct offset_slider_crank {
   template <class T>
   static BlockReport solve_step(T* q, [[maybe_unused]] T t,
       [[maybe_unused]] const Params& p, T* qd, T* qdd,
-      [[maybe_unused]] const BlockOptions& o) noexcept {
+      [[maybe_unused]] const BlockOptions& o,
+      [[maybe_unused]] T* trig = nullptr) noexcept {
     using std::cos, std::sin;
     BlockReport report;
     [[maybe_unused]] const double inv_length = 1.0 / length_scale;
@@ -434,21 +499,22 @@ struct offset_slider_crank {
     q[1] = T(0);
     // Block 2: rows 8 -> q[2] (explicit)
     q[2] = T(p.omega)*t;
+    T _sin2, _cos2;
+    _trig(_sin2, _cos2, q[2], trig, 0);
     // Block 3: rows 2 -> q[3] (explicit)
-    const T _t0 = cos(q[2]);
-    q[3] = _t0*T(p.r) + q[0];
+    q[3] = _cos2*T(p.r) + q[0];
     // Block 4: rows 3 -> q[4] (explicit)
-    const T _t1 = sin(q[2]);
-    const T _t2 = T(p.r)*_t1;
-    q[4] = _t2 + q[1];
+    const T _t0 = T(p.r)*_sin2;
+    q[4] = _t0 + q[1];
     // Block 5: rows 6 -> q[7] (explicit)
     q[7] = T(p.e);
     // Block 6: rows 5 -> q[5] (newton)
-    T _sin5 = sin(q[5]), _cos5 = cos(q[5]);
+    T _sin5, _cos5;
+    _trig(_sin5, _cos5, q[5], trig, 1);
     for (int _it = 1;; ++_it) {
-      const T _t3 = -_cos5*T(p.l);
+      const T _t1 = -_cos5*T(p.l);
       T _r[1] = {-T(p.l)*_sin5 - q[4] + q[7]};
-      const T _a = _t3;
+      const T _a = _t1;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 6, _it);
       _r[0] /= _a;
       double _step = 0;
@@ -476,14 +542,14 @@ struct offset_slider_crank {
     // Block 2: rows 8 -> q[2]
     qd[2] = T(p.omega);
     // Block 3: rows 2 -> q[3]
-    qd[3] = qd[0] - _t2*qd[2];
+    qd[3] = qd[0] - _t0*qd[2];
     // Block 4: rows 3 -> q[4]
-    qd[4] = qd[1] - (-_t0*T(p.r))*qd[2];
+    qd[4] = qd[1] - (-_cos2*T(p.r))*qd[2];
     // Block 5: rows 6 -> q[7]
     qd[7] = T(0);
     // Block 6: rows 5 -> q[5]
-    const T _t4 = -_cos5*T(p.l);
-    const T _a6 = _t4;
+    const T _t2 = -_cos5*T(p.l);
+    const T _a6 = _t2;
     if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
     qd[5] = (qd[4] - qd[7]) / _a6;
     // Block 7: rows 4 -> q[6]
@@ -495,13 +561,13 @@ struct offset_slider_crank {
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
-    const T _t5 = qd[2]*qd[2];
-    qdd[3] = -_t5*_t0*T(p.r) + qdd[0] - _t2*qdd[2];
-    qdd[4] = -_t5*T(p.r)*_t1 + qdd[1] - (-_t0*T(p.r))*qdd[2];
+    const T _t3 = qd[2]*qd[2];
+    qdd[3] = -_t3*_cos2*T(p.r) + qdd[0] - _t0*qdd[2];
+    qdd[4] = -_t3*T(p.r)*_sin2 + qdd[1] - (-_cos2*T(p.r))*qdd[2];
     qdd[7] = T(0);
-    const T _t6 = qd[5]*qd[5];
-    qdd[5] = (-_t6*T(p.l)*_sin5 + qdd[4] - qdd[7]) / _a6;
-    qdd[6] = -_t6*_cos5*T(p.l) + qdd[3] - (T(p.l)*_sin5)*qdd[5];
+    const T _t4 = qd[5]*qd[5];
+    qdd[5] = (-_t4*T(p.l)*_sin5 + qdd[4] - qdd[7]) / _a6;
+    qdd[6] = -_t4*_cos5*T(p.l) + qdd[3] - (T(p.l)*_sin5)*qdd[5];
     qdd[8] = T(0);
     for (int _k = 0; _k < nq; ++_k)
       if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);

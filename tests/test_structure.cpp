@@ -298,8 +298,8 @@ TEMPLATE_TEST_CASE("block solver works in float", "[structure][float]",
   kinegen::Solver<TestType> dsolver;
   auto qf = fsolver.initial_estimate();
   auto qdouble = dsolver.initial_estimate();
-  decltype(qf) qdf, qddf;
-  decltype(qdouble) qdd_, qddd;
+  decltype(qf) qdf = qf, qddf = qf;
+  decltype(qdouble) qdd_ = qdouble, qddd = qdouble;
   for (int k = 0; k <= 36; ++k) {
     const double t = 2 * M_PI * k / 36;
     REQUIRE(fsolver.position(qf, static_cast<float>(t)));

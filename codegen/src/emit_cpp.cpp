@@ -410,6 +410,25 @@ void emit_block_helpers(std::ostringstream& os) {
   // NaN when a value is not finite).
   template <int K, class T>
   static double _lu_factor(T* a, int* piv) noexcept {
+    if constexpr (K == 2) {
+      // The loop below for K = 2, written out: small enough to be inlined (a loop of two
+      // bodies is the most common block).
+      const bool swap = _mag(a[2]) > _mag(a[0]);
+      piv[0] = swap ? 1 : 0;
+      piv[1] = 1;
+      if (swap) {
+        std::swap(a[0], a[2]);
+        std::swap(a[1], a[3]);
+      }
+      const double p0 = _mag(a[0]);
+      if (!(p0 > 0)) return p0;  // 0, or NaN
+      const T f = a[2] * (T(1) / a[0]);
+      a[2] = f;
+      a[3] -= f * a[1];
+      const double p1 = _mag(a[3]);
+      if (!(p1 > 0)) return p1;
+      return p0 < p1 ? p0 / p1 : p1 / p0;
+    }
     double largest = 0, smallest = 0;
     for (int k = 0; k < K; ++k) {
       int m = k;
@@ -437,23 +456,61 @@ void emit_block_helpers(std::ostringstream& os) {
     }
     return smallest / largest;
   }
-  // sin and cos of an angle after a Newton update d (angle = the new value): rotated by d when
-  // it is small, so an iteration needs no new sin or cos (on |d| <= 2^-10 the series below are
-  // exact to double rounding), else evaluated afresh.
+  // Rotations of sin and cos by a small angle d, so that a Newton update or the step from a
+  // cached angle needs no new sin or cos: on |d| <= 1/32 the series below are exact to double
+  // rounding (the first omitted terms are below 1e-22 relative).
+  static constexpr double kRotateLimit = 1.0 / 32;
+  template <class T>
+  static void _rotated(const T& s0, const T& c0, const T& d, T& s, T& c) noexcept {
+    // Horner forms; the reciprocals are constants the compiler folds (no division at run time).
+    const T d2 = d * d;
+    const T sd = d * (T(1) - d2 * (T(1) / T(6)) *  // sin d
+                                 (T(1) - d2 * (T(1) / T(20)) *
+                                             (T(1) - d2 * (T(1) / T(42)) *
+                                                         (T(1) - d2 * (T(1) / T(72))))));
+    const T cm = d2 * (T(1) / T(2)) *  // 1 - cos d
+                 (T(1) - d2 * (T(1) / T(12)) *
+                             (T(1) - d2 * (T(1) / T(30)) *
+                                         (T(1) - d2 * (T(1) / T(56)) *
+                                                     (T(1) - d2 * (T(1) / T(90))))));
+    s = s0 + (c0 * sd - s0 * cm);
+    c = c0 - (s0 * sd + c0 * cm);
+  }
+  // sin and cos of an angle after a Newton update d (angle = the new value).
   template <class T>
   static void _rotate(T& s, T& c, const T& d, const T& angle) noexcept {
-    if (_mag(d) <= 1.0 / 1024) {
-      const T d2 = d * d;
-      const T sd = d * (T(1) - d2 / T(6) * (T(1) - d2 / T(20)));               // sin d
-      const T cm = d2 / T(2) * (T(1) - d2 / T(12) * (T(1) - d2 / T(30)));  // 1 - cos d
-      const T s1 = s + (c * sd - s * cm);
-      c = c - (s * sd + c * cm);
-      s = s1;
+    if (_mag(d) <= kRotateLimit) {
+      _rotated(T(s), T(c), d, s, c);
     } else {
       using std::cos, std::sin;
       s = sin(angle);
       c = cos(angle);
     }
+  }
+  // sin and cos of a coordinate at the start of a solve. With a cache (trig_cache_size values,
+  // 3 per cached coordinate: an anchor angle and its exact sin and cos; NaN anchors are empty),
+  // a coordinate within kRotateLimit of its anchor is rotated from it, so a step along a smooth
+  // motion costs no sin or cos; otherwise they are evaluated and become the new anchor. Always
+  // one rotation from exact values, so no error accumulates over many steps.
+  template <class T>
+  static void _trig(T& s, T& c, const T& angle, T* cache, int slot) noexcept {
+    using std::cos, std::sin;
+    if (cache) {
+      T* a = cache + 3 * slot;
+      const T d = angle - a[0];
+      if (_mag(d) <= kRotateLimit) {
+        _rotated(a[1], a[2], d, s, c);
+        return;
+      }
+      s = sin(angle);
+      c = cos(angle);
+      a[0] = angle;
+      a[1] = s;
+      a[2] = c;
+      return;
+    }
+    s = sin(angle);
+    c = cos(angle);
   }
   template <int K, class T>
   static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
@@ -577,19 +634,34 @@ class BlockEmitter {
       if (a.kind != OpKind::kInput || a.input.kind != InputKind::kQ) continue;
       (n.kind == OpKind::kSin ? sin_of_ : cos_of_)[a.input.index] = static_cast<int>(k);
     }
+    trig_slot_.assign(nq, -1);
+    for (int c = 0; c < nq; ++c)
+      if (sin_of_[c] >= 0 || cos_of_[c] >= 0) trig_slot_[c] = trig_slots_++;
+    // Nodes the position outputs read.
+    in_position_.assign(prog_.nodes.size(), 0);
+    for (int o = 0; o < pos_end_; ++o)
+      if (out(o) != Program::kZero) in_position_[out(o)] = 1;
+    for (int k = static_cast<int>(prog_.nodes.size()) - 1; k >= 0; --k)
+      if (in_position_[k])
+        for (int a : prog_.nodes[k].args) in_position_[a] = 1;
     if (max_ops > 0 && prog_.operation_count() > max_ops) split_blocks(max_ops);
   }
+
+  int trig_cache_size() const { return 3 * trig_slots_; }
 
   void emit_position(std::ostringstream& os) {
     os << "  // Position: each block in turn, explicit or by Newton on the block alone; q holds\n"
        << "  // the start (the previous solution or a prediction) and receives the solution.\n"
+       << "  // trig: optional cache of trig_cache_size values, kept by the caller from call to call\n"
+       << "  // (fill it with NaN first), so that sin and cos near the last values are rotations.\n"
        << "  template <class T>\n"
        << "  static BlockReport solve_position(T* q, [[maybe_unused]] T t,\n"
        << "      [[maybe_unused]] const Params& p,\n"
-       << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+       << "      [[maybe_unused]] const BlockOptions& o,\n"
+       << "      [[maybe_unused]] T* trig = nullptr) noexcept {\n";
     if (!ranges_.empty()) {
       os << kIn << "BlockReport report;\n";
-      call_parts(os, "_solve_position_part", "q, t, p, o, report");
+      call_parts(os, "_solve_position_part", "q, t, p, o, report, trig");
       finite_check(os, "q");
       os << kIn << "return report;\n  }\n";
       emit_position_parts(os);
@@ -645,11 +717,12 @@ class BlockEmitter {
        << "  template <class T>\n"
        << "  static BlockReport solve_step(T* q, [[maybe_unused]] T t,\n"
        << "      [[maybe_unused]] const Params& p, T* qd, T* qdd,\n"
-       << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+       << "      [[maybe_unused]] const BlockOptions& o,\n"
+       << "      [[maybe_unused]] T* trig = nullptr) noexcept {\n";
     if (!ranges_.empty()) {
       // Split: the parts of solve_position and solve_velocity_acceleration (emitted with them).
       os << kIn << "BlockReport report;\n";
-      call_parts(os, "_solve_position_part", "q, t, p, o, report");
+      call_parts(os, "_solve_position_part", "q, t, p, o, report, trig");
       finite_check(os, "q");
       call_parts(os, "_solve_velocity_acceleration_part", motion_args(true, true, false));
       finite_check(os, "qd");
@@ -660,7 +733,9 @@ class BlockEmitter {
     FunctionPrinter pr(prog_, symbols_);
     prologue(os);
     const int n = static_cast<int>(st_.plans.size());
+    step_mode_ = true;
     position_body(os, pr, 0, n);
+    step_mode_ = false;
     finite_check(os, "q");
     motion_body(os, pr, true, true, 0, n, true);
     os << kIn << "return report;\n  }\n";
@@ -769,7 +844,8 @@ class BlockEmitter {
     for (std::size_t k = 0; k < ranges_.size(); ++k) {
       part_header(os, "_solve_position", k,
                   "T* q, [[maybe_unused]] T t, [[maybe_unused]] const Params& p,\n"
-                  "      [[maybe_unused]] const BlockOptions& o, BlockReport report");
+                  "      [[maybe_unused]] const BlockOptions& o, BlockReport report,\n"
+                  "      [[maybe_unused]] T* trig");
       FunctionPrinter pr(prog_, symbols_);
       position_body(os, pr, ranges_[k].first, ranges_[k].second);
       os << kIn << "return report;\n  }\n";
@@ -821,6 +897,7 @@ class BlockEmitter {
       if (plan.kind == BlockKind::kExplicit) {
         pr.ensure(out(f), os, in);
         os << in << "q[" << b.cols[0] << "] = " << pr.text(out(f)) << ";\n";
+        declare_trig(os, pr, b.cols[0], false);
         continue;
       }
       if (plan.kind == BlockKind::kExplicitGuarded) {
@@ -832,6 +909,7 @@ class BlockEmitter {
            << ");\n"
            << in << "  q[" << b.cols[0] << "] = -(" << pr.text(out(f + 1)) << ") / _c;\n"
            << in << "}\n";
+        declare_trig(os, pr, b.cols[0], false);
         continue;
       }
       const int n_out = (bi + 1 < st_.plans.size() ? pos_first_[bi + 1] : pos_end_) - f;
@@ -889,15 +967,25 @@ class BlockEmitter {
   std::vector<int> declare_rotations(std::ostringstream& os, FunctionPrinter& pr,
                                      const Block& b) {
     std::vector<int> rotated;
-    for (int c : b.cols) {
-      if (sin_of_[c] < 0 && cos_of_[c] < 0) continue;
-      rotated.push_back(c);
-      const std::string s = "_sin" + idx(c), co = "_cos" + idx(c);
-      os << kIn << "T " << s << " = sin(q[" << c << "]), " << co << " = cos(q[" << c << "]);\n";
-      if (sin_of_[c] >= 0) pr.bind(sin_of_[c], s);
-      if (cos_of_[c] >= 0) pr.bind(cos_of_[c], co);
-    }
+    for (int c : b.cols)
+      if (declare_trig(os, pr, c, true)) rotated.push_back(c);
     return rotated;
+  }
+
+  // `T _sinC, _cosC` for a coordinate whose sin or cos the program uses, from the cache (see
+  // _trig); later terms read them. Explicit coordinates (always = false) only when the function
+  // being emitted needs them. Returns whether they were declared.
+  bool declare_trig(std::ostringstream& os, FunctionPrinter& pr, int c, bool always) {
+    if (trig_slot_[c] < 0) return false;
+    const auto needed = [&](int id) { return id >= 0 && (step_mode_ || in_position_[id]); };
+    if (!always && !needed(sin_of_[c]) && !needed(cos_of_[c])) return false;
+    const std::string s = "_sin" + idx(c), co = "_cos" + idx(c);
+    os << kIn << "T " << s << ", " << co << ";\n"
+       << kIn << "_trig(" << s << ", " << co << ", q[" << c << "], trig, " << trig_slot_[c]
+       << ");\n";
+    if (sin_of_[c] >= 0) pr.bind(sin_of_[c], s);
+    if (cos_of_[c] >= 0) pr.bind(cos_of_[c], co);
+    return true;
   }
 
   // q[c] = value, keeping the rotated sin and cos of q[c] current.
@@ -1223,6 +1311,10 @@ class BlockEmitter {
   Program prog_;
   std::vector<int> level_;
   std::vector<int> sin_of_, cos_of_;  // per coordinate: its named sin / cos node, or -1
+  std::vector<int> trig_slot_;        // per coordinate: its slot in the trig cache, or -1
+  int trig_slots_ = 0;
+  std::vector<char> in_position_;     // per node: read by a position output
+  bool step_mode_ = false;            // emitting solve_step (motion terms follow position)
   std::vector<std::map<std::pair<int, int>, int>> pos_tjac_;  // torn blocks' Phi_q outputs
   int pos_end_ = 0;
   std::vector<std::string> divisor_;
@@ -1344,9 +1436,12 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     os << "  static constexpr int num_explicit_blocks = " << st.explicit_count() << ";\n";
     os << "  static constexpr int max_block_size = " << st.largest_block() << ";\n";
     os << "  // The largest system a Newton iteration solves (torn blocks: their tear variables).\n";
-    os << "  static constexpr int max_newton_size = " << st.largest_newton() << ";\n\n";
-    emit_block_helpers(os);
+    os << "  static constexpr int max_newton_size = " << st.largest_newton() << ";\n";
     BlockEmitter blocks(model, symbols, st, options.max_function_ops);
+    os << "  // Values in the optional sin/cos cache of solve_position and solve_step (3 per\n"
+       << "  // coordinate whose sin or cos the model uses).\n"
+       << "  static constexpr int trig_cache_size = " << blocks.trig_cache_size() << ";\n\n";
+    emit_block_helpers(os);
     blocks.emit_position(os);
     if (velocity) {
       os << "\n";

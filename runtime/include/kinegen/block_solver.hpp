@@ -4,6 +4,7 @@
 // predictor. Header-only, Eigen and std only, allocation-free.
 #pragma once
 
+#include <array>
 #include <limits>
 #include <type_traits>
 
@@ -25,6 +26,13 @@ struct HasAcceleration : std::true_type {};  // headers before --outputs had eve
 template <class Model>
 struct HasAcceleration<Model, std::void_t<decltype(Model::has_acceleration)>>
     : std::bool_constant<Model::has_acceleration> {};
+
+// Size of the generated sin/cos cache (0: none, or a header from before it existed).
+template <class Model, class = void>
+struct TrigCacheSize : std::integral_constant<int, 0> {};
+template <class Model>
+struct TrigCacheSize<Model, std::void_t<decltype(Model::trig_cache_size)>>
+    : std::integral_constant<int, Model::trig_cache_size> {};
 
 template <class Report>
 Result to_result(const Report& report) {
@@ -66,8 +74,13 @@ class Solver {
   // Result::iterations is the largest count of any block.
   Result position(Vector& q, Scalar t) {
     if constexpr (kBlockSolver) {
-      return detail::to_result(
-          Model::solve_position(q.data(), t, dense_.system().params(), block_options()));
+      if constexpr (kTrigCache > 0) {
+        return detail::to_result(Model::solve_position(q.data(), t, dense_.system().params(),
+                                                       block_options(), trig_.data()));
+      } else {
+        return detail::to_result(
+            Model::solve_position(q.data(), t, dense_.system().params(), block_options()));
+      }
     } else {
       return dense_.position(q, t);
     }
@@ -102,11 +115,13 @@ class Solver {
   Result step(Scalar t, Vector& q, Vector& qd, Vector& qdd) {
     const Scalar h = has_previous_ ? t - t_previous_ : Scalar(0);
     if (has_previous_) {
-      q += h * qd + (h * h / Scalar(2)) * qdd;
       // Third order: the jerk from the last two accelerations. The prediction error is then
       // O(h^4), below the tolerance at small steps, so one iteration converges.
-      if (has_two_ && h_previous_ != Scalar(0))
-        q += (h * h * h / (Scalar(6) * h_previous_)) * (qdd - qdd_previous_);
+      const Scalar h2 = h * h / Scalar(2);
+      const Scalar h3 =
+          has_two_ && h_previous_ != Scalar(0) ? h * h * h / (Scalar(6) * h_previous_) : Scalar(0);
+      for (int k = 0; k < Model::nq; ++k)  // one pass (Eigen would make three here)
+        q[k] += h * qd[k] + h2 * qdd[k] + h3 * (qdd[k] - qdd_previous_[k]);
     }
     qdd_last_ = qdd;
     // Without a prediction the first solve iterates to convergence even when the options fix
@@ -114,8 +129,14 @@ class Solver {
     if constexpr (kBlockSolver && detail::HasAcceleration<Model>::value) {
       auto o = block_options();
       if (!has_previous_) o.fixed_iterations = 0;
-      const Result r = detail::to_result(
-          Model::solve_step(q.data(), t, dense_.system().params(), qd.data(), qdd.data(), o));
+      Result r;
+      if constexpr (kTrigCache > 0) {
+        r = detail::to_result(Model::solve_step(q.data(), t, dense_.system().params(), qd.data(),
+                                                qdd.data(), o, trig_.data()));
+      } else {
+        r = detail::to_result(
+            Model::solve_step(q.data(), t, dense_.system().params(), qd.data(), qdd.data(), o));
+      }
       if (!r) {
         qd.setConstant(kNaN);
         qdd.setConstant(kNaN);
@@ -168,10 +189,21 @@ class Solver {
   std::conditional_t<kBlockSolver, NoDense, DenseSolver<Model, Scalar>> dense_;
 
   static constexpr Scalar kNaN = std::numeric_limits<Scalar>::quiet_NaN();
+  // The generated sin/cos cache: anchors with their exact sin and cos, NaN when empty, so that
+  // a step near the last one rotates instead of calling sin and cos.
+  static constexpr int kTrigCache = kBlockSolver ? detail::TrigCacheSize<Model>::value : 0;
+  static std::array<Scalar, (kTrigCache > 0 ? kTrigCache : 1)> empty_trig_cache() {
+    std::array<Scalar, (kTrigCache > 0 ? kTrigCache : 1)> a;
+    a.fill(kNaN);
+    return a;
+  }
+  std::array<Scalar, (kTrigCache > 0 ? kTrigCache : 1)> trig_ = empty_trig_cache();
   Scalar t_previous_ = Scalar(0);
   bool has_previous_ = false, has_two_ = false;
   Scalar h_previous_ = Scalar(0);
-  Vector qdd_last_, qdd_previous_;  // the caller's qdd at the last and the previous step
+  // The caller's qdd at the last and the previous step (zero before: the predictor multiplies
+  // the difference by 0 then, and must not meet uninitialized values).
+  Vector qdd_last_ = Vector::Zero(), qdd_previous_ = Vector::Zero();
 };
 
 }  // namespace kinegen
