@@ -3,6 +3,7 @@
 // solver agrees with the dense solver, float works, guarded explicit rows stay correct, and
 // singular blocks are reported.
 #include <catch2/catch.hpp>
+#include <array>
 #include <cmath>
 #include <kinegen/solver.hpp>
 #include <map>
@@ -406,4 +407,48 @@ TEST_CASE("generate --outputs selects the analyses in the header", "[structure][
   CHECK_FALSE(has(vel, "static void gamma("));
   CHECK_FALSE(has(vel, "solve_acceleration("));
   CHECK(has(vel, "has_acceleration = false"));
+}
+
+// The sin/cos cache of solve_step: anchors keep their exact sin and cos (nothing accumulates
+// over many steps), and the solution matches the one without a cache, over a long run with
+// small steps (rotations) and jumps (new anchors).
+template <class Model>
+void check_trig_cache() {
+  STATIC_REQUIRE(Model::trig_cache_size > 0);
+  std::array<double, Model::trig_cache_size> cache;
+  cache.fill(NAN);
+  std::array<double, Model::nq> q = Model::q0, qd{}, qdd{}, q2 = Model::q0, qd2{}, qdd2{};
+  const typename Model::Params p{};
+  const typename Model::BlockOptions o{};
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> jump(0.05, 1.0);
+  double t = 0, worst = 0;
+  int steps = 0;
+  for (int k = 0; k < 20000; ++k) {
+    // Mostly 0.1 degree of crank (rotations from the anchors), every 500th step a jump.
+    t += k % 500 == 499 ? jump(rng) : 2 * M_PI / 3600;
+    REQUIRE(Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), o, cache.data()).status ==
+            0);
+    REQUIRE(Model::solve_step(q2.data(), t, p, qd2.data(), qdd2.data(), o).status == 0);
+    for (int i = 0; i < Model::nq; ++i) {
+      worst = std::max(worst, std::abs(q[i] - q2[i]) / Model::length_scale);
+      worst = std::max(worst, std::abs(qd[i] - qd2[i]) / (1 + std::abs(qd2[i])));
+      worst = std::max(worst, std::abs(qdd[i] - qdd2[i]) / (1 + std::abs(qdd2[i])));
+    }
+    ++steps;
+  }
+  INFO(steps << " steps, worst relative difference " << worst);
+  CHECK(worst < 1e-13);
+  for (int s = 0; s < Model::trig_cache_size; s += 3) {
+    REQUIRE(std::isfinite(cache[s]));
+    CHECK(cache[s + 1] == std::sin(cache[s]));
+    CHECK(cache[s + 2] == std::cos(cache[s]));
+  }
+}
+
+TEST_CASE("the sin/cos cache gives the uncached solution and keeps exact anchors",
+          "[structure][trig]") {
+  check_trig_cache<kinegen::models::four_bar>();
+  check_trig_cache<kinegen::models::quick_return>();
+  check_trig_cache<kinegen::models::closed_chain_4>();
 }
