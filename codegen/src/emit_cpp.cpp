@@ -636,13 +636,13 @@ class BlockEmitter {
 
   int out(int k) const { return prog_.outputs[k]; }
 
-  // Runs of consecutive blocks of about max_ops operations each, for the parts of a split
-  // solver. Later blocks read earlier blocks' coordinates from q (qd, qdd), so a part needs
-  // nothing from the parts before it but memory; its terms are its own.
+  // Runs of consecutive blocks of about max_ops operations or max_part_outputs stores each,
+  // for the parts of a split solver. Later blocks read earlier blocks' coordinates from q (qd,
+  // qdd), so a part needs nothing from the parts before it but memory; its terms are its own.
   void split_blocks(int max_ops) {
     const int n = static_cast<int>(st_.plans.size());
     std::vector<int> part_of(prog_.nodes.size(), -1), stack;
-    int ops = 0, first = 0;
+    int ops = 0, first = 0, stores = 0;
     const auto count = [&](int output) {
       const int id = out(output);
       const int part = static_cast<int>(ranges_.size());
@@ -669,10 +669,13 @@ class BlockEmitter {
         for (const auto& [c, o] : row) count(o);
       for (int o : bo.nu) count(o);
       for (int o : bo.gamma) count(o);
-      if (ops >= max_ops || bi + 1 == n) {
+      // Stores count as in split_program: each coordinate is written to q, qd and qdd.
+      stores += 3 * static_cast<int>(st_.plans[bi].block.cols.size());
+      if (ops >= max_ops || stores >= max_part_outputs(max_ops) || bi + 1 == n) {
         ranges_.push_back({first, bi + 1});
         first = bi + 1;
         ops = 0;
+        stores = 0;
       }
     }
   }
