@@ -6,10 +6,13 @@
 #include <array>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <random>
+#include <regex>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "all_types.hpp"
 #include "all_types_split.hpp"
@@ -21,6 +24,7 @@
 #include "guarded_slider_split.hpp"
 #include "scissor_lift_3.hpp"
 #include "scissor_lift_3_split.hpp"
+#include "support/run_command.hpp"
 
 namespace {
 
@@ -140,4 +144,43 @@ TEST_CASE("split functions compute what the whole functions compute", "[split]")
   compare<closed_chain_4, closed_chain_4_split>("closed_chain_4");
   compare<all_types, all_types_split>("all_types");
   compare<guarded_slider, guarded_slider_split>("guarded_slider");
+}
+
+TEST_CASE("a part stores at most max_function_ops / 5 outputs", "[split]") {
+  // g++ -O2 compares each store with the earlier stores of its function, so parts are cut by
+  // their number of outputs too (docs/scale.md). fourbar_chain_3's phi_q has 32 operations but
+  // 51 outputs: with a threshold of 50 it is split by outputs alone, into parts of 10.
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "split_outputs";
+  fs::create_directories(dir);
+  const auto r = kinegen::test::run_command(
+      {KINEGEN_EXE, "generate",
+       std::string(KINEGEN_SOURCE_DIR) + "/tests/mechanisms/fourbar_chain_3.yaml", "-o",
+       dir.string(), "--quiet", "--max-function-ops", "50"});
+  REQUIRE(r.exit_code == 0);
+  const std::string text = read_text((dir / "fourbar_chain_3.hpp").string());
+  // Every function's parts: "// out[first..last]; K operations", then the public function's
+  // "// out[size]; K operations in P parts".
+  const std::regex part(R"(// out\[(\d+)\.\.(\d+)\]; (\d+) operations\n)");
+  std::vector<std::pair<int, int>> ranges;
+  int functions = 0;
+  const auto begin = std::sregex_iterator(text.begin(), text.end(), part);
+  for (auto it = begin; it != std::sregex_iterator(); ++it) {
+    const int first = std::stoi((*it)[1]), last = std::stoi((*it)[2]);
+    const int ops = std::stoi((*it)[3]);
+    INFO("part out[" << first << ".." << last << "]");
+    CHECK(last - first + 1 <= 10);
+    CHECK(ops <= 50 + 20);  // one output's terms are never split; none has 20 here
+    if (first == 0)
+      ++functions;
+    else
+      CHECK(first == ranges.back().second + 1);  // contiguous
+    ranges.push_back({first, last});
+  }
+  CHECK(functions == 4);  // phi, phi_q, nu and gamma are all split
+  std::smatch m;
+  REQUIRE(std::regex_search(text, m,
+                            std::regex(R"(// out\[jac_nnz\]; (\d+) operations in (\d+) parts)")));
+  CHECK(std::stoi(m[1]) <= 50);  // split for its outputs, not its operations
+  CHECK(std::stoi(m[2]) == 6);   // 51 outputs in parts of at most 10
 }

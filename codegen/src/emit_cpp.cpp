@@ -266,9 +266,17 @@ struct ProgramPart {
   Program program;
 };
 
+// At most max_ops / kOpsPerStore outputs per part. g++ -O2 checks each store to `out` against
+// the earlier stores of its function (value numbering looks for a redundant store, up to 1000
+// alias queries each), so the time per part grows with the square of its stores: a Jacobian
+// part of 1000 operations has about 1600 of them. See docs/scale.md.
+constexpr int kOpsPerStore = 5;
+int max_part_outputs(int max_ops) { return std::max(1, max_ops / kOpsPerStore); }
+
 // Splits `program` into parts of about max_ops operations each (a part ends with the output
-// that reaches max_ops; one output's terms are never split).
+// that reaches max_ops or max_part_outputs; one output's terms are never split).
 std::vector<ProgramPart> split_program(const Program& program, int max_ops) {
+  const std::size_t max_outputs = static_cast<std::size_t>(max_part_outputs(max_ops));
   std::vector<ProgramPart> parts;
   std::vector<int> part_of(program.nodes.size(), -1);
   std::vector<int> stack;
@@ -280,7 +288,7 @@ std::vector<ProgramPart> split_program(const Program& program, int max_ops) {
     std::vector<int> members;
     int ops = 0;
     std::vector<int> outs;
-    for (; o < program.outputs.size() && ops < max_ops; ++o) {
+    for (; o < program.outputs.size() && ops < max_ops && outs.size() < max_outputs; ++o) {
       const int id = program.outputs[o];
       outs.push_back(id);
       if (id == Program::kZero || part_of[id] == part) continue;
@@ -320,12 +328,15 @@ void emit_signature(std::ostringstream& os, const std::string& name, bool with_q
   os << "\n      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {\n";
 }
 
-// One function, or when the program has more than max_ops operations (max_ops > 0), private
-// parts that the function calls in order: g++ -O2 takes time superlinear in a function's size.
+// One function, or when the program has more than max_ops operations or max_part_outputs
+// outputs (max_ops > 0), private parts that the function calls in order: g++ -O2 takes time
+// superlinear in a function's size.
 void emit_function(std::ostringstream& os, const char* name, const char* out_size,
                    const Program& program, const SymbolTable& symbols, bool with_qd,
                    int max_ops) {
-  if (max_ops > 0 && program.operation_count() > max_ops) {
+  if (max_ops > 0 &&
+      (program.operation_count() > max_ops ||
+       static_cast<int>(program.outputs.size()) > max_part_outputs(max_ops))) {
     const std::vector<ProgramPart> parts = split_program(program, max_ops);
     os << " private:\n";
     for (std::size_t k = 0; k < parts.size(); ++k) {
@@ -752,13 +763,13 @@ class BlockEmitter {
 
   int out(int k) const { return prog_.outputs[k]; }
 
-  // Runs of consecutive blocks of about max_ops operations each, for the parts of a split
-  // solver. Later blocks read earlier blocks' coordinates from q (qd, qdd), so a part needs
-  // nothing from the parts before it but memory; its terms are its own.
+  // Runs of consecutive blocks of about max_ops operations or max_part_outputs stores each,
+  // for the parts of a split solver. Later blocks read earlier blocks' coordinates from q (qd,
+  // qdd), so a part needs nothing from the parts before it but memory; its terms are its own.
   void split_blocks(int max_ops) {
     const int n = static_cast<int>(st_.plans.size());
     std::vector<int> part_of(prog_.nodes.size(), -1), stack;
-    int ops = 0, first = 0;
+    int ops = 0, first = 0, stores = 0;
     const auto count = [&](int output) {
       const int id = out(output);
       const int part = static_cast<int>(ranges_.size());
@@ -786,10 +797,13 @@ class BlockEmitter {
         for (const auto& [c, o] : row) count(o);
       for (int o : bo.nu) count(o);
       for (int o : bo.gamma) count(o);
-      if (ops >= max_ops || bi + 1 == n) {
+      // Stores count as in split_program: each coordinate is written to q, qd and qdd.
+      stores += 3 * static_cast<int>(st_.plans[bi].block.cols.size());
+      if (ops >= max_ops || stores >= max_part_outputs(max_ops) || bi + 1 == n) {
         ranges_.push_back({first, bi + 1});
         first = bi + 1;
         ops = 0;
+        stores = 0;
       }
     }
   }
