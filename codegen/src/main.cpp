@@ -264,9 +264,9 @@ int main(int argc, char** argv) {
   int max_function_ops = kc::kDefaultMaxFunctionOps;
   generate
       ->add_option("--max-function-ops", max_function_ops,
-                   "Split generated functions with more operations than this into parts, for "
-                   "compile time (default " + std::to_string(kc::kDefaultMaxFunctionOps) +
-                       "; 0: never split)")
+                   "Split generated functions with more operations than this (or more outputs "
+                   "than a fifth of it) into parts, for compile time (default " +
+                       std::to_string(kc::kDefaultMaxFunctionOps) + "; 0: never split)")
       ->check(CLI::NonNegativeNumber);
 
   double t0 = 0, t1 = 0;
