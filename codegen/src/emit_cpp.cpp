@@ -943,19 +943,7 @@ class BlockEmitter {
       for (int o = 0; o < k; ++o) r.push_back(pr.text(out(f + o)));
       for (int o = k; o < n_out; ++o) a.push_back(pr.text(out(f + o)));
       os << in2 << "T _r[" << k << "] = {" << join(r) << "};\n";
-      if (k == 1) {
-        os << in2 << "const T _a = " << a[0] << ";\n"
-           << in2 << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << bi
-           << ", _it);\n"
-           << in2 << "_r[0] /= _a;\n";
-      } else {
-        os << in2 << "T _a[" << k * k << "] = {" << join(a) << "};\n"
-           << in2 << "int _piv[" << k << "];\n"
-           << in2 << "const double _ratio = _lu_factor<" << k << ">(_a, _piv);\n"
-           << in2 << "if (!(_ratio > o.singular_pivot_ratio))\n"
-           << in2 << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << bi << ", _it);\n"
-           << in2 << "_lu_solve<" << k << ">(_a, _piv, _r);\n";
-      }
+      newton_solve(os, in2, bi, k, a);
       os << in2 << "double _step = 0;\n";
       for (int i = 0; i < k; ++i) {
         const int c = b.cols[i];
@@ -974,6 +962,44 @@ class BlockEmitter {
       pr.close_scope();
       os << in << "}\n";
     }
+  }
+
+  // One Newton update inside an iteration: _r[] holds the residuals of a k x k system whose
+  // matrix is `a` (row-major texts); leaves the step in _r, or reports a singular block.
+  void newton_solve(std::ostringstream& os, const std::string& in, std::size_t bi, int k,
+                    const std::vector<std::string>& a) {
+    if (k == 1) {
+      os << in << "const T _a = " << a[0] << ";\n"
+         << in << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << bi
+         << ", _it);\n"
+         << in << "_r[0] /= _a;\n";
+      return;
+    }
+    os << in << "T _a[" << k * k << "] = {" << join(a) << "};\n"
+       << in << "int _piv[" << k << "];\n"
+       << in << "const double _ratio = _lu_factor<" << k << ">(_a, _piv);\n"
+       << in << "if (!(_ratio > o.singular_pivot_ratio))\n"
+       << in << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << bi << ", _it);\n"
+       << in << "_lu_solve<" << k << ">(_a, _piv, _r);\n";
+  }
+
+  // Block bi's k x k matrix `a` for the rates, kept as _a<bi> (k = 1: the divisor) or factored
+  // into _a<bi>/_piv<bi>; reports a singular block.
+  void factor(std::ostringstream& os, std::size_t bi, int k, const std::vector<std::string>& a) {
+    const std::string in = kIn, b = idx(static_cast<int>(bi));
+    if (k == 1) {
+      os << in << "const T _a" << b << " = " << a[0] << ";\n"
+         << in << "if (!(_mag(_a" << b << ") > 0)) return _fail(report, _mag(_a" << b
+         << ") == 0 ? 2 : 3, " << bi << ");\n";
+      return;
+    }
+    os << in << "T _a" << b << "[" << k * k << "] = {" << join(a) << "};\n"
+       << in << "int _piv" << b << "[" << k << "];\n"
+       << in << "const double _ratio" << b << " = _lu_factor<" << k << ">(_a" << b << ", _piv"
+       << b << ");\n"
+       << in << "if (!(_ratio" << b << " > o.singular_pivot_ratio))\n"
+       << in << "  return _fail(report, _ratio" << b << " == _ratio" << b << " ? 2 : 3, " << bi
+       << ");\n";
   }
 
   // sin and cos of the block's angles: evaluated once at the start, then rotated by each
@@ -1127,20 +1153,7 @@ class BlockEmitter {
       r.push_back(pr.text(out(f + n_assigned + i)));
     }
     os << in2 << "T _r[" << m << "] = {" << join(r) << "};\n";
-    const std::vector<std::string> a = schur(os, pr, bi, pos_tjac_[bi], in2, "_d");
-    if (m == 1) {
-      os << in2 << "const T _a = " << a[0] << ";\n"
-         << in2 << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << bi
-         << ", _it);\n"
-         << in2 << "_r[0] /= _a;\n";
-    } else {
-      os << in2 << "T _a[" << m * m << "] = {" << join(a) << "};\n"
-         << in2 << "int _piv[" << m << "];\n"
-         << in2 << "const double _ratio = _lu_factor<" << m << ">(_a, _piv);\n"
-         << in2 << "if (!(_ratio > o.singular_pivot_ratio))\n"
-         << in2 << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << bi << ", _it);\n"
-         << in2 << "_lu_solve<" << m << ">(_a, _piv, _r);\n";
-    }
+    newton_solve(os, in2, bi, m, schur(os, pr, bi, pos_tjac_[bi], in2, "_d"));
     os << in2 << "_step" << b << " = 0;\n";
     for (int i = 0; i < m; ++i) {
       const int c = plan.tears[i];
@@ -1169,20 +1182,7 @@ class BlockEmitter {
       os << in << "// Block " << bi << ": " << block_comment(st_.plans[bi].block, "") << "\n";
       if (st_.plans[bi].torn()) {
         const int m = static_cast<int>(st_.plans[bi].tears.size());
-        const std::vector<std::string> a = schur(os, pr, bi, bo.tjac, in, "_D" + b + "_");
-        if (m == 1) {
-          os << in << "const T _a" << b << " = " << a[0] << ";\n"
-             << in << "if (!(_mag(_a" << b << ") > 0)) return _fail(report, _mag(_a" << b
-             << ") == 0 ? 2 : 3, " << bi << ");\n";
-        } else {
-          os << in << "T _a" << b << "[" << m * m << "] = {" << join(a) << "};\n"
-             << in << "int _piv" << b << "[" << m << "];\n"
-             << in << "const double _ratio" << b << " = _lu_factor<" << m << ">(_a" << b
-             << ", _piv" << b << ");\n"
-             << in << "if (!(_ratio" << b << " > o.singular_pivot_ratio))\n"
-             << in << "  return _fail(report, _ratio" << b << " == _ratio" << b << " ? 2 : 3, "
-             << bi << ");\n";
-        }
+        factor(os, bi, m, schur(os, pr, bi, bo.tjac, in, "_D" + b + "_"));
         if (velocity) solve_rows(os, pr, bi, bo.nu, "qd");
         continue;
       }
@@ -1193,21 +1193,13 @@ class BlockEmitter {
         if (n.kind == OpKind::kConst) {
           divisor_[bi] = n.value == 1 ? "" : pr.atom_text(id);
         } else {
-          os << in << "const T _a" << b << " = " << pr.text(id) << ";\n"
-             << in << "if (!(_mag(_a" << b << ") > 0)) return _fail(report, _mag(_a" << b
-             << ") == 0 ? 2 : 3, " << bi << ");\n";
+          factor(os, bi, 1, {pr.text(id)});
           divisor_[bi] = "_a" + b;
         }
       } else {
         std::vector<std::string> a;
         for (int id : bo.jbb) a.push_back(pr.text(out(id)));
-        os << in << "T _a" << b << "[" << k * k << "] = {" << join(a) << "};\n"
-           << in << "int _piv" << b << "[" << k << "];\n"
-           << in << "const double _ratio" << b << " = _lu_factor<" << k << ">(_a" << b << ", _piv"
-           << b << ");\n"
-           << in << "if (!(_ratio" << b << " > o.singular_pivot_ratio))\n"
-           << in << "  return _fail(report, _ratio" << b << " == _ratio" << b << " ? 2 : 3, " << bi
-           << ");\n";
+        factor(os, bi, k, a);
       }
       if (velocity) solve_rows(os, pr, bi, bo.nu, "qd");
     }
