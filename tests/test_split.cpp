@@ -19,10 +19,14 @@
 #include "closed_chain_4.hpp"
 #include "closed_chain_4_split.hpp"
 #include "fourbar_chain_3.hpp"
+#include "fourbar_chain_3_rolled.hpp"
+#include "fourbar_chain_3_rolled_split.hpp"
 #include "fourbar_chain_3_split.hpp"
 #include "guarded_slider.hpp"
 #include "guarded_slider_split.hpp"
 #include "scissor_lift_3.hpp"
+#include "scissor_lift_3_rolled.hpp"
+#include "scissor_lift_3_rolled_split.hpp"
 #include "scissor_lift_3_split.hpp"
 #include "support/run_command.hpp"
 
@@ -56,15 +60,18 @@ void check_reports(const RW& a, const RS& b) {
   CHECK(a.total_iterations == b.total_iterations);
 }
 
+// Split: the header <name>_<variant>.hpp, which must contain each of `markers` (it really is
+// split, or rolled: the comparison would pass trivially otherwise).
 template <class Whole, class Split>
-void compare(const std::string& name) {
+void compare(const std::string& name, const std::string& variant = "split",
+             const std::vector<std::string>& markers = {"_part1("}) {
   static_assert(Whole::nq == Split::nq && Whole::nc == Split::nc &&
                 Whole::jac_nnz == Split::jac_nnz);
   constexpr int nq = Whole::nq, nc = Whole::nc, n_out = nc + Whole::jac_nnz + 1;
-  INFO(name);
-  // The split header really is split (the comparison would pass trivially otherwise).
-  const std::string text = read_text(std::string(KINEGEN_SPLIT_DIR) + "/" + name + "_split.hpp");
-  CHECK(text.find("_part1(") != std::string::npos);
+  INFO(name << "_" << variant);
+  const std::string text =
+      read_text(std::string(KINEGEN_SPLIT_DIR) + "/" + name + "_" + variant + ".hpp");
+  for (const std::string& marker : markers) CHECK(text.find(marker) != std::string::npos);
 
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(-1, 1);
@@ -125,6 +132,18 @@ void compare(const std::string& name) {
         check_close(va, vb, nq, "solve_step qd");
         check_close(aa, ab, nq, "solve_step qdd");
       }
+      // And with the sin/cos cache (the split and rolled rates read it too), over steps
+      // small enough for rotations and one large enough to move the anchors.
+      std::array<double, Split::trig_cache_size> trig{};
+      trig.fill(std::nan(""));
+      for (int step = 1; step <= 4; ++step) {
+        const double ti = ts + 0.03 + (step == 3 ? 0.5 : 0.01 * step);
+        check_reports(Whole::solve_step(qa.data(), ti, pw, va.data(), aa.data(), ow),
+                      Split::solve_step(qb.data(), ti, ps, vb.data(), ab.data(), os, trig.data()));
+        check_close(qa, qb, nq, "solve_step q, trig cache");
+        check_close(va, vb, nq, "solve_step qd, trig cache");
+        check_close(aa, ab, nq, "solve_step qdd, trig cache");
+      }
     }
   }
 }
@@ -144,6 +163,21 @@ TEST_CASE("split functions compute what the whole functions compute", "[split]")
   compare<closed_chain_4, closed_chain_4_split>("closed_chain_4");
   compare<all_types, all_types_split>("all_types");
   compare<guarded_slider, guarded_slider_split>("guarded_slider");
+}
+
+TEST_CASE("repeated blocks emitted once compute what the whole block solver computes",
+          "[split][roll]") {
+  // --roll-min 2: the chains' alike Newton blocks (the 2 x 2 loops of the four-bar chain, the
+  // torn 6 x 6 stages of the scissor lift) are one function each, called with coordinate
+  // tables; alone and in split headers.
+  compare<fourbar_chain_3, fourbar_chain_3_rolled>("fourbar_chain_3", "rolled",
+                                                   {"_roll0_position(", "_roll0_i[3]["});
+  compare<fourbar_chain_3, fourbar_chain_3_rolled_split>(
+      "fourbar_chain_3", "rolled_split", {"_roll0_position(", "_part1("});
+  compare<scissor_lift_3, scissor_lift_3_rolled>("scissor_lift_3", "rolled",
+                                                 {"_roll0_position("});
+  compare<scissor_lift_3, scissor_lift_3_rolled_split>("scissor_lift_3", "rolled_split",
+                                                       {"_roll0_position(", "_part1("});
 }
 
 TEST_CASE("a part stores at most max_function_ops / 5 outputs", "[split]") {

@@ -6,6 +6,8 @@
 #include <cstdlib>
 #include <functional>
 #include <map>
+#include <memory>
+#include <set>
 #include <sstream>
 
 #include "kinegen/codegen/structure.hpp"
@@ -87,6 +89,10 @@ class FunctionPrinter {
   }
   // Names `id` (a named term) by a variable the caller declares and keeps up to date.
   void bind(int id, const std::string& name) { names_[id] = name; }
+  // Coordinates read through a table (a repeated block's function): q[c] prints as
+  // q[_i[slot[c]]], and likewise qd.
+  void read_through(const std::vector<int>* slot) { slot_ = slot; }
+  bool named(int id) const { return !names_[id].empty(); }
   // The text of a node whose named terms are in scope.
   std::string text(int id) { return id == Program::kZero ? "T(0)" : print(id).text; }
   std::string atom_text(int id) { return id == Program::kZero ? "T(0)" : atom(id); }
@@ -113,10 +119,14 @@ class FunctionPrinter {
     return {"T(" + format_double(n.value) + ")", kAtom};
   }
 
+  std::string index(int c) const {
+    return slot_ ? "_i[" + std::to_string((*slot_)[c]) + "]" : std::to_string(c);
+  }
+
   Printed input(const Node& n) {
     switch (n.input.kind) {
-      case InputKind::kQ: return {"q[" + std::to_string(n.input.index) + "]", kAtom};
-      case InputKind::kQd: return {"qd[" + std::to_string(n.input.index) + "]", kAtom};
+      case InputKind::kQ: return {"q[" + index(n.input.index) + "]", kAtom};
+      case InputKind::kQd: return {"qd[" + index(n.input.index) + "]", kAtom};
       case InputKind::kT: return {"t", kAtom};
       case InputKind::kParam: return {"T(p." + symbols_.param_name(n.input.index) + ")", kAtom};
     }
@@ -228,6 +238,7 @@ class FunctionPrinter {
   std::vector<std::string> names_;
   int next_ = 0;
   std::vector<std::vector<int>> scopes_;
+  const std::vector<int>* slot_ = nullptr;
 };
 
 template <class Container>
@@ -566,7 +577,7 @@ std::vector<int> node_levels(const Program& prog, const BltOrder& order) {
 class BlockEmitter {
  public:
   BlockEmitter(const SymbolicModel& model, const SymbolTable& symbols, const Structure& st,
-               int max_ops)
+               int max_ops, int roll_min = 0)
       : symbols_(symbols), st_(st) {
     std::map<std::pair<int, int>, GiNaC::ex> jac;
     for (const auto& e : model.phi_q) jac[{e.row, e.col}] = e.value;
@@ -655,10 +666,51 @@ class BlockEmitter {
     for (int k = static_cast<int>(prog_.nodes.size()) - 1; k >= 0; --k)
       if (in_position_[k])
         for (int a : prog_.nodes[k].args) in_position_[a] = 1;
+    outs_ = std::move(outs);
+    roll_of_.assign(st.plans.size(), -1);
+    roll_member_.assign(st.plans.size(), -1);
+    if (roll_min > 0) find_rolls(model, roll_min);
+    lazy_trig_ = !rolls_.empty();
     if (max_ops > 0 && prog_.operation_count() > max_ops) split_blocks(max_ops);
   }
 
   int trig_cache_size() const { return 3 * trig_slots_; }
+  int repeated_block_functions() const { return static_cast<int>(rolls_.size()); }
+
+  // The functions of the repeated blocks and their coordinate tables (private members).
+  void emit_rolls(std::ostringstream& os, bool velocity, bool acceleration) {
+    if (rolls_.empty()) return;
+    os << "\n private:\n";
+    const auto table = [&](const std::string& name, const std::vector<std::vector<int>>& rows) {
+      os << "  static constexpr int " << name << "[" << rows.size() << "][" << rows[0].size()
+         << "] = {\n";
+      for (const auto& row : rows) {
+        std::vector<std::string> v;
+        for (int x : row) v.push_back(idx(x));
+        os << "      {" << join(v) << "},\n";
+      }
+      os << "  };\n";
+    };
+    for (std::size_t g = 0; g < rolls_.size(); ++g) {
+      const Roll& r = rolls_[g];
+      const std::string name = "_roll" + idx(static_cast<int>(g));
+      os << "\n  // Repeated blocks (" << r.blocks.size() << ", the first is block " << r.blocks[0]
+         << "): alike up to the coordinates\n"
+         << "  // they read, so each calls the functions below with its row of " << name << "_i\n"
+         << "  // (its own coordinates, then the others it reads)"
+         << (r.slots[0].empty() ? "" : " and of " + name + "_s (its sin/cos\n  // cache slots)")
+         << ".\n";
+      table(name + "_i", r.coords);
+      if (!r.slots[0].empty()) table(name + "_s", r.slots);
+      r.emitter->emit_rolled_position(os, name);
+      if (velocity) r.emitter->emit_rolled_motion(os, name, true, false);
+      if (acceleration) {
+        r.emitter->emit_rolled_motion(os, name, false, true);
+        r.emitter->emit_rolled_motion(os, name, true, true);
+      }
+    }
+    os << "\n public:\n";
+  }
 
   void emit_position(std::ostringstream& os) {
     os << "  // Position: each block in turn, explicit or by Newton on the block alone; q holds\n"
@@ -708,7 +760,8 @@ class BlockEmitter {
     if (!ranges_.empty()) {
       const std::string name = motion_name(velocity, acceleration);
       os << kIn << "BlockReport report;\n";
-      call_parts(os, "_" + name + "_part", motion_args(velocity, acceleration, false));
+      call_parts(os, "_" + name + "_part",
+                 motion_args(velocity, acceleration, false) + ", static_cast<T*>(nullptr)");
       if (velocity) finite_check(os, "qd");
       if (acceleration) finite_check(os, "qdd");
       os << kIn << "return report;\n  }\n";
@@ -735,7 +788,8 @@ class BlockEmitter {
       os << kIn << "BlockReport report;\n";
       call_parts(os, "_solve_position_part", "q, t, p, o, report, trig");
       finite_check(os, "q");
-      call_parts(os, "_solve_velocity_acceleration_part", motion_args(true, true, false));
+      call_parts(os, "_solve_velocity_acceleration_part",
+                 motion_args(true, true, false) + ", trig");
       finite_check(os, "qd");
       finite_check(os, "qdd");
       os << kIn << "return report;\n  }\n";
@@ -748,7 +802,9 @@ class BlockEmitter {
     position_body(os, pr, 0, n);
     step_mode_ = false;
     finite_check(os, "q");
+    motion_trig_ = true;
     motion_body(os, pr, true, true, 0, n, true);
+    motion_trig_ = false;
     os << kIn << "return report;\n  }\n";
   }
 
@@ -760,8 +816,201 @@ class BlockEmitter {
     std::vector<int> nu, gamma;                               // per row
   };
   static constexpr const char* kIn = "    ";
+  // Repeated blocks emitted once (find_rolls).
+  struct Roll {
+    std::unique_ptr<Structure> st;          // the first block alone
+    std::unique_ptr<BlockEmitter> emitter;  // its functions, reading coordinates through _i
+    std::vector<int> blocks;                // the blocks, ascending
+    std::vector<std::vector<int>> coords;   // per block: its coordinate table
+    std::vector<std::vector<int>> slots;    // per block: its trig cache slots
+  };
 
   int out(int k) const { return prog_.outputs[k]; }
+
+  // q[c] (or qd, qdd) as the function being emitted names it: through the coordinate table in
+  // a repeated block's function.
+  std::string ref(const std::string& var, int c) const {
+    return var + "[" + (local_.empty() ? idx(c) : "_i[" + idx(local_[c]) + "]") + "]";
+  }
+  // A repeated block's function prints the first block's coordinates (its comments' q[c] are
+  // those of the first block; the code reads q[_i[k]]).
+  std::string block_label(std::size_t bi) const {
+    return "Block " + idx(local_.empty() ? static_cast<int>(bi) : first_block_) +
+           (local_.empty() ? "" : " and the blocks alike");
+  }
+  std::string block_id(std::size_t bi) const {
+    return local_.empty() ? idx(static_cast<int>(bi)) : "_b";
+  }
+
+  // Every output block bi's functions read.
+  std::vector<int> block_outputs(std::size_t bi) const {
+    std::vector<int> ids;
+    const int end = bi + 1 < st_.plans.size() ? pos_first_[bi + 1] : pos_end_;
+    for (int o = pos_first_[bi]; o < end; ++o) ids.push_back(o);
+    const BlockOuts& bo = blocks_[bi];
+    ids.insert(ids.end(), bo.jbb.begin(), bo.jbb.end());
+    for (const auto& [rc, o] : bo.tjac) ids.push_back(o);
+    for (const auto& row : bo.coupling)
+      for (const auto& [c, o] : row) ids.push_back(o);
+    ids.insert(ids.end(), bo.nu.begin(), bo.nu.end());
+    ids.insert(ids.end(), bo.gamma.begin(), bo.gamma.end());
+    return ids;
+  }
+
+  // Newton blocks that are the same up to a renaming of the coordinates they read. A block's
+  // coordinate table lists its own coordinates (in order), then the others it reads (its
+  // expressions' q and qd, and the coordinates its rows couple to), ascending. Two blocks are
+  // alike when, with the k-th coordinate of each table renamed to the model's k-th (q and qd
+  // alike), their structure and every expression agree exactly. Classes of at least roll_min
+  // blocks are emitted once.
+  void find_rolls(const SymbolicModel& model, int roll_min) {
+    const int nb = static_cast<int>(st_.plans.size());
+    const int nq = static_cast<int>(st_.order.col_block.size());
+    std::map<std::string, std::vector<int>> groups;
+    std::vector<std::vector<int>> coords(nb);
+    std::vector<std::vector<GiNaC::ex>> renamed(nb);
+    for (int bi = 0; bi < nb; ++bi) {
+      const BlockPlan& plan = st_.plans[bi];
+      if (plan.kind != BlockKind::kNewton) continue;
+      const Block& b = plan.block;
+      const std::vector<int> ids = block_outputs(bi);
+      std::set<int> read;
+      for (int id : ids)
+        for (auto it = outs_[id].preorder_begin(); it != outs_[id].preorder_end(); ++it)
+          if (GiNaC::is_a<GiNaC::symbol>(*it)) {
+            const Input in = symbols_.classify(*it);
+            if (in.kind == InputKind::kQ || in.kind == InputKind::kQd) read.insert(in.index);
+          }
+      for (const auto& row : blocks_[bi].coupling)
+        for (const auto& [c, o] : row) read.insert(c);
+      std::vector<int> list = b.cols;
+      for (int c : read)
+        if (!std::binary_search(b.cols.begin(), b.cols.end(), c)) list.push_back(c);
+      std::map<int, int> slot;
+      GiNaC::exmap rename;
+      for (std::size_t j = 0; j < list.size(); ++j) {
+        slot[list[j]] = static_cast<int>(j);
+        rename[symbols_.q(list[j])] = symbols_.q(static_cast<int>(j));
+        rename[symbols_.qd(list[j])] = symbols_.qd(static_cast<int>(j));
+      }
+      const auto row_of = [&](int r) {
+        return std::lower_bound(b.rows.begin(), b.rows.end(), r) - b.rows.begin();
+      };
+      std::ostringstream key;
+      key << b.rows.size() << " " << list.size() << " t";
+      for (int c : plan.tears) key << " " << slot.at(c);
+      key << " r";
+      for (int r : plan.residuals) key << " " << row_of(r);
+      key << " a";
+      for (const auto& [r, c] : plan.assigned) key << " " << row_of(r) << ":" << slot.at(c);
+      key << " j";
+      for (const auto& [rc, o] : pos_tjac_[bi]) key << " " << row_of(rc.first) << ":" << slot.at(rc.second);
+      key << " c";
+      for (const auto& row : blocks_[bi].coupling) {
+        for (const auto& [c, o] : row) key << " " << slot.at(c);
+        key << " |";
+      }
+      key << " e";
+      for (int id : ids) {
+        renamed[bi].push_back(outs_[id].subs(rename));
+        key << " " << renamed[bi].back() << ";";
+      }
+      coords[bi] = list;
+      groups[key.str()].push_back(bi);
+    }
+    for (const auto& [key, members] : groups) {
+      if (static_cast<int>(members.size()) < roll_min) continue;
+      Roll r;
+      const int first = members[0];
+      // The key printed the expressions; equal text should mean equal expressions, but names
+      // could coincide, so compare exactly.
+      std::vector<int> alike;
+      for (int bi : members) {
+        bool same = renamed[bi].size() == renamed[first].size();
+        for (std::size_t k = 0; same && k < renamed[bi].size(); ++k)
+          same = renamed[bi][k].is_equal(renamed[first][k]);
+        if (same) alike.push_back(bi);
+      }
+      if (static_cast<int>(alike.size()) < roll_min) continue;
+      r.st = std::make_unique<Structure>();
+      Structure& sub = *r.st;
+      sub.order.perfect = true;
+      sub.order.blocks = {st_.plans[first].block};
+      sub.order.col_block.assign(nq, -1);
+      sub.order.row_block.assign(st_.order.row_block.size(), -1);
+      for (int c : st_.plans[first].block.cols) sub.order.col_block[c] = 0;
+      for (int row : st_.plans[first].block.rows) sub.order.row_block[row] = 0;
+      sub.plans = {st_.plans[first]};
+      r.emitter = std::make_unique<BlockEmitter>(model, symbols_, sub, 0, 0);
+      BlockEmitter& e = *r.emitter;
+      e.local_.assign(nq, -1);
+      e.first_block_ = first;
+      for (std::size_t j = 0; j < coords[first].size(); ++j)
+        e.local_[coords[first][j]] = static_cast<int>(j);
+      // The trig cache slots of each block's coordinates, in the order of e's slots.
+      std::vector<int> by_slot(e.trig_slots_, -1);
+      for (int c = 0; c < nq; ++c)
+        if (e.trig_slot_[c] >= 0) by_slot[e.trig_slot_[c]] = e.local_[c];
+      for (int bi : alike) {
+        std::vector<int> slots;
+        bool ok = true;
+        for (int j : by_slot) {
+          const int s = j < 0 ? -1 : trig_slot_[coords[bi][j]];
+          ok = ok && s >= 0;
+          slots.push_back(s);
+        }
+        if (!ok) continue;
+        roll_of_[bi] = static_cast<int>(rolls_.size());
+        roll_member_[bi] = static_cast<int>(r.blocks.size());
+        r.blocks.push_back(bi);
+        r.coords.push_back(coords[bi]);
+        r.slots.push_back(slots);
+      }
+      if (r.blocks.empty()) continue;
+      rolls_.push_back(std::move(r));
+    }
+  }
+
+  void emit_rolled_position(std::ostringstream& os, const std::string& name) {
+    os << "  template <class T>\n"
+       << "  static BlockReport " << name << "_position(T* q, [[maybe_unused]] T t,\n"
+       << "      [[maybe_unused]] const Params& p, [[maybe_unused]] const BlockOptions& o,\n"
+       << "      BlockReport report, [[maybe_unused]] T* trig, const int* _i,\n"
+       << "      [[maybe_unused]] const int* _s, [[maybe_unused]] int _b) noexcept {\n";
+    if (const std::string used = std_functions(prog_); !used.empty())
+      os << kIn << "using " << used << ";\n";
+    FunctionPrinter pr(prog_, symbols_);
+    pr.read_through(&local_);
+    position_body(os, pr, 0, 1);
+    os << kIn << "return report;\n  }\n";
+  }
+
+  void emit_rolled_motion(std::ostringstream& os, const std::string& name, bool velocity,
+                          bool acceleration) {
+    os << "  template <class T>\n"
+       << "  static BlockReport " << name << "_" << motion_name(velocity, acceleration) << "("
+       << motion_args(velocity, acceleration, true) << ",\n"
+       << "      [[maybe_unused]] T* trig, const int* _i, [[maybe_unused]] const int* _s,\n"
+       << "      [[maybe_unused]] int _b) noexcept {\n";
+    if (const std::string used = std_functions(prog_); !used.empty())
+      os << kIn << "using " << used << ";\n";
+    FunctionPrinter pr(prog_, symbols_);
+    pr.read_through(&local_);
+    motion_trig_ = true;
+    motion_body(os, pr, velocity, acceleration, 0, 1, false);
+    os << kIn << "return report;\n  }\n";
+  }
+
+  // A repeated block's call (its functions report failures with the block's index).
+  void call_rolled(std::ostringstream& os, std::size_t bi, const std::string& function,
+                   const std::string& args, bool slots) {
+    const int g = roll_of_[bi], m = roll_member_[bi];
+    const std::string name = "_roll" + idx(g);
+    os << kIn << "report = " << name << "_" << function << "(" << args << ", " << name << "_i["
+       << m << "], ";
+    if (slots) os << (rolls_[g].slots[0].empty() ? "nullptr" : name + "_s[" + idx(m) + "]") << ", ";
+    os << bi << ");\n" << kIn << "if (report.status != 0) return report;\n";
+  }
 
   // Runs of consecutive blocks of about max_ops operations or max_part_outputs stores each,
   // for the parts of a split solver. Later blocks read earlier blocks' coordinates from q (qd,
@@ -788,17 +1037,23 @@ class BlockEmitter {
       }
     };
     for (int bi = 0; bi < n; ++bi) {
-      const int end = bi + 1 < n ? pos_first_[bi + 1] : static_cast<int>(prog_.outputs.size());
-      for (int o = pos_first_[bi]; o < end && o < pos_end(); ++o) count(o);
-      const BlockOuts& bo = blocks_[bi];
-      for (int o : bo.jbb) count(o);
-      for (const auto& [rc, o] : bo.tjac) count(o);
-      for (const auto& row : bo.coupling)
-        for (const auto& [c, o] : row) count(o);
-      for (int o : bo.nu) count(o);
-      for (int o : bo.gamma) count(o);
-      // Stores count as in split_program: each coordinate is written to q, qd and qdd.
-      stores += 3 * static_cast<int>(st_.plans[bi].block.cols.size());
+      if (roll_of_[bi] >= 0) {  // a call: a few statements, one store of the report
+        ops += 4;
+        stores += 1;
+      } else {
+        const int end =
+            bi + 1 < n ? pos_first_[bi + 1] : static_cast<int>(prog_.outputs.size());
+        for (int o = pos_first_[bi]; o < end && o < pos_end(); ++o) count(o);
+        const BlockOuts& bo = blocks_[bi];
+        for (int o : bo.jbb) count(o);
+        for (const auto& [rc, o] : bo.tjac) count(o);
+        for (const auto& row : bo.coupling)
+          for (const auto& [c, o] : row) count(o);
+        for (int o : bo.nu) count(o);
+        for (int o : bo.gamma) count(o);
+        // Stores count as in split_program: each coordinate is written to q, qd and qdd.
+        stores += 3 * static_cast<int>(st_.plans[bi].block.cols.size());
+      }
       if (ops >= max_ops || stores >= max_part_outputs(max_ops) || bi + 1 == n) {
         ranges_.push_back({first, bi + 1});
         first = bi + 1;
@@ -871,9 +1126,11 @@ class BlockEmitter {
     os << "\n private:\n";
     for (std::size_t k = 0; k < ranges_.size(); ++k) {
       part_header(os, "_" + motion_name(velocity, acceleration), k,
-                  motion_args(velocity, acceleration, true));
+                  motion_args(velocity, acceleration, true) + ",\n      [[maybe_unused]] T* trig");
       FunctionPrinter pr(prog_, symbols_);
+      motion_trig_ = true;
       motion_body(os, pr, velocity, acceleration, ranges_[k].first, ranges_[k].second, false);
+      motion_trig_ = false;
       os << kIn << "return report;\n  }\n";
     }
     os << "\n public:\n";
@@ -900,7 +1157,12 @@ class BlockEmitter {
       const Block& b = plan.block;
       const int f = pos_first_[bi];
       const int k = static_cast<int>(b.rows.size());
-      os << in << "// Block " << bi << ": " << block_comment(b, to_string(plan.kind)) << "\n";
+      os << in << "// " << block_label(bi) << ": " << block_comment(b, to_string(plan.kind))
+         << "\n";
+      if (roll_of_[bi] >= 0) {
+        call_rolled(os, bi, "position", "q, t, p, o, report, trig", true);
+        continue;
+      }
       if (plan.torn()) {
         std::vector<std::string> tears;
         for (int c : plan.tears) tears.push_back("q[" + idx(c) + "]");
@@ -908,29 +1170,39 @@ class BlockEmitter {
            << " coordinates assigned in order from them, " << plan.residuals.size()
            << " residual rows.\n";
       }
+      const int n_out = (bi + 1 < st_.plans.size() ? pos_first_[bi + 1] : pos_end_) - f;
+      std::vector<int> outputs(n_out);
+      for (int o = 0; o < n_out; ++o) outputs[o] = f + o;
       if (plan.kind == BlockKind::kExplicit) {
+        if (lazy_trig_) declare_needed_trig(os, pr, outputs);
         pr.ensure(out(f), os, in);
-        os << in << "q[" << b.cols[0] << "] = " << pr.text(out(f)) << ";\n";
+        os << in << ref("q", b.cols[0]) << " = " << pr.text(out(f)) << ";\n";
         declare_trig(os, pr, b.cols[0], false);
         continue;
       }
       if (plan.kind == BlockKind::kExplicitGuarded) {
+        if (lazy_trig_) declare_needed_trig(os, pr, outputs);
         pr.ensure(out(f), os, in);
         pr.ensure(out(f + 1), os, in);
         os << in << "{\n"
            << in << "  const T _c = " << pr.text(out(f)) << ";\n"
-           << in << "  if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? 2 : 3, " << bi
+           << in << "  if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? 2 : 3, " << block_id(bi)
            << ");\n"
-           << in << "  q[" << b.cols[0] << "] = -(" << pr.text(out(f + 1)) << ") / _c;\n"
+           << in << "  " << ref("q", b.cols[0]) << " = -(" << pr.text(out(f + 1)) << ") / _c;\n"
            << in << "}\n";
         declare_trig(os, pr, b.cols[0], false);
         continue;
       }
-      const int n_out = (bi + 1 < st_.plans.size() ? pos_first_[bi + 1] : pos_end_) - f;
-      // Terms that do not read the block's own coordinates are computed once, before the loop.
+      // Terms that do not read the block's own coordinates are computed once, before the loop
+      // (with lazy sin and cos: after the block's own, so that the search skips those).
+      std::vector<int> rotated;
+      if (lazy_trig_) {
+        rotated = declare_rotations(os, pr, b);
+        declare_needed_trig(os, pr, outputs);
+      }
       for (int o = 0; o < n_out; ++o)
         pr.ensure(out(f + o), os, in, [&](int id) { return level_[id] < static_cast<int>(bi); });
-      const std::vector<int> rotated = declare_rotations(os, pr, b);
+      if (!lazy_trig_) rotated = declare_rotations(os, pr, b);
       if (plan.torn()) {
         torn_position(os, pr, bi, rotated);
         continue;
@@ -947,17 +1219,17 @@ class BlockEmitter {
       os << in2 << "double _step = 0;\n";
       for (int i = 0; i < k; ++i) {
         const int c = b.cols[i];
-        update(os, in2, rotated, c, "q[" + idx(c) + "] - _r[" + idx(i) + "]");
+        update(os, in2, rotated, c, ref("q", c) + " - _r[" + idx(i) + "]");
         os << in2 << "_step = std::max(_step, _mag(_r[" << i << "])"
            << (c % 3 == 2 ? "" : " * inv_length") << ");\n";
       }
-      os << in2 << "if (!(_step <= 1e300)) return _fail(report, 3, " << bi << ", _it);\n"
+      os << in2 << "if (!(_step <= 1e300)) return _fail(report, 3, " << block_id(bi) << ", _it);\n"
          << in2
          << "if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {\n"
          << in2 << "  _done(report, _it, _step);\n"
          << in2 << "  break;\n"
          << in2 << "}\n"
-         << in2 << "if (_it >= o.max_iterations) return _fail(report, 1, " << bi
+         << in2 << "if (_it >= o.max_iterations) return _fail(report, 1, " << block_id(bi)
          << ", _it, _step);\n";
       pr.close_scope();
       os << in << "}\n";
@@ -970,7 +1242,7 @@ class BlockEmitter {
                     const std::vector<std::string>& a) {
     if (k == 1) {
       os << in << "const T _a = " << a[0] << ";\n"
-         << in << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << bi
+         << in << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << block_id(bi)
          << ", _it);\n"
          << in << "_r[0] /= _a;\n";
       return;
@@ -979,7 +1251,7 @@ class BlockEmitter {
        << in << "int _piv[" << k << "];\n"
        << in << "const double _ratio = _lu_factor<" << k << ">(_a, _piv);\n"
        << in << "if (!(_ratio > o.singular_pivot_ratio))\n"
-       << in << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << bi << ", _it);\n"
+       << in << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << block_id(bi) << ", _it);\n"
        << in << "_lu_solve<" << k << ">(_a, _piv, _r);\n";
   }
 
@@ -990,7 +1262,7 @@ class BlockEmitter {
     if (k == 1) {
       os << in << "const T _a" << b << " = " << a[0] << ";\n"
          << in << "if (!(_mag(_a" << b << ") > 0)) return _fail(report, _mag(_a" << b
-         << ") == 0 ? 2 : 3, " << bi << ");\n";
+         << ") == 0 ? 2 : 3, " << block_id(bi) << ");\n";
       return;
     }
     os << in << "T _a" << b << "[" << k * k << "] = {" << join(a) << "};\n"
@@ -998,7 +1270,7 @@ class BlockEmitter {
        << in << "const double _ratio" << b << " = _lu_factor<" << k << ">(_a" << b << ", _piv"
        << b << ");\n"
        << in << "if (!(_ratio" << b << " > o.singular_pivot_ratio))\n"
-       << in << "  return _fail(report, _ratio" << b << " == _ratio" << b << " ? 2 : 3, " << bi
+       << in << "  return _fail(report, _ratio" << b << " == _ratio" << b << " ? 2 : 3, " << block_id(bi)
        << ");\n";
   }
 
@@ -1021,18 +1293,56 @@ class BlockEmitter {
     if (!always && !needed(sin_of_[c]) && !needed(cos_of_[c])) return false;
     const std::string s = "_sin" + idx(c), co = "_cos" + idx(c);
     os << kIn << "T " << s << ", " << co << ";\n"
-       << kIn << "_trig(" << s << ", " << co << ", q[" << c << "], trig, " << trig_slot_[c]
-       << ");\n";
+       << kIn << "_trig(" << s << ", " << co << ", " << ref("q", c) << ", trig, "
+       << (local_.empty() ? idx(trig_slot_[c]) : "_s[" + idx(trig_slot_[c]) + "]") << ");\n";
     if (sin_of_[c] >= 0) pr.bind(sin_of_[c], s);
     if (cos_of_[c] >= 0) pr.bind(cos_of_[c], co);
     return true;
   }
 
+  // In a function that has the trig cache (motion_trig_): sin and cos, from the cache, of the
+  // coordinates block bi's rates read that are not yet in scope.
+  void declare_motion_trig(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                           bool velocity, bool acceleration) {
+    const BlockOuts& bo = blocks_[bi];
+    std::vector<int> outputs = bo.jbb;
+    for (const auto& [rc, o] : bo.tjac) outputs.push_back(o);
+    for (const auto& row : bo.coupling)
+      for (const auto& [c, o] : row) outputs.push_back(o);
+    if (velocity) outputs.insert(outputs.end(), bo.nu.begin(), bo.nu.end());
+    if (acceleration) outputs.insert(outputs.end(), bo.gamma.begin(), bo.gamma.end());
+    declare_needed_trig(os, pr, outputs);
+  }
+
+  // sin and cos, from the cache, of the coordinates that `outputs` read through sin or cos and
+  // whose values are not yet in scope (a repeated block's coordinates, or an earlier part's).
+  void declare_needed_trig(std::ostringstream& os, FunctionPrinter& pr,
+                           const std::vector<int>& outputs) {
+    std::vector<int> stack;
+    for (int o : outputs) stack.push_back(out(o));
+    std::set<int> seen, coords;
+    while (!stack.empty()) {
+      const int id = stack.back();
+      stack.pop_back();
+      if (id == Program::kZero || pr.named(id) || !seen.insert(id).second) continue;
+      const Node& n = prog_.nodes[id];
+      if (n.kind == OpKind::kSin || n.kind == OpKind::kCos) {
+        const Node& a = prog_.nodes[n.args[0]];
+        if (a.kind == OpKind::kInput && a.input.kind == InputKind::kQ) {
+          coords.insert(a.input.index);
+          continue;
+        }
+      }
+      for (int a : n.args) stack.push_back(a);
+    }
+    for (int c : coords) declare_trig(os, pr, c, true);
+  }
+
   // q[c] = value, keeping the rotated sin and cos of q[c] current.
-  static void update(std::ostringstream& os, const std::string& in,
+  void update(std::ostringstream& os, const std::string& in,
                      const std::vector<int>& rotated, int c, const std::string& value) {
     const bool rotate = std::find(rotated.begin(), rotated.end(), c) != rotated.end();
-    const std::string q = "q[" + idx(c) + "]";
+    const std::string q = ref("q", c);
     if (rotate) os << in << "const T _old" << c << " = " << q << ";\n";
     os << in << q << " = " << value << ";\n";
     if (rotate)
@@ -1157,15 +1467,15 @@ class BlockEmitter {
     os << in2 << "_step" << b << " = 0;\n";
     for (int i = 0; i < m; ++i) {
       const int c = plan.tears[i];
-      update(os, in2, rotated, c, "q[" + idx(c) + "] - _r[" + idx(i) + "]");
+      update(os, in2, rotated, c, ref("q", c) + " - _r[" + idx(i) + "]");
       os << in2 << "_step" << b << " = std::max(_step" << b << ", _mag(_r[" << i << "])"
          << (c % 3 == 2 ? "" : " * inv_length") << ");\n";
     }
-    os << in2 << "if (!(_step" << b << " <= 1e300)) return _fail(report, 3, " << bi << ", _it);\n"
+    os << in2 << "if (!(_step" << b << " <= 1e300)) return _fail(report, 3, " << block_id(bi) << ", _it);\n"
        << in2 << "_converged" << b << " = o.fixed_iterations > 0 ? _it >= o.fixed_iterations\n"
        << in2 << "                                        : _step" << b << " <= o.tolerance;\n"
        << in2 << "if (!_converged" << b << " && _it >= o.max_iterations)\n"
-       << in2 << "  return _fail(report, 1, " << bi << ", _it, _step" << b << ");\n";
+       << in2 << "  return _fail(report, 1, " << block_id(bi) << ", _it, _step" << b << ");\n";
     pr.close_scope();
     os << in << "}\n";
   }
@@ -1175,15 +1485,29 @@ class BlockEmitter {
                    int b0, int b1, bool checks) {
     const std::string in = kIn;
     divisor_.assign(blocks_.size(), "");
+    // With repeated blocks each block is solved for velocity and then acceleration before the
+    // next (a repeated block's function does both): a block's gamma reads only its own and
+    // earlier blocks' qd and earlier blocks' qdd.
+    const bool interleave = !rolls_.empty();
     for (std::size_t bi = b0; bi < static_cast<std::size_t>(b1); ++bi) {
       const BlockOuts& bo = blocks_[bi];
       const int k = static_cast<int>(st_.plans[bi].block.rows.size());
       const std::string b = idx(static_cast<int>(bi));
-      os << in << "// Block " << bi << ": " << block_comment(st_.plans[bi].block, "") << "\n";
+      os << in << "// " << block_label(bi) << ": " << block_comment(st_.plans[bi].block, "")
+         << "\n";
+      if (roll_of_[bi] >= 0) {
+        call_rolled(os, bi, motion_name(velocity, acceleration),
+                    motion_args(velocity, acceleration, false) + ", " +
+                        (motion_trig_ ? "trig" : "static_cast<T*>(nullptr)"),
+                    true);
+        continue;
+      }
+      if (motion_trig_) declare_motion_trig(os, pr, bi, velocity, acceleration);
       if (st_.plans[bi].torn()) {
         const int m = static_cast<int>(st_.plans[bi].tears.size());
         factor(os, bi, m, schur(os, pr, bi, bo.tjac, in, "_D" + b + "_"));
         if (velocity) solve_rows(os, pr, bi, bo.nu, "qd");
+        if (interleave && acceleration) solve_rows(os, pr, bi, bo.gamma, "qdd");
         continue;
       }
       for (int id : bo.jbb) pr.ensure(out(id), os, in);
@@ -1202,10 +1526,11 @@ class BlockEmitter {
         factor(os, bi, k, a);
       }
       if (velocity) solve_rows(os, pr, bi, bo.nu, "qd");
+      if (interleave && acceleration) solve_rows(os, pr, bi, bo.gamma, "qdd");
     }
     if (velocity && checks) finite_check(os, "qd");
     if (acceleration) {
-      for (std::size_t bi = b0; bi < static_cast<std::size_t>(b1); ++bi)
+      for (std::size_t bi = b0; bi < static_cast<std::size_t>(b1) && !interleave; ++bi)
         solve_rows(os, pr, bi, blocks_[bi].gamma, "qdd");
       if (checks) finite_check(os, "qdd");
     }
@@ -1226,7 +1551,7 @@ class BlockEmitter {
       for (const auto& [c, o] : bo.coupling[i]) {
         const int id = out(o);
         const Node& n = prog_.nodes[id];
-        const std::string x = std::string(var) + "[" + idx(c) + "]";
+        const std::string x = ref(var, c);
         if (n.kind == OpKind::kConst && (n.value == 1 || n.value == -1)) {
           const bool minus = n.value == 1;
           s += s.empty() ? (minus ? "-" + x : x) : (minus ? " - " : " + ") + x;
@@ -1242,7 +1567,7 @@ class BlockEmitter {
     }
     if (k == 1) {
       const std::string& d = divisor_[bi];
-      os << in << var << "[" << blk.cols[0] << "] = "
+      os << in << ref(var, blk.cols[0]) << " = "
          << (d.empty() ? texts[0] : "(" + texts[0] + ") / " + d) << ";\n";
       return;
     }
@@ -1251,7 +1576,7 @@ class BlockEmitter {
        << in << "  T _x[" << k << "] = {" << join(texts) << "};\n"
        << in << "  _lu_solve<" << k << ">(_a" << b << ", _piv" << b << ", _x);\n";
     for (int i = 0; i < k; ++i)
-      os << in << "  " << var << "[" << blk.cols[i] << "] = _x[" << i << "];\n";
+      os << in << "  " << ref(var, blk.cols[i]) << " = _x[" << i << "];\n";
     os << in << "}\n";
   }
 
@@ -1265,7 +1590,7 @@ class BlockEmitter {
     const BlockOuts& bo = blocks_[bi];
     const int m = static_cast<int>(plan.tears.size());
     const std::string in = kIn, b = idx(static_cast<int>(bi));
-    const auto x = [&](int c) { return std::string(var) + "[" + idx(c) + "]"; };
+    const auto x = [&](int c) { return ref(var, c); };
     const auto rhs = [&](int r) {
       const auto it = std::lower_bound(blk.rows.begin(), blk.rows.end(), r);
       return texts[it - blk.rows.begin()];
@@ -1312,6 +1637,11 @@ class BlockEmitter {
 
   const SymbolTable& symbols_;
   const Structure& st_;
+  std::vector<GiNaC::ex> outs_;       // the program's outputs before lowering
+  std::vector<Roll> rolls_;
+  std::vector<int> roll_of_, roll_member_;  // per block: its Roll and row there, or -1
+  std::vector<int> local_;            // a repeated block's function: coordinate -> table slot
+  int first_block_ = -1;              // a repeated block's function: the first block alike
   std::vector<int> pos_first_;
   std::vector<BlockOuts> blocks_;
   Program prog_;
@@ -1321,6 +1651,10 @@ class BlockEmitter {
   int trig_slots_ = 0;
   std::vector<char> in_position_;     // per node: read by a position output
   bool step_mode_ = false;            // emitting solve_step (motion terms follow position)
+  bool motion_trig_ = false;          // the motion being emitted has the trig cache
+  // sin and cos of a coordinate are declared where first read (not where it is solved): with
+  // repeated blocks, whose functions solve coordinates the caller reads.
+  bool lazy_trig_ = false;
   std::vector<std::map<std::pair<int, int>, int>> pos_tjac_;  // torn blocks' Phi_q outputs
   int pos_end_ = 0;
   std::vector<std::string> divisor_;
@@ -1443,7 +1777,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     os << "  static constexpr int max_block_size = " << st.largest_block() << ";\n";
     os << "  // The largest system a Newton iteration solves (torn blocks: their tear variables).\n";
     os << "  static constexpr int max_newton_size = " << st.largest_newton() << ";\n";
-    BlockEmitter blocks(model, symbols, st, options.max_function_ops);
+    BlockEmitter blocks(model, symbols, st, options.max_function_ops, options.roll_min);
     os << "  // Values in the optional sin/cos cache of solve_position and solve_step (3 per\n"
        << "  // coordinate whose sin or cos the model uses).\n"
        << "  static constexpr int trig_cache_size = " << blocks.trig_cache_size() << ";\n\n";
@@ -1461,6 +1795,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
       os << "\n";
       blocks.emit_step(os);
     }
+    blocks.emit_rolls(os, velocity, acceleration);
   }
   os << "};\n\n}  // namespace kinegen::models\n";
   return os.str();

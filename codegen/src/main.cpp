@@ -106,7 +106,8 @@ void add_common(CLI::App* cmd, Common& c) {
 }
 
 int run_generate(const Common& c, const std::string& dir, const std::string& outputs,
-                 bool fold_params, int max_function_ops = kc::kDefaultMaxFunctionOps) {
+                 bool fold_params, int max_function_ops = kc::kDefaultMaxFunctionOps,
+                 int roll_min = kc::kDefaultRollMin) {
   kc::BuildOptions build;
   build.fold_params = fold_params;
   const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params), build);
@@ -116,6 +117,7 @@ int run_generate(const Common& c, const std::string& dir, const std::string& out
   if (outputs == "velocity") options.outputs = kc::Outputs::kVelocity;
   options.folded_params = fold_params;
   options.max_function_ops = max_function_ops;
+  options.roll_min = roll_min;
   const std::string text = kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
                                            model->programs(), options);
   stage.done(std::to_string(text.size() / 1024) + " KiB");
@@ -268,6 +270,14 @@ int main(int argc, char** argv) {
                    "than a fifth of it) into parts, for compile time (default " +
                        std::to_string(kc::kDefaultMaxFunctionOps) + "; 0: never split)")
       ->check(CLI::NonNegativeNumber);
+  int roll_min = kc::kDefaultRollMin;
+  generate
+      ->add_option("--roll-min", roll_min,
+                   "Emit Newton blocks that are alike up to their coordinates (the loops of a "
+                   "chain) once, called with a table of coordinates, when at least this many are "
+                   "alike (default " +
+                       std::to_string(kc::kDefaultRollMin) + "; 0: never)")
+      ->check(CLI::NonNegativeNumber);
 
   double t0 = 0, t1 = 0;
   int steps = 0;
@@ -337,7 +347,8 @@ int main(int argc, char** argv) {
                                   : verbose ? kc::Verbosity::kVerbose
                                             : kc::Verbosity::kNormal);
   try {
-    if (*generate) return run_generate(common, out_dir, outputs, fold_params, max_function_ops);
+    if (*generate) return run_generate(common, out_dir, outputs, fold_params, max_function_ops,
+                                        roll_min);
     if (*animate) return run_animate(common, animate_options, svg_file);
     if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits, strict);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);

@@ -17,6 +17,8 @@ enum class Outputs { kPosition, kVelocity, kAll };
 
 // The default of EmitOptions::max_function_ops (kinegen generate --max-function-ops).
 inline constexpr int kDefaultMaxFunctionOps = 1000;
+// The default of EmitOptions::roll_min (kinegen generate --roll-min).
+inline constexpr int kDefaultRollMin = 16;
 
 struct EmitOptions {
   Outputs outputs = Outputs::kAll;
@@ -29,6 +31,11 @@ struct EmitOptions {
   // function calls in order (g++ -O2 compile time grows superlinearly with a function's size);
   // 0: never split. The block solver is split at block boundaries. See docs/scale.md.
   int max_function_ops = kDefaultMaxFunctionOps;
+  // Repeated blocks: Newton blocks that are the same up to which coordinates they read (the
+  // loops of a chain) are emitted once, as a function that each of them calls with a table of
+  // its coordinates, when at least this many are alike; 0: never. Keeps large models' code,
+  // and so their compile time and instruction-cache footprint, from growing with N.
+  int roll_min = kDefaultRollMin;
 };
 
 // The generated header's text. Only validated identifiers and numbers from the mechanism reach
