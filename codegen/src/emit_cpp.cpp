@@ -52,7 +52,11 @@ class FunctionPrinter {
 
   // The body of a generated function: the intermediate terms, then `out[k] = ...;`.
   // first_output: the index of the program's first output in `out` (a part of a split function).
-  std::string body(const char* indent, int first_output = 0) {
+  // out_index: where output k goes, out_index[first_output + k] (outputs taken from a larger
+  // set); or, with outputs_through_table, out[_o[k]] (a repeated constraint's function).
+  std::string body(const char* indent, int first_output = 0,
+                   const std::vector<int>* out_index = nullptr,
+                   bool outputs_through_table = false) {
     std::ostringstream os;
     int count = 0;
     for (const auto& n : p_.nodes) count += n.named;
@@ -67,7 +71,11 @@ class FunctionPrinter {
     if (count > 0 && !p_.outputs.empty()) os << "\n";
     for (std::size_t o = 0; o < p_.outputs.size(); ++o) {
       const int id = p_.outputs[o];
-      os << indent << "out[" << first_output + static_cast<int>(o) << "] = " << (id == Program::kZero ? "T(0)" : print(id).text)
+      const int k = first_output + static_cast<int>(o);
+      const std::string target = outputs_through_table ? "_o[" + std::to_string(o) + "]"
+                                 : out_index           ? std::to_string((*out_index)[k])
+                                                       : std::to_string(k);
+      os << indent << "out[" << target << "] = " << (id == Program::kZero ? "T(0)" : print(id).text)
          << ";\n";
     }
     return os.str();
@@ -342,9 +350,12 @@ void emit_signature(std::ostringstream& os, const std::string& name, bool with_q
 // One function, or when the program has more than max_ops operations or max_part_outputs
 // outputs (max_ops > 0), private parts that the function calls in order: g++ -O2 takes time
 // superlinear in a function's size.
+// out_index: the out index of each of the program's outputs (default: k); tail: code that ends
+// the public function.
 void emit_function(std::ostringstream& os, const char* name, const char* out_size,
                    const Program& program, const SymbolTable& symbols, bool with_qd,
-                   int max_ops) {
+                   int max_ops, const std::vector<int>* out_index = nullptr,
+                   const std::string& tail = "") {
   if (max_ops > 0 &&
       (program.operation_count() > max_ops ||
        static_cast<int>(program.outputs.size()) > max_part_outputs(max_ops))) {
@@ -354,11 +365,16 @@ void emit_function(std::ostringstream& os, const char* name, const char* out_siz
       const Program& part = parts[k].program;
       const int last = parts[k].first_output + static_cast<int>(part.outputs.size()) - 1;
       emit_signature(os, "_" + std::string(name) + "_part" + std::to_string(k), with_qd);
-      os << "    // out[" << parts[k].first_output << ".." << last << "]; "
-         << part.operation_count() << " operations\n";
+      if (out_index)
+        os << "    // outputs " << parts[k].first_output << ".." << last << " of the "
+           << program.outputs.size() << " not repeated; " << part.operation_count()
+           << " operations\n";
+      else
+        os << "    // out[" << parts[k].first_output << ".." << last << "]; "
+           << part.operation_count() << " operations\n";
       if (const std::string used = std_functions(part); !used.empty())
         os << "    using " << used << ";\n";
-      os << FunctionPrinter(part, symbols).body("    ", parts[k].first_output);
+      os << FunctionPrinter(part, symbols).body("    ", parts[k].first_output, out_index);
       os << "  }\n";
     }
     os << "\n public:\n";
@@ -367,7 +383,7 @@ void emit_function(std::ostringstream& os, const char* name, const char* out_siz
        << parts.size() << " parts\n";
     for (std::size_t k = 0; k < parts.size(); ++k)
       os << "    _" << name << "_part" << k << "(q, " << (with_qd ? "qd, " : "") << "t, p, out);\n";
-    os << "  }\n";
+    os << tail << "  }\n";
     return;
   }
   os << "  template <class T>\n";
@@ -377,8 +393,150 @@ void emit_function(std::ostringstream& os, const char* name, const char* out_siz
   os << "    // out[" << out_size << "]; " << program.operation_count() << " operations\n";
   if (const std::string used = std_functions(program); !used.empty())
     os << "    using " << used << ";\n";
-  os << FunctionPrinter(program, symbols).body("    ");
-  os << "  }\n";
+  os << FunctionPrinter(program, symbols).body("    ", 0, out_index);
+  os << tail << "  }\n";
+}
+
+// Section-4 functions with repeated constraints (EmitOptions::roll_min): the outputs of each
+// constraint form a group; groups alike up to the coordinates they read (with the k-th
+// coordinate read, ascending, renamed to the model's k-th, q and qd alike, every output is the
+// same expression) are evaluated by one function, in a loop over tables of their coordinates
+// and output indices. The rest is lowered and emitted as usual.
+struct RolledOutputs {
+  struct Class {
+    Program program;                       // the first group's outputs
+    std::vector<int> slot;                 // coordinate -> its slot in the first group's table
+    std::vector<std::vector<int>> coords;  // per group: coordinates read, ascending
+    std::vector<std::vector<int>> outs;    // per group: its out indices
+  };
+  std::vector<Class> classes;
+  Program rest;                 // the outputs of no class
+  std::vector<int> rest_index;  // their out indices
+};
+
+RolledOutputs roll_outputs(const std::vector<GiNaC::ex>& exprs, const std::vector<int>& group,
+                           const SymbolTable& symbols, int roll_min) {
+  RolledOutputs ro;
+  std::map<int, std::vector<int>> members;  // group -> its outputs, in order
+  for (std::size_t k = 0; k < exprs.size(); ++k) members[group[k]].push_back(static_cast<int>(k));
+  std::map<std::string, std::vector<int>> alike;  // key -> groups
+  std::map<int, std::vector<int>> coords;
+  std::map<int, std::vector<GiNaC::ex>> renamed;
+  for (const auto& [g, outs] : members) {
+    std::set<int> read;
+    for (int k : outs)
+      for (auto it = exprs[k].preorder_begin(); it != exprs[k].preorder_end(); ++it)
+        if (GiNaC::is_a<GiNaC::symbol>(*it)) {
+          const Input in = symbols.classify(*it);
+          if (in.kind == InputKind::kQ || in.kind == InputKind::kQd) read.insert(in.index);
+        }
+    std::vector<int> list(read.begin(), read.end());
+    GiNaC::exmap rename;
+    for (std::size_t j = 0; j < list.size(); ++j) {
+      rename[symbols.q(list[j])] = symbols.q(static_cast<int>(j));
+      rename[symbols.qd(list[j])] = symbols.qd(static_cast<int>(j));
+    }
+    std::ostringstream key;
+    key << outs.size() << " " << list.size();
+    for (int k : outs) {
+      renamed[g].push_back(exprs[k].subs(rename));
+      key << " " << renamed[g].back() << ";";
+    }
+    coords[g] = list;
+    alike[key.str()].push_back(g);
+  }
+  std::vector<char> rolled(exprs.size(), 0);
+  for (const auto& [key, groups] : alike) {
+    if (static_cast<int>(groups.size()) < roll_min) continue;
+    const int first = groups[0];
+    RolledOutputs::Class c;
+    for (int g : groups) {
+      // Equal text should mean equal expressions, but names could coincide: compare exactly.
+      bool same = coords[g].size() == coords[first].size();
+      for (std::size_t k = 0; same && k < renamed[g].size(); ++k)
+        same = renamed[g][k].is_equal(renamed[first][k]);
+      if (!same) continue;
+      c.coords.push_back(coords[g]);
+      c.outs.push_back(members[g]);
+    }
+    if (static_cast<int>(c.outs.size()) < roll_min) continue;
+    for (const auto& outs : c.outs)
+      for (int k : outs) rolled[k] = 1;
+    std::vector<GiNaC::ex> first_exprs;
+    for (int k : members[first]) first_exprs.push_back(exprs[k]);
+    c.program = lower(first_exprs, symbols);
+    c.slot.assign(symbols.nq(), -1);
+    for (std::size_t j = 0; j < coords[first].size(); ++j)
+      c.slot[coords[first][j]] = static_cast<int>(j);
+    ro.classes.push_back(std::move(c));
+  }
+  std::vector<GiNaC::ex> rest;
+  for (std::size_t k = 0; k < exprs.size(); ++k)
+    if (!rolled[k]) {
+      rest.push_back(exprs[k]);
+      ro.rest_index.push_back(static_cast<int>(k));
+    }
+  ro.rest = lower(rest, symbols);
+  return ro;
+}
+
+// emit_function for outputs of which some are rolled (roll_outputs): each class's function and
+// tables (private), then the function, which evaluates the rest and loops over the classes.
+void emit_rolled_function(std::ostringstream& os, const char* name, const char* out_size,
+                          const RolledOutputs& ro, const SymbolTable& symbols, bool with_qd,
+                          int max_ops) {
+  os << " private:\n";
+  std::ostringstream tail;
+  const auto table = [&](const std::string& table_name,
+                         const std::vector<std::vector<int>>& rows) {
+    os << "  static constexpr int " << table_name << "[" << rows.size() << "]["
+       << std::max<std::size_t>(1, rows[0].size()) << "] = {\n";
+    for (const auto& row : rows) {
+      std::vector<std::string> v;
+      for (int x : row) v.push_back(std::to_string(x));
+      os << "      {" << (v.empty() ? "0" : join(v)) << "},\n";
+    }
+    os << "  };\n";
+  };
+  for (std::size_t g = 0; g < ro.classes.size(); ++g) {
+    const RolledOutputs::Class& c = ro.classes[g];
+    const std::string f = "_" + std::string(name) + "_roll" + std::to_string(g);
+    os << "  // Repeated constraints (" << c.outs.size() << "): alike up to the coordinates they "
+       << "read (" << f << "_i,\n  // ascending) and where their outputs go (" << f << "_o).\n";
+    table(f + "_i", c.coords);
+    table(f + "_o", c.outs);
+    os << "  template <class T>\n"
+       << "  static void " << f << "([[maybe_unused]] const T* q,"
+       << (with_qd ? " [[maybe_unused]] const T* qd," : "") << "\n"
+       << "      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,\n"
+       << "      [[maybe_unused]] const int* _i, const int* _o) noexcept {\n";
+    if (const std::string used = std_functions(c.program); !used.empty())
+      os << "    using " << used << ";\n";
+    FunctionPrinter pr(c.program, symbols);
+    pr.read_through(&c.slot);
+    os << pr.body("    ", 0, nullptr, true) << "  }\n";
+    tail << "    for (int _m = 0; _m < " << c.outs.size() << "; ++_m)\n"
+         << "      " << f << "(q, " << (with_qd ? "qd, " : "") << "t, p, out, " << f << "_i[_m], "
+         << f << "_o[_m]);\n";
+  }
+  os << "\n public:\n";
+  emit_function(os, name, out_size, ro.rest, symbols, with_qd, max_ops, &ro.rest_index,
+                tail.str());
+}
+
+// emit_function, or emit_rolled_function when some constraints repeat (roll_min > 0).
+void emit_function_rolled_if(std::ostringstream& os, const char* name, const char* out_size,
+                             const Program& program, const std::vector<GiNaC::ex>& exprs,
+                             const std::vector<int>& group, const SymbolTable& symbols,
+                             bool with_qd, int max_ops, int roll_min) {
+  if (roll_min > 0) {
+    const RolledOutputs ro = roll_outputs(exprs, group, symbols, roll_min);
+    if (!ro.classes.empty()) {
+      emit_rolled_function(os, name, out_size, ro, symbols, with_qd, max_ops);
+      return;
+    }
+  }
+  emit_function(os, name, out_size, program, symbols, with_qd, max_ops);
 }
 
 // ---- Block solver (structure.hpp): position, velocity and acceleration block by block.
@@ -429,7 +587,9 @@ void emit_block_helpers(std::ostringstream& os) {
     r.step = std::max(r.step, step);
   }
   // In-place LU with partial pivoting; returns smallest / largest |pivot| (0 when singular,
-  // NaN when a value is not finite).
+  // NaN when a value is not finite). The diagonal keeps the pivots' reciprocals, so that
+  // _lu_solve multiplies: a division costs several multiplications' time, and a step solves
+  // with each factorization more than once.
   template <int K, class T>
   static double _lu_factor(T* a, int* piv) noexcept {
     if constexpr (K == 2) {
@@ -444,12 +604,16 @@ void emit_block_helpers(std::ostringstream& os) {
       }
       const double p0 = _mag(a[0]);
       if (!(p0 > 0)) return p0;  // 0, or NaN
-      const T f = a[2] * (T(1) / a[0]);
+      const T i0 = T(1) / a[0];
+      const T f = a[2] * i0;
       a[2] = f;
       a[3] -= f * a[1];
       const double p1 = _mag(a[3]);
       if (!(p1 > 0)) return p1;
-      return p0 < p1 ? p0 / p1 : p1 / p0;
+      const T i1 = T(1) / a[3];
+      a[0] = i0;
+      a[3] = i1;
+      return p0 < p1 ? p0 * _mag(i1) : p1 * _mag(i0);  // the ratio without a third division
     }
     double largest = 0, smallest = 0;
     for (int k = 0; k < K; ++k) {
@@ -470,6 +634,7 @@ void emit_block_helpers(std::ostringstream& os) {
       largest = k == 0 ? best : std::max(largest, best);
       smallest = k == 0 ? best : std::min(smallest, best);
       const T inv = T(1) / a[k * K + k];
+      a[k * K + k] = inv;
       for (int i = k + 1; i < K; ++i) {
         const T f = a[i * K + k] * inv;
         a[i * K + k] = f;
@@ -543,7 +708,7 @@ void emit_block_helpers(std::ostringstream& os) {
       for (int i = k + 1; i < K; ++i) b[i] -= a[i * K + k] * b[k];
     for (int k = K - 1; k >= 0; --k) {
       for (int j = k + 1; j < K; ++j) b[k] -= a[k * K + j] * b[j];
-      b[k] /= a[k * K + k];
+      b[k] *= a[k * K + k];  // the pivot's reciprocal
     }
   }
 
@@ -1745,21 +1910,33 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
        << format_double(model.param_values[k].to_double()) << ";\n";
   os << "  };\n\n";
 
+  // Each output's constraint, for repeated constraints (roll_outputs).
+  std::map<const Constraint*, int> constraint_index;
+  std::vector<int> row_group, entry_group;
+  for (const auto& row : model.rows)
+    row_group.push_back(constraint_index.emplace(row.constraint, constraint_index.size())
+                            .first->second);
+  std::vector<GiNaC::ex> jac;
+  for (const auto& e : model.phi_q) {
+    entry_group.push_back(row_group[e.row]);
+    jac.push_back(e.value);
+  }
+  const int max_ops = options.max_function_ops, roll_min = options.roll_min;
   os << "  // Phi(q, t)\n";
-  emit_function(os, "phi", "nc", programs.phi, symbols, false,
-                options.max_function_ops);
+  emit_function_rolled_if(os, "phi", "nc", programs.phi, model.phi, row_group, symbols, false,
+                          max_ops, roll_min);
   os << "\n  // Phi_q(q, t) at (jac_rows[k], jac_cols[k])\n";
-  emit_function(os, "phi_q", "jac_nnz", programs.phi_q, symbols, false,
-                options.max_function_ops);
+  emit_function_rolled_if(os, "phi_q", "jac_nnz", programs.phi_q, jac, entry_group, symbols,
+                          false, max_ops, roll_min);
   if (velocity) {
     os << "\n  // nu = -Phi_t\n";
-    emit_function(os, "nu", "nc", programs.nu, symbols, false,
-                options.max_function_ops);
+    emit_function_rolled_if(os, "nu", "nc", programs.nu, model.nu, row_group, symbols, false,
+                            max_ops, roll_min);
   }
   if (acceleration) {
     os << "\n  // gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt\n";
-    emit_function(os, "gamma", "nc", programs.gamma, symbols, true,
-                options.max_function_ops);
+    emit_function_rolled_if(os, "gamma", "nc", programs.gamma, model.gamma, row_group, symbols,
+                            true, max_ops, roll_min);
   }
 
   os << "\n  // Which outputs were generated (kinegen generate --outputs).\n";
