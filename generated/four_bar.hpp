@@ -183,7 +183,9 @@ struct four_bar {
     r.step = std::max(r.step, step);
   }
   // In-place LU with partial pivoting; returns smallest / largest |pivot| (0 when singular,
-  // NaN when a value is not finite).
+  // NaN when a value is not finite). The diagonal keeps the pivots' reciprocals, so that
+  // _lu_solve multiplies: a division costs several multiplications' time, and a step solves
+  // with each factorization more than once.
   template <int K, class T>
   static double _lu_factor(T* a, int* piv) noexcept {
     if constexpr (K == 2) {
@@ -198,12 +200,16 @@ struct four_bar {
       }
       const double p0 = _mag(a[0]);
       if (!(p0 > 0)) return p0;  // 0, or NaN
-      const T f = a[2] * (T(1) / a[0]);
+      const T i0 = T(1) / a[0];
+      const T f = a[2] * i0;
       a[2] = f;
       a[3] -= f * a[1];
       const double p1 = _mag(a[3]);
       if (!(p1 > 0)) return p1;
-      return p0 < p1 ? p0 / p1 : p1 / p0;
+      const T i1 = T(1) / a[3];
+      a[0] = i0;
+      a[3] = i1;
+      return p0 < p1 ? p0 * _mag(i1) : p1 * _mag(i0);  // the ratio without a third division
     }
     double largest = 0, smallest = 0;
     for (int k = 0; k < K; ++k) {
@@ -224,6 +230,7 @@ struct four_bar {
       largest = k == 0 ? best : std::max(largest, best);
       smallest = k == 0 ? best : std::min(smallest, best);
       const T inv = T(1) / a[k * K + k];
+      a[k * K + k] = inv;
       for (int i = k + 1; i < K; ++i) {
         const T f = a[i * K + k] * inv;
         a[i * K + k] = f;
@@ -234,21 +241,24 @@ struct four_bar {
   }
   // Rotations of sin and cos by a small angle d, so that a Newton update or the step from a
   // cached angle needs no new sin or cos: on |d| <= 1/32 the series below are exact to double
-  // rounding (the first omitted terms are below 1e-22 relative).
+  // rounding (the first omitted terms are below 3e-18 relative), and Newton's updates, mostly
+  // below 2^-14, take two terms (the next below 2e-19 relative).
   static constexpr double kRotateLimit = 1.0 / 32;
   template <class T>
   static void _rotated(const T& s0, const T& c0, const T& d, T& s, T& c) noexcept {
     // Horner forms; the reciprocals are constants the compiler folds (no division at run time).
     const T d2 = d * d;
-    const T sd = d * (T(1) - d2 * (T(1) / T(6)) *  // sin d
-                                 (T(1) - d2 * (T(1) / T(20)) *
-                                             (T(1) - d2 * (T(1) / T(42)) *
-                                                         (T(1) - d2 * (T(1) / T(72))))));
-    const T cm = d2 * (T(1) / T(2)) *  // 1 - cos d
-                 (T(1) - d2 * (T(1) / T(12)) *
-                             (T(1) - d2 * (T(1) / T(30)) *
-                                         (T(1) - d2 * (T(1) / T(56)) *
-                                                     (T(1) - d2 * (T(1) / T(90))))));
+    T sd, cm;  // sin d and 1 - cos d
+    if (_mag(d) <= 1.0 / 16384) {
+      sd = d * (T(1) - d2 * (T(1) / T(6)));
+      cm = d2 * (T(1) / T(2)) * (T(1) - d2 * (T(1) / T(12)));
+    } else {
+      sd = d * (T(1) - d2 * (T(1) / T(6)) *
+                           (T(1) - d2 * (T(1) / T(20)) * (T(1) - d2 * (T(1) / T(42)))));
+      cm = d2 * (T(1) / T(2)) *
+           (T(1) - d2 * (T(1) / T(12)) *
+                       (T(1) - d2 * (T(1) / T(30)) * (T(1) - d2 * (T(1) / T(56)))));
+    }
     s = s0 + (c0 * sd - s0 * cm);
     c = c0 - (s0 * sd + c0 * cm);
   }
@@ -297,7 +307,7 @@ struct four_bar {
       for (int i = k + 1; i < K; ++i) b[i] -= a[i * K + k] * b[k];
     for (int k = K - 1; k >= 0; --k) {
       for (int j = k + 1; j < K; ++j) b[k] -= a[k * K + j] * b[j];
-      b[k] /= a[k * K + k];
+      b[k] *= a[k * K + k];  // the pivot's reciprocal
     }
   }
 

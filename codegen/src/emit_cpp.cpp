@@ -645,21 +645,24 @@ void emit_block_helpers(std::ostringstream& os) {
   }
   // Rotations of sin and cos by a small angle d, so that a Newton update or the step from a
   // cached angle needs no new sin or cos: on |d| <= 1/32 the series below are exact to double
-  // rounding (the first omitted terms are below 1e-22 relative).
+  // rounding (the first omitted terms are below 3e-18 relative), and Newton's updates, mostly
+  // below 2^-14, take two terms (the next below 2e-19 relative).
   static constexpr double kRotateLimit = 1.0 / 32;
   template <class T>
   static void _rotated(const T& s0, const T& c0, const T& d, T& s, T& c) noexcept {
     // Horner forms; the reciprocals are constants the compiler folds (no division at run time).
     const T d2 = d * d;
-    const T sd = d * (T(1) - d2 * (T(1) / T(6)) *  // sin d
-                                 (T(1) - d2 * (T(1) / T(20)) *
-                                             (T(1) - d2 * (T(1) / T(42)) *
-                                                         (T(1) - d2 * (T(1) / T(72))))));
-    const T cm = d2 * (T(1) / T(2)) *  // 1 - cos d
-                 (T(1) - d2 * (T(1) / T(12)) *
-                             (T(1) - d2 * (T(1) / T(30)) *
-                                         (T(1) - d2 * (T(1) / T(56)) *
-                                                     (T(1) - d2 * (T(1) / T(90))))));
+    T sd, cm;  // sin d and 1 - cos d
+    if (_mag(d) <= 1.0 / 16384) {
+      sd = d * (T(1) - d2 * (T(1) / T(6)));
+      cm = d2 * (T(1) / T(2)) * (T(1) - d2 * (T(1) / T(12)));
+    } else {
+      sd = d * (T(1) - d2 * (T(1) / T(6)) *
+                           (T(1) - d2 * (T(1) / T(20)) * (T(1) - d2 * (T(1) / T(42)))));
+      cm = d2 * (T(1) / T(2)) *
+           (T(1) - d2 * (T(1) / T(12)) *
+                       (T(1) - d2 * (T(1) / T(30)) * (T(1) - d2 * (T(1) / T(56)))));
+    }
     s = s0 + (c0 * sd - s0 * cm);
     c = c0 - (s0 * sd + c0 * cm);
   }
