@@ -132,6 +132,10 @@ struct offset_slider_crank {
   static constexpr int max_block_size = 1;
   // The largest system a Newton iteration solves (torn blocks: their tear variables).
   static constexpr int max_newton_size = 1;
+  // The coordinates Newton iterates; the block solver computes the others from them, so
+  // only these need a good start (a predictor).
+  static constexpr int num_newton_coordinates = 1;
+  static constexpr std::array<int, num_newton_coordinates> newton_coordinates = {5};
   // Values in the optional sin/cos cache of solve_position and solve_step (3 per
   // coordinate whose sin or cos the model uses).
   static constexpr int trig_cache_size = 6;

@@ -1957,6 +1957,15 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     os << "  static constexpr int max_block_size = " << st.largest_block() << ";\n";
     os << "  // The largest system a Newton iteration solves (torn blocks: their tear variables).\n";
     os << "  static constexpr int max_newton_size = " << st.largest_newton() << ";\n";
+    std::vector<std::string> iterated;
+    for (const BlockPlan& plan : st.plans)
+      if (plan.kind == BlockKind::kNewton)
+        for (int c : plan.torn() ? plan.tears : plan.block.cols) iterated.push_back(idx(c));
+    os << "  // The coordinates Newton iterates; the block solver computes the others from them, so\n"
+       << "  // only these need a good start (a predictor).\n"
+       << "  static constexpr int num_newton_coordinates = " << iterated.size() << ";\n"
+       << "  static constexpr std::array<int, num_newton_coordinates> newton_coordinates = {"
+       << join(iterated) << "};\n";
     BlockEmitter blocks(model, symbols, st, options.max_function_ops, options.roll_min);
     os << "  // Values in the optional sin/cos cache of solve_position and solve_step (3 per\n"
        << "  // coordinate whose sin or cos the model uses).\n"

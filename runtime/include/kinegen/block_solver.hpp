@@ -34,6 +34,13 @@ template <class Model>
 struct TrigCacheSize<Model, std::void_t<decltype(Model::trig_cache_size)>>
     : std::integral_constant<int, Model::trig_cache_size> {};
 
+// Whether the header lists the coordinates Newton iterates (newton_coordinates).
+template <class Model, class = void>
+struct HasNewtonCoordinates : std::false_type {};
+template <class Model>
+struct HasNewtonCoordinates<Model, std::void_t<decltype(Model::newton_coordinates)>>
+    : std::true_type {};
+
 template <class Report>
 Result to_result(const Report& report) {
   Result r;
@@ -120,8 +127,15 @@ class Solver {
       const Scalar h2 = h * h / Scalar(2);
       const Scalar h3 =
           has_two_ && h_previous_ != Scalar(0) ? h * h * h / (Scalar(6) * h_previous_) : Scalar(0);
-      for (int k = 0; k < Model::nq; ++k)  // one pass (Eigen would make three here)
+      const auto predict = [&](int k) {
         q[k] += h * qd[k] + h2 * qdd[k] + h3 * (qdd[k] - qdd_previous_[k]);
+      };
+      if constexpr (kBlockSolver && detail::HasNewtonCoordinates<Model>::value) {
+        // The block solver computes every other coordinate from these.
+        for (int k : Model::newton_coordinates) predict(k);
+      } else {
+        for (int k = 0; k < Model::nq; ++k) predict(k);  // one pass (Eigen would make three)
+      }
     }
     qdd_last_ = qdd;
     // Without a prediction the first solve iterates to convergence even when the options fix
