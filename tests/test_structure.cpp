@@ -290,6 +290,43 @@ TEMPLATE_TEST_CASE("block solver matches the dense solver", "[structure][solver]
   compare_steps<TestType>(1);
 }
 
+TEMPLATE_TEST_CASE("the block solver reads only newton_coordinates from its start",
+                   "[structure][solver]", kinegen::models::slider_crank,
+                   kinegen::models::four_bar, kinegen::models::quick_return,
+                   kinegen::models::fourbar_chain_3, kinegen::models::scissor_lift_3,
+                   kinegen::models::closed_chain_4) {
+  // Solver::step predicts only these coordinates; every other one must be computed from them
+  // (and from t), whatever q held.
+  using M = TestType;
+  const typename M::Params p{};
+  typename M::BlockOptions o{};
+  o.tolerance = 1e-14;
+  const double t = 0.3;
+  std::array<double, M::nq> solved{};
+  for (int k = 0; k < M::nq; ++k) solved[k] = M::q0[k];
+  REQUIRE(M::solve_position(solved.data(), t, p, o).status == 0);
+  std::set<int> iterated(M::newton_coordinates.begin(), M::newton_coordinates.end());
+  CHECK(static_cast<int>(iterated.size()) == M::num_newton_coordinates);
+  CHECK(M::num_newton_coordinates <= M::nq);
+  std::array<double, M::nq> q = solved;
+  for (int k = 0; k < M::nq; ++k)
+    if (!iterated.count(k)) q[k] = 1e3 * (k + 1);  // garbage
+  const auto r = M::solve_position(q.data(), t, p, o);
+  REQUIRE(r.status == 0);
+  for (int k = 0; k < M::nq; ++k) {
+    INFO("q[" << k << "]");
+    CHECK(std::abs(q[k] - solved[k]) <= 1e-12 * (1 + std::abs(solved[k])));
+  }
+  // And the iterated ones do matter: a wrong start for them costs iterations.
+  if (M::num_newton_coordinates > 0) {
+    q = solved;
+    q[M::newton_coordinates[0]] += 0.01;
+    const auto moved = M::solve_position(q.data(), t, p, o);
+    REQUIRE(moved.status == 0);
+    CHECK(moved.total_iterations > r.total_iterations);
+  }
+}
+
 TEMPLATE_TEST_CASE("block solver works in float", "[structure][float]",
                    kinegen::models::slider_crank, kinegen::models::four_bar,
                    kinegen::models::quick_return, kinegen::models::closed_chain_4) {
