@@ -96,13 +96,14 @@ TEST_CASE("sparse and dense paths agree on every family", "[sparse]") {
     const cg::TimeGrid grid{0, 2 * kPi, 48};
     const auto sparse = analyze(*model, grid, kAlwaysSparse);
     const auto dense = analyze(*model, grid, kAlwaysDense);
-    CHECK(max_difference(sparse, dense) < 1e-13);
+    const double difference = max_difference(sparse, dense);
+    CHECK(difference < 1e-13);
   }
 }
 
 TEST_CASE("small models stay on the dense path by default", "[sparse]") {
-  // fourbar_chain 10 (nq = 63) is below the default threshold: bit-identical to the dense path.
-  const auto model = cg::CompiledModel::from_file(family_file("fourbar_chain", 10));
+  // fourbar_chain 7 (nq = 45) is below the default threshold: bit-identical to the dense path.
+  const auto model = cg::CompiledModel::from_file(family_file("fourbar_chain", 7));
   REQUIRE(model->nq() <= cg::AnalysisOptions{}.sparse_above_nq);
   const cg::TimeGrid grid{0, 2 * kPi, 12};
   CHECK(max_difference(analyze(*model, grid, cg::AnalysisOptions{}.sparse_above_nq),
@@ -240,24 +241,41 @@ TEST_CASE("the sparse path reports a singular Phi_q (scissor bars flat)", "[spar
 }
 
 // Not a test: ms per step, dense against sparse. Run: kinegen_tests "[.sparse_bench]" -s
+// (the dense path at nq = 6000 takes over a minute per step: only with KINEGEN_BENCH_DENSE_LARGE
+// set in the environment).
 TEST_CASE("sparse analysis timings", "[.sparse_bench]") {
-  for (const auto& [family, n] : {std::pair<std::string, int>{"fourbar_chain", 10},
+  const bool dense_large = std::getenv("KINEGEN_BENCH_DENSE_LARGE") != nullptr;
+  for (const auto& [family, n] : {std::pair<std::string, int>{"fourbar_chain", 1},
+                                  {"fourbar_chain", 3},
+                                  {"fourbar_chain", 5},
+                                  {"fourbar_chain", 8},
+                                  {"fourbar_chain", 10},
                                   {"fourbar_chain", 100},
                                   {"fourbar_chain", 1000},
+                                  {"scissor_lift", 4},
+                                  {"scissor_lift", 8},
                                   {"scissor_lift", 100},
-                                  {"scissor_lift", 1000}}) {
+                                  {"scissor_lift", 1000},
+                                  {"closed_chain", 10},
+                                  {"closed_chain", 20},
+                                  {"closed_chain", 200}}) {
     const auto model = cg::CompiledModel::from_file(family_file(family, n));
     for (const bool dense : {true, false}) {
-      // Dense at nq = 6000 would take minutes per step: one step there.
-      const int steps = dense && n >= 1000 ? 1 : 50;
+      if (dense && model->nq() > 3000 && !dense_large) continue;
+      const int steps = dense && model->nq() > 3000 ? 1 : 50;
       const cg::TimeGrid grid{0, 2 * kPi * steps / 50.0, steps};
+      int repeats = 0;
+      double ms = 0;
       const auto start = std::chrono::steady_clock::now();
-      analyze(*model, grid, dense ? kAlwaysDense : kAlwaysSparse);
-      const double ms =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-              .count();
-      std::printf("%-14s N = %4d  nq = %5d  %-6s  %9.3f ms/step (%d steps + t0)\n", family.c_str(),
-                  n, model->nq(), dense ? "dense" : "sparse", ms / (steps + 1), steps);
+      do {  // at least 0.2 s of work for the small ones
+        analyze(*model, grid, dense ? kAlwaysDense : kAlwaysSparse);
+        ++repeats;
+        ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                 .count();
+      } while (ms < 200);
+      std::printf("%-14s N = %4d  nq = %5d  %-6s  %10.4f ms/step (%d steps + t0, %d runs)\n",
+                  family.c_str(), n, model->nq(), dense ? "dense" : "sparse",
+                  ms / repeats / (steps + 1), steps, repeats);
     }
   }
 }
