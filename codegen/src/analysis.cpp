@@ -25,8 +25,8 @@ using LargeSolver = SparseSolver<ProgramSystem>;
 
 // The sparse path names the constraints behind a singular Phi_q (a dense SVD) only up to this
 // many coordinates: the diagnosis runs only on failure, but costs O(nq^2) memory and O(nq^3)
-// time.
-constexpr int kMaxDiagnosedNq = 600;
+// time (JacobiSVD: about 6 s at nq = 600).
+constexpr int kMaxDiagnosedNq = 400;
 
 std::string time_text(double t) { return "t = " + format_number(t); }
 
@@ -180,8 +180,7 @@ void check_redundancy(const CompiledModel& model, const Eigen::VectorXd& q, doub
 // Where an angle enters only through sin and cos, whole turns are not seen by Phi: bring each
 // such angle back into the turn of its estimate q0, so the first row reads as the file meant.
 template <class S>
-void keep_turns_of_estimates(S& solver, const Eigen::VectorXd& q0, Eigen::VectorXd& q,
-                             double t) {
+void keep_turns_of_estimates(S& solver, const Eigen::VectorXd& q0, Eigen::VectorXd& q, double t) {
   const double two_pi = 2 * std::acos(-1.0);
   for (int k = 2; k < q.size(); k += 3) {
     const double turns = std::round((q[k] - q0[k]) / two_pi);
