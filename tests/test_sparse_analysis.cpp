@@ -3,6 +3,7 @@
 // the closed forms of the scalable families (scripts/mechanism_family.py), against the exact
 // 1-norm condition number, and on failures.
 #include <Eigen/Dense>
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <chrono>
 #include <cmath>
@@ -12,6 +13,7 @@
 #include <kinegen/solver.hpp>
 #include <kinegen/sparse_solver.hpp>
 #include <limits>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -84,7 +86,89 @@ double exact_condition(const cg::CompiledModel& model, const Eigen::VectorXd& q,
   return norm1(a) * norm1(a.inverse());
 }
 
+// A linear system Phi = A q - t 1 on a random sparse A (diagonally dominant unless a row is
+// zeroed): Newton solves it in one step, and every answer has an exact dense counterpart.
+struct LinearSystem {
+  using Scalar = double;
+  int n = 0;
+  std::vector<int> rows, cols;
+  std::vector<double> values;
+  int nq() const { return n; }
+  int nc() const { return n; }
+  double length_scale() const { return 2.0; }
+  void phi(const double* q, double t, double* out) const {
+    for (int i = 0; i < n; ++i) out[i] = -t;
+    for (std::size_t k = 0; k < rows.size(); ++k) out[rows[k]] += values[k] * q[cols[k]];
+  }
+  void nu(const double*, double, double* out) const { std::fill(out, out + n, 1.0); }
+  void gamma(const double*, const double*, double, double* out) const {
+    std::fill(out, out + n, 0.0);
+  }
+  int jacobian_nnz() const { return static_cast<int>(rows.size()); }
+  const int* jacobian_rows() const { return rows.data(); }
+  const int* jacobian_cols() const { return cols.data(); }
+  void jacobian_values(const double*, double, double* out) const {
+    std::copy(values.begin(), values.end(), out);
+  }
+  Eigen::MatrixXd dense() const {
+    Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n, n);
+    for (std::size_t k = 0; k < rows.size(); ++k) a(rows[k], cols[k]) = values[k];
+    return a;
+  }
+};
+
+LinearSystem random_system(int n, unsigned seed) {
+  std::mt19937 gen(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  LinearSystem s;
+  s.n = n;
+  for (int i = 0; i < n; ++i) {
+    // A random sign on the diagonal makes det's sign vary from seed to seed.
+    s.rows.push_back(i);
+    s.cols.push_back(i);
+    s.values.push_back((u(gen) < 0 ? -1 : 1) * (4 + u(gen)));
+    const int j1 = (7 * i + 3) % n, j2 = (13 * i + 5) % n;  // entries are distinct
+    for (int j : {j1, j2})
+      if (j != i && !(j == j2 && j2 == j1)) {
+        s.rows.push_back(i);
+        s.cols.push_back(j);
+        s.values.push_back(u(gen));
+      }
+  }
+  return s;
+}
+
 }  // namespace
+
+TEST_CASE("SparseSolver on a random sparse linear system", "[sparse]") {
+  for (unsigned seed = 1; seed <= 6; ++seed) {
+    INFO("seed " << seed);
+    const LinearSystem system = random_system(200, seed);
+    const Eigen::MatrixXd a = system.dense();
+    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(a);
+    kinegen::SparseSolver<LinearSystem> solver{system};
+    Eigen::VectorXd q = Eigen::VectorXd::Zero(system.n), qd(system.n), qdd(system.n);
+    const double t = 1.5;
+    REQUIRE(solver.position(q, t));
+    REQUIRE(solver.velocity(q, t, qd));
+    REQUIRE(solver.acceleration(q, qd, t, qdd));
+    const Eigen::VectorXd ones = Eigen::VectorXd::Ones(system.n);
+    CHECK((q - lu.solve(t * ones)).cwiseAbs().maxCoeff() < 1e-14);
+    CHECK((qd - lu.solve(ones)).cwiseAbs().maxCoeff() < 1e-14);
+    CHECK(qdd.cwiseAbs().maxCoeff() == 0);
+    CHECK(solver.jacobian_sign() == (lu.determinant() > 0 ? 1 : -1));
+  }
+  // A zero row: structurally rank deficient, reported as singular, never a solution.
+  LinearSystem system = random_system(200, 1);
+  for (std::size_t k = 0; k < system.rows.size(); ++k)
+    if (system.rows[k] == 17) system.values[k] = 0;
+  kinegen::SparseSolver<LinearSystem> solver{system};
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(system.n);
+  const auto r = solver.position(q, 1.0);
+  CHECK(r.status == kinegen::Status::kSingular);
+  CHECK(r.condition == std::numeric_limits<double>::infinity());
+  CHECK(solver.jacobian_sign() == 0);
+}
 
 TEST_CASE("sparse and dense paths agree on every family", "[sparse]") {
   // nq = 93, 72, 75: moderate sizes where both paths are quick.

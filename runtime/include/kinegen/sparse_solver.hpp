@@ -13,8 +13,8 @@
 //
 // A system for this path provides, besides phi, nu, gamma and length_scale, its Jacobian as
 // structural non-zeros: jacobian_nnz(), jacobian_rows(), jacobian_cols() (each entry's row and
-// column) and jacobian_values(q, t, out) (the values in that order). Square systems only
-// (nc == nq); redundant models stay on the dense path.
+// column; no (row, column) twice) and jacobian_values(q, t, out) (the values in that order).
+// Square systems only (nc == nq); redundant models stay on the dense path.
 #pragma once
 
 #include <Eigen/SparseCore>
