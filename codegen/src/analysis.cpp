@@ -1,6 +1,7 @@
 #include "kinegen/codegen/analysis.hpp"
 
 #include <kinegen/solver.hpp>
+#include <kinegen/sparse_solver.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -20,6 +21,12 @@ std::string format_estimate(double value) {
 }
 
 using Solver = BasicSolver<ProgramSystem>;
+using LargeSolver = SparseSolver<ProgramSystem>;
+
+// The sparse path names the constraints behind a singular Phi_q (a dense SVD) only up to this
+// many coordinates: the diagnosis runs only on failure, but costs O(nq^2) memory and O(nq^3)
+// time (JacobiSVD: about 6 s at nq = 600).
+constexpr int kMaxDiagnosedNq = 400;
 
 std::string time_text(double t) { return "t = " + format_number(t); }
 
@@ -172,8 +179,8 @@ void check_redundancy(const CompiledModel& model, const Eigen::VectorXd& q, doub
 // crank by 1e6 turns in one step, and the coupler's angle follows by some arbitrary amount).
 // Where an angle enters only through sin and cos, whole turns are not seen by Phi: bring each
 // such angle back into the turn of its estimate q0, so the first row reads as the file meant.
-void keep_turns_of_estimates(Solver& solver, const Eigen::VectorXd& q0, Eigen::VectorXd& q,
-                             double t) {
+template <class S>
+void keep_turns_of_estimates(S& solver, const Eigen::VectorXd& q0, Eigen::VectorXd& q, double t) {
   const double two_pi = 2 * std::acos(-1.0);
   for (int k = 2; k < q.size(); k += 3) {
     const double turns = std::round((q[k] - q0[k]) / two_pi);
@@ -185,18 +192,23 @@ void keep_turns_of_estimates(Solver& solver, const Eigen::VectorXd& q0, Eigen::V
   }
 }
 
-}  // namespace
-
-void run_analysis(const CompiledModel& model, const TimeGrid& grid,
-                  const std::function<void(const StateRow&)>& sink) {
-  run_analysis(model, grid, sink, AnalysisOptions{});
+std::string singular_diagnosis(const CompiledModel& model, const Solver& solver, const Result&) {
+  return singular_rows(model, solver.jacobian());
 }
 
-void run_analysis(const CompiledModel& model, const TimeGrid& grid,
-                  const std::function<void(const StateRow&)>& sink,
-                  const AnalysisOptions& options) {
-  require_driven(model);
-  Solver solver{ProgramSystem(model)};
+std::string singular_diagnosis(const CompiledModel& model, const LargeSolver& solver,
+                               const Result& r) {
+  if (model.nq() <= kMaxDiagnosedNq)
+    return singular_rows(model, Eigen::MatrixXd(solver.jacobian()));
+  return " (condition estimate " + format_estimate(r.condition) + "; " +
+         std::to_string(model.nq()) + " coordinates are too many to name the constraints " +
+         "involved, at most " + std::to_string(kMaxDiagnosedNq) + ")";
+}
+
+// The time loop, on either solver (dense or sparse Phi_q).
+template <class S>
+void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
+             const std::function<void(const StateRow&)>& sink, const AnalysisOptions& options) {
   const std::string& file = model.mechanism().source;
   const double length = model.symbolic().length_scale;
   StateRow row;
@@ -214,7 +226,7 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
                  format_estimate(r.condition) + " at the last iterate)";
     }
     if (r.status == Status::kSingular) {
-      message += singular_rows(model, solver.jacobian());
+      message += singular_diagnosis(model, solver, r);
       if (std::string(stage) == "position")
         message += "; a toggle or dead-centre position (a driver past what the mechanism can "
                    "reach), or constraints that leave a motion undriven";
@@ -289,6 +301,26 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
     }
     sink(row);
     previous = row;
+  }
+}
+
+}  // namespace
+
+void run_analysis(const CompiledModel& model, const TimeGrid& grid,
+                  const std::function<void(const StateRow&)>& sink) {
+  run_analysis(model, grid, sink, AnalysisOptions{});
+}
+
+void run_analysis(const CompiledModel& model, const TimeGrid& grid,
+                  const std::function<void(const StateRow&)>& sink,
+                  const AnalysisOptions& options) {
+  require_driven(model);
+  if (model.nq() == model.nc() && model.nq() > options.sparse_above_nq) {
+    LargeSolver solver{ProgramSystem(model)};
+    analyze(solver, model, grid, sink, options);
+  } else {
+    Solver solver{ProgramSystem(model)};
+    analyze(solver, model, grid, sink, options);
   }
 }
 

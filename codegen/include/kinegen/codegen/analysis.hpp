@@ -47,6 +47,11 @@ struct AnalysisOptions {
   // A solved position whose scaled Phi_q has a larger condition estimate is treated as
   // singular (a toggle that Newton converged onto): cond * eps would reach 1e-8.
   double max_condition = 1e8;
+  // Square models with more coordinates than this are solved with a sparse LU of Phi_q
+  // (kinegen/sparse_solver.hpp: no nq x nq matrix), smaller ones with the dense LU, whose
+  // output is unchanged. Measured: the sparse path is faster from nq ~ 30, 2.5x at nq = 51
+  // (docs/sparse_analysis.md). 0 sends every square model to the sparse path.
+  int sparse_above_nq = 48;
 };
 
 // Solves every time of the grid, handing each row to `sink` as soon as it is solved, so a

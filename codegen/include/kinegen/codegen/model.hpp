@@ -118,6 +118,13 @@ class ProgramSystem {
   void jacobian(const double* q, double t, M& jac) const {
     eval_.jacobian(q, t, jac);
   }
+  // Phi_q as structural non-zeros (the sparse path, kinegen/sparse_solver.hpp).
+  int jacobian_nnz() const { return static_cast<int>(model_->programs().jac_rows.size()); }
+  const int* jacobian_rows() const { return model_->programs().jac_rows.data(); }
+  const int* jacobian_cols() const { return model_->programs().jac_cols.data(); }
+  void jacobian_values(const double* q, double t, double* out) const {
+    eval_.phi_q_values(q, t, out);
+  }
 
  private:
   const CompiledModel* model_;
