@@ -137,7 +137,11 @@ class Solver {
         for (int k = 0; k < Model::nq; ++k) predict(k);  // one pass (Eigen would make three)
       }
     }
-    qdd_last_ = qdd;
+    if constexpr (kBlockSolver && detail::HasNewtonCoordinates<Model>::value) {
+      for (int k : Model::newton_coordinates) qdd_last_[k] = qdd[k];  // all the predictor reads
+    } else {
+      qdd_last_ = qdd;
+    }
     // Without a prediction the first solve iterates to convergence even when the options fix
     // the iteration count.
     if constexpr (kBlockSolver && detail::HasAcceleration<Model>::value) {
@@ -184,7 +188,11 @@ class Solver {
   void advance(Scalar t, Scalar h) {
     has_two_ = has_previous_;
     h_previous_ = h;
-    qdd_previous_ = qdd_last_;
+    if constexpr (kBlockSolver && detail::HasNewtonCoordinates<Model>::value) {
+      for (int k : Model::newton_coordinates) qdd_previous_[k] = qdd_last_[k];
+    } else {
+      qdd_previous_ = qdd_last_;
+    }
     t_previous_ = t;
     has_previous_ = true;
   }
