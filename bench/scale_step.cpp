@@ -116,8 +116,7 @@ int main(int argc, char** argv) {
       const double t = k * dt;
       if (k > 0)  // second-order Taylor predictor from the previous step
         for (int j = 0; j < Model::nq; ++j) q[j] += dt * qd[j] + (dt * dt / 2) * qdd[j];
-      const auto r = Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), options,
-                                        trig.data());
+      const auto r = Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), options, trig.data());
       if (r.status != 0) {
         std::fprintf(stderr, "error: step failed at t = %g in block %d (status %d)\n", t, r.block,
                      r.status);

@@ -172,10 +172,9 @@ TEST_CASE("repeated blocks emitted once compute what the whole block solver comp
   // tables; alone and in split headers.
   compare<fourbar_chain_3, fourbar_chain_3_rolled>("fourbar_chain_3", "rolled",
                                                    {"_roll0_position(", "_roll0_i[3]["});
-  compare<fourbar_chain_3, fourbar_chain_3_rolled_split>(
-      "fourbar_chain_3", "rolled_split", {"_roll0_position(", "_part1("});
-  compare<scissor_lift_3, scissor_lift_3_rolled>("scissor_lift_3", "rolled",
-                                                 {"_roll0_position("});
+  compare<fourbar_chain_3, fourbar_chain_3_rolled_split>("fourbar_chain_3", "rolled_split",
+                                                         {"_roll0_position(", "_part1("});
+  compare<scissor_lift_3, scissor_lift_3_rolled>("scissor_lift_3", "rolled", {"_roll0_position("});
   compare<scissor_lift_3, scissor_lift_3_rolled_split>("scissor_lift_3", "rolled_split",
                                                        {"_roll0_position(", "_part1("});
 }
