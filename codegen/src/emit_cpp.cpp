@@ -402,6 +402,37 @@ void emit_function(std::ostringstream& os, const char* name, const char* out_siz
 // coordinate read, ascending, renamed to the model's k-th, q and qd alike, every output is the
 // same expression) are evaluated by one function, in a loop over tables of their coordinates
 // and output indices. The rest is lowered and emitted as usual.
+// Repeated pieces (blocks, constraints) are compared under a renaming of the coordinates they
+// read: the k-th coordinate of a piece's table becomes the model's k-th.
+
+// Adds the coordinates whose q or qd `e` reads to `read`.
+void add_coordinates_read(const GiNaC::ex& e, const SymbolTable& symbols, std::set<int>& read) {
+  for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it)
+    if (GiNaC::is_a<GiNaC::symbol>(*it)) {
+      const Input in = symbols.classify(*it);
+      if (in.kind == InputKind::kQ || in.kind == InputKind::kQd) read.insert(in.index);
+    }
+}
+
+// table[k] -> coordinate k, q and qd alike; one substitution, so the renaming is simultaneous.
+GiNaC::exmap table_renaming(const std::vector<int>& table, const SymbolTable& symbols) {
+  GiNaC::exmap rename;
+  for (std::size_t k = 0; k < table.size(); ++k) {
+    rename[symbols.q(table[k])] = symbols.q(static_cast<int>(k));
+    rename[symbols.qd(table[k])] = symbols.qd(static_cast<int>(k));
+  }
+  return rename;
+}
+
+// Equal printed keys should mean equal renamed expressions, but names could coincide: this
+// compares exactly.
+bool same_expressions(const std::vector<GiNaC::ex>& a, const std::vector<GiNaC::ex>& b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t k = 0; k < a.size(); ++k)
+    if (!a[k].is_equal(b[k])) return false;
+  return true;
+}
+
 struct RolledOutputs {
   struct Class {
     Program program;                       // the first group's outputs
@@ -424,18 +455,9 @@ RolledOutputs roll_outputs(const std::vector<GiNaC::ex>& exprs, const std::vecto
   std::map<int, std::vector<GiNaC::ex>> renamed;
   for (const auto& [g, outs] : members) {
     std::set<int> read;
-    for (int k : outs)
-      for (auto it = exprs[k].preorder_begin(); it != exprs[k].preorder_end(); ++it)
-        if (GiNaC::is_a<GiNaC::symbol>(*it)) {
-          const Input in = symbols.classify(*it);
-          if (in.kind == InputKind::kQ || in.kind == InputKind::kQd) read.insert(in.index);
-        }
-    std::vector<int> list(read.begin(), read.end());
-    GiNaC::exmap rename;
-    for (std::size_t j = 0; j < list.size(); ++j) {
-      rename[symbols.q(list[j])] = symbols.q(static_cast<int>(j));
-      rename[symbols.qd(list[j])] = symbols.qd(static_cast<int>(j));
-    }
+    for (int k : outs) add_coordinates_read(exprs[k], symbols, read);
+    const std::vector<int> list(read.begin(), read.end());
+    const GiNaC::exmap rename = table_renaming(list, symbols);
     std::ostringstream key;
     key << outs.size() << " " << list.size();
     for (int k : outs) {
@@ -451,11 +473,8 @@ RolledOutputs roll_outputs(const std::vector<GiNaC::ex>& exprs, const std::vecto
     const int first = groups[0];
     RolledOutputs::Class c;
     for (int g : groups) {
-      // Equal text should mean equal expressions, but names could coincide: compare exactly.
-      bool same = coords[g].size() == coords[first].size();
-      for (std::size_t k = 0; same && k < renamed[g].size(); ++k)
-        same = renamed[g][k].is_equal(renamed[first][k]);
-      if (!same) continue;
+      if (coords[g].size() != coords[first].size() || !same_expressions(renamed[g], renamed[first]))
+        continue;
       c.coords.push_back(coords[g]);
       c.outs.push_back(members[g]);
     }
@@ -1043,24 +1062,15 @@ class BlockEmitter {
       const Block& b = plan.block;
       const std::vector<int> ids = block_outputs(bi);
       std::set<int> read;
-      for (int id : ids)
-        for (auto it = outs_[id].preorder_begin(); it != outs_[id].preorder_end(); ++it)
-          if (GiNaC::is_a<GiNaC::symbol>(*it)) {
-            const Input in = symbols_.classify(*it);
-            if (in.kind == InputKind::kQ || in.kind == InputKind::kQd) read.insert(in.index);
-          }
+      for (int id : ids) add_coordinates_read(outs_[id], symbols_, read);
       for (const auto& row : blocks_[bi].coupling)
         for (const auto& [c, o] : row) read.insert(c);
       std::vector<int> list = b.cols;
       for (int c : read)
         if (!std::binary_search(b.cols.begin(), b.cols.end(), c)) list.push_back(c);
       std::map<int, int> slot;
-      GiNaC::exmap rename;
-      for (std::size_t j = 0; j < list.size(); ++j) {
-        slot[list[j]] = static_cast<int>(j);
-        rename[symbols_.q(list[j])] = symbols_.q(static_cast<int>(j));
-        rename[symbols_.qd(list[j])] = symbols_.qd(static_cast<int>(j));
-      }
+      for (std::size_t j = 0; j < list.size(); ++j) slot[list[j]] = static_cast<int>(j);
+      const GiNaC::exmap rename = table_renaming(list, symbols_);
       const auto row_of = [&](int r) {
         return std::lower_bound(b.rows.begin(), b.rows.end(), r) - b.rows.begin();
       };
@@ -1090,15 +1100,9 @@ class BlockEmitter {
       if (static_cast<int>(members.size()) < roll_min) continue;
       Roll r;
       const int first = members[0];
-      // The key printed the expressions; equal text should mean equal expressions, but names
-      // could coincide, so compare exactly.
       std::vector<int> alike;
-      for (int bi : members) {
-        bool same = renamed[bi].size() == renamed[first].size();
-        for (std::size_t k = 0; same && k < renamed[bi].size(); ++k)
-          same = renamed[bi][k].is_equal(renamed[first][k]);
-        if (same) alike.push_back(bi);
-      }
+      for (int bi : members)
+        if (same_expressions(renamed[bi], renamed[first])) alike.push_back(bi);
       if (static_cast<int>(alike.size()) < roll_min) continue;
       r.st = std::make_unique<Structure>();
       Structure& sub = *r.st;
