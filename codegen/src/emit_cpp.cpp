@@ -397,11 +397,6 @@ void emit_function(std::ostringstream& os, const char* name, const char* out_siz
   os << tail << "  }\n";
 }
 
-// Section-4 functions with repeated constraints (EmitOptions::roll_min): the outputs of each
-// constraint form a group; groups alike up to the coordinates they read (with the k-th
-// coordinate read, ascending, renamed to the model's k-th, q and qd alike, every output is the
-// same expression) are evaluated by one function, in a loop over tables of their coordinates
-// and output indices. The rest is lowered and emitted as usual.
 // Repeated pieces (blocks, constraints) are compared under a renaming of the coordinates they
 // read: the k-th coordinate of a piece's table becomes the model's k-th.
 
@@ -433,6 +428,11 @@ bool same_expressions(const std::vector<GiNaC::ex>& a, const std::vector<GiNaC::
   return true;
 }
 
+// Section-4 functions with repeated constraints (EmitOptions::roll_min): the outputs of each
+// constraint form a group; groups alike up to the coordinates they read (with the k-th
+// coordinate read, ascending, renamed to the model's k-th, q and qd alike, every output is the
+// same expression) are evaluated by one function, in a loop over tables of their coordinates
+// and output indices. The rest is lowered and emitted as usual.
 struct RolledOutputs {
   struct Class {
     Program program;                       // the first group's outputs
