@@ -400,6 +400,20 @@ void emit_function(std::ostringstream& os, const char* name, const char* out_siz
 // Repeated pieces (blocks, constraints) are compared under a renaming of the coordinates they
 // read: the k-th coordinate of a piece's table becomes the model's k-th.
 
+// `static constexpr int name[rows][columns]`, a table of the repeated pieces (a row of zero
+// columns is stored as one 0, which nothing reads).
+void emit_table(std::ostringstream& os, const std::string& name,
+                const std::vector<std::vector<int>>& rows) {
+  os << "  static constexpr int " << name << "[" << rows.size() << "]["
+     << std::max<std::size_t>(1, rows[0].size()) << "] = {\n";
+  for (const auto& row : rows) {
+    std::vector<std::string> v;
+    for (int x : row) v.push_back(std::to_string(x));
+    os << "      {" << (v.empty() ? "0" : join(v)) << "},\n";
+  }
+  os << "  };\n";
+}
+
 // Adds the coordinates whose q or qd `e` reads to `read`.
 void add_coordinates_read(const GiNaC::ex& e, const SymbolTable& symbols, std::set<int>& read) {
   for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it)
@@ -506,24 +520,13 @@ void emit_rolled_function(std::ostringstream& os, const char* name, const char* 
                           int max_ops) {
   os << " private:\n";
   std::ostringstream tail;
-  const auto table = [&](const std::string& table_name,
-                         const std::vector<std::vector<int>>& rows) {
-    os << "  static constexpr int " << table_name << "[" << rows.size() << "]["
-       << std::max<std::size_t>(1, rows[0].size()) << "] = {\n";
-    for (const auto& row : rows) {
-      std::vector<std::string> v;
-      for (int x : row) v.push_back(std::to_string(x));
-      os << "      {" << (v.empty() ? "0" : join(v)) << "},\n";
-    }
-    os << "  };\n";
-  };
   for (std::size_t g = 0; g < ro.classes.size(); ++g) {
     const RolledOutputs::Class& c = ro.classes[g];
     const std::string f = "_" + std::string(name) + "_roll" + std::to_string(g);
     os << "  // Repeated constraints (" << c.outs.size() << "): alike up to the coordinates they "
        << "read (" << f << "_i,\n  // ascending) and where their outputs go (" << f << "_o).\n";
-    table(f + "_i", c.coords);
-    table(f + "_o", c.outs);
+    emit_table(os, f + "_i", c.coords);
+    emit_table(os, f + "_o", c.outs);
     os << "  template <class T>\n"
        << "  static void " << f << "([[maybe_unused]] const T* q,"
        << (with_qd ? " [[maybe_unused]] const T* qd," : "") << "\n"
@@ -862,22 +865,10 @@ class BlockEmitter {
   }
 
   int trig_cache_size() const { return 3 * trig_slots_; }
-  int repeated_block_functions() const { return static_cast<int>(rolls_.size()); }
-
   // The functions of the repeated blocks and their coordinate tables (private members).
   void emit_rolls(std::ostringstream& os, bool velocity, bool acceleration) {
     if (rolls_.empty()) return;
     os << "\n private:\n";
-    const auto table = [&](const std::string& name, const std::vector<std::vector<int>>& rows) {
-      os << "  static constexpr int " << name << "[" << rows.size() << "][" << rows[0].size()
-         << "] = {\n";
-      for (const auto& row : rows) {
-        std::vector<std::string> v;
-        for (int x : row) v.push_back(idx(x));
-        os << "      {" << join(v) << "},\n";
-      }
-      os << "  };\n";
-    };
     for (std::size_t g = 0; g < rolls_.size(); ++g) {
       const Roll& r = rolls_[g];
       const std::string name = "_roll" + idx(static_cast<int>(g));
@@ -887,8 +878,8 @@ class BlockEmitter {
          << "  // (its own coordinates, then the others it reads)"
          << (r.slots[0].empty() ? "" : " and of " + name + "_s (its sin/cos\n  // cache slots)")
          << ".\n";
-      table(name + "_i", r.coords);
-      if (!r.slots[0].empty()) table(name + "_s", r.slots);
+      emit_table(os, name + "_i", r.coords);
+      if (!r.slots[0].empty()) emit_table(os, name + "_s", r.slots);
       r.emitter->emit_rolled_position(os, name);
       if (velocity) r.emitter->emit_rolled_motion(os, name, true, false);
       if (acceleration) {
