@@ -1204,16 +1204,7 @@ class BlockEmitter {
         ops += 4;
         stores += 1;
       } else {
-        const int end =
-            bi + 1 < n ? pos_first_[bi + 1] : static_cast<int>(prog_.outputs.size());
-        for (int o = pos_first_[bi]; o < end && o < pos_end(); ++o) count(o);
-        const BlockOuts& bo = blocks_[bi];
-        for (int o : bo.jbb) count(o);
-        for (const auto& [rc, o] : bo.tjac) count(o);
-        for (const auto& row : bo.coupling)
-          for (const auto& [c, o] : row) count(o);
-        for (int o : bo.nu) count(o);
-        for (int o : bo.gamma) count(o);
+        for (int o : block_outputs(bi)) count(o);
         // Stores count as in split_program: each coordinate is written to q, qd and qdd.
         stores += 3 * static_cast<int>(st_.plans[bi].block.cols.size());
       }
@@ -1225,8 +1216,6 @@ class BlockEmitter {
       }
     }
   }
-  // One past the last position output.
-  int pos_end() const { return pos_end_; }
 
   static std::string motion_name(bool velocity, bool acceleration) {
     return velocity && acceleration ? "solve_velocity_acceleration"

@@ -127,21 +127,11 @@ class Solver {
       const Scalar h2 = h * h / Scalar(2);
       const Scalar h3 =
           has_two_ && h_previous_ != Scalar(0) ? h * h * h / (Scalar(6) * h_previous_) : Scalar(0);
-      const auto predict = [&](int k) {
+      for_predicted([&](int k) {  // one pass (Eigen would make three)
         q[k] += h * qd[k] + h2 * qdd[k] + h3 * (qdd[k] - qdd_previous_[k]);
-      };
-      if constexpr (kBlockSolver && detail::HasNewtonCoordinates<Model>::value) {
-        // The block solver computes every other coordinate from these.
-        for (int k : Model::newton_coordinates) predict(k);
-      } else {
-        for (int k = 0; k < Model::nq; ++k) predict(k);  // one pass (Eigen would make three)
-      }
+      });
     }
-    if constexpr (kBlockSolver && detail::HasNewtonCoordinates<Model>::value) {
-      for (int k : Model::newton_coordinates) qdd_last_[k] = qdd[k];  // all the predictor reads
-    } else {
-      qdd_last_ = qdd;
-    }
+    for_predicted([&](int k) { qdd_last_[k] = qdd[k]; });
     // Without a prediction the first solve iterates to convergence even when the options fix
     // the iteration count.
     if constexpr (kBlockSolver && detail::HasAcceleration<Model>::value) {
@@ -185,14 +175,20 @@ class Solver {
     return o;
   }
 
+  // Calls f(k) for each coordinate the predictor extrapolates: those Newton iterates when the
+  // header lists them (the block solver computes every other one from them), otherwise all.
+  template <class F>
+  static void for_predicted(F&& f) {
+    if constexpr (kBlockSolver && detail::HasNewtonCoordinates<Model>::value) {
+      for (int k : Model::newton_coordinates) f(k);
+    } else {
+      for (int k = 0; k < Model::nq; ++k) f(k);
+    }
+  }
   void advance(Scalar t, Scalar h) {
     has_two_ = has_previous_;
     h_previous_ = h;
-    if constexpr (kBlockSolver && detail::HasNewtonCoordinates<Model>::value) {
-      for (int k : Model::newton_coordinates) qdd_previous_[k] = qdd_last_[k];
-    } else {
-      qdd_previous_ = qdd_last_;
-    }
+    for_predicted([&](int k) { qdd_previous_[k] = qdd_last_[k]; });
     t_previous_ = t;
     has_previous_ = true;
   }
