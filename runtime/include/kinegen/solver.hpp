@@ -21,6 +21,8 @@ enum class Status {
   kSingular,       // Phi_q is singular or nearly so at the current configuration
   kNonFinite,      // a residual, Jacobian or step contained NaN or infinity
   kInconsistent,   // Newton's step vanished but Phi is not zero: no solution near here
+  kBudgetExhausted,  // a fixed iteration budget ran out with the residual above tolerance
+  kBranchJump,       // converged, but on another assembly branch than the motion's
 };
 
 inline const char* to_string(Status s) {
@@ -32,6 +34,11 @@ inline const char* to_string(Status s) {
     case Status::kInconsistent:
       return "Newton's step vanished but the constraints are not satisfied (they contradict "
              "each other, or the mechanism cannot reach this position)";
+    case Status::kBudgetExhausted:
+      return "the fixed iteration budget ran out with the constraints not yet satisfied";
+    case Status::kBranchJump:
+      return "the solution jumped to another assembly branch (a block's determinant changed "
+             "sign, or the position is not the one the velocities predict)";
   }
   return "unknown";
 }
@@ -48,6 +55,7 @@ struct Result {
   double condition = 1;
   double residual = 0;  // largest scaled |Phi| after the last step (position only)
   int rank = 0;         // numerical rank of Phi_q at the last factorization
+  int block = -1;       // block solver: the block that failed (-1: none, or the dense path)
 
   explicit operator bool() const { return status == Status::kConverged; }
   const char* message() const { return to_string(status); }
