@@ -259,3 +259,65 @@ TEST_CASE("forces: bad mass data is refused", "[forces]") {
   spec.bodies[2].inertia = num("1/0");
   CHECK_THROWS_AS(kc::derive_forces(*model, spec), kc::InputError);
 }
+
+namespace {
+std::string load_error(const std::string& yaml) {
+  try {
+    const auto model = compile(yaml);
+    kc::derive_forces(*model);
+  } catch (const kc::InputError& e) {
+    return e.item() + " line " + std::to_string(e.loc().line) + ": " + e.detail();
+  }
+  return "no error";
+}
+const std::string kBase = R"y(name: m
+bodies:
+  - {name: crank, q0: [0, 0, 0], mass: 2, inertia: 0.1, com: [0.5, 0]}
+joints:
+  - {type: revolute, i: ground, j: crank}
+drivers:
+  - {type: absolute_angle, body: crank, f: "t"}
+)y";
+}  // namespace
+
+TEST_CASE("forces from the file: keys, defaults and hostile values", "[forces]") {
+  // Read from YAML, a spring between ground and the crank tip: the torque it needs at rest.
+  const auto model = compile(kBase + R"y(gravity: [0, -10]
+forces:
+  - {type: rotational_spring_damper, name: coil, i: ground, j: crank, stiffness: 3}
+  - {type: torque, body: crank, value: "0.5"}
+)y");
+  const auto forces = kc::derive_forces(*model);
+  kc::ForceSolver solver(*model, forces);
+  std::vector<double> columns;
+  Eigen::VectorXd q(3), qd = Eigen::VectorXd::Zero(3), qdd = Eigen::VectorXd::Zero(3);
+  q << 0, 0, 0.25;
+  REQUIRE(solver.solve(0.25, q, qd, qdd, columns));
+  // Static balance: motor + 0.5 - 3 phi - m g rc cos(phi) = 0.
+  CHECK(columns[0] == Approx(3 * 0.25 + 2 * 10 * 0.5 * std::cos(0.25) - 0.5).epsilon(1e-14));
+
+  CHECK_THAT(load_error(R"y(name: m
+bodies:
+  - {name: crank, q0: [0, 0, 0], mass: -2}
+joints:
+  - {type: revolute, i: ground, j: crank}
+drivers:
+  - {type: absolute_angle, body: crank, f: "t"}
+)y"),
+             Catch::Contains("body 'crank' mass line 3") && Catch::Contains("must not be negative"));
+  CHECK_THAT(load_error(kBase + "forces:\n  - {type: force, body: rod, f: [1, 0]}\n"),
+             Catch::Contains("forces[0] (force) line 9") && Catch::Contains("unknown body 'rod'"));
+  CHECK_THAT(load_error(kBase + "forces:\n  - {type: force, body: crank, f: [\"xd_crank\", 0]}\n"),
+             Catch::Contains("forces[0] (force) f line 9"));
+  CHECK_THAT(load_error(kBase + "forces:\n  - {type: spring_damper, i: ground, j: crank, "
+                                "stiffness: \"1/0\", length0: 1}\n"),
+             Catch::Contains("forces[0] (spring_damper)") && Catch::Contains("stiffness line 9"));
+  CHECK_THAT(load_error(kBase + "forces:\n  - {type: spring_damper, i: ground, j: crank, "
+                                "stiffness: .inf, length0: 1}\n"),
+             Catch::Contains("not a finite number"));
+  CHECK_THAT(load_error(kBase + "forces:\n  - {type: spring, i: ground, j: crank}\n"),
+             Catch::Contains("unknown load type 'spring'"));
+  CHECK_THAT(load_error(kBase + "forces:\n  - {type: torque, body: crank, value: 1, s: [0, 0]}\n"),
+             Catch::Contains("unknown key 's'"));
+  CHECK(load_error(kBase) == "no error");
+}

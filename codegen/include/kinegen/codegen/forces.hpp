@@ -20,34 +20,6 @@
 
 namespace kinegen::codegen {
 
-// Mass data of one body: all default to 0; mass and inertia (about the centre of mass) >= 0.
-struct BodyMass {
-  Expr mass{"0", {}}, inertia{"0", {}};
-  Vec2 com{{"0", {}}, {"0", {}}};  // in the body's frame
-  SourceLoc loc;
-};
-
-struct Load {
-  enum class Kind { kForce, kTorque, kSpringDamper, kRotationalSpringDamper };
-  Kind kind = Kind::kForce;
-  std::string name;  // optional
-  std::string item;  // "forces[2] (spring_damper)"
-  SourceLoc loc;
-  int body = kGround;     // force, torque
-  int i = kGround, j = kGround;  // spring-dampers
-  Vec2 s, si, sj;         // points (force: s; linear spring-damper: si, sj)
-  Vec2 f;                 // force: global components
-  Expr value;             // torque
-  Expr stiffness, damping, length0, preload, angle0;
-};
-
-struct ForceSpec {
-  std::vector<BodyMass> bodies;  // one per body (empty: all zero)
-  Vec2 gravity{{"0", {}}, {"0", {}}};
-  SourceLoc gravity_loc;
-  std::vector<Load> loads;
-};
-
 struct ForceModel {
   std::vector<GiNaC::ex> applied;  // Q^A(q, qd, t), nq: gravity and the loads
   Program applied_program;
@@ -61,6 +33,10 @@ struct ForceModel {
 // Builds Q^A and evaluates the mass data. Throws InputError for negative or non-finite mass
 // data, unknown bodies, expressions that are not allowed (velocities) or not finite.
 ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec);
+// The same for the mechanism's own masses, gravity and loads.
+inline ForceModel derive_forces(const CompiledModel& model) {
+  return derive_forces(model, model.mechanism().forces);
+}
 
 // Column names added by `analyze --forces`: every driver's effort(s), then every joint's
 // reaction (fx, fy, tz), in file order.
