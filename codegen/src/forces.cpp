@@ -32,6 +32,13 @@ class Builder {
       throw InputError(m_.source, item, e.loc, "'" + e.text + "' must not be negative");
     return v;
   }
+  // A constant with the parameters' values substituted, exact where they are exact.
+  ex exact(const Expr& e, const std::string& item) const {
+    return substitute_params(parse(e, Scope::kGeometry, item), s_, values_);
+  }
+  std::array<ex, 2> exact(const Vec2& v, const std::string& item) const {
+    return {exact(v.x, item), exact(v.y, item)};
+  }
   Vec vec(const Vec2& v, Scope scope, const std::string& item) const {
     return {parse(v.x, scope, item), parse(v.y, scope, item)};
   }
@@ -72,11 +79,6 @@ class Builder {
   const std::vector<GiNaC::numeric>& values_;
 };
 
-Eigen::Vector2d rotate(double phi, const Eigen::Vector2d& s) {
-  const double c = std::cos(phi), sn = std::sin(phi);
-  return {c * s[0] - sn * s[1], sn * s[0] + c * s[1]};
-}
-
 }  // namespace
 
 ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec) {
@@ -93,10 +95,11 @@ ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec) {
     const std::string item = "body '" + m.bodies[k].name + "'";
     const BodyMass none;
     const BodyMass& bm = k < static_cast<int>(spec.bodies.size()) ? spec.bodies[k] : none;
-    f.mass.push_back(b.number(bm.mass, item + " mass", true));
-    f.inertia.push_back(b.number(bm.inertia, item + " inertia", true));
-    f.com.emplace_back(b.number(bm.com.x, item + " com", false),
-                       b.number(bm.com.y, item + " com", false));
+    b.number(bm.mass, item + " mass", true);
+    b.number(bm.inertia, item + " inertia", true);
+    f.exact.mass.push_back(b.exact(bm.mass, item + " mass"));
+    f.exact.inertia.push_back(b.exact(bm.inertia, item + " inertia"));
+    f.exact.com.push_back(b.exact(bm.com, item + " com"));
     const ex mass = b.parse(bm.mass, Scope::kGeometry, item + " mass");
     b.add_force(f.applied, k, b.vec(bm.com, Scope::kGeometry, item + " com"), mass * g.x,
                 mass * g.y);
@@ -147,10 +150,24 @@ ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec) {
                           &load.angle0})
       if (!e->text.empty()) b.number(*e, load.item, false);
   f.applied_program = lower(f.applied, s);
+  f.row_begin.push_back(0);
   for (const Constraint* c : m.constraints()) {
-    f.si.emplace_back(b.number(c->si.x, c->item, false), b.number(c->si.y, c->item, false));
-    f.sj.emplace_back(b.number(c->sj.x, c->item, false), b.number(c->sj.y, c->item, false));
+    f.exact.si.push_back(b.exact(c->si, c->item + " si"));
+    f.exact.sj.push_back(b.exact(c->sj, c->item + " sj"));
+    f.row_begin.push_back(f.row_begin.back() + c->equation_count());
   }
+  const auto to_d = [](const std::vector<ex>& v) {
+    std::vector<double> r;
+    for (const ex& e : v) r.push_back(to_double(e));
+    return r;
+  };
+  const auto to_d2 = [](const std::vector<std::array<ex, 2>>& v) {
+    std::vector<std::array<double, 2>> r;
+    for (const auto& e : v) r.push_back({to_double(e[0]), to_double(e[1])});
+    return r;
+  };
+  f.numbers = {to_d(f.exact.mass), to_d(f.exact.inertia), to_d2(f.exact.com),
+               to_d2(f.exact.si), to_d2(f.exact.sj)};
   return f;
 }
 
@@ -181,6 +198,9 @@ std::vector<std::string> force_columns(const Mechanism& m) {
   return names;
 }
 
+bool is_distance(const Constraint& c) { return c.type == ConstraintType::kDistance; }
+bool is_expression(const Constraint& c) { return c.type == ConstraintType::kExpression; }
+
 ForceSolver::ForceSolver(const CompiledModel& model, const ForceModel& forces)
     : model_(&model),
       forces_(&forces),
@@ -189,33 +209,23 @@ ForceSolver::ForceSolver(const CompiledModel& model, const ForceModel& forces)
       params_(model.params()),
       jac_(model.nc(), model.nq()),
       q_total_(model.nq()),
-      lambda_(model.nc()) {
-  row_begin_.push_back(0);
-  for (const Constraint* c : model.mechanism().constraints())
-    row_begin_.push_back(row_begin_.back() + c->equation_count());
-}
+      lambda_(model.nc()),
+      jac_row_major_(model.nc() * model.nq()),
+      lambda_values_(model.nc()) {}
 
 Eigen::VectorXd ForceSolver::reaction_of(int c) const {
-  const int r0 = row_begin_[c], n = row_begin_[c + 1] - r0;
+  const int r0 = forces_->row_begin[c], n = forces_->row_begin[c + 1] - r0;
   return -jac_.middleRows(r0, n).transpose() * lambda_.segment(r0, n);
 }
 
 bool ForceSolver::solve(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                         const Eigen::VectorXd& qdd, std::vector<double>& columns) {
   const Mechanism& m = model_->mechanism();
-  const int nb = static_cast<int>(m.bodies.size());
   jac_.setZero();
   eval_.jacobian(q.data(), t, jac_);
   applied_.run(q.data(), qd.data(), t, params_.data(), q_total_.data());
-  // Inertia forces of the motion: -m a_com at the centre of mass, -J alpha.
-  for (int b = 0; b < nb; ++b) {
-    const PointState c = point_state(q.segment<3>(3 * b), qd.segment<3>(3 * b),
-                                     qdd.segment<3>(3 * b), forces_->com[b]);
-    const Eigen::Vector2d force = -forces_->mass[b] * c.a;
-    const Eigen::Vector2d a = c.r - q.segment<2>(3 * b);  // A com
-    q_total_.segment<2>(3 * b) += force;
-    q_total_[3 * b + 2] += a.x() * force.y() - a.y() * force.x() - forces_->inertia[b] * qdd[3 * b + 2];
-  }
+  add_inertia_forces(forces_->numbers, static_cast<int>(m.bodies.size()), q.data(), qd.data(),
+                     qdd.data(), q_total_.data());
   // Phi_q^T lambda = Q, factored scaled like the position solve (rows equilibrated, length
   // columns in units of the length scale) so that the condition estimate means the same.
   const double length = model_->symbolic().length_scale;
@@ -237,39 +247,15 @@ bool ForceSolver::solve(double t, const Eigen::VectorXd& q, const Eigen::VectorX
   condition_ = rcond > 0 ? 1 / rcond : std::numeric_limits<double>::infinity();
   lambda_ = lu.solve(rhs);
   for (int r = 0; r < lambda_.size(); ++r) lambda_[r] *= row_scale[r];
-  columns.clear();
   if (!(rcond > std::numeric_limits<double>::epsilon()) || !lambda_.allFinite()) {
     columns.assign(force_columns(m).size(), std::numeric_limits<double>::quiet_NaN());
     return false;
   }
-  const int nj = static_cast<int>(m.joints.size());
-  for (std::size_t d = 0; d < m.drivers.size(); ++d) {
-    const Constraint& c = m.drivers[d];
-    const int r0 = row_begin_[nj + d];
-    if (c.type == ConstraintType::kDistance) {
-      // Phi = d.d - f^2: the force along d is -lambda dPhi/dL = -2 lambda L.
-      const auto at = [&](int body, const Eigen::Vector2d& s_local) -> Eigen::Vector2d {
-        if (body == kGround) return s_local;
-        return q.segment<2>(3 * body) + rotate(q[3 * body + 2], s_local);
-      };
-      const int k = nj + static_cast<int>(d);
-      const double l = (at(c.j, forces_->sj[k]) - at(c.i, forces_->si[k])).norm();
-      columns.push_back(-2 * lambda_[r0] * l);
-    } else {
-      for (int r = r0; r < row_begin_[nj + d + 1]; ++r) columns.push_back(-lambda_[r]);
-    }
-  }
-  for (int j = 0; j < nj; ++j) {
-    const Constraint& c = m.joints[j];
-    if (c.type == ConstraintType::kExpression) continue;
-    const int body = c.j != kGround ? c.j : c.i;
-    const Eigen::VectorXd g = reaction_of(j);
-    const Eigen::Vector2d force = g.segment<2>(3 * body);
-    const Eigen::Vector2d a = rotate(q[3 * body + 2], c.j != kGround ? forces_->sj[j] : forces_->si[j]);
-    columns.push_back(force.x());
-    columns.push_back(force.y());
-    columns.push_back(g[3 * body + 2] - (a.x() * force.y() - a.y() * force.x()));
-  }
+  Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+      jac_row_major_.data(), jac_.rows(), jac_.cols()) = jac_;
+  Eigen::VectorXd::Map(lambda_values_.data(), lambda_.size()) = lambda_;
+  columns_from_lambda(m, *forces_, forces_->numbers, q.data(), jac_row_major_, lambda_values_,
+                      columns);
   return true;
 }
 
