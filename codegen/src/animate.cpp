@@ -1,5 +1,7 @@
 #include "kinegen/codegen/animate.hpp"
 
+#include "kinegen/codegen/constraints.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,19 +15,9 @@ namespace {
 
 using Eigen::Vector2d;
 
-// A point fixed in a body (or in ground), in the body's local frame.
-struct Attach {
-  int body = kGround;
-  Vector2d s = Vector2d::Zero();
-};
-
-// A block sliding on a guide: `point` runs on the line through `origin` along `dir`, both
-// local to `guide` (a translational or revolute-translational joint, or absolute_x/_y).
-struct Slider {
-  Attach point;
-  int guide = kGround;
-  Vector2d origin = Vector2d::Zero(), dir = Vector2d::UnitX();
-  double travel_min = 0, travel_max = 0;  // along dir, over the analysis
+// A block sliding on a guide (Sketch::Slider), with its travel along dir over the analysis.
+struct Slider : Sketch::Slider {
+  double travel_min = 0, travel_max = 0;
 };
 
 constexpr const char* kGroundColour = "#555555";
@@ -100,13 +92,7 @@ class Picture {
   }
 
  private:
-  Vector2d vec(const Vec2& v, const std::string& item) const {
-    const auto& s = model_.symbols();
-    const auto& values = model_.symbolic().param_values;
-    return {to_double(substitute_params(s.parse(v.x, Scope::kGeometry, item), s, values)),
-            to_double(substitute_params(s.parse(v.y, Scope::kGeometry, item), s, values))};
-  }
-  double scalar(const Expr& e, const std::string& item) const {
+  double number(const Expr& e, const std::string& item) const {
     const auto& s = model_.symbols();
     return to_double(
         substitute_params(s.parse(e, Scope::kGeometry, item), s, model_.symbolic().param_values));
@@ -135,55 +121,18 @@ class Picture {
     const auto attach = [&](int body, const Vector2d& s) {
       if (body != kGround) add_unique(body_points_[body], s, tol);
     };
+    // What each constraint's kind draws, kept in the order the kinds add it.
+    Sketch sketch;
     for (const Constraint* c : m.constraints()) {
-      const bool driver = c->is_driver;
-      switch (c->type) {
-        case ConstraintType::kRevolute: {
-          const Vector2d si = vec(c->si, c->item), sj = vec(c->sj, c->item);
-          attach(c->i, si);
-          attach(c->j, sj);
-          pins_.push_back({c->i, si});
-          if (c->i == kGround) add_unique(ground_pivots_, si, tol);
-          if (c->j == kGround) add_unique(ground_pivots_, sj, tol);
-          break;
-        }
-        case ConstraintType::kTranslational:
-        case ConstraintType::kRevoluteTranslational: {
-          const Vector2d si = vec(c->si, c->item), sj = vec(c->sj, c->item);
-          Vector2d vi = vec(c->vi, c->item);
-          attach(c->i, si);
-          attach(c->j, sj);
-          if (vi.norm() > 0) vi.normalize();
-          sliders_.push_back({{c->j, sj}, c->i, si, vi, 0, 0});
-          break;
-        }
-        case ConstraintType::kDistance: {
-          const Vector2d si = vec(c->si, c->item), sj = vec(c->sj, c->item);
-          attach(c->i, si);
-          attach(c->j, sj);
-          struts_.push_back({{c->i, si}, {c->j, sj}});
-          break;
-        }
-        case ConstraintType::kAbsoluteX:
-        case ConstraintType::kAbsoluteY: {
-          const Vector2d s = vec(c->si, c->item);
-          attach(c->i, s);
-          if (driver) break;  // a driven coordinate moves on purpose: no guide to draw
-          const bool x = c->type == ConstraintType::kAbsoluteX;
-          const double v = scalar(c->value, c->item);
-          // x fixed: the point runs along global y, and the other way round.
-          sliders_.push_back({{c->i, s},
-                              kGround,
-                              x ? Vector2d(v, 0) : Vector2d(0, v),
-                              x ? Vector2d::UnitY() : Vector2d::UnitX(),
-                              0,
-                              0});
-          break;
-        }
-        default:
-          break;
-      }
+      if (!c->kind->draw) continue;
+      const DrawContext context{*c, [&](const Expr& e) { return number(e, c->item); }};
+      c->kind->draw(context, sketch);
     }
+    for (const Attach& a : sketch.landmarks) attach(a.body, a.s);
+    for (const Attach& a : sketch.pins) pins_.push_back(a);
+    for (const Vector2d& g : sketch.ground_pivots) add_unique(ground_pivots_, g, tol);
+    for (const Sketch::Slider& sl : sketch.sliders) sliders_.push_back({sl, 0, 0});
+    struts_ = sketch.struts;
     for (std::size_t p = 0; p < m.points.size(); ++p) {
       named_.push_back({m.points[p].body, model_.point_offsets()[p]});
       attach(m.points[p].body, model_.point_offsets()[p]);

@@ -1,5 +1,6 @@
 #include "kinegen/codegen/model.hpp"
 
+#include "kinegen/codegen/constraints.hpp"
 #include "kinegen/codegen/log.hpp"
 
 namespace kinegen::codegen {
@@ -67,8 +68,11 @@ Eigen::VectorXd CompiledModel::q0() const {
 std::string CompiledModel::row_label(int row) const {
   const RowOrigin& o = symbolic_.rows[row];
   std::string label = o.constraint->item;
-  if (o.constraint->equation_count() > 1) label += " equation " + std::to_string(o.component + 1);
-  if (o.constraint->loc.line > 0) label += " (line " + std::to_string(o.constraint->loc.line) + ")";
+  const Constraint& c = *o.constraint;
+  if (c.equation_count() > 1)
+    label += c.kind->row_name ? " " + c.kind->row_name(c, o.component)
+                              : " equation " + std::to_string(o.component + 1);
+  if (c.loc.line > 0) label += " (line " + std::to_string(c.loc.line) + ")";
   return label;
 }
 
