@@ -1,6 +1,8 @@
 #include "kinegen/codegen/animate.hpp"
 
 #include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/format.hpp"
+#include "kinegen/codegen/kinematics.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -33,7 +35,9 @@ Vector2d rotate(double phi, const Vector2d& s) {
 
 Vector2d world(const Eigen::VectorXd& q, int body, const Vector2d& s) {
   if (body == kGround) return s;
-  return q.segment<2>(3 * body) + rotate(q[3 * body + 2], s);
+  const double phi = q[3 * body + 2];
+  const auto r = point_position(&q[3 * body], std::cos(phi), std::sin(phi), s[0], s[1]);
+  return {r[0], r[1]};
 }
 
 Vector2d local(const Eigen::VectorXd& q, int body, const Vector2d& r) {
@@ -41,13 +45,7 @@ Vector2d local(const Eigen::VectorXd& q, int body, const Vector2d& r) {
   return rotate(-q[3 * body + 2], r - q.segment<2>(3 * body));
 }
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.2f", v);
-  std::string s = buf;
-  if (s == "-0.00") s = "0.00";
-  return s;
-}
+std::string num(double v) { return format_number(v, NumberStyle::kPixels); }
 
 std::string escape(const std::string& text) {
   std::string out;
@@ -264,11 +262,7 @@ class Picture {
                    : std::to_string(frames()) + " frames")
        << " of t = " << format_number(g.t0) << " .. " << format_number(g.t1) << " -->\n";
     os << "  <rect width=\"100%\" height=\"100%\" fill=\"" << kBackgroundColour << "\"/>\n";
-    const auto short_number = [](double v) {
-      char buf[32];
-      std::snprintf(buf, sizeof buf, "%.4g", v);
-      return std::string(buf);
-    };
+    const auto short_number = [](double v) { return format_number(v, NumberStyle::kShort); };
     const std::string title =
         m.name + (still() ? "   t = " + short_number(t_[options_.frame])
                           : "   t = " + short_number(g.t0) + " .. " + short_number(g.t1));

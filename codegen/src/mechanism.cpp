@@ -3,6 +3,7 @@
 #include "kinegen/codegen/mechanism.hpp"
 
 #include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/functions.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -52,9 +53,12 @@ const std::unordered_set<std::string>& cpp_keywords() {
 
 // Names the expression language gives a meaning of its own.
 const std::unordered_set<std::string>& reserved_names() {
-  static const std::unordered_set<std::string> kReserved = {
-      "ground", "t",    "pi",   "Pi",  "I",   "Euler", "Catalan", "sin", "cos",
-      "tan",    "asin", "acos", "atan", "exp", "log",  "sqrt",    "pow"};
+  static const std::unordered_set<std::string> kReserved = [] {
+    std::unordered_set<std::string> names = {"ground", "t",     "pi",      "Pi",
+                                             "I",      "Euler", "Catalan", "pow"};
+    for (const MathFunction& f : kMathFunctions) names.insert(f.name);
+    return names;
+  }();
   return kReserved;
 }
 

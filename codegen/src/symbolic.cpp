@@ -1,6 +1,7 @@
 #include "kinegen/codegen/symbolic.hpp"
 
 #include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/functions.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -13,13 +14,11 @@ using GiNaC::ex;
 
 namespace {
 
-// The functions the format allows, looked up in GiNaC's own reader table.
+// The functions the format allows (functions.hpp), looked up in GiNaC's own reader table.
 GiNaC::prototype_table allowed_functions() {
-  static const std::set<std::string> kAllowed = {"sin",  "cos", "tan", "asin", "acos",
-                                                 "atan", "exp", "log", "sqrt"};
   GiNaC::prototype_table table;
   for (const auto& [proto, reader] : GiNaC::get_default_reader())
-    if (kAllowed.count(proto.first) && proto.second == 1) table[proto] = reader;
+    if (find_math_function(proto.first) && proto.second == 1) table[proto] = reader;
   return table;
 }
 
