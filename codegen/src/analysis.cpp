@@ -1,15 +1,14 @@
 #include "kinegen/codegen/analysis.hpp"
 
-#include "kinegen/codegen/kinematics.hpp"
-
-#include <kinegen/solver.hpp>
-#include <kinegen/sparse_solver.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <kinegen/solver.hpp>
+#include <kinegen/sparse_solver.hpp>
 #include <limits>
 #include <sstream>
+
+#include "kinegen/codegen/kinematics.hpp"
 
 namespace kinegen::codegen {
 
@@ -126,8 +125,8 @@ void require_driven(const CompiledModel& model) {
 
 PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,
                        const Eigen::Vector3d& qdd, const Eigen::Vector2d& s) {
-  const auto k = point_kinematics(q.data(), qd.data(), qdd.data(), std::cos(q[2]), std::sin(q[2]),
-                                  s[0], s[1]);
+  const auto k =
+      point_kinematics(q.data(), qd.data(), qdd.data(), std::cos(q[2]), std::sin(q[2]), s[0], s[1]);
   PointState p;
   p.r = {k[0], k[1]};
   p.v = {k[2], k[3]};
@@ -202,8 +201,8 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
   row.qd = Eigen::VectorXd::Zero(model.nq());
   row.qdd = Eigen::VectorXd::Zero(model.nq());
   const auto fail = [&](const char* stage, double t, const Result& r) {
-    std::string message = file + ": " + stage + " analysis failed at " + format_time(t) + ": " +
-                          r.message();
+    std::string message =
+        file + ": " + stage + " analysis failed at " + format_time(t) + ": " + r.message();
     if (r.status == Status::kMaxIterations || r.status == Status::kInconsistent) {
       if (r.status == Status::kMaxIterations)
         message += " in " + std::to_string(r.iterations) + " iterations (last scaled step " +

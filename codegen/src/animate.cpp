@@ -1,15 +1,15 @@
 #include "kinegen/codegen/animate.hpp"
 
-#include "kinegen/codegen/constraints.hpp"
-#include "kinegen/codegen/format.hpp"
-#include "kinegen/codegen/kinematics.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
 #include <sstream>
 #include <vector>
+
+#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/format.hpp"
+#include "kinegen/codegen/kinematics.hpp"
 
 namespace kinegen::codegen {
 

@@ -2,9 +2,6 @@
 // references and vector lengths. Expressions stay text; the symbolic stage parses them.
 #include "kinegen/codegen/mechanism.hpp"
 
-#include "kinegen/codegen/constraints.hpp"
-#include "kinegen/codegen/functions.hpp"
-
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -14,6 +11,9 @@
 #include <sstream>
 #include <stdexcept>
 #include <unordered_set>
+
+#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/functions.hpp"
 
 namespace kinegen::codegen {
 
@@ -220,7 +220,8 @@ class Loader {
       if (!kind || !(driver ? kind->driver : kind->joint)) {
         std::string allowed;
         for (const ConstraintKind* t : constraint_kinds())
-          if (driver ? t->driver : t->joint) allowed += (allowed.empty() ? "" : ", ") + std::string(t->name);
+          if (driver ? t->driver : t->joint)
+            allowed += (allowed.empty() ? "" : ", ") + std::string(t->name);
         fail(item, loc_of(c["type"]),
              "unknown " + std::string(driver ? "driver" : "joint") + " type '" + type_name +
                  "' (expected one of: " + allowed + ")");
@@ -358,8 +359,7 @@ int Constraint::equation_count() const {
 
 const Vec2& Constraint::vector(const std::string& key) const {
   const auto it = vectors.find(key);
-  if (it == vectors.end())
-    throw std::logic_error(item + " has no vector key '" + key + "'");
+  if (it == vectors.end()) throw std::logic_error(item + " has no vector key '" + key + "'");
   return it->second;
 }
 

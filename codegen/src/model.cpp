@@ -27,8 +27,8 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
                           const BuildOptions& options) {
   symbols_ = std::make_unique<SymbolTable>(mechanism_);
   {
-    ProgressStage stage(options.progress, "deriving Phi, Phi_q, nu and gamma (" + std::to_string(mechanism_.nc()) +
-                     " equations)");
+    ProgressStage stage(options.progress, "deriving Phi, Phi_q, nu and gamma (" +
+                                              std::to_string(mechanism_.nc()) + " equations)");
     symbolic_ = derive(mechanism_, *symbols_, overrides);
     stage.done("Phi_q: " + std::to_string(symbolic_.phi_q.size()) + " structural non-zeros");
   }

@@ -1,13 +1,13 @@
 #include "kinegen/codegen/program.hpp"
 
-#include "kinegen/codegen/functions.hpp"
-
 #include <algorithm>
 #include <cstdlib>
 #include <map>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
+
+#include "kinegen/codegen/functions.hpp"
 
 namespace kinegen::codegen {
 

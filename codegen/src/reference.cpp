@@ -426,8 +426,8 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
     for (std::size_t p = 0; p < points.size(); ++p) {
       const int b = 3 * points[p].body;
       const numeric c = GiNaC::cos(row.q[b + 2]), s = GiNaC::sin(row.q[b + 2]);
-      row.points.push_back(point_kinematics(&row.q[b], &row.qd[b], &row.qdd[b], c, s,
-                                            offsets[p][0], offsets[p][1]));
+      row.points.push_back(
+          point_kinematics(&row.q[b], &row.qd[b], &row.qdd[b], c, s, offsets[p][0], offsets[p][1]));
     }
     sink(row);
   }

@@ -1,12 +1,12 @@
 #include "kinegen/codegen/symbolic.hpp"
 
-#include "kinegen/codegen/constraints.hpp"
-#include "kinegen/codegen/functions.hpp"
-
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <set>
+
+#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/functions.hpp"
 
 namespace kinegen::codegen {
 
@@ -343,7 +343,8 @@ void EquationContext::check_defined(const ex& value, const Expr& e, const std::s
     for (auto it = v.preorder_begin(); it != v.preorder_end(); ++it)
       if (GiNaC::is_a<GiNaC::numeric>(*it) &&
           !std::isfinite(GiNaC::ex_to<GiNaC::numeric>(*it).to_double()))
-        throw InputError(m_.source, item, e.loc, "'" + e.text + "' holds a number that is not finite");
+        throw InputError(m_.source, item, e.loc,
+                         "'" + e.text + "' holds a number that is not finite");
   } catch (const InputError&) {
     throw;
   } catch (const std::exception& err) {
@@ -367,8 +368,8 @@ EquationContext::Vec EquationContext::d_ij() const {
 
 ex EquationContext::perpendicular(const Vec& d) const {
   const Vec v = vector("vi");
-  if (to_double(substitute_params(GiNaC::pow(v.first, 2) + GiNaC::pow(v.second, 2), s_,
-                                  values_)) == 0.0)
+  if (to_double(substitute_params(GiNaC::pow(v.first, 2) + GiNaC::pow(v.second, 2), s_, values_)) ==
+      0.0)
     throw InputError(m_.source, c_.item, c_.vector("vi").x.loc, "vi must not be the zero vector");
   const Vec av = rotate(frame_i().phi, v);
   return -av.second * d.first + av.first * d.second;

@@ -5,9 +5,7 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> equations(const EquationContext& c) {
-  return {c.frame_i().phi - c.value()};
-}
+std::vector<GiNaC::ex> equations(const EquationContext& c) { return {c.frame_i().phi - c.value()}; }
 
 }  // namespace
 

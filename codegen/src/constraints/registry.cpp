@@ -9,8 +9,9 @@ extern const ConstraintKind kRevolute, kTranslational, kDistance, kRevoluteTrans
 
 const std::vector<const ConstraintKind*>& constraint_kinds() {
   static const std::vector<const ConstraintKind*> kKinds = {
-      &kRevolute,  &kTranslational, &kDistance,      &kRevoluteTranslational, &kAbsoluteX,
-      &kAbsoluteY, &kAbsoluteAngle, &kRelativeAngle, &kExpression,
+      &kRevolute,   &kTranslational, &kDistance,      &kRevoluteTranslational,
+      &kAbsoluteX,  &kAbsoluteY,     &kAbsoluteAngle, &kRelativeAngle,
+      &kExpression,
   };
   return kKinds;
 }

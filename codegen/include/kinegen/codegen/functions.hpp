@@ -56,16 +56,26 @@ T apply_function(OpKind op, const T& x) {
   using std::acos, std::asin, std::atan, std::cos, std::exp, std::log, std::sin, std::sqrt,
       std::tan;
   switch (op) {
-    case OpKind::kSqrt: return sqrt(x);
-    case OpKind::kSin: return sin(x);
-    case OpKind::kCos: return cos(x);
-    case OpKind::kTan: return tan(x);
-    case OpKind::kAsin: return asin(x);
-    case OpKind::kAcos: return acos(x);
-    case OpKind::kAtan: return atan(x);
-    case OpKind::kExp: return exp(x);
-    case OpKind::kLog: return log(x);
-    default: return x;  // not a function (the caller's switch handles every other kind)
+    case OpKind::kSqrt:
+      return sqrt(x);
+    case OpKind::kSin:
+      return sin(x);
+    case OpKind::kCos:
+      return cos(x);
+    case OpKind::kTan:
+      return tan(x);
+    case OpKind::kAsin:
+      return asin(x);
+    case OpKind::kAcos:
+      return acos(x);
+    case OpKind::kAtan:
+      return atan(x);
+    case OpKind::kExp:
+      return exp(x);
+    case OpKind::kLog:
+      return log(x);
+    default:
+      return x;  // not a function (the caller's switch handles every other kind)
   }
 }
 

@@ -20,8 +20,12 @@ std::array<T, 6> point_kinematics(const T* q, const T* qd, const T* qdd, const T
                                   const T& sx, const T& sy) {
   const T ax = c * sx - s * sy, ay = s * sx + c * sy;  // A s
   const T &w = qd[2], &wd = qdd[2];
-  return {q[0] + ax,          q[1] + ay,          qd[0] - w * ay,
-          qd[1] + w * ax,     qdd[0] - wd * ay - w * w * ax, qdd[1] + wd * ax - w * w * ay};
+  return {q[0] + ax,
+          q[1] + ay,
+          qd[0] - w * ay,
+          qd[1] + w * ax,
+          qdd[0] - wd * ay - w * w * ax,
+          qdd[1] + wd * ax - w * w * ay};
 }
 
 }  // namespace kinegen::codegen

@@ -1,7 +1,7 @@
 // The command line's messages on standard error besides errors: warnings, the "wrote" line,
 // stage progress and timings. Library code does not print: it reports its stages through a
-// Progress callback (progress.hpp), which Log::progress_callbacks() turns into these lines. Only the
-// command line (codegen/src/main.cpp) includes this header; it sets the log up once:
+// Progress callback (progress.hpp), which Log::progress_callbacks() turns into these lines. Only
+// the command line (codegen/src/main.cpp) includes this header; it sets the log up once:
 //   quiet   - errors only (they do not go through here);
 //   normal  - warnings and results; stage progress only when stderr is a terminal;
 //   verbose - as normal, plus every stage with its time and size, terminal or not.
