@@ -297,6 +297,8 @@ class Loader {
             fail(item, loc_of(node), key + " must be a non-empty list of expression strings");
           }
           break;
+        case KeyKind::kCurve:
+          throw std::logic_error(item + ": curve keys are not supported yet");
         case KeyKind::kBody:
         case KeyKind::kBodyOrGround:
           break;

@@ -30,6 +30,8 @@ enum class KeyKind {
   kValue,         // the joint's constant (Constraint::value); a driver reads `f`, f(t), instead
   kScalar,        // another constant expression: Constraint::scalars
   kEquations,     // one expression string or a list of them, each = 0: Constraint::equations
+  kCurve,  // planned: [x(u), y(u)], a curve local to a body in one of the kind's coordinates u
+           // (CoordinateSpec); the loader refuses it until the stages support coordinates
 };
 
 struct KeySpec {
@@ -120,8 +122,8 @@ struct DrawContext {
 // Planned (the next issue adds gear, rack_pinion, point_follower and cam_follower): a scalar
 // coordinate that a type introduces besides the bodies' x, y, phi (a contact angle, a curve
 // parameter), named "<constraint name>_<suffix>", and curves as expressions of it (a key of
-// kind kOffset whose text may use that coordinate). Declared so the interface has its place;
-// the loader refuses a kind that declares one until the stages support them.
+// kind kCurve). Declared so the interface has its place; the loader refuses a kind that
+// declares one until the stages support them.
 struct CoordinateSpec {
   const char* suffix;
   bool is_angle;  // an angle (radians) rather than a length or a plain number
