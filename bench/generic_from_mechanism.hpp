@@ -15,7 +15,6 @@ namespace kinegen::generic {
 // express it (`expression` constraints, drivers not linear in t).
 inline std::optional<MechanismData> from_compiled_model(const codegen::CompiledModel& model,
                                                         std::string& why) {
-  using codegen::ConstraintType;
   const auto& mech = model.mechanism();
   const auto& symbols = model.symbols();
   const auto& values = model.symbolic().param_values;
@@ -36,38 +35,17 @@ inline std::optional<MechanismData> from_compiled_model(const codegen::CompiledM
     jr.is_driver = c->is_driver;
     jr.i = c->i;
     jr.j = c->j;
-    switch (c->type) {
-      case ConstraintType::kRevolute:
-        jr.type = JointType::kRevolute;
-        break;
-      case ConstraintType::kTranslational:
-        jr.type = JointType::kTranslational;
-        break;
-      case ConstraintType::kDistance:
-        jr.type = JointType::kDistance;
-        break;
-      case ConstraintType::kRevoluteTranslational:
-        jr.type = JointType::kRevoluteTranslational;
-        break;
-      case ConstraintType::kAbsoluteX:
-        jr.type = JointType::kAbsoluteX;
-        break;
-      case ConstraintType::kAbsoluteY:
-        jr.type = JointType::kAbsoluteY;
-        break;
-      case ConstraintType::kAbsoluteAngle:
-        jr.type = JointType::kAbsoluteAngle;
-        break;
-      case ConstraintType::kRelativeAngle:
-        jr.type = JointType::kRelativeAngle;
-        break;
-      case ConstraintType::kExpression:
-        why = c->item + ": `expression` constraints are not in the generic joint library";
-        return std::nullopt;
+    jr.formulas = find_joint_formulas(c->type_name());
+    if (!jr.formulas) {
+      why = c->item + ": `" + c->type_name() + "` constraints are not in the generic joint library";
+      return std::nullopt;
     }
-    jr.si = vec(c->si, c->item);
-    jr.sj = vec(c->sj, c->item);
-    if (!c->vi.x.text.empty()) jr.vi = vec(c->vi, c->item);
+    // The library's local vectors by the format's key names (s of absolute_x/_y is its si).
+    for (const auto& [key, v] : c->vectors) {
+      if (key == "si" || key == "s") jr.si = vec(v, c->item);
+      if (key == "sj") jr.sj = vec(v, c->item);
+      if (key == "vi") jr.vi = vec(v, c->item);
+    }
     if (c->is_driver) {
       const GiNaC::ex f = codegen::substitute_params(
           symbols.parse(c->value, codegen::Scope::kDriverTime, c->item), symbols, values);

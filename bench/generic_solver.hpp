@@ -1,7 +1,8 @@
 // A plain generic kinematic solver, the way DADS-style programs work: the mechanism is data
 // (bodies, joint records with numbers, drivers f(t) = value + rate * t), and Phi, Phi_q, nu and
 // gamma are assembled at run time by loops over the joint records, with the analytic formulas
-// of Haug's planar joint library. No code generation, no symbolic algebra; dense LU (Eigen).
+// of Haug's planar joint library (looked up by the format's type name: no list of the
+// generator's types here). No code generation, no symbolic algebra; dense LU (Eigen).
 //
 // It plugs into kinegen::BasicSolver as a System (dynamic sizes), so a comparison against the
 // generated code runs the very same Newton iteration and LU: only the evaluation differs.
@@ -11,37 +12,210 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <kinegen/solver.hpp>
+#include <string>
 #include <vector>
 
 namespace kinegen::generic {
 
-enum class JointType {
-  kRevolute,
-  kTranslational,
-  kDistance,
-  kRevoluteTranslational,
-  kAbsoluteX,
-  kAbsoluteY,
-  kAbsoluteAngle,
-  kRelativeAngle,
-};
-
 inline constexpr int kGround = -1;
+
+struct JointFormulas;
 
 // One joint or driver as numbers. `value` is the constant of a joint (value, length, angle);
 // a driver uses f(t) = value + rate * t in its place.
 struct JointRecord {
-  JointType type = JointType::kRevolute;
+  const JointFormulas* formulas = nullptr;  // its type in the joint library
   int i = kGround, j = kGround;  // body indices (absolute_*: the body is i)
   Eigen::Vector2d si = Eigen::Vector2d::Zero(), sj = Eigen::Vector2d::Zero();
   Eigen::Vector2d vi = Eigen::Vector2d::UnitX();
   double value = 0, rate = 0;
   bool is_driver = false;
 
-  int equation_count() const {
-    return type == JointType::kRevolute || type == JointType::kTranslational ? 2 : 1;
+  int equation_count() const;
+};
+
+// A body's position, rotation, its derivative dA/dphi, and velocities (ground: all zero).
+struct Frame {
+  Eigen::Vector2d r = Eigen::Vector2d::Zero(), v = Eigen::Vector2d::Zero();
+  double phi = 0, w = 0;
+  Eigen::Matrix2d A = Eigen::Matrix2d::Identity(), B = Eigen::Matrix2d::Zero();
+
+  static Frame of(const double* q, const double* qd, int body) {
+    Frame f;
+    f.B << 0, -1, 1, 0;
+    if (body == kGround) return f;
+    f.r = Eigen::Vector2d(q[3 * body], q[3 * body + 1]);
+    f.phi = q[3 * body + 2];
+    const double c = std::cos(f.phi), s = std::sin(f.phi);
+    f.A << c, -s, s, c;
+    f.B << -s, -c, c, -s;
+    if (qd != nullptr) {
+      f.v = Eigen::Vector2d(qd[3 * body], qd[3 * body + 1]);
+      f.w = qd[3 * body + 2];
+    }
+    return f;
   }
 };
+
+// One joint type of the library, in closed form (Haug's formulas). The Jacobian of a joint's
+// rows goes to jac[row][0..6): the columns x, y, phi of body i, then those of body j.
+struct JointFormulas {
+  const char* type;  // the mechanism format's name for it
+  int rows;
+  void (*phi)(const JointRecord& jr, const Frame& fi, const Frame& fj, double f, double* out);
+  void (*jacobian)(const JointRecord& jr, const Frame& fi, const Frame& fj, double (*jac)[6]);
+  void (*gamma)(const JointRecord& jr, const Frame& fi, const Frame& fj, double* out);
+  // -Phi_t of the driven (last) row for a driver f(t) = value + rate t.
+  double (*driven_rate)(const JointRecord& jr, double f);
+};
+
+inline int JointRecord::equation_count() const { return formulas->rows; }
+
+namespace joints {
+
+inline Eigen::Vector2d dij(const Frame& fi, const Frame& fj, const JointRecord& jr) {
+  return fj.r + fj.A * jr.sj - fi.r - fi.A * jr.si;
+}
+// d_ij' along qd
+inline Eigen::Vector2d ddij(const Frame& fi, const Frame& fj, const JointRecord& jr) {
+  return fj.v + fj.B * jr.sj * fj.w - fi.v - fi.B * jr.si * fi.w;
+}
+// d'' along qd: -A_j sj w_j^2 + A_i si w_i^2, as aj - ai
+inline Eigen::Vector2d centripetal(const Frame& f, const Eigen::Vector2d& s) {
+  return f.A * s * (f.w * f.w);
+}
+inline double rate(const JointRecord& jr, double) { return jr.rate; }
+
+// revolute: d_ij = 0
+inline void revolute_phi(const JointRecord& jr, const Frame& fi, const Frame& fj, double,
+                         double* out) {
+  const Eigen::Vector2d d = dij(fi, fj, jr);
+  out[0] = d.x();
+  out[1] = d.y();
+}
+inline void revolute_jacobian(const JointRecord& jr, const Frame& fi, const Frame& fj,
+                              double (*jac)[6]) {
+  // d_ij = r_j + A_j sj - r_i - A_i si
+  const Eigen::Vector2d bi = fi.B * jr.si, bj = fj.B * jr.sj;
+  for (int c = 0; c < 2; ++c) {
+    jac[c][c] = -1;
+    jac[c][2] = -bi[c];
+    jac[c][3 + c] = 1;
+    jac[c][5] = bj[c];
+  }
+}
+inline void revolute_gamma(const JointRecord& jr, const Frame& fi, const Frame& fj, double* out) {
+  const Eigen::Vector2d g = centripetal(fj, jr.sj) - centripetal(fi, jr.si);
+  out[0] = g.x();
+  out[1] = g.y();
+}
+
+// revolute_translational: (B_i vi) . d_ij = 0; translational adds phi_j - phi_i - f = 0.
+inline void slider_phi(const JointRecord& jr, const Frame& fi, const Frame& fj, double f,
+                       double* out) {
+  out[0] = (fi.B * jr.vi).dot(dij(fi, fj, jr));
+  if (jr.formulas->rows == 2) out[1] = fj.phi - fi.phi - f;
+}
+inline void slider_jacobian(const JointRecord& jr, const Frame& fi, const Frame& fj,
+                            double (*jac)[6]) {
+  // n = B_i vi = (A_i vi)^perp, dn/dphi_i = -A_i vi
+  const Eigen::Vector2d n = fi.B * jr.vi, d = dij(fi, fj, jr);
+  jac[0][0] = -n.x();
+  jac[0][1] = -n.y();
+  jac[0][2] = -(fi.A * jr.vi).dot(d) - n.dot(fi.B * jr.si);
+  jac[0][3] = n.x();
+  jac[0][4] = n.y();
+  jac[0][5] = n.dot(fj.B * jr.sj);
+  if (jr.formulas->rows == 2) {
+    jac[1][2] = -1;
+    jac[1][5] = 1;
+  }
+}
+inline void slider_gamma(const JointRecord& jr, const Frame& fi, const Frame& fj, double* out) {
+  const Eigen::Vector2d n = fi.B * jr.vi, d = dij(fi, fj, jr), dd = ddij(fi, fj, jr);
+  const Eigen::Vector2d ai = centripetal(fi, jr.si), aj = centripetal(fj, jr.sj);
+  out[0] = fi.w * fi.w * n.dot(d) + 2 * fi.w * (fi.A * jr.vi).dot(dd) + n.dot(aj - ai);
+  if (jr.formulas->rows == 2) out[1] = 0;
+}
+
+// distance: d . d - f^2 = 0
+inline void distance_phi(const JointRecord& jr, const Frame& fi, const Frame& fj, double f,
+                         double* out) {
+  const Eigen::Vector2d d = dij(fi, fj, jr);
+  out[0] = d.dot(d) - f * f;
+}
+inline void distance_jacobian(const JointRecord& jr, const Frame& fi, const Frame& fj,
+                              double (*jac)[6]) {
+  const Eigen::Vector2d d = dij(fi, fj, jr);
+  jac[0][0] = -2 * d.x();
+  jac[0][1] = -2 * d.y();
+  jac[0][2] = -2 * d.dot(fi.B * jr.si);
+  jac[0][3] = 2 * d.x();
+  jac[0][4] = 2 * d.y();
+  jac[0][5] = 2 * d.dot(fj.B * jr.sj);
+}
+inline void distance_gamma(const JointRecord& jr, const Frame& fi, const Frame& fj, double* out) {
+  const Eigen::Vector2d d = dij(fi, fj, jr), dd = ddij(fi, fj, jr);
+  const Eigen::Vector2d ai = centripetal(fi, jr.si), aj = centripetal(fj, jr.sj);
+  out[0] = -2 * dd.dot(dd) + 2 * d.dot(aj - ai) + (jr.is_driver ? 2 * jr.rate * jr.rate : 0.0);
+}
+inline double distance_rate(const JointRecord& jr, double f) { return 2 * f * jr.rate; }
+
+// absolute_x / absolute_y: r_i + A_i s - f = 0 in component C.
+template <int C>
+void absolute_phi(const JointRecord& jr, const Frame& fi, const Frame&, double f, double* out) {
+  out[0] = fi.r[C] + (fi.A * jr.si)[C] - f;
+}
+template <int C>
+void absolute_jacobian(const JointRecord& jr, const Frame& fi, const Frame&, double (*jac)[6]) {
+  jac[0][C] = 1;
+  jac[0][2] = (fi.B * jr.si)[C];
+}
+template <int C>
+void absolute_gamma(const JointRecord& jr, const Frame& fi, const Frame&, double* out) {
+  out[0] = (fi.A * jr.si)[C] * fi.w * fi.w;
+}
+
+// absolute_angle: phi_i - f = 0; relative_angle: phi_j - phi_i - f = 0.
+inline void absolute_angle_phi(const JointRecord&, const Frame& fi, const Frame&, double f,
+                               double* out) {
+  out[0] = fi.phi - f;
+}
+inline void absolute_angle_jacobian(const JointRecord&, const Frame&, const Frame&,
+                                    double (*jac)[6]) {
+  jac[0][2] = 1;
+}
+inline void relative_angle_phi(const JointRecord&, const Frame& fi, const Frame& fj, double f,
+                               double* out) {
+  out[0] = fj.phi - fi.phi - f;
+}
+inline void relative_angle_jacobian(const JointRecord&, const Frame&, const Frame&,
+                                    double (*jac)[6]) {
+  jac[0][2] = -1;
+  jac[0][5] = 1;
+}
+inline void zero_gamma(const JointRecord&, const Frame&, const Frame&, double* out) { out[0] = 0; }
+
+}  // namespace joints
+
+// The generic library: the types it can evaluate (a mechanism with any other type, such as
+// `expression`, is not compared against it).
+inline const JointFormulas* find_joint_formulas(const std::string& type) {
+  using namespace joints;
+  static const JointFormulas kLibrary[] = {
+      {"revolute", 2, revolute_phi, revolute_jacobian, revolute_gamma, rate},
+      {"translational", 2, slider_phi, slider_jacobian, slider_gamma, rate},
+      {"distance", 1, distance_phi, distance_jacobian, distance_gamma, distance_rate},
+      {"revolute_translational", 1, slider_phi, slider_jacobian, slider_gamma, rate},
+      {"absolute_x", 1, absolute_phi<0>, absolute_jacobian<0>, absolute_gamma<0>, rate},
+      {"absolute_y", 1, absolute_phi<1>, absolute_jacobian<1>, absolute_gamma<1>, rate},
+      {"absolute_angle", 1, absolute_angle_phi, absolute_angle_jacobian, zero_gamma, rate},
+      {"relative_angle", 1, relative_angle_phi, relative_angle_jacobian, zero_gamma, rate},
+  };
+  for (const auto& f : kLibrary)
+    if (type == f.type) return &f;
+  return nullptr;
+}
 
 struct MechanismData {
   int bodies = 0;
@@ -74,38 +248,9 @@ class GenericSystem {
   void phi(const double* q, double t, double* out) const {
     int row = 0;
     for (const auto& jr : data_.joints) {
-      const Frame fi = frame(q, nullptr, jr.i), fj = frame(q, nullptr, jr.j);
-      const double f = jr.value + jr.rate * t;
-      switch (jr.type) {
-        case JointType::kRevolute: {
-          const Eigen::Vector2d d = dij(fi, fj, jr);
-          out[row++] = d.x();
-          out[row++] = d.y();
-          break;
-        }
-        case JointType::kTranslational:
-        case JointType::kRevoluteTranslational:
-          out[row++] = (fi.B * jr.vi).dot(dij(fi, fj, jr));
-          if (jr.type == JointType::kTranslational) out[row++] = fj.phi - fi.phi - f;
-          break;
-        case JointType::kDistance: {
-          const Eigen::Vector2d d = dij(fi, fj, jr);
-          out[row++] = d.dot(d) - f * f;
-          break;
-        }
-        case JointType::kAbsoluteX:
-          out[row++] = fi.r.x() + (fi.A * jr.si).x() - f;
-          break;
-        case JointType::kAbsoluteY:
-          out[row++] = fi.r.y() + (fi.A * jr.si).y() - f;
-          break;
-        case JointType::kAbsoluteAngle:
-          out[row++] = fi.phi - f;
-          break;
-        case JointType::kRelativeAngle:
-          out[row++] = fj.phi - fi.phi - f;
-          break;
-      }
+      const Frame fi = Frame::of(q, nullptr, jr.i), fj = Frame::of(q, nullptr, jr.j);
+      jr.formulas->phi(jr, fi, fj, jr.value + jr.rate * t, out + row);
+      row += jr.equation_count();
     }
   }
 
@@ -114,78 +259,15 @@ class GenericSystem {
   void jacobian(const double* q, double /*t*/, M& jac) const {
     int row = 0;
     for (const auto& jr : data_.joints) {
-      const Frame fi = frame(q, nullptr, jr.i), fj = frame(q, nullptr, jr.j);
-      switch (jr.type) {
-        case JointType::kRevolute: {
-          // d_ij = r_j + A_j sj - r_i - A_i si
-          const Eigen::Vector2d bi = fi.B * jr.si, bj = fj.B * jr.sj;
-          for (int c = 0; c < 2; ++c) {
-            if (jr.i != kGround) {
-              jac(row + c, 3 * jr.i + c) = -1;
-              jac(row + c, 3 * jr.i + 2) = -bi[c];
-            }
-            if (jr.j != kGround) {
-              jac(row + c, 3 * jr.j + c) = 1;
-              jac(row + c, 3 * jr.j + 2) = bj[c];
-            }
-          }
-          row += 2;
-          break;
+      const Frame fi = Frame::of(q, nullptr, jr.i), fj = Frame::of(q, nullptr, jr.j);
+      double d[2][6] = {};
+      jr.formulas->jacobian(jr, fi, fj, d);
+      for (int r = 0; r < jr.equation_count(); ++r)
+        for (int c = 0; c < 3; ++c) {
+          if (jr.i != kGround) jac(row + r, 3 * jr.i + c) = d[r][c];
+          if (jr.j != kGround) jac(row + r, 3 * jr.j + c) = d[r][3 + c];
         }
-        case JointType::kTranslational:
-        case JointType::kRevoluteTranslational: {
-          // n = B_i vi = (A_i vi)^perp, dn/dphi_i = -A_i vi
-          const Eigen::Vector2d n = fi.B * jr.vi, d = dij(fi, fj, jr);
-          if (jr.i != kGround) {
-            jac(row, 3 * jr.i) = -n.x();
-            jac(row, 3 * jr.i + 1) = -n.y();
-            jac(row, 3 * jr.i + 2) = -(fi.A * jr.vi).dot(d) - n.dot(fi.B * jr.si);
-          }
-          if (jr.j != kGround) {
-            jac(row, 3 * jr.j) = n.x();
-            jac(row, 3 * jr.j + 1) = n.y();
-            jac(row, 3 * jr.j + 2) = n.dot(fj.B * jr.sj);
-          }
-          ++row;
-          if (jr.type == JointType::kTranslational) {
-            if (jr.i != kGround) jac(row, 3 * jr.i + 2) = -1;
-            if (jr.j != kGround) jac(row, 3 * jr.j + 2) = 1;
-            ++row;
-          }
-          break;
-        }
-        case JointType::kDistance: {
-          const Eigen::Vector2d d = dij(fi, fj, jr);
-          if (jr.i != kGround) {
-            jac(row, 3 * jr.i) = -2 * d.x();
-            jac(row, 3 * jr.i + 1) = -2 * d.y();
-            jac(row, 3 * jr.i + 2) = -2 * d.dot(fi.B * jr.si);
-          }
-          if (jr.j != kGround) {
-            jac(row, 3 * jr.j) = 2 * d.x();
-            jac(row, 3 * jr.j + 1) = 2 * d.y();
-            jac(row, 3 * jr.j + 2) = 2 * d.dot(fj.B * jr.sj);
-          }
-          ++row;
-          break;
-        }
-        case JointType::kAbsoluteX:
-        case JointType::kAbsoluteY: {
-          const int c = jr.type == JointType::kAbsoluteX ? 0 : 1;
-          jac(row, 3 * jr.i + c) = 1;
-          jac(row, 3 * jr.i + 2) = (fi.B * jr.si)[c];
-          ++row;
-          break;
-        }
-        case JointType::kAbsoluteAngle:
-          jac(row++, 3 * jr.i + 2) = 1;
-          break;
-        case JointType::kRelativeAngle:
-          if (jr.i != kGround) jac(row, 3 * jr.i + 2) = -1;
-          if (jr.j != kGround) jac(row, 3 * jr.j + 2) = 1;
-          ++row;
-          break;
-      }
+      row += jr.equation_count();
     }
   }
 
@@ -195,88 +277,24 @@ class GenericSystem {
     for (const auto& jr : data_.joints) {
       for (int k = 0; k < jr.equation_count(); ++k) out[row + k] = 0;
       if (jr.is_driver) {
-        const double f = jr.value + jr.rate * t;
         const int last = row + jr.equation_count() - 1;  // the driven equation
-        out[last] = jr.type == JointType::kDistance ? 2 * f * jr.rate : jr.rate;
+        out[last] = jr.formulas->driven_rate(jr, jr.value + jr.rate * t);
       }
       row += jr.equation_count();
     }
   }
 
   // gamma = -(second derivative of Phi along (qd, 1)), per joint in closed form.
-  void gamma(const double* q, const double* qd, double t, double* out) const {
+  void gamma(const double* q, const double* qd, double /*t*/, double* out) const {
     int row = 0;
     for (const auto& jr : data_.joints) {
-      const Frame fi = frame(q, qd, jr.i), fj = frame(q, qd, jr.j);
-      const double f = jr.value + jr.rate * t;
-      // d'' along qd: -A_j sj w_j^2 + A_i si w_i^2
-      const Eigen::Vector2d ai = fi.A * jr.si * (fi.w * fi.w), aj = fj.A * jr.sj * (fj.w * fj.w);
-      switch (jr.type) {
-        case JointType::kRevolute: {
-          const Eigen::Vector2d g = aj - ai;
-          out[row++] = g.x();
-          out[row++] = g.y();
-          break;
-        }
-        case JointType::kTranslational:
-        case JointType::kRevoluteTranslational: {
-          const Eigen::Vector2d n = fi.B * jr.vi, d = dij(fi, fj, jr), dd = ddij(fi, fj, jr);
-          out[row++] = fi.w * fi.w * n.dot(d) + 2 * fi.w * (fi.A * jr.vi).dot(dd) + n.dot(aj - ai);
-          if (jr.type == JointType::kTranslational) out[row++] = 0;
-          break;
-        }
-        case JointType::kDistance: {
-          const Eigen::Vector2d d = dij(fi, fj, jr), dd = ddij(fi, fj, jr);
-          out[row++] =
-              -2 * dd.dot(dd) + 2 * d.dot(aj - ai) + (jr.is_driver ? 2 * jr.rate * jr.rate : 0.0);
-          (void)f;
-          break;
-        }
-        case JointType::kAbsoluteX:
-          out[row++] = (fi.A * jr.si).x() * fi.w * fi.w;
-          break;
-        case JointType::kAbsoluteY:
-          out[row++] = (fi.A * jr.si).y() * fi.w * fi.w;
-          break;
-        case JointType::kAbsoluteAngle:
-        case JointType::kRelativeAngle:
-          out[row++] = 0;
-          break;
-      }
+      const Frame fi = Frame::of(q, qd, jr.i), fj = Frame::of(q, qd, jr.j);
+      jr.formulas->gamma(jr, fi, fj, out + row);
+      row += jr.equation_count();
     }
   }
 
  private:
-  // A body's position, rotation, its derivative dA/dphi, and velocities (ground: all zero).
-  struct Frame {
-    Eigen::Vector2d r = Eigen::Vector2d::Zero(), v = Eigen::Vector2d::Zero();
-    double phi = 0, w = 0;
-    Eigen::Matrix2d A = Eigen::Matrix2d::Identity(), B = Eigen::Matrix2d::Zero();
-  };
-
-  static Frame frame(const double* q, const double* qd, int body) {
-    Frame f;
-    f.B << 0, -1, 1, 0;
-    if (body == kGround) return f;
-    f.r = Eigen::Vector2d(q[3 * body], q[3 * body + 1]);
-    f.phi = q[3 * body + 2];
-    const double c = std::cos(f.phi), s = std::sin(f.phi);
-    f.A << c, -s, s, c;
-    f.B << -s, -c, c, -s;
-    if (qd != nullptr) {
-      f.v = Eigen::Vector2d(qd[3 * body], qd[3 * body + 1]);
-      f.w = qd[3 * body + 2];
-    }
-    return f;
-  }
-  static Eigen::Vector2d dij(const Frame& fi, const Frame& fj, const JointRecord& jr) {
-    return fj.r + fj.A * jr.sj - fi.r - fi.A * jr.si;
-  }
-  // d_ij' along qd
-  static Eigen::Vector2d ddij(const Frame& fi, const Frame& fj, const JointRecord& jr) {
-    return fj.v + fj.B * jr.sj * fj.w - fi.v - fi.B * jr.si * fi.w;
-  }
-
   MechanismData data_;
 };
 

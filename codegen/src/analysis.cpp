@@ -1,24 +1,18 @@
 #include "kinegen/codegen/analysis.hpp"
 
-#include <kinegen/solver.hpp>
-#include <kinegen/sparse_solver.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <kinegen/solver.hpp>
+#include <kinegen/sparse_solver.hpp>
 #include <limits>
 #include <sstream>
+
+#include "kinegen/codegen/kinematics.hpp"
 
 namespace kinegen::codegen {
 
 namespace {
-
-// Estimates (condition numbers, step sizes) read better with three digits than seventeen.
-std::string format_estimate(double value) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3g", value);
-  return buf;
-}
 
 using Solver = BasicSolver<ProgramSystem>;
 using LargeSolver = SparseSolver<ProgramSystem>;
@@ -27,8 +21,6 @@ using LargeSolver = SparseSolver<ProgramSystem>;
 // many coordinates: the diagnosis runs only on failure, but costs O(nq^2) memory and O(nq^3)
 // time (JacobiSVD: about 6 s at nq = 600).
 constexpr int kMaxDiagnosedNq = 400;
-
-std::string time_text(double t) { return "t = " + format_number(t); }
 
 // Phi_q with rows equilibrated and length columns multiplied by the length scale, as the
 // solver sees it: its singular values compare like with like (metres and radians).
@@ -119,12 +111,6 @@ double scaled_norm(const Eigen::VectorXd& v, double length) {
 
 }  // namespace
 
-std::string format_number(double value) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.17g", value);
-  return buf;
-}
-
 void require_driven(const CompiledModel& model) {
   const int nq = model.nq(), nc = model.nc();
   const std::string& file = model.mechanism().source;
@@ -139,13 +125,12 @@ void require_driven(const CompiledModel& model) {
 
 PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,
                        const Eigen::Vector3d& qdd, const Eigen::Vector2d& s) {
-  const double c = std::cos(q[2]), sn = std::sin(q[2]);
-  const Eigen::Vector2d as(c * s[0] - sn * s[1], sn * s[0] + c * s[1]);  // A s
-  const Eigen::Vector2d bs(-as[1], as[0]);                               // (A s)^perp
+  const auto k =
+      point_kinematics(q.data(), qd.data(), qdd.data(), std::cos(q[2]), std::sin(q[2]), s[0], s[1]);
   PointState p;
-  p.r = q.head<2>() + as;
-  p.v = qd.head<2>() + qd[2] * bs;
-  p.a = qdd.head<2>() + qdd[2] * bs - qd[2] * qd[2] * as;
+  p.r = {k[0], k[1]};
+  p.v = {k[2], k[3]};
+  p.a = {k[4], k[5]};
   return p;
 }
 
@@ -165,7 +150,7 @@ void check_redundancy(const CompiledModel& model, const Eigen::VectorXd& q, doub
   const int rank = model.nc() - static_cast<int>(dependent.size());
   const std::string what = std::to_string(model.nc()) + " equations for " +
                            std::to_string(model.nq()) + " coordinates, rank " +
-                           std::to_string(rank) + " at " + time_text(t) + ": redundant: " + names;
+                           std::to_string(rank) + " at " + format_time(t) + ": redundant: " + names;
   const std::string& file = model.mechanism().source;
   if (options.strict)
     throw InputError(file, "joints", {},
@@ -216,8 +201,8 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
   row.qd = Eigen::VectorXd::Zero(model.nq());
   row.qdd = Eigen::VectorXd::Zero(model.nq());
   const auto fail = [&](const char* stage, double t, const Result& r) {
-    std::string message = file + ": " + stage + " analysis failed at " + time_text(t) + ": " +
-                          r.message();
+    std::string message =
+        file + ": " + stage + " analysis failed at " + format_time(t) + ": " + r.message();
     if (r.status == Status::kMaxIterations || r.status == Status::kInconsistent) {
       if (r.status == Status::kMaxIterations)
         message += " in " + std::to_string(r.iterations) + " iterations (last scaled step " +
@@ -278,16 +263,16 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
       const double floor = 1e-6 + 64 * eps * scaled_norm(row.q.cwiseAbs(), length);
       if (miss > options.jump_fraction * motion + floor)
         throw AnalysisError(
-            file + ": position analysis failed at " + time_text(t) +
+            file + ": position analysis failed at " + format_time(t) +
             ": the solution jumped (scaled change " + format_number(scaled_norm(dq, length)) +
-            " since " + time_text(previous.t) + " disagrees with the velocities by " +
+            " since " + format_time(previous.t) + " disagrees with the velocities by " +
             format_number(miss) +
             "): Newton left the assembly branch it started on, or the step is too coarse to tell; "
             "use smaller steps (--steps)");
       const int sign = solver.jacobian_sign();
       if (previous_sign != 0 && sign != 0 && sign != previous_sign)
-        throw AnalysisError(file + ": position analysis failed at " + time_text(t) +
-                            ": det(Phi_q) changed sign since " + time_text(previous.t) +
+        throw AnalysisError(file + ": position analysis failed at " + format_time(t) +
+                            ": det(Phi_q) changed sign since " + format_time(previous.t) +
                             ": the solution crossed a singular configuration or jumped to "
                             "another assembly branch; use smaller steps (--steps)");
     }

@@ -7,25 +7,19 @@
 #include <sstream>
 #include <vector>
 
+#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/format.hpp"
+#include "kinegen/codegen/kinematics.hpp"
+
 namespace kinegen::codegen {
 
 namespace {
 
 using Eigen::Vector2d;
 
-// A point fixed in a body (or in ground), in the body's local frame.
-struct Attach {
-  int body = kGround;
-  Vector2d s = Vector2d::Zero();
-};
-
-// A block sliding on a guide: `point` runs on the line through `origin` along `dir`, both
-// local to `guide` (a translational or revolute-translational joint, or absolute_x/_y).
-struct Slider {
-  Attach point;
-  int guide = kGround;
-  Vector2d origin = Vector2d::Zero(), dir = Vector2d::UnitX();
-  double travel_min = 0, travel_max = 0;  // along dir, over the analysis
+// A block sliding on a guide (Sketch::Slider), with its travel along dir over the analysis.
+struct Slider : Sketch::Slider {
+  double travel_min = 0, travel_max = 0;
 };
 
 constexpr const char* kGroundColour = "#555555";
@@ -41,7 +35,9 @@ Vector2d rotate(double phi, const Vector2d& s) {
 
 Vector2d world(const Eigen::VectorXd& q, int body, const Vector2d& s) {
   if (body == kGround) return s;
-  return q.segment<2>(3 * body) + rotate(q[3 * body + 2], s);
+  const double phi = q[3 * body + 2];
+  const auto r = point_position(&q[3 * body], std::cos(phi), std::sin(phi), s[0], s[1]);
+  return {r[0], r[1]};
 }
 
 Vector2d local(const Eigen::VectorXd& q, int body, const Vector2d& r) {
@@ -49,13 +45,7 @@ Vector2d local(const Eigen::VectorXd& q, int body, const Vector2d& r) {
   return rotate(-q[3 * body + 2], r - q.segment<2>(3 * body));
 }
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.2f", v);
-  std::string s = buf;
-  if (s == "-0.00") s = "0.00";
-  return s;
-}
+std::string num(double v) { return format_number(v, NumberStyle::kPixels); }
 
 std::string escape(const std::string& text) {
   std::string out;
@@ -100,13 +90,7 @@ class Picture {
   }
 
  private:
-  Vector2d vec(const Vec2& v, const std::string& item) const {
-    const auto& s = model_.symbols();
-    const auto& values = model_.symbolic().param_values;
-    return {to_double(substitute_params(s.parse(v.x, Scope::kGeometry, item), s, values)),
-            to_double(substitute_params(s.parse(v.y, Scope::kGeometry, item), s, values))};
-  }
-  double scalar(const Expr& e, const std::string& item) const {
+  double number(const Expr& e, const std::string& item) const {
     const auto& s = model_.symbols();
     return to_double(
         substitute_params(s.parse(e, Scope::kGeometry, item), s, model_.symbolic().param_values));
@@ -135,55 +119,18 @@ class Picture {
     const auto attach = [&](int body, const Vector2d& s) {
       if (body != kGround) add_unique(body_points_[body], s, tol);
     };
+    // What each constraint's kind draws, kept in the order the kinds add it.
+    Sketch sketch;
     for (const Constraint* c : m.constraints()) {
-      const bool driver = c->is_driver;
-      switch (c->type) {
-        case ConstraintType::kRevolute: {
-          const Vector2d si = vec(c->si, c->item), sj = vec(c->sj, c->item);
-          attach(c->i, si);
-          attach(c->j, sj);
-          pins_.push_back({c->i, si});
-          if (c->i == kGround) add_unique(ground_pivots_, si, tol);
-          if (c->j == kGround) add_unique(ground_pivots_, sj, tol);
-          break;
-        }
-        case ConstraintType::kTranslational:
-        case ConstraintType::kRevoluteTranslational: {
-          const Vector2d si = vec(c->si, c->item), sj = vec(c->sj, c->item);
-          Vector2d vi = vec(c->vi, c->item);
-          attach(c->i, si);
-          attach(c->j, sj);
-          if (vi.norm() > 0) vi.normalize();
-          sliders_.push_back({{c->j, sj}, c->i, si, vi, 0, 0});
-          break;
-        }
-        case ConstraintType::kDistance: {
-          const Vector2d si = vec(c->si, c->item), sj = vec(c->sj, c->item);
-          attach(c->i, si);
-          attach(c->j, sj);
-          struts_.push_back({{c->i, si}, {c->j, sj}});
-          break;
-        }
-        case ConstraintType::kAbsoluteX:
-        case ConstraintType::kAbsoluteY: {
-          const Vector2d s = vec(c->si, c->item);
-          attach(c->i, s);
-          if (driver) break;  // a driven coordinate moves on purpose: no guide to draw
-          const bool x = c->type == ConstraintType::kAbsoluteX;
-          const double v = scalar(c->value, c->item);
-          // x fixed: the point runs along global y, and the other way round.
-          sliders_.push_back({{c->i, s},
-                              kGround,
-                              x ? Vector2d(v, 0) : Vector2d(0, v),
-                              x ? Vector2d::UnitY() : Vector2d::UnitX(),
-                              0,
-                              0});
-          break;
-        }
-        default:
-          break;
-      }
+      if (!c->kind->draw) continue;
+      const DrawContext context{*c, [&](const Expr& e) { return number(e, c->item); }};
+      c->kind->draw(context, sketch);
     }
+    for (const Attach& a : sketch.landmarks) attach(a.body, a.s);
+    for (const Attach& a : sketch.pins) pins_.push_back(a);
+    for (const Vector2d& g : sketch.ground_pivots) add_unique(ground_pivots_, g, tol);
+    for (const Sketch::Slider& sl : sketch.sliders) sliders_.push_back({sl, 0, 0});
+    struts_ = sketch.struts;
     for (std::size_t p = 0; p < m.points.size(); ++p) {
       named_.push_back({m.points[p].body, model_.point_offsets()[p]});
       attach(m.points[p].body, model_.point_offsets()[p]);
@@ -315,11 +262,7 @@ class Picture {
                    : std::to_string(frames()) + " frames")
        << " of t = " << format_number(g.t0) << " .. " << format_number(g.t1) << " -->\n";
     os << "  <rect width=\"100%\" height=\"100%\" fill=\"" << kBackgroundColour << "\"/>\n";
-    const auto short_number = [](double v) {
-      char buf[32];
-      std::snprintf(buf, sizeof buf, "%.4g", v);
-      return std::string(buf);
-    };
+    const auto short_number = [](double v) { return format_number(v, NumberStyle::kShort); };
     const std::string title =
         m.name + (still() ? "   t = " + short_number(t_[options_.frame])
                           : "   t = " + short_number(g.t0) + " .. " + short_number(g.t1));

@@ -1815,20 +1815,6 @@ class BlockEmitter {
 
 }  // namespace
 
-std::string format_double(double value) {
-  if (value == 0) return "0";
-  // The shortest form that reads back to the same double.
-  char buf[40];
-  for (int digits = 15; digits <= 17; ++digits) {
-    std::snprintf(buf, sizeof buf, "%.*g", digits, value);
-    if (std::strtod(buf, nullptr) == value) break;
-  }
-  std::string s = buf;
-  // Keep it a floating literal so T(...) never sees an integer that overflows int.
-  if (s.find_first_of(".en") == std::string::npos) s += ".0";
-  return s;
-}
-
 std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
                         const ModelPrograms& programs) {
   return emit_header(m, symbols, model, programs, EmitOptions{});

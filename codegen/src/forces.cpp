@@ -152,8 +152,16 @@ ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec) {
   f.applied_program = lower(f.applied, s);
   f.row_begin.push_back(0);
   for (const Constraint* c : m.constraints()) {
-    f.exact.si.push_back(b.exact(c->si, c->item + " si"));
-    f.exact.sj.push_back(b.exact(c->sj, c->item + " sj"));
+    // The points a constraint's reaction and effort refer to: si (or s), sj; [0, 0] where the
+    // kind has none.
+    const auto local = [&](std::initializer_list<const char*> keys) -> std::array<ex, 2> {
+      for (const char* key : keys)
+        if (const auto it = c->vectors.find(key); it != c->vectors.end())
+          return b.exact(it->second, c->item + " " + key);
+      return {ex(0), ex(0)};
+    };
+    f.exact.si.push_back(local({"si", "s"}));
+    f.exact.sj.push_back(local({"sj"}));
     f.row_begin.push_back(f.row_begin.back() + c->equation_count());
   }
   const auto to_d = [](const std::vector<ex>& v) {
@@ -182,8 +190,8 @@ std::vector<std::string> force_columns(const Mechanism& m) {
   for (std::size_t d = 0; d < m.drivers.size(); ++d) {
     const Constraint& c = m.drivers[d];
     const std::string base = label(c, "driver", static_cast<int>(d));
-    if (c.type == ConstraintType::kExpression) {
-      for (std::size_t e = 0; e < c.equations.size(); ++e)
+    if (numbered_efforts(c)) {
+      for (int e = 0; e < c.equation_count(); ++e)
         names.push_back(base + ".effort" + std::to_string(e));
     } else {
       names.push_back(base + ".effort");
@@ -191,15 +199,12 @@ std::vector<std::string> force_columns(const Mechanism& m) {
   }
   for (std::size_t j = 0; j < m.joints.size(); ++j) {
     const Constraint& c = m.joints[j];
-    if (c.type == ConstraintType::kExpression) continue;
+    if (is_expression(c)) continue;
     const std::string base = label(c, "joint", static_cast<int>(j));
     for (const char* part : {".fx", ".fy", ".tz"}) names.push_back(base + part);
   }
   return names;
 }
-
-bool is_distance(const Constraint& c) { return c.type == ConstraintType::kDistance; }
-bool is_expression(const Constraint& c) { return c.type == ConstraintType::kExpression; }
 
 ForceSolver::ForceSolver(const CompiledModel& model, const ForceModel& forces)
     : model_(&model),

@@ -99,6 +99,12 @@ struct Common {
   std::vector<std::string> params;
 };
 
+// Reads and compiles the mechanism, its stages shown as the log's progress lines.
+std::unique_ptr<kc::CompiledModel> load(const Common& c, kc::BuildOptions build = {}) {
+  build.progress = kc::Log::global().progress_callbacks();
+  return kc::CompiledModel::from_file(c.file, parse_overrides(c.params), build);
+}
+
 void add_common(CLI::App* cmd, Common& c) {
   cmd->add_option("mechanism", c.file, "Mechanism file (YAML)")->required();
   cmd->add_option("--param", c.params, "Override a parameter: NAME=VALUE (repeatable)")
@@ -110,7 +116,7 @@ int run_generate(const Common& c, const std::string& dir, const std::string& out
                  int roll_min = kc::kDefaultRollMin) {
   kc::BuildOptions build;
   build.fold_params = fold_params;
-  const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params), build);
+  const auto model = load(c, build);
   kc::StageScope stage("emitting C++");
   kc::EmitOptions options;
   if (outputs == "position") options.outputs = kc::Outputs::kPosition;
@@ -135,7 +141,7 @@ int run_generate(const Common& c, const std::string& dir, const std::string& out
 }
 
 int run_animate(const Common& c, const kc::AnimateOptions& options, const std::string& output) {
-  const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
+  const auto model = load(c);
   kc::require_driven(*model);
   std::string svg;
   {
@@ -152,7 +158,7 @@ int run_animate(const Common& c, const kc::AnimateOptions& options, const std::s
 
 int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output,
                 int reference_digits, bool strict) {
-  const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
+  const auto model = load(c);
   kc::require_driven(*model);
   if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
   if (!std::isfinite(t0) || !std::isfinite(t1)) throw kc::UsageError("--t0 and --t1 must be finite");
@@ -193,7 +199,7 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
 
 int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
              const std::vector<double>& qd_arg) {
-  const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
+  const auto model = load(c);
   const int nq = model->nq(), nc = model->nc();
   const Eigen::VectorXd q = q_arg.empty() ? model->q0() : vector_arg(q_arg, nq, "--q");
   const Eigen::VectorXd qd = qd_arg.empty() ? Eigen::VectorXd::Zero(nq) : vector_arg(qd_arg, nq, "--qd");
@@ -212,7 +218,7 @@ int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
 }
 
 int run_check(const Common& c, const kc::CheckOptions& options, bool structure) {
-  const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
+  const auto model = load(c);
   if (options.samples < 1) throw kc::UsageError("--samples must be at least 1");
   if (structure) std::cout << kc::jacobian_structure(*model) << "\n";
   const auto rows = kc::check_derivatives(*model, options);

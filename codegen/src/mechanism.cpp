@@ -9,7 +9,11 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 #include <unordered_set>
+
+#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/functions.hpp"
 
 namespace kinegen::codegen {
 
@@ -19,55 +23,6 @@ SourceLoc loc_of(const YAML::Node& node) {
   const YAML::Mark mark = node.Mark();
   if (mark.line < 0) return {};
   return {mark.line + 1, mark.column + 1};
-}
-
-struct TypeInfo {
-  ConstraintType type;
-  const char* name;
-  bool joint, driver;
-};
-
-constexpr TypeInfo kTypes[] = {
-    {ConstraintType::kRevolute, "revolute", true, false},
-    {ConstraintType::kTranslational, "translational", true, false},
-    {ConstraintType::kDistance, "distance", true, true},
-    {ConstraintType::kRevoluteTranslational, "revolute_translational", true, false},
-    {ConstraintType::kAbsoluteX, "absolute_x", true, true},
-    {ConstraintType::kAbsoluteY, "absolute_y", true, true},
-    {ConstraintType::kAbsoluteAngle, "absolute_angle", true, true},
-    {ConstraintType::kRelativeAngle, "relative_angle", true, true},
-    {ConstraintType::kExpression, "expression", true, true},
-};
-
-// The keys each constraint type takes (besides `type` and `name`); `value_key` is where the
-// constant (joints) lives; drivers use `f` instead.
-struct KeySpec {
-  std::vector<std::string> required, optional;
-  const char* value_key;  // nullptr when the type has no scalar value
-};
-
-KeySpec keys_for(ConstraintType type, bool driver) {
-  const char* fkey = "f";
-  switch (type) {
-    case ConstraintType::kRevolute:
-      return {{"i", "j"}, {"si", "sj"}, nullptr};
-    case ConstraintType::kTranslational:
-      return {{"i", "j", "vi"}, {"si", "sj", "angle"}, nullptr};
-    case ConstraintType::kDistance:
-      return {{"i", "j", driver ? fkey : "length"}, {"si", "sj"}, driver ? fkey : "length"};
-    case ConstraintType::kRevoluteTranslational:
-      return {{"i", "j", "vi"}, {"si", "sj"}, nullptr};
-    case ConstraintType::kAbsoluteX:
-    case ConstraintType::kAbsoluteY:
-      return {{"body", driver ? fkey : "value"}, {"s"}, driver ? fkey : "value"};
-    case ConstraintType::kAbsoluteAngle:
-      return {{"body", driver ? fkey : "value"}, {}, driver ? fkey : "value"};
-    case ConstraintType::kRelativeAngle:
-      return {{"i", "j", driver ? fkey : "value"}, {}, driver ? fkey : "value"};
-    case ConstraintType::kExpression:
-      return {{"equations"}, {}, nullptr};
-  }
-  return {};
 }
 
 // C++ keywords and alternative tokens (C++20), which a name must not be.
@@ -98,9 +53,12 @@ const std::unordered_set<std::string>& cpp_keywords() {
 
 // Names the expression language gives a meaning of its own.
 const std::unordered_set<std::string>& reserved_names() {
-  static const std::unordered_set<std::string> kReserved = {
-      "ground", "t",    "pi",   "Pi",  "I",   "Euler", "Catalan", "sin", "cos",
-      "tan",    "asin", "acos", "atan", "exp", "log",  "sqrt",    "pow"};
+  static const std::unordered_set<std::string> kReserved = [] {
+    std::unordered_set<std::string> names = {"ground", "t",     "pi",      "Pi",
+                                             "I",      "Euler", "Catalan", "pow"};
+    for (const MathFunction& f : kMathFunctions) names.insert(f.name);
+    return names;
+  }();
   return kReserved;
 }
 
@@ -270,19 +228,21 @@ class Loader {
       if (!c.IsMap()) fail(item, loc_of(c), "expected a mapping with a 'type'");
       if (!c["type"] || !c["type"].IsScalar()) fail(item, loc_of(c), "missing key 'type'");
       const std::string type_name = c["type"].Scalar();
-      const TypeInfo* info = nullptr;
-      for (const auto& t : kTypes)
-        if (type_name == t.name && (driver ? t.driver : t.joint)) info = &t;
-      if (!info) {
+      const ConstraintKind* kind = find_constraint_kind(type_name);
+      if (!kind || !(driver ? kind->driver : kind->joint)) {
         std::string allowed;
-        for (const auto& t : kTypes)
-          if (driver ? t.driver : t.joint) allowed += (allowed.empty() ? "" : ", ") + std::string(t.name);
+        for (const ConstraintKind* t : constraint_kinds())
+          if (driver ? t->driver : t->joint)
+            allowed += (allowed.empty() ? "" : ", ") + std::string(t->name);
         fail(item, loc_of(c["type"]),
              "unknown " + std::string(driver ? "driver" : "joint") + " type '" + type_name +
                  "' (expected one of: " + allowed + ")");
       }
+      if (!kind->coordinates.empty())
+        throw std::logic_error(std::string("constraint type '") + kind->name +
+                               "' declares coordinates, which no stage supports yet");
       Constraint con;
-      con.type = info->type;
+      con.kind = kind;
       con.is_driver = driver;
       con.loc = loc_of(c);
       item += " (" + type_name + ")";
@@ -291,35 +251,7 @@ class Loader {
         item = list + "[" + std::to_string(k) + "] '" + con.name + "' (" + type_name + ")";
       }
       con.item = item;
-      const KeySpec spec = keys_for(con.type, driver);
-      check_keys(c, item, spec.required, spec.optional);
-
-      const Expr zero{"0", con.loc};
-      con.si = con.sj = Vec2{zero, zero};
-      con.value = zero;
-      if (c["body"]) con.i = body_ref(c["body"], m, item, false);
-      if (c["i"]) con.i = body_ref(c["i"], m, item, true);
-      if (c["j"]) con.j = body_ref(c["j"], m, item, true);
-      if (c["i"] && c["j"] && con.i == con.j)
-        fail(item, loc_of(c["j"]), "i and j must be different bodies");
-      if (c["si"]) con.si = vec2_of(c["si"], item + " si");
-      if (c["sj"]) con.sj = vec2_of(c["sj"], item + " sj");
-      if (c["s"]) con.si = vec2_of(c["s"], item + " s");
-      if (c["vi"]) con.vi = vec2_of(c["vi"], item + " vi");
-      if (c["angle"]) con.value = expr_of(c["angle"], item + " angle");
-      if (spec.value_key) con.value = expr_of(c[spec.value_key], item + " " + spec.value_key);
-      if (con.type == ConstraintType::kExpression) {
-        const YAML::Node eqs = c["equations"];
-        if (eqs.IsScalar()) {
-          con.equations.push_back(expr_of(eqs, item));
-        } else if (eqs.IsSequence() && eqs.size() > 0) {
-          for (std::size_t e = 0; e < eqs.size(); ++e)
-            con.equations.push_back(
-                expr_of(eqs[e], item + " equations[" + std::to_string(e) + "]"));
-        } else {
-          fail(item, loc_of(eqs), "equations must be a non-empty list of expression strings");
-        }
-      }
+      read_keys(c, *kind, item, m, con);
       (driver ? m.drivers : m.joints).push_back(std::move(con));
     }
   }
@@ -387,6 +319,68 @@ class Loader {
     }
   }
 
+  // A driver's kValue key is `f`, its f(t), and always required.
+  static std::string key_name(const KeySpec& k, bool driver) {
+    return driver && k.kind == KeyKind::kValue ? "f" : k.name;
+  }
+
+  // The keys of `kind` from `c` into `con`: bodies first (then i != j), the rest in the
+  // kind's order; omitted optional keys take their defaults.
+  void read_keys(const YAML::Node& c, const ConstraintKind& kind, const std::string& item,
+                 const Mechanism& m, Constraint& con) {
+    const bool driver = con.is_driver;
+    std::vector<std::string> required, optional;
+    for (const KeySpec& k : kind.keys)
+      (k.required || (driver && k.kind == KeyKind::kValue) ? required : optional)
+          .push_back(key_name(k, driver));
+    check_keys(c, item, required, optional);
+
+    const auto is_body = [](const KeySpec& k) {
+      return k.kind == KeyKind::kBody || k.kind == KeyKind::kBodyOrGround;
+    };
+    for (const KeySpec& k : kind.keys) {
+      if (!is_body(k) || !c[k.name]) continue;
+      (std::string(k.name) == "j" ? con.j : con.i) =
+          body_ref(c[k.name], m, item, k.kind == KeyKind::kBodyOrGround);
+    }
+    if (c["i"] && c["j"] && con.i == con.j)
+      fail(item, loc_of(c["j"]), "i and j must be different bodies");
+    for (const KeySpec& k : kind.keys) {
+      if (is_body(k)) continue;
+      const std::string key = key_name(k, driver);
+      const YAML::Node node = c[key];
+      const Expr fallback{k.default_value, con.loc};
+      switch (k.kind) {
+        case KeyKind::kOffset:
+        case KeyKind::kDirection:
+          con.vectors[key] = node ? vec2_of(node, item + " " + key) : Vec2{fallback, fallback};
+          break;
+        case KeyKind::kValue:
+          con.value = node ? expr_of(node, item + " " + key) : fallback;
+          break;
+        case KeyKind::kScalar:
+          con.scalars[key] = node ? expr_of(node, item + " " + key) : fallback;
+          break;
+        case KeyKind::kEquations:
+          if (node.IsScalar()) {
+            con.equations.push_back(expr_of(node, item));
+          } else if (node.IsSequence() && node.size() > 0) {
+            for (std::size_t e = 0; e < node.size(); ++e)
+              con.equations.push_back(
+                  expr_of(node[e], item + " " + key + "[" + std::to_string(e) + "]"));
+          } else {
+            fail(item, loc_of(node), key + " must be a non-empty list of expression strings");
+          }
+          break;
+        case KeyKind::kCurve:
+          throw std::logic_error(item + ": curve keys are not supported yet");
+        case KeyKind::kBody:
+        case KeyKind::kBodyOrGround:
+          break;
+      }
+    }
+  }
+
   void read_points(const YAML::Node& node, Mechanism& m) {
     if (node.IsNull()) return;
     if (!node.IsSequence()) fail("points", loc_of(node), "expected a list of points");
@@ -434,22 +428,16 @@ class Loader {
 
 }  // namespace
 
-const char* to_string(ConstraintType type) {
-  for (const auto& t : kTypes)
-    if (t.type == type) return t.name;
-  return "?";
-}
+const char* Constraint::type_name() const { return kind ? kind->name : "?"; }
 
 int Constraint::equation_count() const {
-  switch (type) {
-    case ConstraintType::kRevolute:
-    case ConstraintType::kTranslational:
-      return 2;
-    case ConstraintType::kExpression:
-      return static_cast<int>(equations.size());
-    default:
-      return 1;
-  }
+  return kind->rows > 0 ? kind->rows : static_cast<int>(equations.size());
+}
+
+const Vec2& Constraint::vector(const std::string& key) const {
+  const auto it = vectors.find(key);
+  if (it == vectors.end()) throw std::logic_error(item + " has no vector key '" + key + "'");
+  return it->second;
 }
 
 int Mechanism::nc() const {

@@ -1,13 +1,13 @@
 #include "kinegen/codegen/model.hpp"
 
-#include "kinegen/codegen/log.hpp"
+#include "kinegen/codegen/constraints.hpp"
 
 namespace kinegen::codegen {
 
 std::unique_ptr<CompiledModel> CompiledModel::from_file(const std::string& path,
                                                         const std::vector<ParamOverride>& overrides,
                                                         const BuildOptions& options) {
-  StageScope stage("reading " + path);
+  ProgressStage stage(options.progress, "reading " + path);
   Mechanism mechanism = load_mechanism(path);
   stage.done(std::to_string(mechanism.bodies.size()) + " bodies, " +
              std::to_string(mechanism.nq()) + " coordinates, " + std::to_string(mechanism.nc()) +
@@ -27,14 +27,15 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
                           const BuildOptions& options) {
   symbols_ = std::make_unique<SymbolTable>(mechanism_);
   {
-    StageScope stage("deriving Phi, Phi_q, nu and gamma (" + std::to_string(mechanism_.nc()) +
-                     " equations)");
+    ProgressStage stage(options.progress, "deriving Phi, Phi_q, nu and gamma (" +
+                                              std::to_string(mechanism_.nc()) + " equations)");
     symbolic_ = derive(mechanism_, *symbols_, overrides);
     stage.done("Phi_q: " + std::to_string(symbolic_.phi_q.size()) + " structural non-zeros");
   }
   if (options.fold_params) {
     // Exact values, so constant subtrees still fold to one correctly rounded literal.
-    StageScope stage("folding " + std::to_string(symbols_->num_params()) + " parameters");
+    ProgressStage stage(options.progress,
+                        "folding " + std::to_string(symbols_->num_params()) + " parameters");
     const auto fold = [&](GiNaC::ex& e) { e = substitute_params(e, *symbols_, symbolic_.param_values); };
     for (auto& e : symbolic_.phi) fold(e);
     for (auto& e : symbolic_.phi_q) fold(e.value);
@@ -43,7 +44,7 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
     stage.done("");
   }
   {
-    StageScope stage("lowering to straight-line code");
+    ProgressStage stage(options.progress, "lowering to straight-line code");
     programs_ = lower_model(symbolic_, *symbols_, mechanism_.nq());
     stage.done(std::to_string(programs_.phi.operation_count()) + " + " +
                std::to_string(programs_.phi_q.operation_count()) + " + " +
@@ -67,8 +68,11 @@ Eigen::VectorXd CompiledModel::q0() const {
 std::string CompiledModel::row_label(int row) const {
   const RowOrigin& o = symbolic_.rows[row];
   std::string label = o.constraint->item;
-  if (o.constraint->equation_count() > 1) label += " equation " + std::to_string(o.component + 1);
-  if (o.constraint->loc.line > 0) label += " (line " + std::to_string(o.constraint->loc.line) + ")";
+  const Constraint& c = *o.constraint;
+  if (c.equation_count() > 1)
+    label += c.kind->row_name ? " " + c.kind->row_name(c, o.component)
+                              : " equation " + std::to_string(o.component + 1);
+  if (c.loc.line > 0) label += " (line " + std::to_string(c.loc.line) + ")";
   return label;
 }
 

@@ -7,19 +7,13 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "kinegen/codegen/functions.hpp"
+
 namespace kinegen::codegen {
 
 using GiNaC::ex;
 
 namespace {
-
-const std::map<std::string, OpKind>& function_kinds() {
-  static const std::map<std::string, OpKind> kKinds = {
-      {"sin", OpKind::kSin},   {"cos", OpKind::kCos},   {"tan", OpKind::kTan},
-      {"asin", OpKind::kAsin}, {"acos", OpKind::kAcos}, {"atan", OpKind::kAtan},
-      {"exp", OpKind::kExp},   {"log", OpKind::kLog}};
-  return kKinds;
-}
 
 class Lowerer {
  public:
@@ -135,10 +129,10 @@ class Lowerer {
       }
     } else if (GiNaC::is_a<GiNaC::function>(e)) {
       const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
-      const auto it = function_kinds().find(name);
-      if (it == function_kinds().end() || e.nops() != 1)
+      const MathFunction* f = find_math_function(name);
+      if (!f || e.nops() != 1)
         throw std::logic_error("unsupported function in a derived expression: " + name);
-      n.kind = it->second;
+      n.kind = f->op;
       n.args = {lower(e.op(0))};
     } else {
       throw std::logic_error("unsupported expression class: " +

@@ -11,6 +11,9 @@
 #include <string>
 
 #include "kinegen/codegen/diagnostics.hpp"
+#include "kinegen/codegen/format.hpp"
+#include "kinegen/codegen/functions.hpp"
+#include "kinegen/codegen/kinematics.hpp"
 
 namespace kinegen::codegen {
 
@@ -19,31 +22,7 @@ using GiNaC::numeric;
 
 namespace {
 
-enum class Op {
-  kConst,
-  kVar,
-  kAdd,
-  kMul,
-  kPowInt,
-  kPow,
-  kSqrt,
-  kSin,
-  kCos,
-  kTan,
-  kAsin,
-  kAcos,
-  kAtan,
-  kExp,
-  kLog
-};
-
-const std::map<std::string, Op>& function_ops() {
-  static const std::map<std::string, Op> kOps = {
-      {"sin", Op::kSin},   {"cos", Op::kCos},   {"tan", Op::kTan},
-      {"asin", Op::kAsin}, {"acos", Op::kAcos}, {"atan", Op::kAtan},
-      {"exp", Op::kExp},   {"log", Op::kLog},   {"sqrt", Op::kSqrt}};
-  return kOps;
-}
+enum class Op { kConst, kVar, kAdd, kMul, kPowInt, kPow, kFunction };
 
 numeric require_real(const numeric& v, const char* what) {
   if (!v.is_real())
@@ -68,6 +47,7 @@ struct HighPrecisionEvaluator::Tape {
     long exponent = 0;  // kPowInt
     numeric value;      // kConst
     int var = 0;        // kVar: q[0..nq), qd[nq..2nq), t at 2nq
+    const MathFunction* function = nullptr;  // kFunction
   };
   std::vector<Node> nodes;
   std::vector<int> outputs;  // -1: identically zero
@@ -111,16 +91,17 @@ class TapeBuilder {
         n.op = Op::kPowInt;
         n.exponent = GiNaC::ex_to<numeric>(expo).to_long();
       } else if (expo.is_equal(GiNaC::ex(1) / 2)) {
-        n.op = Op::kSqrt;
+        n.op = Op::kFunction;
+        n.function = math_function(OpKind::kSqrt);
       } else {
         n.op = Op::kPow;
         n.args.push_back(compile(expo, tape));
       }
     } else if (GiNaC::is_a<GiNaC::function>(e)) {
-      const auto it = function_ops().find(GiNaC::ex_to<GiNaC::function>(e).get_name());
-      if (it == function_ops().end() || e.nops() != 1)
+      n.function = find_math_function(GiNaC::ex_to<GiNaC::function>(e).get_name());
+      if (!n.function || e.nops() != 1)
         throw std::logic_error("unsupported function in the reference: " + str(e));
-      n.op = it->second;
+      n.op = Op::kFunction;
       n.args.push_back(compile(e.op(0), tape));
     } else {
       throw std::logic_error("unsupported expression in the reference: " + str(e));
@@ -221,33 +202,11 @@ Vector run_tape(Tape& tape, const std::vector<numeric>& inputs) {
       case Op::kPow:
         val[k] = require_real(arg(0).power(arg(1)), "a power");
         break;
-      case Op::kSqrt:
-        val[k] = require_real(GiNaC::sqrt(arg(0)), "sqrt");
+      case Op::kFunction: {
+        const numeric v = n.function->high_precision(arg(0));
+        val[k] = n.function->partial ? require_real(v, n.function->name) : v;
         break;
-      case Op::kSin:
-        val[k] = GiNaC::sin(arg(0));
-        break;
-      case Op::kCos:
-        val[k] = GiNaC::cos(arg(0));
-        break;
-      case Op::kTan:
-        val[k] = GiNaC::tan(arg(0));
-        break;
-      case Op::kAsin:
-        val[k] = require_real(GiNaC::asin(arg(0)), "asin");
-        break;
-      case Op::kAcos:
-        val[k] = require_real(GiNaC::acos(arg(0)), "acos");
-        break;
-      case Op::kAtan:
-        val[k] = GiNaC::atan(arg(0));
-        break;
-      case Op::kExp:
-        val[k] = GiNaC::exp(arg(0));
-        break;
-      case Op::kLog:
-        val[k] = require_real(GiNaC::log(arg(0)), "log");
-        break;
+      }
     }
   }
   Vector out;
@@ -346,8 +305,6 @@ class Lu {
   int n_ = 0;
 };
 
-std::string time_text(double t) { return "t = " + format_number(t); }
-
 }  // namespace
 
 struct ReferenceForces::Data {
@@ -403,7 +360,7 @@ std::vector<numeric> ReferenceForces::solve(const ReferenceRow& row) {
   Lu lu;
   if (!lu.factor(transposed, nq, data_->pivot_ratio))
     throw AnalysisError(model_->mechanism().source + ": --forces: Phi_q is singular at " +
-                        time_text(row.t.to_double()) + " (reference)");
+                        format_time(row.t.to_double()) + " (reference)");
   const Vector lambda = lu.solve(q_total);
   std::vector<numeric> columns;
   columns_from_lambda(model_->mechanism(), *forces_, data_->numbers, row.q.data(), jac, lambda,
@@ -492,7 +449,7 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
     const numeric t = eval.to_float(exact_numeric(td));
     const auto fail = [&](const std::string& stage, const std::string& why) {
       throw AnalysisError(file + ": reference " + stage + " analysis (" + std::to_string(digits) +
-                          " digits) failed at " + time_text(td) + ": " + why);
+                          " digits) failed at " + format_time(td) + ": " + why);
     };
     try {
       if (step > 0) {
@@ -538,12 +495,8 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
     for (std::size_t p = 0; p < points.size(); ++p) {
       const int b = 3 * points[p].body;
       const numeric c = GiNaC::cos(row.q[b + 2]), s = GiNaC::sin(row.q[b + 2]);
-      const numeric &sx = offsets[p][0], &sy = offsets[p][1];
-      const numeric ax = c * sx - s * sy, ay = s * sx + c * sy;  // A s
-      const numeric w = row.qd[b + 2], wd = row.qdd[b + 2];
-      row.points.push_back({row.q[b] + ax, row.q[b + 1] + ay, row.qd[b] - w * ay,
-                            row.qd[b + 1] + w * ax, row.qdd[b] - wd * ay - w * w * ax,
-                            row.qdd[b + 1] + wd * ax - w * w * ay});
+      row.points.push_back(
+          point_kinematics(&row.q[b], &row.qd[b], &row.qdd[b], c, s, offsets[p][0], offsets[p][1]));
     }
     sink(row);
   }

@@ -5,19 +5,20 @@
 #include <cmath>
 #include <set>
 
+#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/functions.hpp"
+
 namespace kinegen::codegen {
 
 using GiNaC::ex;
 
 namespace {
 
-// The functions the format allows, looked up in GiNaC's own reader table.
+// The functions the format allows (functions.hpp), looked up in GiNaC's own reader table.
 GiNaC::prototype_table allowed_functions() {
-  static const std::set<std::string> kAllowed = {"sin",  "cos", "tan", "asin", "acos",
-                                                 "atan", "exp", "log", "sqrt"};
   GiNaC::prototype_table table;
   for (const auto& [proto, reader] : GiNaC::get_default_reader())
-    if (kAllowed.count(proto.first) && proto.second == 1) table[proto] = reader;
+    if (find_math_function(proto.first) && proto.second == 1) table[proto] = reader;
   return table;
 }
 
@@ -219,26 +220,35 @@ double to_double(const ex& e) {
 
 namespace {
 
-// The library's equations, written once in the notation of the format.
+// A constant of the geometry, checked to evaluate to a finite number.
+void check_finite(const Mechanism& m, const SymbolTable& s,
+                  const std::vector<GiNaC::numeric>& values, const ex& value, const Expr& e,
+                  const std::string& item) {
+  double v = 0;
+  try {
+    v = to_double(substitute_params(value, s, values));
+  } catch (const std::exception& err) {
+    throw InputError(m.source, item, e.loc,
+                     "'" + e.text + "' cannot be evaluated: " + clean_message(err.what()));
+  }
+  if (!std::isfinite(v))
+    throw InputError(m.source, item, e.loc, "'" + e.text + "' is not a finite number");
+}
+
+ex geometry_value(const Mechanism& m, const SymbolTable& s,
+                  const std::vector<GiNaC::numeric>& values, const Expr& e,
+                  const std::string& item) {
+  const ex value = s.parse(e, Scope::kGeometry, item);
+  check_finite(m, s, values, value, e, item);
+  return value;
+}
+
+// q0 and point offsets: constants of the geometry (the constraints' own values are read by
+// their kinds through EquationContext).
 class Builder {
  public:
   Builder(const Mechanism& m, const SymbolTable& s, const std::vector<GiNaC::numeric>& values)
       : m_(m), s_(s), values_(values) {}
-
-  struct Frame {
-    ex x, y, phi;
-  };
-
-  Frame frame(int body) const {
-    if (body == kGround) return {0, 0, 0};
-    return {s_.q(3 * body), s_.q(3 * body + 1), s_.q(3 * body + 2)};
-  }
-
-  // A(phi) s
-  static std::pair<ex, ex> rotate(const ex& phi, const std::pair<ex, ex>& s) {
-    return {GiNaC::cos(phi) * s.first - GiNaC::sin(phi) * s.second,
-            GiNaC::sin(phi) * s.first + GiNaC::cos(phi) * s.second};
-  }
 
   std::pair<ex, ex> vec(const Vec2& v, const std::string& item) const {
     return {geometry(v.x, item), geometry(v.y, item)};
@@ -246,100 +256,11 @@ class Builder {
 
   // A constant of the geometry, checked to evaluate to a finite number.
   ex geometry(const Expr& e, const std::string& item) const {
-    const ex value = s_.parse(e, Scope::kGeometry, item);
-    check_finite(value, e, item);
-    return value;
-  }
-
-  void check_finite(const ex& value, const Expr& e, const std::string& item) const {
-    double v = 0;
-    try {
-      v = to_double(substitute_params(value, s_, values_));
-    } catch (const std::exception& err) {
-      throw InputError(m_.source, item, e.loc,
-                       "'" + e.text + "' cannot be evaluated: " + clean_message(err.what()));
-    }
-    if (!std::isfinite(v))
-      throw InputError(m_.source, item, e.loc, "'" + e.text + "' is not a finite number");
-  }
-
-  // An expression in t or q with the parameters put in: no division by zero appears, and every
-  // number in it is finite (1e999 * t is not).
-  void check_defined(const ex& value, const Expr& e, const std::string& item) const {
-    try {
-      const ex v = substitute_params(value, s_, values_);
-      for (auto it = v.preorder_begin(); it != v.preorder_end(); ++it)
-        if (GiNaC::is_a<GiNaC::numeric>(*it) &&
-            !std::isfinite(GiNaC::ex_to<GiNaC::numeric>(*it).to_double()))
-          throw InputError(m_.source, item, e.loc, "'" + e.text + "' holds a number that is not finite");
-    } catch (const InputError&) {
-      throw;
-    } catch (const std::exception& err) {
-      throw InputError(m_.source, item, e.loc,
-                       "'" + e.text + "' cannot be evaluated: " + clean_message(err.what()));
-    }
+    return geometry_value(m_, s_, values_, e, item);
   }
 
   std::vector<ex> equations(const Constraint& c) const {
-    const Frame fi = frame(c.i), fj = frame(c.j);
-    const auto d_ij = [&] {
-      const auto ai = rotate(fi.phi, vec(c.si, c.item + " si"));
-      const auto aj = rotate(fj.phi, vec(c.sj, c.item + " sj"));
-      return std::pair<ex, ex>{fj.x + aj.first - fi.x - ai.first,
-                               fj.y + aj.second - fi.y - ai.second};
-    };
-    // (A_i vi)^perp . d = -(A_i vi)_y d_x + (A_i vi)_x d_y
-    const auto perp_dot = [&](const std::pair<ex, ex>& d) {
-      const auto v = vec(c.vi, c.item + " vi");
-      if (to_double(substitute_params(GiNaC::pow(v.first, 2) + GiNaC::pow(v.second, 2), s_,
-                                      values_)) == 0.0)
-        throw InputError(m_.source, c.item, c.vi.x.loc, "vi must not be the zero vector");
-      const auto av = rotate(fi.phi, v);
-      return -av.second * d.first + av.first * d.second;
-    };
-    const Scope value_scope = c.is_driver ? Scope::kDriverTime : Scope::kGeometry;
-    const auto value = [&] {
-      const std::string item = c.item + (c.is_driver ? " f" : " value");
-      const ex v = s_.parse(c.value, value_scope, item);
-      if (!c.is_driver) check_finite(v, c.value, item);
-      if (c.is_driver) check_defined(v, c.value, item);
-      return v;
-    };
-    switch (c.type) {
-      case ConstraintType::kRevolute: {
-        const auto d = d_ij();
-        return {d.first, d.second};
-      }
-      case ConstraintType::kTranslational: {
-        const auto d = d_ij();
-        return {perp_dot(d), fj.phi - fi.phi - value()};
-      }
-      case ConstraintType::kDistance: {
-        const auto d = d_ij();
-        return {GiNaC::pow(d.first, 2) + GiNaC::pow(d.second, 2) - GiNaC::pow(value(), 2)};
-      }
-      case ConstraintType::kRevoluteTranslational:
-        return {perp_dot(d_ij())};
-      case ConstraintType::kAbsoluteX:
-        return {fi.x + rotate(fi.phi, vec(c.si, c.item + " s")).first - value()};
-      case ConstraintType::kAbsoluteY:
-        return {fi.y + rotate(fi.phi, vec(c.si, c.item + " s")).second - value()};
-      case ConstraintType::kAbsoluteAngle:
-        return {fi.phi - value()};
-      case ConstraintType::kRelativeAngle:
-        return {fj.phi - fi.phi - value()};
-      case ConstraintType::kExpression: {
-        std::vector<ex> rows;
-        const Scope scope = c.is_driver ? Scope::kDriver : Scope::kJoint;
-        for (std::size_t k = 0; k < c.equations.size(); ++k) {
-          const std::string item = c.item + " equations[" + std::to_string(k) + "]";
-          rows.push_back(s_.parse(c.equations[k], scope, item));
-          check_defined(rows.back(), c.equations[k], item);
-        }
-        return rows;
-      }
-    }
-    return {};
+    return c.kind->equations(EquationContext(c, m_, s_, values_));
   }
 
  private:
@@ -395,6 +316,83 @@ std::vector<int> coordinates_in(const ex& e, const SymbolTable& s) {
 }
 
 }  // namespace
+
+EquationContext::Frame EquationContext::frame(int body) const {
+  if (body == kGround) return {0, 0, 0};
+  return {s_.q(3 * body), s_.q(3 * body + 1), s_.q(3 * body + 2)};
+}
+
+EquationContext::Vec EquationContext::rotate(const ex& phi, const Vec& s) {
+  return {GiNaC::cos(phi) * s.first - GiNaC::sin(phi) * s.second,
+          GiNaC::sin(phi) * s.first + GiNaC::cos(phi) * s.second};
+}
+
+ex EquationContext::geometry(const Expr& e, const std::string& item) const {
+  return geometry_value(m_, s_, values_, e, item);
+}
+
+void EquationContext::check_finite(const ex& value, const Expr& e, const std::string& item) const {
+  codegen::check_finite(m_, s_, values_, value, e, item);
+}
+
+// An expression in t or q with the parameters put in: no division by zero appears, and every
+// number in it is finite (1e999 * t is not).
+void EquationContext::check_defined(const ex& value, const Expr& e, const std::string& item) const {
+  try {
+    const ex v = substitute_params(value, s_, values_);
+    for (auto it = v.preorder_begin(); it != v.preorder_end(); ++it)
+      if (GiNaC::is_a<GiNaC::numeric>(*it) &&
+          !std::isfinite(GiNaC::ex_to<GiNaC::numeric>(*it).to_double()))
+        throw InputError(m_.source, item, e.loc,
+                         "'" + e.text + "' holds a number that is not finite");
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& err) {
+    throw InputError(m_.source, item, e.loc,
+                     "'" + e.text + "' cannot be evaluated: " + clean_message(err.what()));
+  }
+}
+
+EquationContext::Vec EquationContext::vector(const std::string& key) const {
+  const Vec2& v = c_.vector(key);
+  const std::string item = c_.item + " " + key;
+  return {geometry(v.x, item), geometry(v.y, item)};
+}
+
+EquationContext::Vec EquationContext::d_ij() const {
+  const Frame fi = frame_i(), fj = frame_j();
+  const Vec ai = rotate(fi.phi, vector("si"));
+  const Vec aj = rotate(fj.phi, vector("sj"));
+  return {fj.x + aj.first - fi.x - ai.first, fj.y + aj.second - fi.y - ai.second};
+}
+
+ex EquationContext::perpendicular(const Vec& d) const {
+  const Vec v = vector("vi");
+  if (to_double(substitute_params(GiNaC::pow(v.first, 2) + GiNaC::pow(v.second, 2), s_, values_)) ==
+      0.0)
+    throw InputError(m_.source, c_.item, c_.vector("vi").x.loc, "vi must not be the zero vector");
+  const Vec av = rotate(frame_i().phi, v);
+  return -av.second * d.first + av.first * d.second;
+}
+
+ex EquationContext::value() const {
+  const std::string item = c_.item + (c_.is_driver ? " f" : " value");
+  const ex v = s_.parse(c_.value, c_.is_driver ? Scope::kDriverTime : Scope::kGeometry, item);
+  if (!c_.is_driver) check_finite(v, c_.value, item);
+  if (c_.is_driver) check_defined(v, c_.value, item);
+  return v;
+}
+
+std::vector<ex> EquationContext::equations() const {
+  std::vector<ex> rows;
+  const Scope scope = c_.is_driver ? Scope::kDriver : Scope::kJoint;
+  for (std::size_t k = 0; k < c_.equations.size(); ++k) {
+    const std::string item = c_.item + " equations[" + std::to_string(k) + "]";
+    rows.push_back(s_.parse(c_.equations[k], scope, item));
+    check_defined(rows.back(), c_.equations[k], item);
+  }
+  return rows;
+}
 
 SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
                      const std::vector<ParamOverride>& overrides) {
@@ -456,8 +454,7 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
     grow(v.second);
   }
   for (const auto* c : m.constraints()) {
-    if (c->type == ConstraintType::kExpression) continue;
-    for (const Vec2* v : {&c->si, &c->sj}) {
+    for (const Vec2* v : offsets(*c)) {
       const auto lv = builder.vec(*v, c->item);
       grow(lv.first);
       grow(lv.second);

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "kinegen/codegen/format.hpp"  // format_number, which CSV rows use
 #include "kinegen/codegen/model.hpp"
 
 namespace kinegen::codegen {
@@ -71,7 +72,5 @@ PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,
 
 std::string csv_header(const Mechanism& mechanism);
 std::string csv_row(const StateRow& row);
-// A double with 17 significant digits.
-std::string format_number(double value);
 
 }  // namespace kinegen::codegen

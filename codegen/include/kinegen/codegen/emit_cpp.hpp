@@ -3,13 +3,13 @@
 
 #include <string>
 
+#include "kinegen/codegen/format.hpp"  // format_double
 #include "kinegen/codegen/mechanism.hpp"
 #include "kinegen/codegen/program.hpp"
 #include "kinegen/codegen/symbolic.hpp"
+#include "kinegen/codegen/version.hpp"  // kVersion
 
 namespace kinegen::codegen {
-
-inline constexpr const char* kVersion = "0.1.0";
 
 // Which analyses a header supports: position only (phi, phi_q and the block position solver),
 // position and velocity (adds nu), or all (adds gamma); the default is all.
@@ -45,8 +45,5 @@ std::string emit_header(const Mechanism& mechanism, const SymbolTable& symbols,
 std::string emit_header(const Mechanism& mechanism, const SymbolTable& symbols,
                         const SymbolicModel& model, const ModelPrograms& programs,
                         const EmitOptions& options);
-
-// Formats a double so that it reads back to the same value (17 significant digits).
-std::string format_double(double value);
 
 }  // namespace kinegen::codegen

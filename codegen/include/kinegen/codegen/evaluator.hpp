@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <vector>
 
+#include "kinegen/codegen/functions.hpp"
 #include "kinegen/codegen/program.hpp"
 
 namespace kinegen::codegen {
@@ -21,16 +22,7 @@ class ProgramEvaluator {
   // Inputs by kind; `qd` may be null when the program does not read it. Writes one value per
   // program output. Allocates nothing.
   void run(const T* q, const T* qd, T t, const T* params, T* out) {
-    using std::acos;
-    using std::asin;
-    using std::atan;
-    using std::cos;
-    using std::exp;
-    using std::log;
     using std::pow;
-    using std::sin;
-    using std::sqrt;
-    using std::tan;
     const auto& nodes = program_->nodes;
     for (std::size_t k = 0; k < nodes.size(); ++k) {
       const Node& n = nodes[k];
@@ -68,15 +60,9 @@ class ProgramEvaluator {
           v = n.exponent > 0 ? power(arg(0), n.exponent) : T(1) / power(arg(0), -n.exponent);
           break;
         case OpKind::kPow: v = pow(arg(0), arg(1)); break;
-        case OpKind::kSqrt: v = sqrt(arg(0)); break;
-        case OpKind::kSin: v = sin(arg(0)); break;
-        case OpKind::kCos: v = cos(arg(0)); break;
-        case OpKind::kTan: v = tan(arg(0)); break;
-        case OpKind::kAsin: v = asin(arg(0)); break;
-        case OpKind::kAcos: v = acos(arg(0)); break;
-        case OpKind::kAtan: v = atan(arg(0)); break;
-        case OpKind::kExp: v = exp(arg(0)); break;
-        case OpKind::kLog: v = log(arg(0)); break;
+        default:  // sqrt, sin, ... (functions.hpp)
+          v = apply_function(n.kind, arg(0));
+          break;
       }
       values_[k] = v;
     }

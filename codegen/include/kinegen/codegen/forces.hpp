@@ -16,15 +16,19 @@
 #include <string>
 #include <vector>
 
+#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/kinematics.hpp"
 #include "kinegen/codegen/mechanism.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/program.hpp"
 
 namespace kinegen::codegen {
 
-// Which rule a constraint follows for its effort and reaction columns.
-bool is_distance(const Constraint& c);
-bool is_expression(const Constraint& c);
+// Which rule a constraint follows for its effort and reaction columns (its kind says).
+inline bool is_distance(const Constraint& c) { return c.kind->effort == EffortRule::kAlongLength; }
+inline bool is_expression(const Constraint& c) { return !c.kind->reaction_columns; }
+// A driver with a variable number of rows (expression) numbers its efforts: D.effort<k>.
+inline bool numbered_efforts(const Constraint& c) { return c.kind->rows != 1; }
 
 // The numbers of the mass data and of the joints' points, in a scalar type T: double for the
 // analysis, GiNaC::numeric for the 40-digit reference.
@@ -51,15 +55,13 @@ void add_inertia_forces(const ForceData<T>& d, int bodies, const T* q, const T* 
   using std::cos, std::sin;
   for (int b = 0; b < bodies; ++b) {
     const T& phi = q[3 * b + 2];
-    const T& omega = qd[3 * b + 2];
-    const T& alpha = qdd[3 * b + 2];
-    const T c = cos(phi), s = sin(phi);
-    const T ax = c * d.com[b][0] - s * d.com[b][1], ay = s * d.com[b][0] + c * d.com[b][1];
-    const T fx = -d.mass[b] * (qdd[3 * b] - alpha * ay - omega * omega * ax);
-    const T fy = -d.mass[b] * (qdd[3 * b + 1] + alpha * ax - omega * omega * ay);
+    const auto p = point_kinematics(q + 3 * b, qd + 3 * b, qdd + 3 * b, T(cos(phi)),
+                                    T(sin(phi)), d.com[b][0], d.com[b][1]);
+    const T ax = p[0] - q[3 * b], ay = p[1] - q[3 * b + 1];  // A com
+    const T fx = -d.mass[b] * p[4], fy = -d.mass[b] * p[5];
     out[3 * b] += fx;
     out[3 * b + 1] += fy;
-    out[3 * b + 2] += ax * fy - ay * fx - d.inertia[b] * alpha;
+    out[3 * b + 2] += ax * fy - ay * fx - d.inertia[b] * qdd[3 * b + 2];
   }
 }
 

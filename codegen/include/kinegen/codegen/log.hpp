@@ -1,5 +1,7 @@
-// Messages on standard error besides errors: warnings, the "wrote" line, stage progress and
-// timings. One process-wide log, set up once by the command line:
+// The command line's messages on standard error besides errors: warnings, the "wrote" line,
+// stage progress and timings. Library code does not print: it reports its stages through a
+// Progress callback (progress.hpp), which Log::progress_callbacks() turns into these lines. Only
+// the command line (codegen/src/main.cpp) includes this header; it sets the log up once:
 //   quiet   - errors only (they do not go through here);
 //   normal  - warnings and results; stage progress only when stderr is a terminal;
 //   verbose - as normal, plus every stage with its time and size, terminal or not.
@@ -15,6 +17,8 @@
 #include <mutex>
 #include <string>
 #include <thread>
+
+#include "kinegen/codegen/progress.hpp"
 
 namespace kinegen::codegen {
 
@@ -56,6 +60,12 @@ class Log {
     std::lock_guard<std::mutex> lock(mutex_);
     clear_line_locked();
     std::fprintf(stderr, "kinegen:   %s\n", message.c_str());
+  }
+
+  // The library's progress callbacks, printed as this log's stages.
+  Progress progress_callbacks() {
+    return {[this](const std::string& stage) { begin_stage(stage); },
+            [this](const std::string& summary) { end_stage(summary); }};
   }
 
   // Starts a stage ("deriving Phi, Phi_q, nu, gamma"), ending the one before.

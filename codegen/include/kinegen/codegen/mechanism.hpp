@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -35,39 +36,32 @@ struct Body {
   SourceLoc loc;
 };
 
-enum class ConstraintType {
-  kRevolute,
-  kTranslational,
-  kDistance,
-  kRevoluteTranslational,
-  kAbsoluteX,
-  kAbsoluteY,
-  kAbsoluteAngle,
-  kRelativeAngle,
-  kExpression,
-};
-
-const char* to_string(ConstraintType type);
+// A registered joint or driver type (constraints.hpp): its keys, equations and drawing.
+struct ConstraintKind;
 
 // A body reference: an index into Mechanism::bodies, or kGround.
 inline constexpr int kGround = -1;
 
-// One joint or driver. Which members are meaningful depends on `type`; the loader fills the
-// defaults the format promises (s = [0, 0], angle = 0).
+// One joint or driver: its kind and the values of its keys, with the defaults the format
+// promises filled in (s = [0, 0], angle = 0). Which keys there are is the kind's (KeySpec).
 struct Constraint {
-  ConstraintType type = ConstraintType::kExpression;
+  const ConstraintKind* kind = nullptr;
   bool is_driver = false;
   std::string name;  // optional, a validated identifier; "" when not given
   std::string item;  // how messages name it: "joints[2] (revolute)"
   SourceLoc loc;
-  int i = kGround;   // body i (or `body` for absolute_* types)
+  int i = kGround;   // body i (or `body` for one-body types)
   int j = kGround;   // body j
-  Vec2 si, sj, vi;   // local vectors (s of absolute_x/absolute_y is si)
+  std::map<std::string, Vec2> vectors;  // local vectors by key: si, sj, s, vi
+  std::map<std::string, Expr> scalars;  // other constants by key
   Expr value;        // value / length / angle of a joint, or f(t) of a driver
   std::vector<Expr> equations;  // expression constraints: each string = 0
 
+  const char* type_name() const;
   // Number of scalar equations this constraint contributes.
   int equation_count() const;
+  // A vector key of the kind (throws std::logic_error for a key the kind does not have).
+  const Vec2& vector(const std::string& key) const;
 };
 
 struct Point {

@@ -10,6 +10,7 @@
 #include "kinegen/codegen/evaluator.hpp"
 #include "kinegen/codegen/mechanism.hpp"
 #include "kinegen/codegen/program.hpp"
+#include "kinegen/codegen/progress.hpp"
 #include "kinegen/codegen/symbolic.hpp"
 
 namespace kinegen::codegen {
@@ -19,6 +20,8 @@ struct BuildOptions {
   // lowering, so they fold into literals (`kinegen generate --fold-params`). Params keeps its
   // members, but the programs no longer read them.
   bool fold_params = false;
+  // Where the stages (reading, deriving, folding, lowering) report their progress.
+  Progress progress;
 };
 
 // Owns the stages; not copyable because later stages point into earlier ones.

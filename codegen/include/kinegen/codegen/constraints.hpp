@@ -1,0 +1,174 @@
+// The registry of joint and driver types: what a type must provide, and the one list of them.
+//
+// A type is one file under codegen/src/constraints/ defining one ConstraintKind: its YAML keys
+// (which the loader reads and checks), its equations (GiNaC expressions built from an
+// EquationContext), its drawing (what `kinegen animate` shows) and the names of its rows in
+// messages. codegen/src/constraints/registry.cpp lists every kind; nothing else names a type.
+// See docs/architecture.md, "Adding a joint type".
+#pragma once
+
+#include <ginac/ginac.h>
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "kinegen/codegen/mechanism.hpp"
+
+namespace kinegen::codegen {
+
+class SymbolTable;
+
+// What a key holds, and so how the loader reads it and where it stores it in Constraint.
+enum class KeyKind {
+  kBody,          // a moving body's name; stored in Constraint::i (key `body`, `i`) or j (`j`)
+  kBodyOrGround,  // a body's name or `ground`; stored as kBody
+  kOffset,        // [x, y], a point local to a body (a length): Constraint::vectors
+  kDirection,     // [x, y], a direction local to a body (not a length): Constraint::vectors
+  kValue,         // the joint's constant (Constraint::value); a driver reads `f`, f(t), instead
+  kScalar,        // another constant expression: Constraint::scalars
+  kEquations,     // one expression string or a list of them, each = 0: Constraint::equations
+  kCurve,  // planned: [x(u), y(u)], a curve local to a body in one of the kind's coordinates u
+           // (CoordinateSpec); the loader refuses it until the stages support coordinates
+};
+
+struct KeySpec {
+  const char* name;
+  KeyKind kind;
+  bool required;
+  // Optional keys: what an omitted key means ("0" for a scalar, [0, 0] for a vector).
+  const char* default_value = "0";
+};
+
+// The symbolic view of one constraint, for its equations: the bodies' coordinates, the rotation
+// helper and the key values parsed in the scope the format gives them, each checked (finite
+// numbers, defined expressions) and each failure an InputError naming the key and its line.
+class EquationContext {
+ public:
+  using Vec = std::pair<GiNaC::ex, GiNaC::ex>;
+  struct Frame {
+    GiNaC::ex x, y, phi;
+  };
+
+  EquationContext(const Constraint& c, const Mechanism& m, const SymbolTable& symbols,
+                  const std::vector<GiNaC::numeric>& param_values)
+      : c_(c), m_(m), s_(symbols), values_(param_values) {}
+
+  const Constraint& constraint() const { return c_; }
+  // The coordinates of a body (ground: 0, 0, 0).
+  Frame frame(int body) const;
+  Frame frame_i() const { return frame(c_.i); }
+  Frame frame_j() const { return frame(c_.j); }
+  // A(phi) s
+  static Vec rotate(const GiNaC::ex& phi, const Vec& s);
+  // A local vector key (si, sj, s, vi) in the parameters, checked to be finite.
+  Vec vector(const std::string& key) const;
+  // d_ij = r_j + A_j sj - r_i - A_i si, from the keys si and sj.
+  Vec d_ij() const;
+  // (A_i vi)^perp . d = -(A_i vi)_y d_x + (A_i vi)_x d_y; vi (key `vi`) must not be zero.
+  GiNaC::ex perpendicular(const Vec& d) const;
+  // The value: a joint's constant (checked finite) or a driver's f(t) (checked defined).
+  GiNaC::ex value() const;
+  // The rows of an `equations` key: in the coordinates (and t for a driver), checked defined.
+  std::vector<GiNaC::ex> equations() const;
+
+ private:
+  GiNaC::ex geometry(const Expr& e, const std::string& item) const;
+  void check_finite(const GiNaC::ex& value, const Expr& e, const std::string& item) const;
+  void check_defined(const GiNaC::ex& value, const Expr& e, const std::string& item) const;
+
+  const Constraint& c_;
+  const Mechanism& m_;
+  const SymbolTable& s_;
+  const std::vector<GiNaC::numeric>& values_;
+};
+
+// A point fixed in a body (or in ground), in the body's local frame.
+struct Attach {
+  int body = kGround;
+  Eigen::Vector2d s = Eigen::Vector2d::Zero();
+};
+
+// What `kinegen animate` draws for the constraints, in numbers; each type adds its pieces.
+struct Sketch {
+  // A slider block: `point` runs on the line through `origin` along `dir` (unit), both local
+  // to `guide`.
+  struct Slider {
+    Attach point;
+    int guide = kGround;
+    Eigen::Vector2d origin = Eigen::Vector2d::Zero(), dir = Eigen::Vector2d::UnitX();
+  };
+  std::vector<Attach> landmarks;  // points a body's outline passes through
+  std::vector<Attach> pins;       // revolute pins
+  std::vector<Eigen::Vector2d> ground_pivots;
+  std::vector<Slider> sliders;
+  std::vector<std::pair<Attach, Attach>> struts;  // distance constraints
+};
+
+// The numeric view of one constraint, for its drawing (parameters substituted).
+struct DrawContext {
+  const Constraint& constraint;
+  std::function<double(const Expr&)> number;  // a geometry expression's value
+
+  Eigen::Vector2d vector(const std::string& key) const {
+    const Vec2& v = constraint.vector(key);
+    return {number(v.x), number(v.y)};
+  }
+  double value() const { return number(constraint.value); }
+};
+
+// Planned (the next issue adds gear, rack_pinion, point_follower and cam_follower): a scalar
+// coordinate that a type introduces besides the bodies' x, y, phi (a contact angle, a curve
+// parameter), named "<constraint name>_<suffix>", and curves as expressions of it (a key of
+// kind kCurve). Declared so the interface has its place; the loader refuses a kind that
+// declares one until the stages support them.
+struct CoordinateSpec {
+  const char* suffix;
+  bool is_angle;  // an angle (radians) rather than a length or a plain number
+};
+
+// How `analyze --forces` reports a driver's effort (format 6.5): the force or torque along the
+// driven quantity, whose power is effort times the quantity's rate.
+enum class EffortRule {
+  kMinusLambda,  // Phi = quantity - f(t): effort = -lambda (one column per row)
+  kAlongLength,  // Phi = |d|^2 - f(t)^2: the force along d, effort = -2 lambda |d|
+};
+
+struct ConstraintKind {
+  const char* name;    // the `type` in the file
+  bool joint, driver;  // whether it may appear under `joints`, under `drivers`
+  // Every key besides `type` and `name`, in the order they are read; messages list the
+  // required ones first. For a driver the kValue key is replaced by a required `f`.
+  std::vector<KeySpec> keys;
+  // Rows of Phi; 0: one per entry of the kEquations key.
+  int rows;
+  std::vector<GiNaC::ex> (*equations)(const EquationContext& context);
+  // Adds what animate draws; nullptr draws nothing (the bodies are drawn all the same).
+  void (*draw)(const DrawContext& context, Sketch& sketch) = nullptr;
+  // How a message names row `component` (0-based) when the type has more than one row
+  // ("x-component" in "joints[1] (revolute) x-component").
+  std::string (*row_name)(const Constraint& c, int component) = nullptr;
+  std::vector<CoordinateSpec> coordinates = {};  // planned; see CoordinateSpec
+  // Forces (format 6.5): the driver's effort rule, and whether a joint reports its reaction
+  // (J.fx, J.fy, J.tz on body j at sj, or on body i at si or s when j is ground).
+  EffortRule effort = EffortRule::kMinusLambda;
+  bool reaction_columns = true;
+
+  const KeySpec* key(const std::string& key_name) const {
+    for (const auto& k : keys)
+      if (key_name == k.name) return &k;
+    return nullptr;
+  }
+};
+
+// Every registered kind, in the order messages list them.
+const std::vector<const ConstraintKind*>& constraint_kinds();
+// The kind called `name`, or nullptr.
+const ConstraintKind* find_constraint_kind(const std::string& name);
+
+// The local vectors of `c` that are lengths (kOffset keys), for the mechanism's length scale.
+std::vector<const Vec2*> offsets(const Constraint& c);
+
+}  // namespace kinegen::codegen

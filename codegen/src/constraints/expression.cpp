@@ -1,0 +1,28 @@
+// expression: equations written out, each string = 0; in the parameters and coordinates, and
+// for a driver also t. Nothing is drawn for them: animate finds the points that move together.
+#include "kinegen/codegen/constraints.hpp"
+
+namespace kinegen::codegen {
+
+namespace {
+
+std::vector<GiNaC::ex> equations(const EquationContext& c) { return c.equations(); }
+
+std::string row_name(const Constraint&, int component) {
+  return "equations[" + std::to_string(component) + "]";
+}
+
+}  // namespace
+
+extern const ConstraintKind kExpression{
+    .name = "expression",
+    .joint = true,
+    .driver = true,
+    .keys = {{"equations", KeyKind::kEquations, true}},
+    .rows = 0,  // one per equation
+    .equations = equations,
+    .row_name = row_name,
+    .reaction_columns = false,
+};
+
+}  // namespace kinegen::codegen

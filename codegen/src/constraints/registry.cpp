@@ -1,0 +1,32 @@
+// The one list of joint and driver types. A new type: its file in this folder (CMake globs
+// them) and one line in each of the two lists below.
+#include "kinegen/codegen/constraints.hpp"
+
+namespace kinegen::codegen {
+
+extern const ConstraintKind kRevolute, kTranslational, kDistance, kRevoluteTranslational,
+    kAbsoluteX, kAbsoluteY, kAbsoluteAngle, kRelativeAngle, kExpression;
+
+const std::vector<const ConstraintKind*>& constraint_kinds() {
+  static const std::vector<const ConstraintKind*> kKinds = {
+      &kRevolute,   &kTranslational, &kDistance,      &kRevoluteTranslational,
+      &kAbsoluteX,  &kAbsoluteY,     &kAbsoluteAngle, &kRelativeAngle,
+      &kExpression,
+  };
+  return kKinds;
+}
+
+const ConstraintKind* find_constraint_kind(const std::string& name) {
+  for (const ConstraintKind* k : constraint_kinds())
+    if (name == k->name) return k;
+  return nullptr;
+}
+
+std::vector<const Vec2*> offsets(const Constraint& c) {
+  std::vector<const Vec2*> out;
+  for (const KeySpec& k : c.kind->keys)
+    if (k.kind == KeyKind::kOffset) out.push_back(&c.vector(k.name));
+  return out;
+}
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,25 @@
+// relative_angle: body j's angle minus body i's is `value` (a driver: f(t)).
+#include "kinegen/codegen/constraints.hpp"
+
+namespace kinegen::codegen {
+
+namespace {
+
+std::vector<GiNaC::ex> equations(const EquationContext& c) {
+  return {c.frame_j().phi - c.frame_i().phi - c.value()};
+}
+
+}  // namespace
+
+extern const ConstraintKind kRelativeAngle{
+    .name = "relative_angle",
+    .joint = true,
+    .driver = true,
+    .keys = {{"i", KeyKind::kBodyOrGround, true},
+             {"j", KeyKind::kBodyOrGround, true},
+             {"value", KeyKind::kValue, true}},
+    .rows = 1,
+    .equations = equations,
+};
+
+}  // namespace kinegen::codegen
