@@ -730,7 +730,7 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
                                 : (c.is_driver ? c.value.loc : c.loc);
       throw InputError(m.source, c.item, loc,
                        "its derivatives would grow to about " + short_value(size) +
-                           " terms" + (size > kMaxDerivativeSize ? "" : " (with the earlier rows' "
+                           " nodes" + (size > kMaxDerivativeSize ? "" : " (with the earlier rows' "
                            + short_value(derived) + ")") + ", beyond the limit of " +
                            short_value(size > kMaxDerivativeSize ? kMaxDerivativeSize
                                                                  : kMaxDerivedSize) +
