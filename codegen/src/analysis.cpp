@@ -155,10 +155,13 @@ void require_driven(const CompiledModel& model) {
   if (free_bodies.empty() || free_bodies.size() > 16) throw InputError(m.source, "drivers", {}, what);
   std::string names;
   for (int b : free_bodies) names += (names.empty() ? "'" : ", '") + m.bodies[b].name + "'";
+  what += "; " + std::string(free_bodies.size() == 1 ? "body " : "bodies ") + names +
+          " can move with every joint and driver held (at q0): a joint (a pivot to ground?) or "
+          "a driver is missing";
+  // Every body free: most likely a missing driver. Some: the free ones are the place to look.
+  if (free_bodies.size() == m.bodies.size()) throw InputError(m.source, "drivers", {}, what);
   throw InputError(m.source, (free_bodies.size() == 1 ? "body " : "bodies ") + names,
-                   m.bodies[free_bodies[0]].loc,
-                   what + "; these bodies can move with every joint and driver held (at q0): "
-                          "a joint (a pivot to ground?) or a driver is missing");
+                   m.bodies[free_bodies[0]].loc, what);
 }
 
 PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,

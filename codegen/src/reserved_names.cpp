@@ -1,7 +1,7 @@
 // The one list of names a generated header cannot carry. Three kinds:
 //  - what the emitter declares in the model's struct, or uses there unqualified: a struct of
 //    the same name is ill-formed (a member may not share its class's name) or hides it;
-//  - namespaces the header or the runtime name (std, kinegen, models, Eigen);
+//  - namespaces the header or the runtime name (std, kinegen, models, Solver);
 //  - macros: of the C and C++ standard libraries, of POSIX and glibc headers that the standard
 //    headers pull in, and the platform macros GNU modes predefine (linux, unix). A macro
 //    replaces the name wherever it appears, so it breaks model names and parameters alike.
@@ -31,8 +31,8 @@ const std::vector<std::string> kHeaderMembers = {
     "num_newton_coordinates", "newton_coordinates", "trig_cache_size", "BlockOptions",
     "BlockReport", "kRotateLimit", "solve_position", "solve_velocity", "solve_acceleration",
     "solve_velocity_acceleration", "solve_step",
-    // names the runtime and the header's own code rely on
-    "Solver", "models", "kinegen", "std", "Eigen", "T", "Model"};
+    // namespaces and the runtime's Solver, which a struct of that name would hide
+    "Solver", "models", "kinegen", "std"};
 
 // Namespaces a --namespace may not use (the standard's own).
 const std::unordered_set<std::string> kNamespaces = {"std", "posix"};
