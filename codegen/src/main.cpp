@@ -174,7 +174,8 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
     std::cerr << "error: " << one_line(e.what()) << "\n";
     status = kExitFailed;  // the rows solved so far are kept
   }
-  if (rows > 0 || status == 0) file.commit();  // nothing solved: nothing to keep
+  // Nothing solved: a file is left as it was; standard output gets the header, as before.
+  if (rows > 0 || status == 0 || !file.replaces_target()) file.commit();
   return status;
 }
 

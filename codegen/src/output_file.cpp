@@ -203,6 +203,8 @@ std::ostream& OutputFile::stream() { return *impl_->stream; }
 
 const std::string& OutputFile::name() const { return impl_->name; }
 
+bool OutputFile::replaces_target() const { return !impl_->temp.empty(); }
+
 void OutputFile::check() {
   if (impl_->buf->error() != 0) impl_->fail("write failed", impl_->buf->error());
 }

@@ -28,6 +28,9 @@ class OutputFile {
   void check();
   // Flushes, syncs and closes, then renames the temporary file into place. Throws OutputError.
   void commit();
+  // Whether the target is replaced on commit (a regular file), not written in place (standard
+  // output, a pipe, a device), where what was written is already out.
+  bool replaces_target() const;
   // What messages call the target: its path, or "standard output".
   const std::string& name() const;
 
