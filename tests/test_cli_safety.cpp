@@ -170,16 +170,16 @@ TEST_CASE("item 9: links planted at the temporary name and at the target are nev
   // A failed analysis (nothing solved) leaves everything as it was.
   const fs::path bad = dir / "bad.yaml";
   write_text(bad, failing_four_bar());
-  auto r = run_kinegen({"analyze", bad.string(), "--t0", "0", "--t1", "1", "--steps", "2", "-o",
-                    target.string()});
+  auto r = run_kinegen(
+      {"analyze", bad.string(), "--t0", "0", "--t1", "1", "--steps", "2", "-o", target.string()});
   CHECK(r.exit_code == 1);
   CHECK(read_text(victim) == "precious\n");
   CHECK(read_text(victim_temp) == "precious too\n");
   CHECK(fs::is_symlink(target));
 
   // A successful one replaces the link at the target by a regular file, following nothing.
-  r = run_kinegen({"analyze", example("four_bar").string(), "--t0", "0", "--t1", "1", "--steps", "4",
-               "-o", target.string()});
+  r = run_kinegen({"analyze", example("four_bar").string(), "--t0", "0", "--t1", "1", "--steps",
+                   "4", "-o", target.string()});
   INFO(r.err);
   CHECK(r.exit_code == 0);
   CHECK(read_text(victim) == "precious\n");
@@ -198,8 +198,7 @@ TEST_CASE("item 9: links planted at the temporary name and at the target are nev
   for (const auto& name : entries(dir)) CHECK(name.find(".kinegen-") == std::string::npos);
 }
 
-TEST_CASE("item 9: a pipe and a device node are written in place, never replaced",
-          "[cli-safety]") {
+TEST_CASE("item 9: a pipe and a device node are written in place, never replaced", "[cli-safety]") {
   const fs::path dir = scratch_dir("devices");
   const fs::path fifo = dir / "out.fifo";
   REQUIRE(::mkfifo(fifo.c_str(), 0644) == 0);
@@ -210,7 +209,7 @@ TEST_CASE("item 9: a pipe and a device node are written in place, never replaced
   const int write_end = ::open(fifo.c_str(), O_WRONLY);
   REQUIRE(write_end >= 0);
   const auto r = run_kinegen({"analyze", example("four_bar").string(), "--t0", "0", "--t1", "1",
-                          "--steps", "4", "-o", fifo.string()});
+                              "--steps", "4", "-o", fifo.string()});
   ::close(write_end);
   std::string received;
   char buf[4096];
@@ -225,13 +224,13 @@ TEST_CASE("item 9: a pipe and a device node are written in place, never replaced
     const fs::path null_dev = dir / "null";
     REQUIRE(::mknod(null_dev.c_str(), S_IFCHR | 0666, makedev(1, 3)) == 0);
     const auto r2 = run_kinegen({"analyze", example("four_bar").string(), "--t0", "0", "--t1", "1",
-                             "--steps", "4", "-o", null_dev.string()});
+                                 "--steps", "4", "-o", null_dev.string()});
     CHECK(r2.exit_code == 0);
     CHECK(fs::is_character_file(fs::symlink_status(null_dev)));
     // -o /dev/stdout writes to standard output and leaves /dev/stdout as it was.
     const bool was_link = fs::is_symlink("/dev/stdout");
     const auto r3 = run_kinegen({"analyze", example("four_bar").string(), "--t0", "0", "--t1", "1",
-                             "--steps", "4", "-o", "/dev/stdout"});
+                                 "--steps", "4", "-o", "/dev/stdout"});
     const bool replaced_node = was_link && !fs::is_symlink("/dev/stdout");
     if (replaced_node) {  // a regression must not leave the machine without /dev/stdout
       fs::remove("/dev/stdout");
@@ -287,11 +286,10 @@ TEST_CASE("item 10: writing to a full device fails with exit 1 and one error lin
     require_one_error_line(r);
     CHECK(r.err.find("No space left on device") != std::string::npos);
   }
-  for (const auto& args :
-       {std::vector<std::string>{"analyze", mech, "--t0", "0", "--t1", "1", "--steps", "10", "-o",
-                                 "/dev/full"},
-        std::vector<std::string>{"animate", mech, "--t0", "0", "--t1", "1", "--steps", "4", "-o",
-                                 "/dev/full"}}) {
+  for (const auto& args : {std::vector<std::string>{"analyze", mech, "--t0", "0", "--t1", "1",
+                                                    "--steps", "10", "-o", "/dev/full"},
+                           std::vector<std::string>{"animate", mech, "--t0", "0", "--t1", "1",
+                                                    "--steps", "4", "-o", "/dev/full"}}) {
     const auto r = run_kinegen(args);
     INFO(args[0] << " -o /dev/full: " << r.err);
     CHECK(r.exit_code == 1);
@@ -333,8 +331,8 @@ TEST_CASE("item 11: costly exact powers and derivative growth are refused at the
   // A parameter's value is bounded where it is used: a^p with p = 2^40.
   const fs::path mech = dir / "p.yaml";
   write_text(mech, replaced(base, "si: [\"b\", 0]", "si: [\"b*2^a/2^(a-1)/2\", 0]"));
-  const auto r = run_to({"eval", mech.string(), "--param", "a=2^40"}, "/dev/null", dir, 20,
-                        rlim_t(1) << 30);
+  const auto r =
+      run_to({"eval", mech.string(), "--param", "a=2^40"}, "/dev/null", dir, 20, rlim_t(1) << 30);
   INFO(r.err);
   CHECK(r.exit_code == 2);
   CHECK(r.err.find("exponent") != std::string::npos);
@@ -347,9 +345,10 @@ TEST_CASE("item 11: costly exact powers and derivative growth are refused at the
 // Item 12: names the header cannot carry are refused by generate alone; --namespace separates
 // two models of the same name.
 
-TEST_CASE("item 12: generate refuses names that break the header; analyze, eval, check accept "
-          "them",
-          "[cli-safety]") {
+TEST_CASE(
+    "item 12: generate refuses names that break the header; analyze, eval, check accept "
+    "them",
+    "[cli-safety]") {
   const fs::path dir = scratch_dir("names");
   const std::string base = read_text(example("four_bar"));
   struct Case {
@@ -365,7 +364,9 @@ TEST_CASE("item 12: generate refuses names that break the header; analyze, eval,
     cases.push_back({"  omega: 1.0", std::string("  ") + n + ": 1.0", nullptr, 21});
   for (const auto& c : cases) {
     std::string text = replaced(base, c.from, c.to);
-    if (!c.item) text = replaced(text, "f: \"omega*t\"", "f: \"" + c.to.substr(2, c.to.find(':') - 2) + "*t\"");
+    if (!c.item)
+      text =
+          replaced(text, "f: \"omega*t\"", "f: \"" + c.to.substr(2, c.to.find(':') - 2) + "*t\"");
     const fs::path mech = dir / "m.yaml";
     write_text(mech, text);
     const fs::path out = dir / "out";
@@ -375,8 +376,7 @@ TEST_CASE("item 12: generate refuses names that break the header; analyze, eval,
     CHECK(r.exit_code == 2);
     require_one_error_line(r);
     const std::string item = c.item ? c.item : "parameters." + c.to.substr(2, c.to.find(':') - 2);
-    CHECK(r.err.find("m.yaml:" + std::to_string(c.line) + ": " + item + ": ") !=
-          std::string::npos);
+    CHECK(r.err.find("m.yaml:" + std::to_string(c.line) + ": " + item + ": ") != std::string::npos);
     CHECK((!fs::exists(out) || fs::is_empty(out)));
     CHECK(run_kinegen({"eval", mech.string()}).exit_code == 0);
     CHECK(run_kinegen({"analyze", mech.string(), "--t0", "0", "--t1", "1", "--steps", "2"})
@@ -384,17 +384,20 @@ TEST_CASE("item 12: generate refuses names that break the header; analyze, eval,
   }
 }
 
-TEST_CASE("item 12: every name the emitter declares in the struct, and every macro of the "
-          "standard headers, is refused",
-          "[cli-safety]") {
+TEST_CASE(
+    "item 12: every name the emitter declares in the struct, and every macro of the "
+    "standard headers, is refused",
+    "[cli-safety]") {
   // Declarations at struct scope (two-space indent) in every committed header and in a
   // rolled, split one: static members, nested types, helpers.
   std::vector<fs::path> headers;
   for (const auto& e : fs::directory_iterator(fs::path(KINEGEN_SOURCE_DIR) / "generated"))
     headers.push_back(e.path());
   const fs::path dir = scratch_dir("members");
-  REQUIRE(run_kinegen({"generate", (fs::path(KINEGEN_SOURCE_DIR) / "tests/mechanisms/fourbar_chain_3.yaml").string(),
-                   "-o", dir.string(), "-q", "--roll-min", "2", "--max-function-ops", "8"})
+  REQUIRE(run_kinegen(
+              {"generate",
+               (fs::path(KINEGEN_SOURCE_DIR) / "tests/mechanisms/fourbar_chain_3.yaml").string(),
+               "-o", dir.string(), "-q", "--roll-min", "2", "--max-function-ops", "8"})
               .exit_code == 0);
   for (const auto& e : fs::directory_iterator(dir)) headers.push_back(e.path());
   const std::regex decl(
@@ -423,8 +426,7 @@ TEST_CASE("item 12: every name the emitter declares in the struct, and every mac
              "#include <cwchar>\n#include <cwctype>\n#include <iostream>\n#include <thread>\n"
              "#include <utility>\n#include <vector>\n");
   for (const char* std_flag : {"-std=gnu++17", "-std=c++17", "-std=c++20"}) {
-    const auto r = kinegen::test::run_command(
-        {KINEGEN_CXX, std_flag, "-dM", "-E", tu.string()});
+    const auto r = kinegen::test::run_command({KINEGEN_CXX, std_flag, "-dM", "-E", tu.string()});
     REQUIRE(r.exit_code == 0);
     std::istringstream in(r.out);
     int macros = 0;
@@ -453,15 +455,17 @@ TEST_CASE("item 12: generate --namespace lets two models of the same name share 
   fs::create_directories(dir / "a");
   fs::create_directories(dir / "b");
   REQUIRE(run_kinegen({"generate", (dir / "a.yaml").string(), "-o", (dir / "a").string(),
-                   "--namespace", "plant::left"})
+                       "--namespace", "plant::left"})
               .exit_code == 0);
   REQUIRE(run_kinegen({"generate", (dir / "b.yaml").string(), "-o", (dir / "b").string(),
-                   "--namespace", "plant::right"})
+                       "--namespace", "plant::right"})
               .exit_code == 0);
-  write_text(dir / "tu_a.cpp",
-             "#include \"a/twin.hpp\"\ndouble left_a() { return plant::left::twin::Params{}.a; }\n");
-  write_text(dir / "tu_b.cpp",
-             "#include \"b/twin.hpp\"\ndouble right_a() { return plant::right::twin::Params{}.a; }\n");
+  write_text(
+      dir / "tu_a.cpp",
+      "#include \"a/twin.hpp\"\ndouble left_a() { return plant::left::twin::Params{}.a; }\n");
+  write_text(
+      dir / "tu_b.cpp",
+      "#include \"b/twin.hpp\"\ndouble right_a() { return plant::right::twin::Params{}.a; }\n");
   write_text(dir / "main.cpp",
              "double left_a();\ndouble right_a();\n"
              "int main() { return left_a() == 1.0 && right_a() == 1.5 ? 0 : 1; }\n");
@@ -474,8 +478,8 @@ TEST_CASE("item 12: generate --namespace lets two models of the same name share 
   CHECK(kinegen::test::run_command({exe}).exit_code == 0);
   // A namespace that is not one is a usage error.
   for (const char* bad : {"std", "a::", "1x", "a::class", "M_PI", "a b"}) {
-    const auto r = run_kinegen({"generate", (dir / "a.yaml").string(), "-o", dir.string(),
-                            "--namespace", bad});
+    const auto r = run_kinegen(
+        {"generate", (dir / "a.yaml").string(), "-o", dir.string(), "--namespace", bad});
     INFO(bad << ": " << r.err);
     CHECK(r.exit_code == 2);
     require_one_error_line(r);
@@ -485,8 +489,7 @@ TEST_CASE("item 12: generate --namespace lets two models of the same name share 
 // ---------------------------------------------------------------------------------------------
 // Item 13: check --turns beyond what its bounds can mean is a usage error.
 
-TEST_CASE("item 13: check --turns 1e300 is a usage error; 1e6 turns still checks",
-          "[cli-safety]") {
+TEST_CASE("item 13: check --turns 1e300 is a usage error; 1e6 turns still checks", "[cli-safety]") {
   const std::string mech = example("four_bar").string();
   for (const char* turns : {"1e300", "-1e300", "1e8"}) {
     const auto r = run_kinegen({"check", mech, "--turns", turns});
@@ -507,8 +510,8 @@ TEST_CASE("item 14: messages name q0, the contradiction, the free bodies and the
   const std::string four_bar = read_text(example("four_bar"));
   const auto analyze = [&](const std::string& text, std::vector<std::string> extra = {}) {
     write_text(dir / "m.yaml", text);
-    std::vector<std::string> args{"analyze", (dir / "m.yaml").string(), "--t0", "0", "--t1", "1",
-                                  "--steps", "2", "-q"};
+    std::vector<std::string> args{
+        "analyze", (dir / "m.yaml").string(), "--t0", "0", "--t1", "1", "--steps", "2", "-q"};
     args.insert(args.end(), extra.begin(), extra.end());
     return run_kinegen(args);
   };
@@ -569,8 +572,8 @@ TEST_CASE("item 14: messages name q0, the contradiction, the free bodies and the
   }
   {  // --t0 -1e308 --t1 1e308
     write_text(dir / "m.yaml", four_bar);
-    const auto r = run_kinegen({"analyze", (dir / "m.yaml").string(), "--t0", "-1e308", "--t1",
-                            "1e308", "--steps", "3"});
+    const auto r = run_kinegen(
+        {"analyze", (dir / "m.yaml").string(), "--t0", "-1e308", "--t1", "1e308", "--steps", "3"});
     INFO(r.err);
     CHECK(r.exit_code == 2);
     require_one_error_line(r);
@@ -580,7 +583,7 @@ TEST_CASE("item 14: messages name q0, the contradiction, the free bodies and the
   for (const char* d : {"inf", "nan", "-1"}) {  // animate --duration
     const fs::path svg = dir / "a.svg";
     const auto r = run_kinegen({"animate", example("four_bar").string(), "--t0", "0", "--t1", "1",
-                            "--steps", "4", "--duration", d, "-o", svg.string()});
+                                "--steps", "4", "--duration", d, "-o", svg.string()});
     INFO(d << ": " << r.err);
     CHECK(r.exit_code == 2);
     require_one_error_line(r);

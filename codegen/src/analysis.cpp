@@ -152,7 +152,8 @@ void require_driven(const CompiledModel& model) {
           free_bodies.push_back(static_cast<int>(b));
     }
   }
-  if (free_bodies.empty() || free_bodies.size() > 16) throw InputError(m.source, "drivers", {}, what);
+  if (free_bodies.empty() || free_bodies.size() > 16)
+    throw InputError(m.source, "drivers", {}, what);
   std::string names;
   for (int b : free_bodies) names += (names.empty() ? "'" : ", '") + m.bodies[b].name + "'";
   what += "; " + std::string(free_bodies.size() == 1 ? "body " : "bodies ") + names +

@@ -1863,7 +1863,8 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
   os << "//\n"
      << "// Planar Cartesian kinematics of mechanism '" << m.name << "': Phi(q, t) = 0 with\n"
      << "// nu = -Phi_t and gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.\n"
-     << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include <utility>\n\n"
+     << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include "
+        "<utility>\n\n"
      << "namespace " << options.name_space << " {\n\n";
 
   os << "// Coordinates:";

@@ -16,8 +16,8 @@
 #include "kinegen/codegen/log.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/output_file.hpp"
-#include "kinegen/codegen/reserved_names.hpp"
 #include "kinegen/codegen/reference.hpp"
+#include "kinegen/codegen/reserved_names.hpp"
 
 namespace kc = kinegen::codegen;
 namespace fs = std::filesystem;
@@ -48,10 +48,12 @@ std::string one_line(std::string text) {
 // Every time t0 + k (t1 - t0) / N must be a number: finite ends and a finite span.
 void check_grid(double t0, double t1, int steps) {
   if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
-  if (!std::isfinite(t0) || !std::isfinite(t1)) throw kc::UsageError("--t0 and --t1 must be finite");
+  if (!std::isfinite(t0) || !std::isfinite(t1))
+    throw kc::UsageError("--t0 and --t1 must be finite");
   if (!std::isfinite(t1 - t0))
     throw kc::UsageError("--t1 - --t0 overflows (" + kc::format_number(t1) + " - " +
-                         kc::format_number(t0) + "); the times must be within about 1e308 of "
+                         kc::format_number(t0) +
+                         "); the times must be within about 1e308 of "
                          "each other");
 }
 
@@ -144,8 +146,8 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
   kc::require_driven(*model);
   check_grid(t0, t1, steps);
-  if (reference_digits != 0 && (reference_digits < kc::kMinReferenceDigits ||
-                                reference_digits > kc::kMaxReferenceDigits))
+  if (reference_digits != 0 &&
+      (reference_digits < kc::kMinReferenceDigits || reference_digits > kc::kMaxReferenceDigits))
     throw kc::UsageError("--reference-digits must be between " +
                          std::to_string(kc::kMinReferenceDigits) + " and " +
                          std::to_string(kc::kMaxReferenceDigits));
@@ -165,9 +167,7 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
     } else {
       kc::AnalysisOptions options;
       options.strict = strict;
-      options.warn = [](const std::string& w) {
-        std::cerr << "warning: " << one_line(w) << "\n";
-      };
+      options.warn = [](const std::string& w) { std::cerr << "warning: " << one_line(w) << "\n"; };
       kc::run_analysis(*model, {t0, t1, steps}, sink, options);
     }
   } catch (const kc::AnalysisError& e) {
@@ -184,7 +184,8 @@ int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
   const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
   const int nq = model->nq(), nc = model->nc();
   const Eigen::VectorXd q = q_arg.empty() ? model->q0() : vector_arg(q_arg, nq, "--q");
-  const Eigen::VectorXd qd = qd_arg.empty() ? Eigen::VectorXd::Zero(nq) : vector_arg(qd_arg, nq, "--qd");
+  const Eigen::VectorXd qd =
+      qd_arg.empty() ? Eigen::VectorXd::Zero(nq) : vector_arg(qd_arg, nq, "--qd");
   kc::ModelEvaluator<double> eval(*model);
   Eigen::VectorXd phi(nc), nu(nc), gamma(nc);
   Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(nc, nq);
@@ -196,8 +197,7 @@ int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
   for (int r = 0; r < nc; ++r) rows += (r ? ", " : "") + json_array(jac.row(r).transpose());
   kc::OutputFile out("-");
   out.stream() << "{\"phi\": " << json_array(phi) << ", \"phi_q\": [" << rows
-               << "], \"nu\": " << json_array(nu) << ", \"gamma\": " << json_array(gamma)
-               << "}\n";
+               << "], \"nu\": " << json_array(nu) << ", \"gamma\": " << json_array(gamma) << "}\n";
   out.commit();
   return 0;
 }
@@ -230,9 +230,10 @@ int run_check(const Common& c, const kc::CheckOptions& options, bool structure) 
                        r.max_abs, r.max_rel, r.bound, r.ok() ? "ok" : "FAILED");
     ok = ok && r.ok();
   }
-  out << printf_text("%d samples near q0 (seed %u, angles + 2 pi * %g); max rel = max abs / "
-                     "max(1, largest |truth| in the block)\n",
-                     options.samples, options.seed, options.turns);
+  out << printf_text(
+      "%d samples near q0 (seed %u, angles + 2 pi * %g); max rel = max abs / "
+      "max(1, largest |truth| in the block)\n",
+      options.samples, options.seed, options.turns);
   file.commit();
   if (!ok) {
     std::cerr << "error: " << c.file
@@ -304,15 +305,20 @@ int main(int argc, char** argv) {
                       "Solve in CLN arithmetic with N decimal digits (20 to 1000) instead of "
                       "double: the high-precision reference");
   bool strict = false;
-  analyze->add_flag("--strict", strict, "Redundant constraints are an error (exit 2), not a warning");
+  analyze->add_flag("--strict", strict,
+                    "Redundant constraints are an error (exit 2), not a warning");
 
   double t = 0;
   std::vector<double> q_arg, qd_arg;
   auto* eval = app.add_subcommand("eval", "Print Phi, Phi_q, nu and gamma as JSON");
   add_common(eval, common);
   eval->add_option("--t", t, "Time (default 0)");
-  eval->add_option("--q", q_arg, "Coordinates (default: q0)")->delimiter(',')->allow_extra_args(false);
-  eval->add_option("--qd", qd_arg, "Velocities (default: zeros)")->delimiter(',')->allow_extra_args(false);
+  eval->add_option("--q", q_arg, "Coordinates (default: q0)")
+      ->delimiter(',')
+      ->allow_extra_args(false);
+  eval->add_option("--qd", qd_arg, "Velocities (default: zeros)")
+      ->delimiter(',')
+      ->allow_extra_args(false);
 
   kc::CheckOptions check_options;
   bool structure = false;

@@ -133,7 +133,7 @@ mode_t default_mode() {
 }  // namespace
 
 struct OutputFile::Impl {
-  std::string name;     // for messages
+  std::string name;  // for messages
   fs::path target, temp;
   int fd = -1;
   bool owns_fd = false;  // not standard output

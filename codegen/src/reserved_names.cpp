@@ -79,32 +79,32 @@ const std::unordered_set<std::string> kMacros = {
     "SIGSTKSZ", "SIGSTOP", "SIGSYS", "SIGTERM", "SIGTRAP", "SIGTSTP", "SIGTTIN", "SIGTTOU",
     "SIGURG", "SIGUSR1", "SIGUSR2", "SIGVTALRM", "SIGWINCH", "SIGXCPU", "SIGXFSZ", "SIZE_MAX",
     "SIZE_WIDTH", "SSIZE_MAX", "STDERR_FILENO", "STDIN_FILENO", "STDOUT_FILENO",
-    "TEMP_FAILURE_RETRY", "TIMER_ABSTIME", "TIMESPEC_TO_TIMEVAL", "TIMEVAL_TO_TIMESPEC",
-    "TIME_UTC", "TMP_MAX", "TTY_NAME_MAX", "UCHAR_MAX", "UCHAR_WIDTH", "ULLONG_MAX",
-    "ULLONG_WIDTH", "ULONG_LONG_MAX", "ULONG_MAX", "ULONG_WIDTH", "USHRT_MAX", "USHRT_WIDTH",
-    "WCHAR_MAX", "WCHAR_MIN", "WCHAR_WIDTH", "WCONTINUED", "WEOF", "WEXITED", "WEXITSTATUS",
-    "WIFCONTINUED", "WIFEXITED", "WIFSIGNALED", "WIFSTOPPED", "WINT_MAX", "WINT_MIN", "WINT_WIDTH",
-    "WNOHANG", "WNOWAIT", "WORD_BIT", "WSTOPPED", "WSTOPSIG", "WTERMSIG", "WUNTRACED", "W_OK",
-    "X_OK", "alloca", "assert", "assert_perror", "be16toh", "be32toh", "be64toh", "errno",
-    "htobe16", "htobe32", "htobe64", "htole16", "htole32", "htole64", "issubnormal", "le16toh",
-    "le32toh", "le64toh", "linux", "math_errhandling", "offsetof", "pthread_cleanup_pop",
+    "TEMP_FAILURE_RETRY", "TIMER_ABSTIME", "TIMESPEC_TO_TIMEVAL", "TIMEVAL_TO_TIMESPEC", "TIME_UTC",
+    "TMP_MAX", "TTY_NAME_MAX", "UCHAR_MAX", "UCHAR_WIDTH", "ULLONG_MAX", "ULLONG_WIDTH",
+    "ULONG_LONG_MAX", "ULONG_MAX", "ULONG_WIDTH", "USHRT_MAX", "USHRT_WIDTH", "WCHAR_MAX",
+    "WCHAR_MIN", "WCHAR_WIDTH", "WCONTINUED", "WEOF", "WEXITED", "WEXITSTATUS", "WIFCONTINUED",
+    "WIFEXITED", "WIFSIGNALED", "WIFSTOPPED", "WINT_MAX", "WINT_MIN", "WINT_WIDTH", "WNOHANG",
+    "WNOWAIT", "WORD_BIT", "WSTOPPED", "WSTOPSIG", "WTERMSIG", "WUNTRACED", "W_OK", "X_OK",
+    "alloca", "assert", "assert_perror", "be16toh", "be32toh", "be64toh", "errno", "htobe16",
+    "htobe32", "htobe64", "htole16", "htole32", "htole64", "issubnormal", "le16toh", "le32toh",
+    "le64toh", "linux", "math_errhandling", "offsetof", "pthread_cleanup_pop",
     "pthread_cleanup_pop_restore_np", "pthread_cleanup_push", "pthread_cleanup_push_defer_np",
     "sa_handler", "sa_sigaction", "sched_priority", "setjmp", "sigev_notify_attributes",
     "sigev_notify_function", "sigmask", "sigsetjmp", "stderr", "stdin", "stdout", "strdupa",
     "strndupa", "timeradd", "timerclear", "timercmp", "timerisset", "timersub", "unix", "va_arg",
     "va_copy", "va_end", "va_start",
     // other systems' predefined macros, and C's keyword macros
-    "unix", "linux", "i386", "i486", "i586", "i686", "sun", "sparc", "mips", "vax", "hppa",
-    "pdp11", "m68k", "mc68000", "ns32000", "sgi", "u370", "u3b", "u3b2", "u3b5", "ibm032",
-    "interdata", "tahoe", "pyr", "complex", "imaginary", "noreturn", "bool", "true", "false",
-    "static_assert", "alignas", "alignof", "thread_local", "I"};
+    "unix", "linux", "i386", "i486", "i586", "i686", "sun", "sparc", "mips", "vax", "hppa", "pdp11",
+    "m68k", "mc68000", "ns32000", "sgi", "u370", "u3b", "u3b2", "u3b5", "ibm032", "interdata",
+    "tahoe", "pyr", "complex", "imaginary", "noreturn", "bool", "true", "false", "static_assert",
+    "alignas", "alignof", "thread_local", "I"};
 
 // Families of macros with a common prefix (all contain '_', so user names rarely meet them).
 constexpr const char* kMacroPrefixes[] = {
-    "SYS_",    "PTHREAD_", "CLONE_", "CPU_",  "REG_", "SCHED_", "CLOCK_", "ADJ_", "MOD_",
-    "STA_",    "SEGV_",    "TRAP_",  "SI_",   "si_",  "FPE_",   "ILL_",   "BUS_", "CLD_",
-    "POLL_",   "LC_",      "FE_",    "FP_",   "DBL_", "FLT_",   "LDBL_",  "ATOMIC_",
-    "HUGE_VAL", "SNAN",    "SA_",    "SS_",   "SIG_", "SIGEV_", "XATTR_", "NL_",  "BC_"};
+    "SYS_",  "PTHREAD_", "CLONE_", "CPU_", "REG_",   "SCHED_", "CLOCK_", "ADJ_",    "MOD_",
+    "STA_",  "SEGV_",    "TRAP_",  "SI_",  "si_",    "FPE_",   "ILL_",   "BUS_",    "CLD_",
+    "POLL_", "LC_",      "FE_",    "FP_",  "DBL_",   "FLT_",   "LDBL_",  "ATOMIC_", "HUGE_VAL",
+    "SNAN",  "SA_",      "SS_",    "SIG_", "SIGEV_", "XATTR_", "NL_",    "BC_"};
 
 // <cmath>'s M_PI family, with the f, l, f32 ... f128x variants glibc adds.
 bool math_constant(const std::string& n) {
@@ -117,8 +117,8 @@ bool math_constant(const std::string& n) {
       break;
     }
   }
-  for (const char* c : {"E", "LOG2E", "LOG10E", "LN2", "LN10", "PI", "PI_2", "PI_4", "1_PI",
-                        "2_PI", "2_SQRTPI", "SQRT2", "SQRT1_2"})
+  for (const char* c : {"E", "LOG2E", "LOG10E", "LN2", "LN10", "PI", "PI_2", "PI_4", "1_PI", "2_PI",
+                        "2_SQRTPI", "SQRT2", "SQRT1_2"})
     if (base == c) return true;
   return false;
 }
@@ -150,11 +150,13 @@ const std::vector<std::string>& header_member_names() { return kHeaderMembers; }
 
 std::string header_name_conflict(const std::string& name, HeaderName where) {
   if (is_macro(name))
-    return "'" + name + "' is a macro of the C or C++ standard library or of the platform, so "
+    return "'" + name +
+           "' is a macro of the C or C++ standard library or of the platform, so "
            "the generated header could not use it";
   if (where == HeaderName::kModel &&
       std::find(kHeaderMembers.begin(), kHeaderMembers.end(), name) != kHeaderMembers.end())
-    return "'" + name + "' is a member or helper name of the generated header (or a namespace "
+    return "'" + name +
+           "' is a member or helper name of the generated header (or a namespace "
            "it uses), so a model of that name would not compile";
   if (where == HeaderName::kParameter && name == "Params")
     return "'Params' is the struct that holds the parameters in the generated header";
@@ -178,9 +180,11 @@ std::string namespace_conflict(const std::string& ns) {
   std::size_t from = 0;
   for (;;) {
     const std::size_t sep = ns.find("::", from);
-    const std::string part = ns.substr(from, sep == std::string::npos ? std::string::npos : sep - from);
+    const std::string part =
+        ns.substr(from, sep == std::string::npos ? std::string::npos : sep - from);
     if (!is_valid_identifier(part))
-      return "'" + ns + "' is not a C++ namespace name (names separated by '::', each a C "
+      return "'" + ns +
+             "' is not a C++ namespace name (names separated by '::', each a C "
              "identifier that is not a keyword and does not start with '_' or contain '__')";
     if (kNamespaces.count(part)) return "'" + part + "' is reserved for the standard library";
     if (is_macro(part)) return "'" + part + "' is a macro of the C or C++ standard library";

@@ -86,7 +86,6 @@ std::string clean_message(const std::string& what) {
   return m;
 }
 
-
 // --- Bounded cost. GiNaC evaluates exact numbers eagerly (2^(2^40) is computed while the text
 // is read, until GMP gives up and aborts the process), and derivatives of long products grow
 // with the square of their length. Both are bounded before the work is done.
@@ -222,7 +221,8 @@ class CostScanner {
     const Approx exponent = unary_primary();
     const std::string text = text_.substr(from, pos_ - from);
     if (take('^'))
-      throw CostError("'" + text + "^...' chains '^', which is ambiguous: write (a^b)^c or a^(b^c)");
+      throw CostError("'" + text +
+                      "^...' chains '^', which is ambiguous: write (a^b)^c or a^(b^c)");
     check_power(base, exponent, text);
     return combine(base, exponent, powl(base.v, exponent.v));
   }
@@ -295,7 +295,8 @@ class CostScanner {
 Approx approximate(const ex& e, const SymbolTable& s, const std::vector<GiNaC::numeric>& values) {
   if (GiNaC::is_a<GiNaC::numeric>(e)) return {GiNaC::ex_to<GiNaC::numeric>(e).to_double(), true};
   if (GiNaC::is_a<GiNaC::constant>(e))  // only pi passes the parser
-    return e.is_equal(GiNaC::Pi) ? Approx{3.14159265358979323846264338327950288L, true} : Approx{0, false};
+    return e.is_equal(GiNaC::Pi) ? Approx{3.14159265358979323846264338327950288L, true}
+                                 : Approx{0, false};
   if (GiNaC::is_a<GiNaC::symbol>(e)) {
     const Input in = s.classify(e);
     if (in.kind == InputKind::kParam) return {values[in.index].to_double(), true};
@@ -728,13 +729,15 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
       const SourceLoc loc = c.type == ConstraintType::kExpression
                                 ? c.equations[model.rows[r].component].loc
                                 : (c.is_driver ? c.value.loc : c.loc);
-      throw InputError(m.source, c.item, loc,
-                       "its derivatives would grow to about " + short_value(size) +
-                           " nodes" + (size > kMaxDerivativeSize ? "" : " (with the earlier rows' "
-                           + short_value(derived) + ")") + ", beyond the limit of " +
-                           short_value(size > kMaxDerivativeSize ? kMaxDerivativeSize
-                                                                 : kMaxDerivedSize) +
-                           "; write the expression more compactly");
+      throw InputError(
+          m.source, c.item, loc,
+          "its derivatives would grow to about " + short_value(size) + " nodes" +
+              (size > kMaxDerivativeSize
+                   ? ""
+                   : " (with the earlier rows' " + short_value(derived) + ")") +
+              ", beyond the limit of " +
+              short_value(size > kMaxDerivativeSize ? kMaxDerivativeSize : kMaxDerivedSize) +
+              "; write the expression more compactly");
     }
     return e.diff(x);
   };
