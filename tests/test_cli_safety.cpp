@@ -336,6 +336,22 @@ TEST_CASE("item 11: costly exact powers and derivative growth are refused at the
   INFO(r.err);
   CHECK(r.exit_code == 2);
   CHECK(r.err.find("exponent") != std::string::npos);
+  // generate expands equations to find the linear ones: (y + 1 + p1 + ... + p5 + l)^40 would
+  // have 7e7 terms (the old code ran out of memory there).
+  std::string slider = read_text(example("slider_crank"));
+  slider = replaced(slider, "  omega: 1.0      # crank angular speed [rad/s]\n",
+                    "  omega: 1.0\n  p1: 0.1\n  p2: 0.1\n  p3: 0.1\n  p4: 0.1\n  p5: 0.1\n");
+  slider = replaced(slider,
+                    "  - type: absolute_y        # slider runs on the global x axis\n"
+                    "    body: rod\n    value: 0",
+                    "  - type: expression\n    equations: [\"(y_rod + 1 + p1 + p2 + p3 + p4 + p5 + "
+                    "l)^40 - (1 + p1 + p2 + p3 + p4 + p5 + l)^40\"]");
+  write_text(mech, slider);
+  const auto g = run_to({"generate", mech.string(), "-o", dir.string()}, "/dev/null", dir, 20,
+                        rlim_t(1) << 30);
+  INFO(g.err);
+  CHECK(g.exit_code == 2);
+  CHECK(g.err.find("p.yaml:38: joints[2] (expression): expanded") != std::string::npos);
   // Ordinary powers still work.
   write_text(mech, replaced(base, "f: \"omega*t\"", "f: \"omega*t + 0.001*sin(t)^3*2^(1/3)\""));
   CHECK(run_kinegen({"eval", mech.string()}).exit_code == 0);

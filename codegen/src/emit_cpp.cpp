@@ -1838,6 +1838,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
 std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
                         const ModelPrograms& programs, const EmitOptions& options) {
   check_header_names(m);  // a name the header cannot carry is refused here, with the reason
+  check_expansion_cost(m, model);  // before analyze_structure expands the equations
   if (const auto why = namespace_conflict(options.name_space); !why.empty())
     throw UsageError("--namespace: " + why);
   const bool velocity = options.outputs != Outputs::kPosition;
@@ -1863,8 +1864,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
   os << "//\n"
      << "// Planar Cartesian kinematics of mechanism '" << m.name << "': Phi(q, t) = 0 with\n"
      << "// nu = -Phi_t and gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.\n"
-     << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include "
-        "<utility>\n\n"
+     << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include <utility>\n\n"
      << "namespace " << options.name_space << " {\n\n";
 
   os << "// Coordinates:";

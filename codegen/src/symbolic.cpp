@@ -101,6 +101,8 @@ constexpr long kMaxLiteralExponent = 4000;
 // are about N; hostile products of 300 factors reach 1e7 and more).
 constexpr double kMaxDerivativeSize = 2e5;
 constexpr double kMaxDerivedSize = 5e7;
+// Terms of an expanded equation (check_expansion_cost).
+constexpr double kMaxExpandedTerms = 1e5;
 
 // The cost of exact arithmetic exceeds a limit; the message says which.
 struct CostError : std::runtime_error {
@@ -702,6 +704,49 @@ std::vector<int> coordinates_in(const ex& e, const SymbolTable& s) {
 }
 
 }  // namespace
+
+namespace {
+
+// The number of terms e.expand() would have, estimated without expanding: sums add, products
+// multiply, and (t1 + ... + tn)^k has C(n + k - 1, k) terms.
+double expanded_terms(const ex& e) {
+  if (GiNaC::is_a<GiNaC::add>(e)) {
+    double n = 0;
+    for (std::size_t k = 0; k < e.nops(); ++k) n += expanded_terms(e.op(k));
+    return n;
+  }
+  if (GiNaC::is_a<GiNaC::mul>(e)) {
+    double n = 1;
+    for (std::size_t k = 0; k < e.nops(); ++k) n *= expanded_terms(e.op(k));
+    return n;
+  }
+  if (GiNaC::is_a<GiNaC::power>(e) && GiNaC::is_a<GiNaC::numeric>(e.op(1))) {
+    const GiNaC::numeric& k = GiNaC::ex_to<GiNaC::numeric>(e.op(1));
+    if (!k.is_pos_integer()) return 1;
+    const double n = expanded_terms(e.op(0)), kd = k.to_double();
+    if (n <= 1) return 1;
+    return std::exp(std::lgamma(n + kd) - std::lgamma(kd + 1) - std::lgamma(n));
+  }
+  return 1;
+}
+
+}  // namespace
+
+void check_expansion_cost(const Mechanism& m, const SymbolicModel& model) {
+  for (std::size_t r = 0; r < model.phi.size(); ++r) {
+    const double terms = expanded_terms(model.phi[r]);
+    if (terms <= kMaxExpandedTerms) continue;
+    const Constraint& c = *model.rows[r].constraint;
+    const SourceLoc loc = c.type == ConstraintType::kExpression
+                              ? c.equations[model.rows[r].component].loc
+                              : c.loc;
+    throw InputError(m.source, c.item, loc,
+                     "expanded (to find the linear equations), this equation would have about " +
+                         short_value(terms) + " terms, beyond the limit of " +
+                         short_value(kMaxExpandedTerms) +
+                         "; write it without high powers of long sums");
+  }
+}
 
 SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
                      const std::vector<ParamOverride>& overrides) {
