@@ -113,14 +113,42 @@ double scaled_norm(const Eigen::VectorXd& v, double length) {
 
 void require_driven(const CompiledModel& model) {
   const int nq = model.nq(), nc = model.nc();
-  const std::string& file = model.mechanism().source;
+  const Mechanism& m = model.mechanism();
   // More equations than coordinates is allowed: run_analysis checks at the assembled position
   // whether they are consistent and redundant (solved by least squares, with a warning) or not.
-  if (nc < nq)
-    throw InputError(file, "drivers", {},
-                     "the mechanism is not kinematically driven: " + std::to_string(nc) +
-                         " equations for " + std::to_string(nq) + " coordinates leave " +
-                         std::to_string(nq - nc) + " degree(s) of freedom undriven");
+  if (nc >= nq) return;
+  std::string what = "the mechanism is not kinematically driven: " + std::to_string(nc) +
+                     " equations for " + std::to_string(nq) + " coordinates leave " +
+                     std::to_string(nq - nc) + " degree(s) of freedom undriven";
+  // The bodies that still move with every constraint held, at q0: the coordinates in the null
+  // space of Phi_q. They, not the drivers, are where a joint (a ground pivot) or a driver is
+  // missing.
+  std::vector<int> free_bodies;
+  if (nq <= kMaxDiagnosedNq) {
+    const Eigen::MatrixXd jac = scaled_jacobian(model, jacobian_at(model, model.q0(), 0.0));
+    if (jac.allFinite()) {
+      Eigen::JacobiSVD<Eigen::MatrixXd> svd(jac, Eigen::ComputeFullV);
+      const auto& sv = svd.singularValues();
+      const double tol = 1e-9 * std::max(1.0, sv.size() ? sv[0] : 1.0);
+      int rank = 0;
+      for (int k = 0; k < sv.size(); ++k) rank += sv[k] > tol;
+      const Eigen::MatrixXd kernel = svd.matrixV().rightCols(nq - rank);
+      for (std::size_t b = 0; b < m.bodies.size(); ++b)
+        if (kernel.middleRows(3 * static_cast<int>(b), 3).cwiseAbs().maxCoeff() > 1e-6)
+          free_bodies.push_back(static_cast<int>(b));
+    }
+  }
+  if (free_bodies.empty() || free_bodies.size() > 16)
+    throw InputError(m.source, "drivers", {}, what);
+  std::string names;
+  for (int b : free_bodies) names += (names.empty() ? "'" : ", '") + m.bodies[b].name + "'";
+  what += "; " + std::string(free_bodies.size() == 1 ? "body " : "bodies ") + names +
+          " can move with every joint and driver held (at q0): a joint (a pivot to ground?) or "
+          "a driver is missing";
+  // Every body free: most likely a missing driver. Some: the free ones are the place to look.
+  if (free_bodies.size() == m.bodies.size()) throw InputError(m.source, "drivers", {}, what);
+  throw InputError(m.source, (free_bodies.size() == 1 ? "body " : "bodies ") + names,
+                   m.bodies[free_bodies[0]].loc, what);
 }
 
 PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,
@@ -200,9 +228,13 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
   row.q = model.q0();
   row.qd = Eigen::VectorXd::Zero(model.nq());
   row.qdd = Eigen::VectorXd::Zero(model.nq());
-  const auto fail = [&](const char* stage, double t, const Result& r) {
-    std::string message =
-        file + ": " + stage + " analysis failed at " + format_time(t) + ": " + r.message();
+  bool first_solve = true;  // the first position solve starts from the file's q0
+  const auto fail = [&](const char* stage, double t, Result r) {
+    // Newton stalled at a step that vanished, short of the residual: the constraints contradict
+    // each other (a redundant model slightly off), whatever the iteration count says.
+    if (r.status == Status::kMaxIterations && r.step <= 1e-10) r.status = Status::kInconsistent;
+    std::string message = file + ": " + stage + " analysis failed at " + format_time(t) + ": " +
+                          r.message();
     if (r.status == Status::kMaxIterations || r.status == Status::kInconsistent) {
       if (r.status == Status::kMaxIterations)
         message += " in " + std::to_string(r.iterations) + " iterations (last scaled step " +
@@ -215,6 +247,16 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
       if (std::string(stage) == "position")
         message += "; a toggle or dead-centre position (a driver past what the mechanism can "
                    "reach), or constraints that leave a motion undriven";
+    }
+    if (first_solve && std::string(stage) == "position") {
+      const Eigen::VectorXd& q0 = model.q0();
+      message += q0.cwiseAbs().maxCoeff() == 0
+                     ? "; every q0 estimate in the file is 0: Newton starts from all bodies on "
+                       "top of each other, where Phi_q is singular; give each body's q0 near its "
+                       "assembled position"
+                     : "; this is the first solve, from the q0 estimates in the file: check "
+                       "that they are near an assembled position (a far-off q0 can start "
+                       "Newton at a singular or unreachable point)";
     }
     throw AnalysisError(message);
   };
@@ -235,6 +277,7 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
       row.q = previous.q;
       if (auto r2 = solver.position(row.q, t); !r2) fail("position", t, r2);
     }
+    first_solve = false;
     if (k == 0) {
       keep_turns_of_estimates(solver, model.q0(), row.q, t);
       check_redundancy(model, row.q, t, options);

@@ -10,6 +10,7 @@
 #include <set>
 #include <sstream>
 
+#include "kinegen/codegen/reserved_names.hpp"
 #include "kinegen/codegen/structure.hpp"
 
 namespace kinegen::codegen {
@@ -1822,6 +1823,10 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
 
 std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
                         const ModelPrograms& programs, const EmitOptions& options) {
+  check_header_names(m);  // a name the header cannot carry is refused here, with the reason
+  check_expansion_cost(m, model);  // before analyze_structure expands the equations
+  if (const auto why = namespace_conflict(options.name_space); !why.empty())
+    throw UsageError("--namespace: " + why);
   const bool velocity = options.outputs != Outputs::kPosition;
   const bool acceleration = options.outputs == Outputs::kAll;
   const Structure st = options.block_solver && programs.nq == programs.nc
@@ -1846,7 +1851,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
      << "// Planar Cartesian kinematics of mechanism '" << m.name << "': Phi(q, t) = 0 with\n"
      << "// nu = -Phi_t and gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.\n"
      << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include <utility>\n\n"
-     << "namespace kinegen::models {\n\n";
+     << "namespace " << options.name_space << " {\n\n";
 
   os << "// Coordinates:";
   for (int k = 0; k < programs.nq; ++k)
@@ -1956,7 +1961,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     }
     blocks.emit_rolls(os, velocity, acceleration);
   }
-  os << "};\n\n}  // namespace kinegen::models\n";
+  os << "};\n\n}  // namespace " << options.name_space << "\n";
   return os.str();
 }
 

@@ -1,12 +1,10 @@
 // kinegen: generate | analyze | eval | check. Exit status: 0 success, 1 the analysis (or a
 // check) failed, 2 invalid input or usage. Every error is one `error:` line on stderr.
 #include <CLI/CLI.hpp>
-#include <unistd.h>
-
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <kinegen/solver.hpp>
 #include <sstream>
@@ -17,7 +15,9 @@
 #include "kinegen/codegen/emit_cpp.hpp"
 #include "kinegen/codegen/log.hpp"
 #include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/output_file.hpp"
 #include "kinegen/codegen/reference.hpp"
+#include "kinegen/codegen/reserved_names.hpp"
 
 namespace kc = kinegen::codegen;
 namespace fs = std::filesystem;
@@ -26,39 +26,6 @@ namespace {
 
 constexpr int kExitFailed = 1;
 constexpr int kExitInvalid = 2;
-
-// Writes to a temporary file beside the target and renames it into place on commit, so the
-// target is never half-written; an uncommitted file is removed.
-class AtomicFile {
- public:
-  explicit AtomicFile(fs::path target) : target_(std::move(target)) {
-    temp_ = target_;
-    temp_ += ".tmp-kinegen-" + std::to_string(::getpid());
-    out_.open(temp_, std::ios::binary | std::ios::trunc);
-    if (!out_) throw kc::UsageError("cannot write '" + target_.string() + "'");
-  }
-  ~AtomicFile() {
-    if (!committed_) {
-      out_.close();
-      std::error_code ec;
-      fs::remove(temp_, ec);
-    }
-  }
-  std::ostream& stream() { return out_; }
-  void commit() {
-    out_.close();
-    if (!out_) throw kc::UsageError("cannot write '" + target_.string() + "'");
-    std::error_code ec;
-    fs::rename(temp_, target_, ec);
-    if (ec) throw kc::UsageError("cannot write '" + target_.string() + "': " + ec.message());
-    committed_ = true;
-  }
-
- private:
-  fs::path target_, temp_;
-  std::ofstream out_;
-  bool committed_ = false;
-};
 
 std::vector<kc::ParamOverride> parse_overrides(const std::vector<std::string>& args) {
   std::vector<kc::ParamOverride> overrides;
@@ -77,6 +44,23 @@ std::string one_line(std::string text) {
     if (ch == '\n' || ch == '\r' || ch == '\t') ch = ' ';
   return text;
 }
+
+// Every time t0 + k (t1 - t0) / N must be a number: finite ends and a finite span.
+void check_grid(double t0, double t1, int steps) {
+  if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
+  if (!std::isfinite(t0) || !std::isfinite(t1))
+    throw kc::UsageError("--t0 and --t1 must be finite");
+  if (!std::isfinite(t1 - t0))
+    throw kc::UsageError("--t1 - --t0 overflows (" + kc::format_number(t1) + " - " +
+                         kc::format_number(t0) +
+                         "); the times must be within about 1e308 of "
+                         "each other");
+}
+
+// `check --turns K` and `--t`: beyond this the inputs' own rounding (eps * 2 pi K rad) makes the
+// derivative bounds grow to meaninglessness; at 1e7 turns an angle is known to 1.4e-8 rad and
+// the central-difference bound is 6e-4 (docs/stability.md).
+constexpr double kMaxCheckTurns = 1e7;
 
 std::string json_number(double v) { return std::isfinite(v) ? kc::format_number(v) : "null"; }
 
@@ -112,8 +96,11 @@ void add_common(CLI::App* cmd, Common& c) {
 }
 
 int run_generate(const Common& c, const std::string& dir, const std::string& outputs,
-                 bool fold_params, int max_function_ops = kc::kDefaultMaxFunctionOps,
-                 int roll_min = kc::kDefaultRollMin) {
+                 bool fold_params, int max_function_ops, int roll_min,
+                 const std::string& name_space) {
+  // A bad --namespace is a usage error before any work.
+  if (const auto why = kc::namespace_conflict(name_space); !why.empty())
+    throw kc::UsageError("--namespace: " + why);
   kc::BuildOptions build;
   build.fold_params = fold_params;
   const auto model = load(c, build);
@@ -124,13 +111,14 @@ int run_generate(const Common& c, const std::string& dir, const std::string& out
   options.folded_params = fold_params;
   options.max_function_ops = max_function_ops;
   options.roll_min = roll_min;
+  options.name_space = name_space;
   const std::string text = kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
                                            model->programs(), options);
   stage.done(std::to_string(text.size() / 1024) + " KiB");
   std::error_code ec;
   fs::create_directories(dir, ec);
   const fs::path target = fs::path(dir) / (model->mechanism().name + ".hpp");
-  AtomicFile out(target);
+  kc::OutputFile out(target.string());
   out.stream() << text;
   out.commit();
   kc::Log::global().info("wrote " + target.string() + " (nq = " + std::to_string(model->nq()) +
@@ -141,6 +129,9 @@ int run_generate(const Common& c, const std::string& dir, const std::string& out
 }
 
 int run_animate(const Common& c, const kc::AnimateOptions& options, const std::string& output) {
+  check_grid(options.grid.t0, options.grid.t1, options.grid.steps);
+  if (!std::isfinite(options.duration) || options.duration < 0)
+    throw kc::UsageError("--duration must be a finite number of seconds (0: t1 - t0)");
   const auto model = load(c);
   kc::require_driven(*model);
   std::string svg;
@@ -149,7 +140,7 @@ int run_animate(const Common& c, const kc::AnimateOptions& options, const std::s
     svg = kc::animate_svg(*model, options);
     stage.done(std::to_string(svg.size() / 1024) + " KiB of SVG");
   }
-  AtomicFile out(output);
+  kc::OutputFile out(output);
   out.stream() << svg;
   out.commit();
   kc::Log::global().info("wrote " + output);
@@ -160,22 +151,21 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
                 int reference_digits, bool strict) {
   const auto model = load(c);
   kc::require_driven(*model);
-  if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
-  if (!std::isfinite(t0) || !std::isfinite(t1)) throw kc::UsageError("--t0 and --t1 must be finite");
-  if (reference_digits != 0 && (reference_digits < kc::kMinReferenceDigits ||
-                                reference_digits > kc::kMaxReferenceDigits))
+  check_grid(t0, t1, steps);
+  if (reference_digits != 0 &&
+      (reference_digits < kc::kMinReferenceDigits || reference_digits > kc::kMaxReferenceDigits))
     throw kc::UsageError("--reference-digits must be between " +
                          std::to_string(kc::kMinReferenceDigits) + " and " +
                          std::to_string(kc::kMaxReferenceDigits));
-  std::unique_ptr<AtomicFile> file;
-  if (!output.empty()) file = std::make_unique<AtomicFile>(output);
-  std::ostream& out = file ? file->stream() : std::cout;
+  kc::OutputFile file(output.empty() ? "-" : output);
+  std::ostream& out = file.stream();
   out << kc::csv_header(model->mechanism());
   int status = 0;
   int rows = 0;
   try {
     const auto sink = [&](const kc::StateRow& row) {
       out << kc::csv_row(row);
+      file.check();  // a full disk or a closed pipe ends the run now, not after it
       ++rows;
     };
     if (reference_digits != 0) {
@@ -183,17 +173,15 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
     } else {
       kc::AnalysisOptions options;
       options.strict = strict;
-      options.warn = [](const std::string& w) {
-        std::cerr << "warning: " << one_line(w) << "\n";
-      };
+      options.warn = [](const std::string& w) { std::cerr << "warning: " << one_line(w) << "\n"; };
       kc::run_analysis(*model, {t0, t1, steps}, sink, options);
     }
   } catch (const kc::AnalysisError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
     status = kExitFailed;  // the rows solved so far are kept
   }
-  out.flush();
-  if (file && (rows > 0 || status == 0)) file->commit();  // nothing solved: nothing to keep
+  // Nothing solved: a file is left as it was; standard output gets the header, as before.
+  if (rows > 0 || status == 0 || !file.replaces_target()) file.commit();
   return status;
 }
 
@@ -202,7 +190,8 @@ int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
   const auto model = load(c);
   const int nq = model->nq(), nc = model->nc();
   const Eigen::VectorXd q = q_arg.empty() ? model->q0() : vector_arg(q_arg, nq, "--q");
-  const Eigen::VectorXd qd = qd_arg.empty() ? Eigen::VectorXd::Zero(nq) : vector_arg(qd_arg, nq, "--qd");
+  const Eigen::VectorXd qd =
+      qd_arg.empty() ? Eigen::VectorXd::Zero(nq) : vector_arg(qd_arg, nq, "--qd");
   kc::ModelEvaluator<double> eval(*model);
   Eigen::VectorXd phi(nc), nu(nc), gamma(nc);
   Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(nc, nq);
@@ -212,27 +201,46 @@ int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
   eval.gamma(q.data(), qd.data(), t, gamma.data());
   std::string rows;
   for (int r = 0; r < nc; ++r) rows += (r ? ", " : "") + json_array(jac.row(r).transpose());
-  std::cout << "{\"phi\": " << json_array(phi) << ", \"phi_q\": [" << rows
-            << "], \"nu\": " << json_array(nu) << ", \"gamma\": " << json_array(gamma) << "}\n";
+  kc::OutputFile out("-");
+  out.stream() << "{\"phi\": " << json_array(phi) << ", \"phi_q\": [" << rows
+               << "], \"nu\": " << json_array(nu) << ", \"gamma\": " << json_array(gamma) << "}\n";
+  out.commit();
   return 0;
 }
 
+std::string printf_text(const char* format, ...) __attribute__((format(printf, 1, 2)));
+std::string printf_text(const char* format, ...) {
+  char buf[512];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(buf, sizeof buf, format, args);
+  va_end(args);
+  return buf;
+}
+
 int run_check(const Common& c, const kc::CheckOptions& options, bool structure) {
+  if (!(std::abs(options.turns) <= kMaxCheckTurns) || !(std::abs(options.t) <= kMaxCheckTurns))
+    throw kc::UsageError("--turns and --t must be within +-" + kc::format_number(kMaxCheckTurns) +
+                         ": beyond it the inputs' rounding makes the bounds meaningless");
   const auto model = load(c);
   if (options.samples < 1) throw kc::UsageError("--samples must be at least 1");
-  if (structure) std::cout << kc::jacobian_structure(*model) << "\n";
+  kc::OutputFile file("-");
+  std::ostream& out = file.stream();
+  if (structure) out << kc::jacobian_structure(*model) << "\n";
   const auto rows = kc::check_derivatives(*model, options);
-  std::printf("%-7s %-20s %12s %12s %10s  %s\n", "block", "method", "max abs", "max rel", "bound",
-              "result");
+  out << printf_text("%-7s %-20s %12s %12s %10s  %s\n", "block", "method", "max abs", "max rel",
+                     "bound", "result");
   bool ok = true;
   for (const auto& r : rows) {
-    std::printf("%-7s %-20s %12.3e %12.3e %10.1e  %s\n", r.block.c_str(), r.method.c_str(),
-                r.max_abs, r.max_rel, r.bound, r.ok() ? "ok" : "FAILED");
+    out << printf_text("%-7s %-20s %12.3e %12.3e %10.1e  %s\n", r.block.c_str(), r.method.c_str(),
+                       r.max_abs, r.max_rel, r.bound, r.ok() ? "ok" : "FAILED");
     ok = ok && r.ok();
   }
-  std::printf("%d samples near q0 (seed %u, angles + 2 pi * %g); max rel = max abs / max(1, "
-              "largest |truth| in the block)\n",
-              options.samples, options.seed, options.turns);
+  out << printf_text(
+      "%d samples near q0 (seed %u, angles + 2 pi * %g); max rel = max abs / "
+      "max(1, largest |truth| in the block)\n",
+      options.samples, options.seed, options.turns);
+  file.commit();
   if (!ok) {
     std::cerr << "error: " << c.file
               << ": check: the symbolic derivatives differ from the numeric ones beyond their "
@@ -263,6 +271,10 @@ int main(int argc, char** argv) {
   generate->add_option("-o,--output", out_dir, "Output directory (default: .)");
   generate->add_flag("--fold-params", fold_params,
                      "Fold the parameter values (with --param overrides) into constants");
+  std::string name_space = "kinegen::models";
+  generate->add_option("--namespace", name_space,
+                       "C++ namespace of the model's struct (default kinegen::models); two models "
+                       "of the same name need different ones to share a program");
   std::string outputs = "acceleration";
   generate
       ->add_option("--outputs", outputs,
@@ -299,15 +311,20 @@ int main(int argc, char** argv) {
                       "Solve in CLN arithmetic with N decimal digits (20 to 1000) instead of "
                       "double: the high-precision reference");
   bool strict = false;
-  analyze->add_flag("--strict", strict, "Redundant constraints are an error (exit 2), not a warning");
+  analyze->add_flag("--strict", strict,
+                    "Redundant constraints are an error (exit 2), not a warning");
 
   double t = 0;
   std::vector<double> q_arg, qd_arg;
   auto* eval = app.add_subcommand("eval", "Print Phi, Phi_q, nu and gamma as JSON");
   add_common(eval, common);
   eval->add_option("--t", t, "Time (default 0)");
-  eval->add_option("--q", q_arg, "Coordinates (default: q0)")->delimiter(',')->allow_extra_args(false);
-  eval->add_option("--qd", qd_arg, "Velocities (default: zeros)")->delimiter(',')->allow_extra_args(false);
+  eval->add_option("--q", q_arg, "Coordinates (default: q0)")
+      ->delimiter(',')
+      ->allow_extra_args(false);
+  eval->add_option("--qd", qd_arg, "Velocities (default: zeros)")
+      ->delimiter(',')
+      ->allow_extra_args(false);
 
   kc::CheckOptions check_options;
   bool structure = false;
@@ -353,8 +370,9 @@ int main(int argc, char** argv) {
                                   : verbose ? kc::Verbosity::kVerbose
                                             : kc::Verbosity::kNormal);
   try {
-    if (*generate) return run_generate(common, out_dir, outputs, fold_params, max_function_ops,
-                                        roll_min);
+    if (*generate)
+      return run_generate(common, out_dir, outputs, fold_params, max_function_ops, roll_min,
+                          name_space);
     if (*animate) return run_animate(common, animate_options, svg_file);
     if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits, strict);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
@@ -367,6 +385,9 @@ int main(int argc, char** argv) {
     std::cerr << "error: " << one_line(common.file + ": " + e.what()) << "\n";
     return kExitInvalid;
   } catch (const kc::AnalysisError& e) {
+    std::cerr << "error: " << one_line(e.what()) << "\n";
+    return kExitFailed;
+  } catch (const kc::OutputError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
     return kExitFailed;
   } catch (const std::exception& e) {

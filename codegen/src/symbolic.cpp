@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <set>
+#include <sstream>
+#include <stdexcept>
 
 #include "kinegen/codegen/constraints.hpp"
 #include "kinegen/codegen/functions.hpp"
@@ -82,6 +85,283 @@ std::string clean_message(const std::string& what) {
   }
   if (m.find("division by zero") != std::string::npos) return "division by zero";
   return m;
+}
+
+// --- Bounded cost. GiNaC evaluates exact numbers eagerly (2^(2^40) is computed while the text
+// is read, until GMP gives up and aborts the process), and derivatives of long products grow
+// with the square of their length. Both are bounded before the work is done.
+
+// Exponents beyond this are refused (no mechanism needs x^1000).
+constexpr long double kMaxExponent = 1000;
+// An exact power of a number may have at most this many decimal digits.
+constexpr long double kMaxPowerDigits = 10000;
+// A literal's decimal exponent (1e4000): larger literals would be exact numbers of that many
+// digits.
+constexpr long kMaxLiteralExponent = 4000;
+// The estimated size of one derivative, and of all of a model's together (a 1000-body chain's
+// are about N; hostile products of 300 factors reach 1e7 and more).
+constexpr double kMaxDerivativeSize = 2e5;
+constexpr double kMaxDerivedSize = 5e7;
+// Terms of an expanded equation (check_expansion_cost).
+constexpr double kMaxExpandedTerms = 1e5;
+
+// The cost of exact arithmetic exceeds a limit; the message says which.
+struct CostError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::string short_value(long double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.6Lg", v);
+  return buf;
+}
+
+// A value known approximately while the exact one is not computed yet: `known` is false when it
+// depends on a coordinate or t (then no exact number can grow from it).
+struct Approx {
+  long double v = 0;
+  bool known = true;
+};
+
+Approx combine(Approx a, Approx b, long double v) { return {v, a.known && b.known}; }
+
+// Refuses a power whose exact value or exponent would be too large. `text` names it.
+void check_power(Approx base, Approx exponent, const std::string& text) {
+  if (!exponent.known) return;
+  if (!(fabsl(exponent.v) <= kMaxExponent))
+    throw CostError("the exponent " + (std::isfinite(exponent.v) ? short_value(exponent.v) : "") +
+                    (std::isfinite(exponent.v) ? " " : "") + "in '" + text +
+                    "' is beyond the limit of " + short_value(kMaxExponent));
+  if (!base.known) return;
+  const long double magnitude = fabsl(base.v);
+  if (magnitude == 0 || magnitude == 1 || exponent.v == 0) return;
+  const long double digits = fabsl(exponent.v) * fabsl(log10l(magnitude));
+  if (!(digits <= kMaxPowerDigits))
+    throw CostError("'" + text + "' would be an exact number of " +
+                    (std::isfinite(digits) ? "about " + short_value(digits) : "too many") +
+                    " digits (the limit is " + short_value(kMaxPowerDigits) + ")");
+}
+
+long double apply_function(const std::string& name, long double x) {
+  if (name == "sin") return sinl(x);
+  if (name == "cos") return cosl(x);
+  if (name == "tan") return tanl(x);
+  if (name == "asin") return asinl(x);
+  if (name == "acos") return acosl(x);
+  if (name == "atan") return atanl(x);
+  if (name == "exp") return expl(x);
+  if (name == "log") return logl(x);
+  if (name == "sqrt") return sqrtl(x);
+  return NAN;
+}
+
+// Reads the text the way GiNaC's parser will, but in long double, before GiNaC does: finds
+// every power's operands and refuses those too costly, and chained powers (a^b^c), which
+// GiNaC cannot read. Text it does not understand is left to GiNaC's own error messages.
+class CostScanner {
+ public:
+  explicit CostScanner(const std::string& text) : text_(text) {}
+  void run() {
+    try {
+      expr();
+    } catch (const Unreadable&) {
+    }
+  }
+
+ private:
+  struct Unreadable {};
+
+  void skip() {
+    while (pos_ < text_.size() && std::isspace(static_cast<unsigned char>(text_[pos_]))) ++pos_;
+  }
+  bool take(char c) {
+    skip();
+    if (pos_ < text_.size() && text_[pos_] == c) return ++pos_, true;
+    return false;
+  }
+  Approx expr() {
+    Approx a = term();
+    for (;;) {
+      if (take('+')) {
+        const Approx b = term();
+        a = combine(a, b, a.v + b.v);
+      } else if (take('-')) {
+        const Approx b = term();
+        a = combine(a, b, a.v - b.v);
+      } else {
+        return a;
+      }
+    }
+  }
+  Approx term() {
+    Approx a = unary();
+    for (;;) {
+      if (take('*')) {
+        const Approx b = unary();
+        a = combine(a, b, a.v * b.v);
+      } else if (take('/')) {
+        const Approx b = unary();
+        a = combine(a, b, a.v / b.v);
+      } else {
+        return a;
+      }
+    }
+  }
+  Approx unary() {
+    if (take('-')) {
+      Approx a = unary();
+      a.v = -a.v;
+      return a;
+    }
+    if (take('+')) return unary();
+    return power();
+  }
+  Approx power() {
+    skip();
+    const std::size_t from = pos_;
+    const Approx base = primary();
+    if (!take('^')) return base;
+    const Approx exponent = unary_primary();
+    const std::string text = text_.substr(from, pos_ - from);
+    if (take('^'))
+      throw CostError("'" + text +
+                      "^...' chains '^', which is ambiguous: write (a^b)^c or a^(b^c)");
+    check_power(base, exponent, text);
+    return combine(base, exponent, powl(base.v, exponent.v));
+  }
+  // A power's exponent: a primary, possibly negated (2^-3).
+  Approx unary_primary() {
+    if (take('-')) {
+      Approx a = unary_primary();
+      a.v = -a.v;
+      return a;
+    }
+    if (take('+')) return unary_primary();
+    return primary();
+  }
+  Approx primary() {
+    skip();
+    if (pos_ >= text_.size()) throw Unreadable{};
+    const char ch = text_[pos_];
+    if (ch == '(') {
+      ++pos_;
+      const Approx a = expr();
+      if (!take(')')) throw Unreadable{};
+      return a;
+    }
+    if (std::isdigit(static_cast<unsigned char>(ch)) || ch == '.') return number();
+    if (std::isalpha(static_cast<unsigned char>(ch)) || ch == '_') {
+      std::size_t end = pos_;
+      while (end < text_.size() &&
+             (std::isalnum(static_cast<unsigned char>(text_[end])) || text_[end] == '_'))
+        ++end;
+      const std::string name = text_.substr(pos_, end - pos_);
+      pos_ = end;
+      if (take('(')) {
+        const Approx a = expr();
+        if (!take(')')) throw Unreadable{};
+        return {apply_function(name, a.v), a.known};
+      }
+      if (name == "pi") return {3.14159265358979323846264338327950288L, true};
+      return {0, false};
+    }
+    throw Unreadable{};
+  }
+  Approx number() {
+    const std::size_t from = pos_;
+    while (pos_ < text_.size() && std::isdigit(static_cast<unsigned char>(text_[pos_]))) ++pos_;
+    if (pos_ < text_.size() && text_[pos_] == '.') ++pos_;
+    while (pos_ < text_.size() && std::isdigit(static_cast<unsigned char>(text_[pos_]))) ++pos_;
+    if (pos_ < text_.size() && (text_[pos_] == 'e' || text_[pos_] == 'E')) {
+      std::size_t p = pos_ + 1;
+      if (p < text_.size() && (text_[p] == '+' || text_[p] == '-')) ++p;
+      const std::size_t digits_from = p;
+      while (p < text_.size() && std::isdigit(static_cast<unsigned char>(text_[p]))) ++p;
+      if (p > digits_from) {
+        const std::string e = text_.substr(digits_from, p - digits_from);
+        if (e.size() > 6 || std::stol(e) > kMaxLiteralExponent)
+          throw CostError("the number '" + text_.substr(from, p - from) +
+                          "' is beyond the limit of exact numbers (decimal exponents up to " +
+                          std::to_string(kMaxLiteralExponent) + ")");
+        pos_ = p;
+      }
+    }
+    return {std::strtold(text_.substr(from, pos_ - from).c_str(), nullptr), true};
+  }
+
+  const std::string& text_;
+  std::size_t pos_ = 0;
+};
+
+// The same bounds on a parsed expression once the parameters' values are known (x^n with n a
+// parameter of 2^40), before they are substituted.
+Approx approximate(const ex& e, const SymbolTable& s, const std::vector<GiNaC::numeric>& values) {
+  if (GiNaC::is_a<GiNaC::numeric>(e)) return {GiNaC::ex_to<GiNaC::numeric>(e).to_double(), true};
+  if (GiNaC::is_a<GiNaC::constant>(e))  // only pi passes the parser
+    return e.is_equal(GiNaC::Pi) ? Approx{3.14159265358979323846264338327950288L, true}
+                                 : Approx{0, false};
+  if (GiNaC::is_a<GiNaC::symbol>(e)) {
+    const Input in = s.classify(e);
+    if (in.kind == InputKind::kParam) return {values[in.index].to_double(), true};
+    return {0, false};
+  }
+  if (GiNaC::is_a<GiNaC::power>(e)) {
+    const Approx base = approximate(e.op(0), s, values);
+    const Approx exponent = approximate(e.op(1), s, values);
+    std::ostringstream text;
+    text << e;
+    check_power(base, exponent, text.str());
+    return combine(base, exponent, powl(base.v, exponent.v));
+  }
+  if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
+    const bool sum = GiNaC::is_a<GiNaC::add>(e);
+    Approx a{sum ? 0.0L : 1.0L, true};
+    for (std::size_t k = 0; k < e.nops(); ++k) {
+      const Approx b = approximate(e.op(k), s, values);
+      a = combine(a, b, sum ? a.v + b.v : a.v * b.v);
+    }
+    return a;
+  }
+  if (GiNaC::is_a<GiNaC::function>(e) && e.nops() == 1) {
+    const Approx a = approximate(e.op(0), s, values);
+    return {apply_function(GiNaC::ex_to<GiNaC::function>(e).get_name(), a.v), a.known};
+  }
+  Approx a;
+  for (std::size_t k = 0; k < e.nops(); ++k) a = combine(a, approximate(e.op(k), s, values), NAN);
+  return a;
+}
+
+// Derivatives: the size (leaves and operators of the expression tree) that d e / d x would have,
+// estimated from e without building it, so a derivative too large to be worth computing is
+// refused before it takes minutes and gigabytes. The product rule makes d(f1 ... fn) about n
+// times the size of the product, and every function's derivative repeats its argument.
+struct TreeSize {
+  double size = 0, derivative = 0;
+  bool depends = false;
+};
+
+TreeSize tree_size(const ex& e, const ex& x) {
+  if (GiNaC::is_a<GiNaC::symbol>(e)) return {1, 1, e.is_equal(x)};
+  if (e.nops() == 0) return {1, 0, false};
+  std::vector<TreeSize> ops;
+  TreeSize r{1, 0, false};
+  for (std::size_t k = 0; k < e.nops(); ++k) {
+    ops.push_back(tree_size(e.op(k), x));
+    r.size += ops.back().size;
+    r.depends = r.depends || ops.back().depends;
+  }
+  if (!r.depends) return r;
+  if (GiNaC::is_a<GiNaC::add>(e)) {
+    for (const auto& o : ops) r.derivative += o.derivative;
+  } else if (GiNaC::is_a<GiNaC::mul>(e)) {
+    for (const auto& o : ops)
+      if (o.depends) r.derivative += o.derivative + (r.size - o.size);
+  } else {
+    // powers and functions: f'(u) repeats u (and f) a few times, times u'
+    r.derivative = 3 * r.size + ops.size() * 2;
+    for (const auto& o : ops) r.derivative += o.derivative;
+  }
+  return r;
 }
 
 bool scope_allows(Scope scope, InputKind kind) {
@@ -166,6 +446,11 @@ ex SymbolTable::parse(const Expr& expr, Scope scope, const std::string& item) co
   table["t"] = t_;
   table["pi"] = GiNaC::Pi;
 
+  try {
+    CostScanner(text).run();
+  } catch (const CostError& err) {
+    throw InputError(source_, item, expr.loc, err.what());
+  }
   ex e;
   try {
     GiNaC::parser reader(table, /*strict=*/true, kFunctions);
@@ -220,10 +505,22 @@ double to_double(const ex& e) {
 
 namespace {
 
+// Exact powers that the parameters' values would make too costly (see check_power).
+void check_cost(const Mechanism& m, const SymbolTable& s,
+                const std::vector<GiNaC::numeric>& values, const ex& value, const Expr& e,
+                const std::string& item) {
+  try {
+    approximate(value, s, values);
+  } catch (const CostError& err) {
+    throw InputError(m.source, item, e.loc, err.what());
+  }
+}
+
 // A constant of the geometry, checked to evaluate to a finite number.
 void check_finite(const Mechanism& m, const SymbolTable& s,
                   const std::vector<GiNaC::numeric>& values, const ex& value, const Expr& e,
                   const std::string& item) {
+  check_cost(m, s, values, value, e, item);
   double v = 0;
   try {
     v = to_double(substitute_params(value, s, values));
@@ -288,16 +585,29 @@ std::vector<GiNaC::numeric> parameter_values(const Mechanism& m, const SymbolTab
     return GiNaC::ex_to<GiNaC::numeric>(v);
   };
   for (const auto& p : m.parameters) values.push_back(constant(p.value, "parameters." + p.name));
+  std::set<std::size_t> overridden;
   for (const auto& o : overrides) {
     const auto it = std::find_if(m.parameters.begin(), m.parameters.end(),
                                  [&](const Parameter& p) { return p.name == o.name; });
     if (it == m.parameters.end())
       throw InputError(m.source, "--param " + o.name, {}, "the mechanism has no such parameter");
-    values[it - m.parameters.begin()] = constant(Expr{o.value, {}}, "--param " + o.name);
+    // YAML's special floats are not numbers to the expression reader; say so plainly.
+    std::string bare = o.value.substr(o.value[0] == '+' || o.value[0] == '-' ? 1 : 0);
+    for (char& ch : bare) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (bare == ".nan" || bare == ".inf" || bare == "nan" || bare == "inf" || bare == "infinity")
+      throw InputError(m.source, "--param " + o.name, {},
+                       "'" + o.value + "' is not a finite number");
+    const std::size_t k = it - m.parameters.begin();
+    values[k] = constant(Expr{o.value, {}}, "--param " + o.name);
+    overridden.insert(k);
   }
+  // An overridden value is the option's fault, not the file's.
   for (std::size_t k = 0; k < values.size(); ++k)
     if (!std::isfinite(values[k].to_double()))
-      throw InputError(m.source, "parameters." + m.parameters[k].name, m.parameters[k].loc,
+      throw overridden.count(k)
+          ? InputError(m.source, "--param " + m.parameters[k].name, {},
+                       "the value is not a finite number")
+          : InputError(m.source, "parameters." + m.parameters[k].name, m.parameters[k].loc,
                        "the value is not a finite number");
   return values;
 }
@@ -338,6 +648,7 @@ void EquationContext::check_finite(const ex& value, const Expr& e, const std::st
 // An expression in t or q with the parameters put in: no division by zero appears, and every
 // number in it is finite (1e999 * t is not).
 void EquationContext::check_defined(const ex& value, const Expr& e, const std::string& item) const {
+  check_cost(m_, s_, values_, value, e, item);
   try {
     const ex v = substitute_params(value, s_, values_);
     for (auto it = v.preorder_begin(); it != v.preorder_end(); ++it)
@@ -394,6 +705,53 @@ std::vector<ex> EquationContext::equations() const {
   return rows;
 }
 
+namespace {
+
+// Where row `component` of a constraint is written: its equation, a driver's f, or the item.
+SourceLoc row_loc(const Constraint& c, int component) {
+  if (!c.equations.empty()) return c.equations[component].loc;
+  return c.is_driver ? c.value.loc : c.loc;
+}
+
+// The number of terms e.expand() would have, estimated without expanding: sums add, products
+// multiply, and (t1 + ... + tn)^k has C(n + k - 1, k) terms.
+double expanded_terms(const ex& e) {
+  if (GiNaC::is_a<GiNaC::add>(e)) {
+    double n = 0;
+    for (std::size_t k = 0; k < e.nops(); ++k) n += expanded_terms(e.op(k));
+    return n;
+  }
+  if (GiNaC::is_a<GiNaC::mul>(e)) {
+    double n = 1;
+    for (std::size_t k = 0; k < e.nops(); ++k) n *= expanded_terms(e.op(k));
+    return n;
+  }
+  if (GiNaC::is_a<GiNaC::power>(e) && GiNaC::is_a<GiNaC::numeric>(e.op(1))) {
+    const GiNaC::numeric& k = GiNaC::ex_to<GiNaC::numeric>(e.op(1));
+    if (!k.is_pos_integer()) return 1;
+    const double n = expanded_terms(e.op(0)), kd = k.to_double();
+    if (n <= 1) return 1;
+    return std::exp(std::lgamma(n + kd) - std::lgamma(kd + 1) - std::lgamma(n));
+  }
+  return 1;
+}
+
+}  // namespace
+
+void check_expansion_cost(const Mechanism& m, const SymbolicModel& model) {
+  for (std::size_t r = 0; r < model.phi.size(); ++r) {
+    const double terms = expanded_terms(model.phi[r]);
+    if (terms <= kMaxExpandedTerms) continue;
+    const Constraint& c = *model.rows[r].constraint;
+    const SourceLoc loc = row_loc(c, model.rows[r].component);
+    throw InputError(m.source, c.item, loc,
+                     "expanded (to find the linear equations), this equation would have about " +
+                         short_value(terms) + " terms, beyond the limit of " +
+                         short_value(kMaxExpandedTerms) +
+                         "; write it without high powers of long sums");
+  }
+}
+
 SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
                      const std::vector<ParamOverride>& overrides) {
   SymbolicModel model;
@@ -409,6 +767,28 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
   }
   const int nc = static_cast<int>(model.phi.size());
 
+  // Every derivative's size is estimated before it is computed (tree_size); one too large, or
+  // a model whose derivatives together are, is refused with the constraint it comes from.
+  double derived = 0;
+  const auto diff = [&](const ex& e, const GiNaC::symbol& x, int r) {
+    const double size = tree_size(e, x).derivative;
+    derived += size;
+    if (size > kMaxDerivativeSize || derived > kMaxDerivedSize) {
+      const Constraint& c = *model.rows[r].constraint;
+      const SourceLoc loc = row_loc(c, model.rows[r].component);
+      throw InputError(
+          m.source, c.item, loc,
+          "its derivatives would grow to about " + short_value(size) + " nodes" +
+              (size > kMaxDerivativeSize
+                   ? ""
+                   : " (with the earlier rows' " + short_value(derived) + ")") +
+              ", beyond the limit of " +
+              short_value(size > kMaxDerivativeSize ? kMaxDerivativeSize : kMaxDerivedSize) +
+              "; write the expression more compactly");
+    }
+    return e.diff(x);
+  };
+
   // Each row is differentiated only by the coordinates it reads (a joint reads at most two
   // bodies): derivation stays linear in the size of the mechanism. Derivatives read no
   // coordinate their expression does not, so w = Phi_q qd below needs no others either.
@@ -418,7 +798,7 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
     row_coords[r] = coordinates_in(model.phi[r], s);
     row_begin[r] = model.phi_q.size();
     for (int k : row_coords[r]) {
-      const ex d = model.phi[r].diff(s.q(k));
+      const ex d = diff(model.phi[r], s.q(k), r);
       if (!d.is_zero()) model.phi_q.push_back({r, k, d});
     }
   }
@@ -426,14 +806,14 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
 
   // nu = -Phi_t. gamma = -(w_q qd + 2 w_t + Phi_tt), w = Phi_q qd, with w_q qd = sum_k dw/dq_k qd_k.
   for (int r = 0; r < nc; ++r) {
-    const ex phi_t = model.phi[r].diff(s.t());
+    const ex phi_t = diff(model.phi[r], s.t(), r);
     model.nu.push_back(-phi_t);
     ex w = 0;
     for (std::size_t e = row_begin[r]; e < row_begin[r + 1]; ++e)
       w += model.phi_q[e].value * s.qd(model.phi_q[e].col);
     ex w_q_qd = 0;
-    for (int k : row_coords[r]) w_q_qd += w.diff(s.q(k)) * s.qd(k);
-    model.gamma.push_back(-(w_q_qd + 2 * w.diff(s.t()) + phi_t.diff(s.t())));
+    for (int k : row_coords[r]) w_q_qd += diff(w, s.q(k), r) * s.qd(k);
+    model.gamma.push_back(-(w_q_qd + 2 * diff(w, s.t(), r) + diff(phi_t, s.t(), r)));
   }
 
   double scale = 0;

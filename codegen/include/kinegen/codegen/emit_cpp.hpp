@@ -36,6 +36,9 @@ struct EmitOptions {
   // its coordinates, when at least this many are alike; 0: never. Keeps large models' code,
   // and so their compile time and instruction-cache footprint, from growing with N.
   int roll_min = kDefaultRollMin;
+  // The namespace the model's struct lives in (kinegen generate --namespace): two models of
+  // the same name need different ones to live in one program.
+  std::string name_space = "kinegen::models";
 };
 
 // The generated header's text. Only validated identifiers and numbers from the mechanism reach

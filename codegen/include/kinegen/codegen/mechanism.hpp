@@ -101,6 +101,7 @@ struct ForceSpec {
 
 struct Mechanism {
   std::string name;
+  SourceLoc name_loc;  // of the `name:` value
   std::string source;  // the file it was read from, as given by the user
   std::vector<Parameter> parameters;
   std::vector<Body> bodies;

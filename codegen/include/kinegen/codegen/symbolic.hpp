@@ -114,4 +114,8 @@ class DigitsGuard {
 // The double value of a constant expression (no symbols left).
 double to_double(const GiNaC::ex& e);
 
+// generate expands equations to find the linear ones (structure.cpp): refuses, naming the
+// constraint, a row whose expansion would have too many terms ((a + b + ... + p9)^40).
+void check_expansion_cost(const Mechanism& mechanism, const SymbolicModel& model);
+
 }  // namespace kinegen::codegen
