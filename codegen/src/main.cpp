@@ -18,6 +18,7 @@
 #include "kinegen/codegen/log.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/reference.hpp"
+#include "kinegen/codegen/sensitivity.hpp"
 
 namespace kc = kinegen::codegen;
 namespace fs = std::filesystem;
@@ -151,9 +152,15 @@ int run_animate(const Common& c, const kc::AnimateOptions& options, const std::s
 }
 
 int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output,
-                int reference_digits, bool strict) {
+                int reference_digits, bool strict, const std::string& sensitivity_list = "") {
   const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
   kc::require_driven(*model);
+  kc::SensitivityModel sensitivity;
+  if (!sensitivity_list.empty()) {
+    if (reference_digits != 0)
+      throw kc::UsageError("--sensitivity is not available with --reference-digits");
+    sensitivity = kc::build_sensitivity(*model, kc::split_parameter_list(sensitivity_list));
+  }
   if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
   if (!std::isfinite(t0) || !std::isfinite(t1)) throw kc::UsageError("--t0 and --t1 must be finite");
   if (reference_digits != 0 && (reference_digits < kc::kMinReferenceDigits ||
@@ -164,7 +171,7 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   std::unique_ptr<AtomicFile> file;
   if (!output.empty()) file = std::make_unique<AtomicFile>(output);
   std::ostream& out = file ? file->stream() : std::cout;
-  out << kc::csv_header(model->mechanism());
+  out << kc::csv_header(model->mechanism(), sensitivity.names);
   int status = 0;
   int rows = 0;
   try {
@@ -177,6 +184,7 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
     } else {
       kc::AnalysisOptions options;
       options.strict = strict;
+      if (!sensitivity_list.empty()) options.sensitivity = &sensitivity;
       options.warn = [](const std::string& w) {
         std::cerr << "warning: " << one_line(w) << "\n";
       };
@@ -294,6 +302,11 @@ int main(int argc, char** argv) {
                       "double: the high-precision reference");
   bool strict = false;
   analyze->add_flag("--strict", strict, "Redundant constraints are an error (exit 2), not a warning");
+  std::string sensitivity_list;
+  analyze->add_option("--sensitivity", sensitivity_list,
+                      "Add d(C)/d(p) columns for these parameters (comma-separated), after all "
+                      "others")
+      ->type_name("P1,P2,...");
 
   double t = 0;
   std::vector<double> q_arg, qd_arg;
@@ -350,7 +363,8 @@ int main(int argc, char** argv) {
     if (*generate) return run_generate(common, out_dir, outputs, fold_params, max_function_ops,
                                         roll_min);
     if (*animate) return run_animate(common, animate_options, svg_file);
-    if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits, strict);
+    if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits, strict,
+                                     sensitivity_list);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
     if (*check) return run_check(common, check_options, structure);
   } catch (const kc::InputError& e) {
