@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <kinegen/solver.hpp>
 #include <sstream>
 
@@ -19,6 +20,7 @@
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/reference.hpp"
 #include "kinegen/codegen/sensitivity.hpp"
+#include "kinegen/codegen/tolerance.hpp"
 
 namespace kc = kinegen::codegen;
 namespace fs = std::filesystem;
@@ -199,6 +201,23 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   return status;
 }
 
+int run_tolerance(const Common& c, kc::ToleranceOptions options,
+                  const std::vector<std::string>& tol, const std::string& output) {
+  options.overrides = parse_overrides(c.params);
+  const auto model = kc::CompiledModel::from_file(c.file, options.overrides);
+  kc::require_driven(*model);
+  options.tolerances = kc::parse_tolerances(tol);
+  options.progress = kc::terminal_progress("Monte Carlo");
+  const auto result = kc::tolerance_analysis(*model, options);
+  std::cout << kc::tolerance_summary(result, options);
+  if (!output.empty()) {
+    AtomicFile out(output);
+    out.stream() << kc::tolerance_csv(result);
+    out.commit();
+  }
+  return 0;
+}
+
 int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
              const std::vector<double>& qd_arg) {
   const auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params));
@@ -343,6 +362,26 @@ int main(int argc, char** argv) {
   animate->add_option("--duration", animate_options.duration,
                       "Seconds per pass (default: t1 - t0)");
 
+  kc::ToleranceOptions tol_options;
+  std::vector<std::string> tol_items;
+  std::string tol_csv;
+  auto* tolerance = app.add_subcommand(
+      "tolerance", "Worst-case and RSS deviations of the positions from parameter tolerances");
+  add_common(tolerance, common);
+  tolerance->add_option("--tol", tol_items, "A parameter's tolerance: NAME=DELTA (repeatable)")
+      ->type_name("NAME=DELTA")
+      ->required();
+  tolerance->add_option("--t0", tol_options.grid.t0, "Start time")->required();
+  tolerance->add_option("--t1", tol_options.grid.t1, "End time")->required();
+  tolerance->add_option("--steps", tol_options.grid.steps, "Number of steps N (N + 1 rows)")
+      ->required();
+  tolerance->add_option("--monte-carlo", tol_options.monte_carlo,
+                        "Also N >= 2 analyses with parameters drawn uniformly in [p - DELTA, "
+                        "p + DELTA]")
+      ->check(CLI::Range(2, std::numeric_limits<int>::max()));
+  tolerance->add_option("--seed", tol_options.seed, "Monte Carlo seed (default 1)");
+  tolerance->add_option("-o,--output", tol_csv, "CSV file of the per-row figures");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -366,6 +405,7 @@ int main(int argc, char** argv) {
     if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits, strict,
                                      sensitivity_list);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
+    if (*tolerance) return run_tolerance(common, tol_options, tol_items, tol_csv);
     if (*check) return run_check(common, check_options, structure);
   } catch (const kc::InputError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";

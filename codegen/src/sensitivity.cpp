@@ -29,22 +29,24 @@ std::vector<std::string> split_parameter_list(const std::string& list) {
   return names;
 }
 
+int find_parameter(const CompiledModel& model, const std::string& name,
+                   const std::string& option) {
+  const SymbolTable& symbols = model.symbols();
+  for (int k = 0; k < symbols.num_params(); ++k)
+    if (symbols.param_name(k) == name) return k;
+  std::string known;
+  for (int k = 0; k < symbols.num_params(); ++k)
+    known += (known.empty() ? "" : ", ") + symbols.param_name(k);
+  throw UsageError(option + ": the mechanism has no parameter '" + name +
+                   "' (it has: " + (known.empty() ? "none" : known) + ")");
+}
+
 SensitivityModel build_sensitivity(const CompiledModel& model,
                                    const std::vector<std::string>& names) {
   const SymbolTable& symbols = model.symbols();
   SensitivityModel s;
   for (const auto& name : names) {
-    int found = -1;
-    for (int k = 0; k < symbols.num_params(); ++k)
-      if (symbols.param_name(k) == name) found = k;
-    if (found < 0) {
-      std::string known;
-      for (int k = 0; k < symbols.num_params(); ++k)
-        known += (known.empty() ? "" : ", ") + symbols.param_name(k);
-      throw UsageError("--sensitivity: the mechanism has no parameter '" + name + "' (it has: " +
-                       (known.empty() ? "none" : known) + ")");
-    }
-    s.params.push_back(found);
+    s.params.push_back(find_parameter(model, name, "--sensitivity"));
     s.names.push_back(name);
   }
   s.phi_p = lower(derive_phi_p(model.symbolic(), symbols, s.params), symbols);

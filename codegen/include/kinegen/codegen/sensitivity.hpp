@@ -28,6 +28,10 @@ struct SensitivityModel {
   std::vector<std::vector<Eigen::Vector2d>> point_ds;
 };
 
+// The index of the parameter `name`; a UsageError starting with `option` (the command-line
+// option that named it) lists the parameters there are.
+int find_parameter(const CompiledModel& model, const std::string& name, const std::string& option);
+
 // Resolves `names` (the parameters in the order given; a repeated name is allowed and
 // repeats its columns) and lowers Phi_p. Throws UsageError naming an unknown parameter. A
 // parameter that nothing depends on is valid: its columns are zeros.
