@@ -27,11 +27,11 @@ double ns_per_row(const cg::CompiledModel& model, const cg::SensitivityModel* se
   double sink = 0;
   for (int r = 0; r < kRepeats; ++r) {
     const auto start = std::chrono::steady_clock::now();
-    cg::run_analysis(model, {0, 2 * std::acos(-1.0), kSteps},
-                     [&](const cg::StateRow& row) { sink += row.q[0]; }, options);
+    cg::run_analysis(
+        model, {0, 2 * std::acos(-1.0), kSteps}, [&](const cg::StateRow& row) { sink += row.q[0]; },
+        options);
     const double ns =
-        std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - start)
-            .count();
+        std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - start).count();
     best = std::min(best, ns / (kSteps + 1));
   }
   if (sink == 12345.678) std::puts("");  // keeps the work
@@ -44,8 +44,8 @@ int main() {
   std::printf("%-22s %6s %14s %16s %18s\n", "model", "params", "step ns/row", "with sens ns/row",
               "sens ns/row/param");
   for (const char* name : {"slider_crank", "offset_slider_crank", "four_bar", "quick_return"}) {
-    const auto model = cg::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
-                                                    "/examples/" + name + ".yaml");
+    const auto model = cg::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) + "/examples/" +
+                                                    name + ".yaml");
     std::vector<std::string> params;
     for (const auto& p : model->mechanism().parameters) params.push_back(p.name);
     const auto sens = cg::build_sensitivity(*model, params);

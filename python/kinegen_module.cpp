@@ -8,15 +8,15 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
-#include <optional>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
-#include <unistd.h>
 #include <vector>
 
 #include "kinegen/codegen/analysis.hpp"
@@ -131,13 +131,17 @@ class Mechanism {
       columns = split(header);
       {
         py::gil_scoped_release release;
-        kc::run_analysis(*model_, {t0, t1, steps}, [&](const kc::StateRow& row) {
-          std::string line = kc::csv_row(row);
-          line.pop_back();
-          std::vector<double> values;
-          for (const auto& item : split(line)) values.push_back(std::strtod(item.c_str(), nullptr));
-          rows.push_back(std::move(values));
-        }, options);
+        kc::run_analysis(
+            *model_, {t0, t1, steps},
+            [&](const kc::StateRow& row) {
+              std::string line = kc::csv_row(row);
+              line.pop_back();
+              std::vector<double> values;
+              for (const auto& item : split(line))
+                values.push_back(std::strtod(item.c_str(), nullptr));
+              rows.push_back(std::move(values));
+            },
+            options);
       }
       const py::object warn = py::module_::import("warnings").attr("warn");
       for (const auto& w : warnings) warn(w);
@@ -154,8 +158,8 @@ class Mechanism {
   }
 
   // Phi, Phi_q, nu and gamma at (q, qd, t), as `kinegen eval` computes them.
-  py::dict eval(std::optional<std::vector<double>> q_arg,
-                std::optional<std::vector<double>> qd_arg, double t) {
+  py::dict eval(std::optional<std::vector<double>> q_arg, std::optional<std::vector<double>> qd_arg,
+                double t) {
     const int nq = model_->nq(), nc = model_->nc();
     const auto vector = [&](const std::optional<std::vector<double>>& v, const char* name,
                             const Eigen::VectorXd& fallback) -> Eigen::VectorXd {
@@ -300,10 +304,10 @@ PYBIND11_MODULE(kinegen, m) {
                         PyExc_ValueError);
   usage_error = derived("kinegen.UsageError", "Invalid arguments (exit 2 on the command line)",
                         PyExc_ValueError);
-  analysis_error = derived(
-      "kinegen.AnalysisError",
-      "The analysis failed: no assembly, singular Jacobian, no convergence (exit 1)",
-      PyExc_RuntimeError);
+  analysis_error =
+      derived("kinegen.AnalysisError",
+              "The analysis failed: no assembly, singular Jacobian, no convergence (exit 1)",
+              PyExc_RuntimeError);
   m.attr("Error") = error;
   m.attr("InputError") = input_error;
   m.attr("UsageError") = usage_error;

@@ -64,7 +64,8 @@ std::vector<cg::StateRow> analyze(const cg::CompiledModel& model, const cg::Time
   std::vector<cg::StateRow> rows;
   cg::AnalysisOptions options;
   options.sensitivity = sensitivity;
-  cg::run_analysis(model, grid, [&](const cg::StateRow& r) { rows.push_back(r); }, options);
+  cg::run_analysis(
+      model, grid, [&](const cg::StateRow& r) { rows.push_back(r); }, options);
   return rows;
 }
 
@@ -205,9 +206,8 @@ TEST_CASE("sensitivities equal central differences of the 40-digit reference", "
       for (int sgn = 0; sgn < 2; ++sgn) {
         const auto moved = cg::CompiledModel::from_file(
             file, {{names[k], "(" + text + ")" + (sgn ? "-" : "+") + h}});
-        cg::run_reference_analysis_exact(*moved, grid, digits, [&](const cg::ReferenceRow& r) {
-          side[sgn].push_back(r);
-        });
+        cg::run_reference_analysis_exact(
+            *moved, grid, digits, [&](const cg::ReferenceRow& r) { side[sgn].push_back(r); });
       }
       REQUIRE(side[0].size() == rows.size());
       const GiNaC::numeric two_h = GiNaC::numeric(2) / GiNaC::numeric(10000000000);
@@ -246,6 +246,17 @@ TEST_CASE("analyze --sensitivity: columns, unknown names, unused parameters", "[
     CHECK(r.err.rfind("error: ", 0) == 0);
     CHECK(r.err.find("no parameter 'nope'") != std::string::npos);
     CHECK(r.out.empty());
+  }
+  SECTION("a repeated name is an error") {
+    const auto model = cg::CompiledModel::from_file(mech);
+    CHECK_THROWS_WITH(cg::build_sensitivity(*model, {"l", "omega", "l"}),
+                      Catch::Contains("'l' is given twice"));
+  }
+  SECTION("with --reference-digits it is refused") {
+    const auto r =
+        kinegen::test::run_command({exe, "analyze", mech, "--t0", "0", "--t1", "1", "--steps", "2",
+                                    "--sensitivity", "l", "--reference-digits", "30"});
+    CHECK(r.exit_code == 2);
   }
   SECTION("an empty name is an error") {
     const auto r = kinegen::test::run_command({exe, "analyze", mech, "--t0", "0", "--t1", "1",

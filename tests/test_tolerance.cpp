@@ -24,12 +24,11 @@ namespace cg = kinegen::codegen;
 const std::string kFourBar = std::string(KINEGEN_SOURCE_DIR) + "/examples/four_bar.yaml";
 }  // namespace
 
-TEST_CASE("linear worst case bounds the Monte Carlo spread; rss ~ sqrt(3) mc std",
-          "[tolerance]") {
+TEST_CASE("linear worst case bounds the Monte Carlo spread; rss ~ sqrt(3) mc std", "[tolerance]") {
   const auto model = cg::CompiledModel::from_file(kFourBar);
   cg::ToleranceOptions options;
-  options.tolerances = cg::parse_tolerances(
-      {"a=1e-4", "b=2e-4", "c=1e-4", "d=1.5e-4", "px=2e-4", "py=1e-4"});
+  options.tolerances =
+      cg::parse_tolerances({"a=1e-4", "b=2e-4", "c=1e-4", "d=1.5e-4", "px=2e-4", "py=1e-4"});
   options.grid = {0, 2 * std::acos(-1.0), 24};
   options.monte_carlo = 2000;
   options.seed = 7;
@@ -42,8 +41,8 @@ TEST_CASE("linear worst case bounds the Monte Carlo spread; rss ~ sqrt(3) mc std
   for (std::size_t row = 0; row < r.t.size(); ++row)
     for (std::size_t q = 0; q < r.quantities.size(); ++q) {
       INFO(r.quantities[q] << " at t = " << r.t[row] << ": worst " << r.worst[row][q] << ", rss "
-                           << r.rss[row][q] << ", mc spread " << r.mc_spread[row][q]
-                           << ", mc std " << r.mc_std[row][q]);
+                           << r.rss[row][q] << ", mc spread " << r.mc_spread[row][q] << ", mc std "
+                           << r.mc_std[row][q]);
       REQUIRE(r.mc_spread[row][q] <= 1.01 * r.worst[row][q] + 1e-13);
       REQUIRE(r.rss[row][q] <= r.worst[row][q] + 1e-18);
       REQUIRE(std::abs(std::sqrt(3.0) * r.mc_std[row][q] - r.rss[row][q]) <=
@@ -76,8 +75,8 @@ TEST_CASE("tolerance without Monte Carlo: the figures follow from the sensitivit
 
 TEST_CASE("tolerance: hostile input", "[tolerance]") {
   SECTION("parse_tolerances") {
-    for (const char* bad : {"a=-1e-3", "a=nan", "a=inf", "a=1e999", "a=abc", "a=", "=1", "a",
-                            "a=1e-3x"})
+    for (const char* bad :
+         {"a=-1e-3", "a=nan", "a=inf", "a=1e999", "a=abc", "a=", "=1", "a", "a=1e-3x"})
       CHECK_THROWS_AS(cg::parse_tolerances({bad}), cg::UsageError);
     CHECK_THROWS_AS(cg::parse_tolerances({"a=1", "a=2"}), cg::UsageError);
     CHECK(cg::parse_tolerances({"a=0"})[0].delta == 0.0);  // a zero tolerance is valid
@@ -99,12 +98,13 @@ TEST_CASE("tolerance: hostile input", "[tolerance]") {
     const std::string out = std::string(KINEGEN_TEST_TMP) + "/tolerance_hostile.csv";
     std::filesystem::create_directories(KINEGEN_TEST_TMP);
     std::filesystem::remove(out);
-    for (const std::vector<std::string>& extra :
-         {std::vector<std::string>{"--tol", "nope=1e-3"}, {"--tol", "a=-1e-3"},
-          {"--tol", "a=nan"}, {"--tol", "a=1e-3", "--monte-carlo", "0"},
-          {"--tol", "a=1e-3", "--monte-carlo", "1"}}) {
-      std::vector<std::string> args = {exe, "tolerance", kFourBar, "--t0", "0", "--t1", "1",
-                                       "--steps", "2", "-o", out};
+    for (const std::vector<std::string>& extra : {std::vector<std::string>{"--tol", "nope=1e-3"},
+                                                  {"--tol", "a=-1e-3"},
+                                                  {"--tol", "a=nan"},
+                                                  {"--tol", "a=1e-3", "--monte-carlo", "0"},
+                                                  {"--tol", "a=1e-3", "--monte-carlo", "1"}}) {
+      std::vector<std::string> args = {exe, "tolerance", kFourBar, "--t0", "0", "--t1",
+                                       "1", "--steps",   "2",      "-o",   out};
       args.insert(args.end(), extra.begin(), extra.end());
       const auto r = kinegen::test::run_command(args);
       INFO(extra[1] << ": " << r.err);
@@ -118,8 +118,8 @@ TEST_CASE("tolerance: hostile input", "[tolerance]") {
     const std::string exe = KINEGEN_EXE;
     const std::string out = std::string(KINEGEN_TEST_TMP) + "/tolerance_good.csv";
     std::filesystem::create_directories(KINEGEN_TEST_TMP);
-    const auto r = kinegen::test::run_command({exe, "tolerance", kFourBar, "--t0", "0", "--t1",
-                                               "1", "--steps", "4", "--tol", "a=1e-3", "--tol",
+    const auto r = kinegen::test::run_command({exe, "tolerance", kFourBar, "--t0", "0", "--t1", "1",
+                                               "--steps", "4", "--tol", "a=1e-3", "--tol",
                                                "px=1e-3", "--monte-carlo", "10", "-o", out});
     CHECK(r.exit_code == 0);
     CHECK(r.out.find("P.x") != std::string::npos);

@@ -230,8 +230,8 @@ std::string singular_diagnosis(const CompiledModel& model, const LargeSolver& so
 // factorization the velocity solve left (same q and t: the solver does not factor again).
 template <class S, class Fail>
 void solve_sensitivities(S& solver, const SensitivityModel& sensitivity,
-                         ProgramEvaluator<double>& phi_p_eval, const CompiledModel& model,
-                         double t, StateRow& row, const Fail& fail) {
+                         ProgramEvaluator<double>& phi_p_eval, const CompiledModel& model, double t,
+                         StateRow& row, const Fail& fail) {
   const int nc = model.nc(), np = static_cast<int>(sensitivity.params.size());
   Eigen::VectorXd phi_p(static_cast<Eigen::Index>(nc) * np);
   if (np > 0) phi_p_eval.run(row.q.data(), nullptr, t, model.params().data(), phi_p.data());

@@ -8,8 +8,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <limits>
 #include <kinegen/solver.hpp>
+#include <limits>
 #include <sstream>
 
 #include "kinegen/codegen/analysis.hpp"
@@ -322,9 +322,10 @@ int main(int argc, char** argv) {
   bool strict = false;
   analyze->add_flag("--strict", strict, "Redundant constraints are an error (exit 2), not a warning");
   std::string sensitivity_list;
-  analyze->add_option("--sensitivity", sensitivity_list,
-                      "Add d(C)/d(p) columns for these parameters (comma-separated), after all "
-                      "others")
+  analyze
+      ->add_option("--sensitivity", sensitivity_list,
+                   "Add d(C)/d(p) columns for these parameters (comma-separated), after all "
+                   "others")
       ->type_name("P1,P2,...");
 
   double t = 0;
@@ -375,9 +376,10 @@ int main(int argc, char** argv) {
   tolerance->add_option("--t1", tol_options.grid.t1, "End time")->required();
   tolerance->add_option("--steps", tol_options.grid.steps, "Number of steps N (N + 1 rows)")
       ->required();
-  tolerance->add_option("--monte-carlo", tol_options.monte_carlo,
-                        "Also N >= 2 analyses with parameters drawn uniformly in [p - DELTA, "
-                        "p + DELTA]")
+  tolerance
+      ->add_option("--monte-carlo", tol_options.monte_carlo,
+                   "Also N >= 2 analyses with parameters drawn uniformly in [p - DELTA, "
+                   "p + DELTA]")
       ->check(CLI::Range(2, std::numeric_limits<int>::max()));
   tolerance->add_option("--seed", tol_options.seed, "Monte Carlo seed (default 1)");
   tolerance->add_option("-o,--output", tol_csv, "CSV file of the per-row figures");

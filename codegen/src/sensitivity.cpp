@@ -1,5 +1,6 @@
 #include "kinegen/codegen/sensitivity.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace kinegen::codegen {
@@ -29,8 +30,7 @@ std::vector<std::string> split_parameter_list(const std::string& list) {
   return names;
 }
 
-int find_parameter(const CompiledModel& model, const std::string& name,
-                   const std::string& option) {
+int find_parameter(const CompiledModel& model, const std::string& name, const std::string& option) {
   const SymbolTable& symbols = model.symbols();
   for (int k = 0; k < symbols.num_params(); ++k)
     if (symbols.param_name(k) == name) return k;
@@ -46,6 +46,9 @@ SensitivityModel build_sensitivity(const CompiledModel& model,
   const SymbolTable& symbols = model.symbols();
   SensitivityModel s;
   for (const auto& name : names) {
+    // A repeated name would repeat column names, which a reader keyed on names collapses.
+    if (std::find(s.names.begin(), s.names.end(), name) != s.names.end())
+      throw UsageError("--sensitivity: '" + name + "' is given twice");
     s.params.push_back(find_parameter(model, name, "--sensitivity"));
     s.names.push_back(name);
   }
@@ -74,9 +77,9 @@ void point_sensitivities(const CompiledModel& model, const SensitivityModel& sen
     const Eigen::Vector2d as = a * model.point_offsets()[p];
     const Eigen::Vector2d as_perp(-as[1], as[0]);  // d(A s)/dphi
     for (int k = 0; k < np; ++k)
-      dpoints.block<2, 1>(2 * p, k) = dq_dp.block<2, 1>(b, k) + dq_dp(b + 2, k) * as_perp +
-                                      a * sensitivity.point_ds[k][p];
-  dpoints.array() += 0.0;  // -0 prints as 0
+      dpoints.block<2, 1>(2 * p, k) =
+          dq_dp.block<2, 1>(b, k) + dq_dp(b + 2, k) * as_perp + a * sensitivity.point_ds[k][p];
+    dpoints.array() += 0.0;  // -0 prints as 0
   }
 }
 

@@ -19,7 +19,8 @@ namespace {
 Eigen::VectorXd row_values(const StateRow& row) {
   Eigen::VectorXd v(row.q.size() + 2 * static_cast<Eigen::Index>(row.points.size()));
   v.head(row.q.size()) = row.q;
-  for (std::size_t p = 0; p < row.points.size(); ++p) v.segment<2>(row.q.size() + 2 * p) = row.points[p].r;
+  for (std::size_t p = 0; p < row.points.size(); ++p)
+    v.segment<2>(row.q.size() + 2 * p) = row.points[p].r;
   return v;
 }
 
@@ -59,19 +60,19 @@ std::vector<Tolerance> parse_tolerances(const std::vector<std::string>& items) {
     if (!std::isfinite(t.delta) || t.delta < 0)
       throw UsageError("--tol " + t.name + ": the tolerance must be a finite number >= 0, got '" +
                        text + "'");
-    if (!seen.insert(t.name).second)
-      throw UsageError("--tol " + t.name + ": given twice");
+    if (!seen.insert(t.name).second) throw UsageError("--tol " + t.name + ": given twice");
     out.push_back(t);
   }
   return out;
 }
 
 ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOptions& options) {
-  if (options.tolerances.empty())
-    throw UsageError("tolerance needs at least one --tol NAME=DELTA");
+  if (options.tolerances.empty()) throw UsageError("tolerance needs at least one --tol NAME=DELTA");
   if (options.monte_carlo < 0 || options.monte_carlo == 1)
-    throw UsageError("--monte-carlo needs at least 2 samples (a spread and a standard "
-                     "deviation), got " + std::to_string(options.monte_carlo));
+    throw UsageError(
+        "--monte-carlo needs at least 2 samples (a spread and a standard "
+        "deviation), got " +
+        std::to_string(options.monte_carlo));
   if (options.grid.steps < 0) throw UsageError("--steps must be 0 or more");
   if (!std::isfinite(options.grid.t0) || !std::isfinite(options.grid.t1))
     throw UsageError("--t0 and --t1 must be finite");
@@ -96,17 +97,20 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
   std::vector<Eigen::VectorXd> nominal;
   AnalysisOptions analysis;
   analysis.sensitivity = &sensitivity;
-  run_analysis(model, options.grid, [&](const StateRow& row) {
-    Eigen::MatrixXd d(nqty, names.size());
-    d << row.dq_dp, row.dpoints_dp;
-    const Eigen::MatrixXd scaled = d * delta.asDiagonal();  // dC/dp delta per parameter
-    const Eigen::VectorXd worst = scaled.cwiseAbs().rowwise().sum();
-    const Eigen::VectorXd rss = scaled.rowwise().norm();
-    result.t.push_back(row.t);
-    result.worst.emplace_back(worst.data(), worst.data() + nqty);
-    result.rss.emplace_back(rss.data(), rss.data() + nqty);
-    nominal.push_back(row_values(row));
-  }, analysis);
+  run_analysis(
+      model, options.grid,
+      [&](const StateRow& row) {
+        Eigen::MatrixXd d(nqty, names.size());
+        d << row.dq_dp, row.dpoints_dp;
+        const Eigen::MatrixXd scaled = d * delta.asDiagonal();  // dC/dp delta per parameter
+        const Eigen::VectorXd worst = scaled.cwiseAbs().rowwise().sum();
+        const Eigen::VectorXd rss = scaled.rowwise().norm();
+        result.t.push_back(row.t);
+        result.worst.emplace_back(worst.data(), worst.data() + nqty);
+        result.rss.emplace_back(rss.data(), rss.data() + nqty);
+        nominal.push_back(row_values(row));
+      },
+      analysis);
 
   const int n = options.monte_carlo;
   if (n == 0) return result;
@@ -192,8 +196,9 @@ std::string tolerance_summary(const ToleranceResult& result, const ToleranceOpti
     }
     out += "\n";
   }
-  out += "(lengths in the file's unit, angles in rad; worst case = sum |dC/dp| delta, rss = "
-         "sqrt(sum (dC/dp delta)^2)";
+  out +=
+      "(lengths in the file's unit, angles in rad; worst case = sum |dC/dp| delta, rss = "
+      "sqrt(sum (dC/dp delta)^2)";
   if (result.samples > 0)
     out += "; for small tolerances mc spread <= worst case and mc std ~ rss / sqrt(3)";
   return out + ")\n";

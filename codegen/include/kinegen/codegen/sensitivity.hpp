@@ -21,9 +21,9 @@ std::vector<GiNaC::ex> derive_phi_p(const SymbolicModel& model, const SymbolTabl
 
 // What run_analysis needs to add sensitivities to each row.
 struct SensitivityModel {
-  std::vector<int> params;          // parameter indices, in the order asked for
-  std::vector<std::string> names;   // their names
-  Program phi_p;                    // nc * np outputs, as derive_phi_p orders them
+  std::vector<int> params;         // parameter indices, in the order asked for
+  std::vector<std::string> names;  // their names
+  Program phi_p;                   // nc * np outputs, as derive_phi_p orders them
   // d s'/dp of each named point's local offset, evaluated: point_ds[k][point].
   std::vector<std::vector<Eigen::Vector2d>> point_ds;
 };
@@ -32,8 +32,8 @@ struct SensitivityModel {
 // option that named it) lists the parameters there are.
 int find_parameter(const CompiledModel& model, const std::string& name, const std::string& option);
 
-// Resolves `names` (the parameters in the order given; a repeated name is allowed and
-// repeats its columns) and lowers Phi_p. Throws UsageError naming an unknown parameter. A
+// Resolves `names` (the parameters in the order given) and lowers Phi_p. Throws UsageError
+// naming an unknown or repeated parameter. A
 // parameter that nothing depends on is valid: its columns are zeros.
 SensitivityModel build_sensitivity(const CompiledModel& model,
                                    const std::vector<std::string>& names);

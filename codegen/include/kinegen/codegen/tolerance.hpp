@@ -29,7 +29,7 @@ std::vector<Tolerance> parse_tolerances(const std::vector<std::string>& items);
 struct ToleranceOptions {
   std::vector<Tolerance> tolerances;
   TimeGrid grid;
-  int monte_carlo = 0;        // samples; 0: none, else at least 2
+  int monte_carlo = 0;  // samples; 0: none, else at least 2
   std::uint64_t seed = 1;
   // The --param overrides the model was built with: each Monte Carlo sample is rebuilt from
   // the file's mechanism with these and then its drawn values.
@@ -41,7 +41,7 @@ struct ToleranceOptions {
 // The quantities are every body's x, y, phi and every point's x, y, in CSV order.
 struct ToleranceResult {
   std::vector<std::string> quantities;
-  std::vector<double> t;                       // rows
+  std::vector<double> t;                        // rows
   std::vector<std::vector<double>> worst, rss;  // [row][quantity]
   // With Monte Carlo: the largest |C_sample - C_nominal| and the samples' standard deviation.
   std::vector<std::vector<double>> mc_spread, mc_std;
