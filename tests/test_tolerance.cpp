@@ -114,6 +114,17 @@ TEST_CASE("tolerance: hostile input", "[tolerance]") {
       CHECK_FALSE(std::filesystem::exists(out));
     }
   }
+  SECTION("a sample that does not assemble fails the run (exit 1), naming the sample") {
+    // l = 2 +- 1.2 draws rods shorter than the crank (1): those cannot turn through t = 3.
+    const std::string exe = KINEGEN_EXE;
+    const std::string mech = std::string(KINEGEN_SOURCE_DIR) + "/examples/slider_crank.yaml";
+    const auto r =
+        kinegen::test::run_command({exe, "tolerance", mech, "--t0", "0", "--t1", "3", "--steps",
+                                    "30", "--tol", "l=1.2", "--monte-carlo", "50"});
+    CHECK(r.exit_code == 1);
+    CHECK(r.err.rfind("error: " + mech + ": Monte Carlo sample ", 0) == 0);
+    CHECK(r.err.find("(l = ") != std::string::npos);
+  }
   SECTION("command line: a good run writes the per-row CSV") {
     const std::string exe = KINEGEN_EXE;
     const std::string out = std::string(KINEGEN_TEST_TMP) + "/tolerance_good.csv";

@@ -139,8 +139,12 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
         ++r;
       });
     } catch (const AnalysisError& e) {
-      throw AnalysisError("Monte Carlo sample " + std::to_string(s + 1) + " (" + drawn +
-                          "): " + e.what());
+      // The file first, as in every message; then which sample, then what failed.
+      std::string what = e.what();
+      const std::string file = m.source + ": ";
+      if (what.rfind(file, 0) == 0) what = what.substr(file.size());
+      throw AnalysisError(file + "Monte Carlo sample " + std::to_string(s + 1) + " (" + drawn +
+                          "): " + what);
     }
     if (options.progress) options.progress(s + 1, n);
   }
