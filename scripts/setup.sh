@@ -5,6 +5,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 packages=(g++ cmake make pkg-config libginac-dev libcln-dev libeigen3-dev catch2
           libyaml-cpp-dev libcli11-dev python3
+          pybind11-dev python3-dev python3-numpy python3-pytest  # the Python module and its tests
+          python3-scipy python3-matplotlib                       # examples/python
           libpng-dev chromium gnuplot-nox)  # pictures: animate test (PNG decode, headless render), plots
 missing=()
 for p in "${packages[@]}"; do

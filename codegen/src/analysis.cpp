@@ -6,16 +6,36 @@
 #include <kinegen/solver.hpp>
 #include <kinegen/sparse_solver.hpp>
 #include <limits>
+#include <memory>
 #include <sstream>
 
 #include "kinegen/codegen/kinematics.hpp"
+#include "kinegen/codegen/sensitivity.hpp"
 
 namespace kinegen::codegen {
 
 namespace {
 
-using Solver = BasicSolver<ProgramSystem>;
-using LargeSolver = SparseSolver<ProgramSystem>;
+// ProgramSystem whose nu can be replaced by a given right-hand side: the solver's velocity
+// call at the same (q, t) then solves Phi_q x = rhs with the factorization it already holds,
+// which is how sensitivities reuse it without a solver interface of their own.
+class RhsSystem : public ProgramSystem {
+ public:
+  using ProgramSystem::ProgramSystem;
+  void nu(const double* q, double t, double* out) const {
+    if (rhs_)
+      std::copy(rhs_, rhs_ + nc(), out);
+    else
+      ProgramSystem::nu(q, t, out);
+  }
+  void use_rhs(const double* rhs) { rhs_ = rhs; }
+
+ private:
+  const double* rhs_ = nullptr;
+};
+
+using Solver = BasicSolver<RhsSystem>;
+using LargeSolver = SparseSolver<RhsSystem>;
 
 // The sparse path names the constraints behind a singular Phi_q (a dense SVD) only up to this
 // many coordinates: the diagnosis runs only on failure, but costs O(nq^2) memory and O(nq^3)
@@ -218,6 +238,27 @@ std::string singular_diagnosis(const CompiledModel& model, const LargeSolver& so
          "involved, at most " + std::to_string(kMaxDiagnosedNq) + ")";
 }
 
+// dq/dp = -Phi_q^-1 Phi_p at the converged row.q, one column per parameter, through the
+// factorization the velocity solve left (same q and t: the solver does not factor again).
+template <class S, class Fail>
+void solve_sensitivities(S& solver, const SensitivityModel& sensitivity,
+                         ProgramEvaluator<double>& phi_p_eval, const CompiledModel& model, double t,
+                         StateRow& row, const Fail& fail) {
+  const int nc = model.nc(), np = static_cast<int>(sensitivity.params.size());
+  Eigen::VectorXd phi_p(static_cast<Eigen::Index>(nc) * np);
+  if (np > 0) phi_p_eval.run(row.q.data(), nullptr, t, model.params().data(), phi_p.data());
+  phi_p = -phi_p;
+  row.dq_dp.resize(model.nq(), np);
+  typename S::Vector column(model.nq());
+  for (int k = 0; k < np; ++k) {
+    solver.system().use_rhs(phi_p.data() + static_cast<Eigen::Index>(k) * nc);
+    const Result r = solver.velocity(row.q, t, column);
+    solver.system().use_rhs(nullptr);
+    if (!r) fail("sensitivity", t, r);
+    row.dq_dp.col(k) = column.array() + 0.0;  // -0 (from -Phi_p = -0) prints as 0
+  }
+}
+
 // The time loop, on either solver (dense or sparse Phi_q).
 template <class S>
 void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
@@ -260,6 +301,9 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     }
     throw AnalysisError(message);
   };
+  const SensitivityModel* sensitivity = options.sensitivity;
+  std::unique_ptr<ProgramEvaluator<double>> phi_p_eval;
+  if (sensitivity) phi_p_eval = std::make_unique<ProgramEvaluator<double>>(sensitivity->phi_p);
   StateRow previous;
   int previous_sign = 0;
   for (int k = 0; k <= grid.steps; ++k) {
@@ -291,6 +335,7 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
       fail("position", t, r);
     }
     if (auto r = solver.acceleration(row.q, row.qd, t, row.qdd); !r) fail("acceleration", t, r);
+    if (sensitivity) solve_sensitivities(solver, *sensitivity, *phi_p_eval, model, t, row, fail);
     if (k > 0 && options.check_jumps) {
       // q(t1) - q(t0) = h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 + O(h^5) on a smooth
       // motion (Euler-Maclaurin). A solution that breaks this by a large fraction of the
@@ -327,6 +372,7 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
       row.points.push_back(point_state(row.q.segment<3>(b), row.qd.segment<3>(b),
                                        row.qdd.segment<3>(b), model.point_offsets()[p]));
     }
+    if (sensitivity) point_sensitivities(model, *sensitivity, row.q, row.dq_dp, row.dpoints_dp);
     sink(row);
     previous = row;
   }
@@ -344,10 +390,10 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
                   const AnalysisOptions& options) {
   require_driven(model);
   if (model.nq() == model.nc() && model.nq() > options.sparse_above_nq) {
-    LargeSolver solver{ProgramSystem(model)};
+    LargeSolver solver{RhsSystem(model)};
     analyze(solver, model, grid, sink, options);
   } else {
-    Solver solver{ProgramSystem(model)};
+    Solver solver{RhsSystem(model)};
     analyze(solver, model, grid, sink, options);
   }
 }
@@ -362,6 +408,13 @@ std::string csv_header(const Mechanism& m) {
   return h + "\n";
 }
 
+std::string csv_header(const Mechanism& m, const std::vector<std::string>& sensitivity) {
+  std::string h = csv_header(m);
+  h.pop_back();  // the line break
+  for (const auto& c : sensitivity_columns(m, sensitivity)) h += "," + c;
+  return h + "\n";
+}
+
 std::string csv_row(const StateRow& row) {
   std::string s = format_number(row.t);
   for (int b = 0; b < row.q.size() / 3; ++b) {
@@ -372,6 +425,11 @@ std::string csv_row(const StateRow& row) {
   for (const auto& p : row.points)
     for (const Eigen::Vector2d* v : {&p.r, &p.v, &p.a})
       s += "," + format_number((*v)[0]) + "," + format_number((*v)[1]);
+  // Sensitivities: per parameter, the bodies' x, y, phi, then the points' x, y (spec 6.6).
+  for (int k = 0; k < row.dq_dp.cols(); ++k) {
+    for (int i = 0; i < row.dq_dp.rows(); ++i) s += "," + format_number(row.dq_dp(i, k));
+    for (int i = 0; i < row.dpoints_dp.rows(); ++i) s += "," + format_number(row.dpoints_dp(i, k));
+  }
   return s + "\n";
 }
 

@@ -1,12 +1,15 @@
 // kinegen: generate | analyze | eval | check. Exit status: 0 success, 1 the analysis (or a
 // check) failed, 2 invalid input or usage. Every error is one `error:` line on stderr.
 #include <CLI/CLI.hpp>
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <kinegen/solver.hpp>
+#include <limits>
 #include <sstream>
 
 #include "kinegen/codegen/analysis.hpp"
@@ -18,6 +21,8 @@
 #include "kinegen/codegen/output_file.hpp"
 #include "kinegen/codegen/reference.hpp"
 #include "kinegen/codegen/reserved_names.hpp"
+#include "kinegen/codegen/sensitivity.hpp"
+#include "kinegen/codegen/tolerance.hpp"
 
 namespace kc = kinegen::codegen;
 namespace fs = std::filesystem;
@@ -148,7 +153,7 @@ int run_animate(const Common& c, const kc::AnimateOptions& options, const std::s
 }
 
 int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output,
-                int reference_digits, bool strict) {
+                int reference_digits, bool strict, const std::string& sensitivity_list = "") {
   const auto model = load(c);
   kc::require_driven(*model);
   check_grid(t0, t1, steps);
@@ -157,9 +162,15 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
     throw kc::UsageError("--reference-digits must be between " +
                          std::to_string(kc::kMinReferenceDigits) + " and " +
                          std::to_string(kc::kMaxReferenceDigits));
+  kc::SensitivityModel sensitivity;
+  if (!sensitivity_list.empty()) {
+    if (reference_digits != 0)
+      throw kc::UsageError("--sensitivity is not available with --reference-digits");
+    sensitivity = kc::build_sensitivity(*model, kc::split_parameter_list(sensitivity_list));
+  }
   kc::OutputFile file(output.empty() ? "-" : output);
   std::ostream& out = file.stream();
-  out << kc::csv_header(model->mechanism());
+  out << kc::csv_header(model->mechanism(), sensitivity.names);
   int status = 0;
   int rows = 0;
   try {
@@ -173,6 +184,7 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
     } else {
       kc::AnalysisOptions options;
       options.strict = strict;
+      if (!sensitivity_list.empty()) options.sensitivity = &sensitivity;
       options.warn = [](const std::string& w) { std::cerr << "warning: " << one_line(w) << "\n"; };
       kc::run_analysis(*model, {t0, t1, steps}, sink, options);
     }
@@ -183,6 +195,40 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   // Nothing solved: a file is left as it was; standard output gets the header, as before.
   if (rows > 0 || status == 0 || !file.replaces_target()) file.commit();
   return status;
+}
+
+// A progress bar on a terminal (stderr), for long runs.
+std::function<void(int, int)> terminal_progress(const std::string& what) {
+  if (!kc::Log::global().progress() || ::isatty(STDERR_FILENO) != 1) return {};
+  return [what](int done, int total) {
+    constexpr int kWidth = 40;
+    const int filled = static_cast<int>(static_cast<long long>(kWidth) * done / total);
+    std::fprintf(stderr, "\r\033[Kkinegen: %s [%s%s] %d/%d", what.c_str(),
+                 std::string(filled, '#').c_str(), std::string(kWidth - filled, ' ').c_str(), done,
+                 total);
+    if (done == total) std::fputs("\r\033[K", stderr);
+    std::fflush(stderr);
+  };
+}
+
+
+int run_tolerance(const Common& c, kc::ToleranceOptions options,
+                  const std::vector<std::string>& tol, const std::string& output) {
+  options.overrides = parse_overrides(c.params);
+  const auto model = load(c);
+  kc::require_driven(*model);
+  options.tolerances = kc::parse_tolerances(tol);
+  options.progress = terminal_progress("Monte Carlo");
+  const auto result = kc::tolerance_analysis(*model, options);
+  kc::OutputFile summary("-");
+  summary.stream() << kc::tolerance_summary(result, options);
+  summary.commit();
+  if (!output.empty()) {
+    kc::OutputFile out(output);
+    out.stream() << kc::tolerance_csv(result);
+    out.commit();
+  }
+  return 0;
 }
 
 int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
@@ -313,6 +359,12 @@ int main(int argc, char** argv) {
   bool strict = false;
   analyze->add_flag("--strict", strict,
                     "Redundant constraints are an error (exit 2), not a warning");
+  std::string sensitivity_list;
+  analyze
+      ->add_option("--sensitivity", sensitivity_list,
+                   "Add d(C)/d(p) columns for these parameters (comma-separated), after all "
+                   "others")
+      ->type_name("P1,P2,...");
 
   double t = 0;
   std::vector<double> q_arg, qd_arg;
@@ -353,6 +405,27 @@ int main(int argc, char** argv) {
   animate->add_option("--duration", animate_options.duration,
                       "Seconds per pass (default: t1 - t0)");
 
+  kc::ToleranceOptions tol_options;
+  std::vector<std::string> tol_items;
+  std::string tol_csv;
+  auto* tolerance = app.add_subcommand(
+      "tolerance", "Worst-case and RSS deviations of the positions from parameter tolerances");
+  add_common(tolerance, common);
+  tolerance->add_option("--tol", tol_items, "A parameter's tolerance: NAME=DELTA (repeatable)")
+      ->type_name("NAME=DELTA")
+      ->required();
+  tolerance->add_option("--t0", tol_options.grid.t0, "Start time")->required();
+  tolerance->add_option("--t1", tol_options.grid.t1, "End time")->required();
+  tolerance->add_option("--steps", tol_options.grid.steps, "Number of steps N (N + 1 rows)")
+      ->required();
+  tolerance
+      ->add_option("--monte-carlo", tol_options.monte_carlo,
+                   "Also N >= 2 analyses with parameters drawn uniformly in [p - DELTA, "
+                   "p + DELTA]")
+      ->check(CLI::Range(2, std::numeric_limits<int>::max()));
+  tolerance->add_option("--seed", tol_options.seed, "Monte Carlo seed (default 1)");
+  tolerance->add_option("-o,--output", tol_csv, "CSV file of the per-row figures");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -374,8 +447,10 @@ int main(int argc, char** argv) {
       return run_generate(common, out_dir, outputs, fold_params, max_function_ops, roll_min,
                           name_space);
     if (*animate) return run_animate(common, animate_options, svg_file);
-    if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits, strict);
+    if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits, strict,
+                                     sensitivity_list);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
+    if (*tolerance) return run_tolerance(common, tol_options, tol_items, tol_csv);
     if (*check) return run_check(common, check_options, structure);
   } catch (const kc::InputError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";

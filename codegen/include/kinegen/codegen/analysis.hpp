@@ -28,7 +28,12 @@ struct StateRow {
   double t = 0;
   Eigen::VectorXd q, qd, qdd;
   std::vector<PointState> points;
+  // With AnalysisOptions::sensitivity: dq/dp (nq x np) and the points' dC/dp (2 per point,
+  // x then y, x np); empty otherwise.
+  Eigen::MatrixXd dq_dp, dpoints_dp;
 };
+
+struct SensitivityModel;
 
 // Throws InputError when the model has fewer equations than coordinates (nc < nq). More
 // equations are allowed: run_analysis checks them for redundancy at the assembled position.
@@ -53,6 +58,9 @@ struct AnalysisOptions {
   // output is unchanged. Measured: the sparse path is faster from nq ~ 30, 2.5x at nq = 51
   // (docs/sparse_analysis.md). 0 sends every square model to the sparse path.
   int sparse_above_nq = 48;
+  // Adds dq/dp and the points' dC/dp to every row (sensitivity.hpp), solved with the
+  // factorization of Phi_q that the velocities use. Not owned; must outlive the call.
+  const SensitivityModel* sensitivity = nullptr;
 };
 
 // Solves every time of the grid, handing each row to `sink` as soon as it is solved, so a
@@ -71,6 +79,9 @@ PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,
                        const Eigen::Vector3d& qdd, const Eigen::Vector2d& s);
 
 std::string csv_header(const Mechanism& mechanism);
+// With the sensitivity columns of these parameters after all others (spec 6.6).
+std::string csv_header(const Mechanism& mechanism, const std::vector<std::string>& sensitivity);
+// Sensitivity columns follow when the row has them.
 std::string csv_row(const StateRow& row);
 
 }  // namespace kinegen::codegen

@@ -1,0 +1,344 @@
+// The Python module `kinegen`: a mechanism file compiled in-process, with the command line's
+// analyses. Every number comes from the same library calls as `kinegen analyze` / `eval` /
+// `check` / `generate` (analysis.hpp, model.hpp, check.hpp, emit_cpp.hpp), and analyze's
+// columns are parsed back from the same csv_row text, so the results equal the CSV's bit for
+// bit (17 significant digits round-trip a double) and follow its column order by construction.
+// Errors raise kinegen.InputError (exit 2 on the command line), kinegen.UsageError (2) or
+// kinegen.AnalysisError (1), each carrying the text of the command line's `error:` line.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/analysis.hpp"
+#include "kinegen/codegen/check.hpp"
+#include "kinegen/codegen/emit_cpp.hpp"
+#include "kinegen/codegen/log.hpp"
+#include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/sensitivity.hpp"
+
+namespace py = pybind11;
+namespace kc = kinegen::codegen;
+namespace fs = std::filesystem;
+
+namespace {
+
+// As the command line prints them: user text may hold line breaks; an error stays one line.
+std::string one_line(std::string text) {
+  for (char& ch : text)
+    if (ch == '\n' || ch == '\r' || ch == '\t') ch = ' ';
+  return text;
+}
+
+// Exception types, alive as long as the module (handles: never released at interpreter exit).
+py::handle input_error, usage_error, analysis_error;
+
+// Runs `f`, turning the library's errors into the Python exceptions with the command line's
+// message (main.cpp: usage errors found after reading a file are prefixed with it).
+template <class F>
+auto translate(const std::string& file, F&& f) -> decltype(f()) {
+  std::string message;
+  py::handle* type = nullptr;
+  try {
+    return f();
+  } catch (const kc::InputError& e) {
+    message = one_line(e.what());
+    type = &input_error;
+  } catch (const kc::UsageError& e) {
+    message = one_line(file + ": " + e.what());
+    type = &usage_error;
+  } catch (const kc::AnalysisError& e) {
+    message = one_line(e.what());
+    type = &analysis_error;
+  }
+  PyErr_SetString(type->ptr(), message.c_str());
+  throw py::error_already_set();
+}
+
+std::vector<kc::ParamOverride> overrides_of(const py::dict& params) {
+  std::vector<kc::ParamOverride> out;
+  for (const auto& [key, value] : params) {
+    const std::string name = py::str(key);
+    // A number as the command line would read it back (17 digits: the same double), or an
+    // expression as text.
+    if (py::isinstance<py::str>(value))
+      out.push_back({name, value.cast<std::string>()});
+    else
+      out.push_back({name, kc::format_number(value.cast<double>())});
+  }
+  return out;
+}
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> items;
+  std::size_t begin = 0;
+  while (true) {
+    const std::size_t end = line.find(',', begin);
+    items.push_back(line.substr(begin, end == std::string::npos ? end : end - begin));
+    if (end == std::string::npos) return items;
+    begin = end + 1;
+  }
+}
+
+py::array_t<double> to_numpy(const Eigen::VectorXd& v) {
+  py::array_t<double> a(v.size());
+  std::copy(v.data(), v.data() + v.size(), a.mutable_data());
+  return a;
+}
+
+class Mechanism {
+ public:
+  Mechanism(std::string path, py::dict params) : path_(std::move(path)) {
+    overrides_ = overrides_of(params);
+    model_ = translate(path_, [&] { return kc::CompiledModel::from_file(path_, overrides_); });
+  }
+
+  // Column name -> numpy array, in the CSV's column order (a dict keeps insertion order).
+  py::dict analyze(double t0, double t1, int steps, bool forces,
+                   const std::vector<std::string>& sensitivity) {
+    if (forces) {
+      PyErr_SetString(PyExc_NotImplementedError,
+                      "forces=True: kinetostatics (analyze --forces) is not implemented yet");
+      throw py::error_already_set();
+    }
+    std::vector<std::string> columns;
+    std::vector<std::vector<double>> rows;
+    translate(path_, [&] {
+      kc::require_driven(*model_);
+      // The checks main.cpp's run_analyze makes before solving.
+      if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
+      if (!std::isfinite(t0) || !std::isfinite(t1))
+        throw kc::UsageError("--t0 and --t1 must be finite");
+      kc::SensitivityModel sens;
+      kc::AnalysisOptions options;
+      if (!sensitivity.empty()) {
+        sens = kc::build_sensitivity(*model_, sensitivity);
+        options.sensitivity = &sens;
+      }
+      std::vector<std::string> warnings;
+      options.warn = [&](const std::string& w) { warnings.push_back(one_line(w)); };
+      std::string header = kc::csv_header(model_->mechanism(), sens.names);
+      header.pop_back();
+      columns = split(header);
+      {
+        py::gil_scoped_release release;
+        kc::run_analysis(
+            *model_, {t0, t1, steps},
+            [&](const kc::StateRow& row) {
+              std::string line = kc::csv_row(row);
+              line.pop_back();
+              std::vector<double> values;
+              for (const auto& item : split(line))
+                values.push_back(std::strtod(item.c_str(), nullptr));
+              rows.push_back(std::move(values));
+            },
+            options);
+      }
+      const py::object warn = py::module_::import("warnings").attr("warn");
+      for (const auto& w : warnings) warn(w);
+      return 0;
+    });
+    py::dict out;
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      py::array_t<double> a(static_cast<py::ssize_t>(rows.size()));
+      double* d = a.mutable_data();
+      for (std::size_t r = 0; r < rows.size(); ++r) d[r] = rows[r][c];
+      out[py::str(columns[c])] = a;
+    }
+    return out;
+  }
+
+  // Phi, Phi_q, nu and gamma at (q, qd, t), as `kinegen eval` computes them.
+  py::dict eval(std::optional<std::vector<double>> q_arg, std::optional<std::vector<double>> qd_arg,
+                double t) {
+    const int nq = model_->nq(), nc = model_->nc();
+    const auto vector = [&](const std::optional<std::vector<double>>& v, const char* name,
+                            const Eigen::VectorXd& fallback) -> Eigen::VectorXd {
+      if (!v) return fallback;
+      if (static_cast<int>(v->size()) != nq)
+        throw kc::UsageError(std::string(name) + " expects " + std::to_string(nq) +
+                             " values (one per coordinate), got " + std::to_string(v->size()));
+      return Eigen::Map<const Eigen::VectorXd>(v->data(), nq);
+    };
+    return translate(path_, [&] {
+      const Eigen::VectorXd q = vector(q_arg, "q", model_->q0());
+      const Eigen::VectorXd qd = vector(qd_arg, "qd", Eigen::VectorXd::Zero(nq));
+      kc::ModelEvaluator<double> ev(*model_);
+      Eigen::VectorXd phi(nc), nu(nc), gamma(nc);
+      Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(nc, nq);
+      ev.phi(q.data(), t, phi.data());
+      ev.jacobian(q.data(), t, jac);
+      ev.nu(q.data(), t, nu.data());
+      ev.gamma(q.data(), qd.data(), t, gamma.data());
+      py::array_t<double> j({nc, nq});
+      for (int r = 0; r < nc; ++r)
+        for (int c = 0; c < nq; ++c) j.mutable_at(r, c) = jac(r, c);
+      py::dict out;
+      out["phi"] = to_numpy(phi);
+      out["phi_q"] = j;
+      out["nu"] = to_numpy(nu);
+      out["gamma"] = to_numpy(gamma);
+      return out;
+    });
+  }
+
+  // `kinegen check`: one dict per block and method; raises AnalysisError (the command line's
+  // exit 1) when a block is beyond its bound.
+  py::list check(int samples, unsigned seed, double t, double turns, int digits) {
+    return translate(path_, [&] {
+      if (samples < 1) throw kc::UsageError("--samples must be at least 1");
+      kc::CheckOptions options;
+      options.samples = samples;
+      options.seed = seed;
+      options.t = t;
+      options.turns = turns;
+      options.digits = digits;
+      py::list out;
+      bool ok = true;
+      for (const auto& r : kc::check_derivatives(*model_, options)) {
+        py::dict d;
+        d["block"] = r.block;
+        d["method"] = r.method;
+        d["max_abs"] = r.max_abs;
+        d["max_rel"] = r.max_rel;
+        d["bound"] = r.bound;
+        d["ok"] = r.ok();
+        out.append(d);
+        ok = ok && r.ok();
+      }
+      if (!ok)
+        throw kc::AnalysisError(path_ +
+                                ": check: the symbolic derivatives differ from the numeric ones "
+                                "beyond their bounds");
+      return out;
+    });
+  }
+
+  // `kinegen generate`: writes DIR/<name>.hpp (through a temporary file) and returns its path.
+  std::string generate(const std::string& dir, bool fold_params) {
+    return translate(path_, [&] {
+      std::unique_ptr<kc::CompiledModel> folded;
+      if (fold_params) {
+        kc::BuildOptions build;
+        build.fold_params = true;
+        folded = kc::CompiledModel::from_file(path_, overrides_, build);
+      }
+      const kc::CompiledModel& m = folded ? *folded : *model_;
+      kc::EmitOptions options;
+      options.folded_params = fold_params;
+      const std::string text =
+          kc::emit_header(m.mechanism(), m.symbols(), m.symbolic(), m.programs(), options);
+      std::error_code ec;
+      fs::create_directories(dir, ec);
+      const fs::path target = fs::path(dir) / (m.mechanism().name + ".hpp");
+      fs::path temp = target;
+      temp += ".tmp-kinegen-" + std::to_string(::getpid());
+      {
+        std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+        out << text;
+        if (!out) {
+          fs::remove(temp, ec);
+          throw kc::UsageError("cannot write '" + target.string() + "'");
+        }
+      }
+      fs::rename(temp, target, ec);
+      if (ec) {
+        fs::remove(temp, ec);
+        throw kc::UsageError("cannot write '" + target.string() + "'");
+      }
+      return target.string();
+    });
+  }
+
+  std::vector<std::string> coordinates() const {
+    std::vector<std::string> names;
+    for (const auto& b : model_->mechanism().bodies)
+      for (const char* c : {".x", ".y", ".phi"}) names.push_back(b.name + c);
+    return names;
+  }
+
+  py::dict parameters() const {
+    py::dict out;
+    const auto& p = model_->mechanism().parameters;
+    for (std::size_t k = 0; k < p.size(); ++k) out[py::str(p[k].name)] = model_->params()[k];
+    return out;
+  }
+
+  std::string name() const { return model_->mechanism().name; }
+  const std::string& path() const { return path_; }
+  int nq() const { return model_->nq(); }
+  int nc() const { return model_->nc(); }
+
+ private:
+  std::string path_;
+  std::vector<kc::ParamOverride> overrides_;
+  std::unique_ptr<kc::CompiledModel> model_;
+};
+
+}  // namespace
+
+PYBIND11_MODULE(kinegen, m) {
+  m.doc() = "kinegen: planar mechanism kinematics (the kinegen command line, in-process)";
+  m.attr("__version__") = kc::kVersion;
+  // The stage progress lines of the command line are noise in a notebook.
+  kc::Log::global().set_verbosity(kc::Verbosity::kQuiet);
+
+  const py::handle error = PyErr_NewExceptionWithDoc(
+      "kinegen.Error", "Base of kinegen's errors; str() is the command line's error: line",
+      PyExc_Exception, nullptr);
+  const auto derived = [&](const char* name, const char* doc, PyObject* builtin) {
+    const py::tuple bases = py::make_tuple(error, py::handle(builtin));
+    return py::handle(PyErr_NewExceptionWithDoc(name, doc, bases.ptr(), nullptr));
+  };
+  input_error = derived("kinegen.InputError",
+                        "Invalid mechanism file or parameters (exit 2 on the command line)",
+                        PyExc_ValueError);
+  usage_error = derived("kinegen.UsageError", "Invalid arguments (exit 2 on the command line)",
+                        PyExc_ValueError);
+  analysis_error =
+      derived("kinegen.AnalysisError",
+              "The analysis failed: no assembly, singular Jacobian, no convergence (exit 1)",
+              PyExc_RuntimeError);
+  m.attr("Error") = error;
+  m.attr("InputError") = input_error;
+  m.attr("UsageError") = usage_error;
+  m.attr("AnalysisError") = analysis_error;
+
+  py::class_<Mechanism>(m, "Mechanism")
+      .def(py::init<std::string, py::dict>(), py::arg("path"), py::arg("params") = py::dict(),
+           "Reads and compiles a mechanism file; params overrides parameters like --param "
+           "(numbers or expression strings).")
+      .def("analyze", &Mechanism::analyze, py::arg("t0"), py::arg("t1"), py::arg("steps"),
+           py::arg("forces") = false, py::arg("sensitivity") = std::vector<std::string>{},
+           "Position, velocity and acceleration at t_k = t0 + k (t1 - t0) / steps: a dict from "
+           "the CSV's column names to numpy arrays, in the CSV's order; sensitivity=[p, ...] "
+           "adds the d(C)/d(p) columns.")
+      .def("eval", &Mechanism::eval, py::arg("q") = py::none(), py::arg("qd") = py::none(),
+           py::arg("t") = 0.0,
+           "Phi, Phi_q, nu and gamma at (q, qd, t) (q defaults to q0, qd to zeros).")
+      .def("check", &Mechanism::check, py::arg("samples") = 5, py::arg("seed") = 1u,
+           py::arg("t") = 0.0, py::arg("turns") = 0.0, py::arg("digits") = 40,
+           "Symbolic derivatives against numeric ones, one dict per block and method.")
+      .def("generate", &Mechanism::generate, py::arg("dir") = ".", py::arg("fold_params") = false,
+           "Writes DIR/<name>.hpp and returns its path.")
+      .def_property_readonly("coordinates", &Mechanism::coordinates,
+                             "Names of the coordinates q, in order (body.x, body.y, body.phi).")
+      .def_property_readonly("parameters", &Mechanism::parameters,
+                             "Parameter values after the overrides, in file order.")
+      .def_property_readonly("name", &Mechanism::name)
+      .def_property_readonly("path", &Mechanism::path)
+      .def_property_readonly("nq", &Mechanism::nq)
+      .def_property_readonly("nc", &Mechanism::nc)
+      .def("__repr__", [](const Mechanism& mech) {
+        return "<kinegen.Mechanism '" + mech.name() + "' from '" + mech.path() + "'>";
+      });
+}
