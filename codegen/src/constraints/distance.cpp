@@ -34,6 +34,9 @@ extern const ConstraintKind kDistance{
     .rows = 1,
     .equations = equations,
     .draw = draw,
+    .reaction_i = "si",
+    .reaction_j = "sj",
+    .squared_distance = true,
 };
 
 }  // namespace kinegen::codegen

@@ -143,6 +143,15 @@ struct ConstraintKind {
   // How a message names row `component` (0-based) when the type has more than one row
   // ("x-component" in "joints[1] (revolute) x-component").
   std::string (*row_name)(const Constraint& c, int component) = nullptr;
+  // Kinetostatics (forces.hpp): the keys of the points where the reaction acts on body i and
+  // on body j (nullptr: the body's origin).
+  const char* reaction_i = nullptr;
+  const char* reaction_j = nullptr;
+  // false: the rows are not a joint between two bodies (expression): no reaction columns, and
+  // a driver has one effort per row.
+  bool reaction = true;
+  // Phi is |d|^2 - f^2: a driver's effort is -2 lambda |d| rather than -lambda.
+  bool squared_distance = false;
   std::vector<CoordinateSpec> coordinates = {};  // planned; see CoordinateSpec
 
   const KeySpec* key(const std::string& key_name) const {
@@ -159,5 +168,7 @@ const ConstraintKind* find_constraint_kind(const std::string& name);
 
 // The local vectors of `c` that are lengths (kOffset keys), for the mechanism's length scale.
 std::vector<const Vec2*> offsets(const Constraint& c);
+// The point of a reaction: the vector key `key` of `c`, or [0, 0] for nullptr.
+Vec2 reaction_point(const Constraint& c, const char* key);
 
 }  // namespace kinegen::codegen
