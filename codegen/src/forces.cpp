@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "kinegen/codegen/analysis.hpp"
+#include "kinegen/codegen/constraints.hpp"
 
 namespace kinegen::codegen {
 
@@ -152,16 +153,8 @@ ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec) {
   f.applied_program = lower(f.applied, s);
   f.row_begin.push_back(0);
   for (const Constraint* c : m.constraints()) {
-    // The points a constraint's reaction and effort refer to: si (or s), sj; [0, 0] where the
-    // kind has none.
-    const auto local = [&](std::initializer_list<const char*> keys) -> std::array<ex, 2> {
-      for (const char* key : keys)
-        if (const auto it = c->vectors.find(key); it != c->vectors.end())
-          return b.exact(it->second, c->item + " " + key);
-      return {ex(0), ex(0)};
-    };
-    f.exact.si.push_back(local({"si", "s"}));
-    f.exact.sj.push_back(local({"sj"}));
+    f.exact.si.push_back(b.exact(reaction_point(*c, c->kind->reaction_i), c->item + " si"));
+    f.exact.sj.push_back(b.exact(reaction_point(*c, c->kind->reaction_j), c->item + " sj"));
     f.row_begin.push_back(f.row_begin.back() + c->equation_count());
   }
   const auto to_d = [](const std::vector<ex>& v) {
@@ -190,7 +183,7 @@ std::vector<std::string> force_columns(const Mechanism& m) {
   for (std::size_t d = 0; d < m.drivers.size(); ++d) {
     const Constraint& c = m.drivers[d];
     const std::string base = label(c, "driver", static_cast<int>(d));
-    if (numbered_efforts(c)) {
+    if (!c.kind->reaction) {
       for (int e = 0; e < c.equation_count(); ++e)
         names.push_back(base + ".effort" + std::to_string(e));
     } else {
@@ -199,12 +192,15 @@ std::vector<std::string> force_columns(const Mechanism& m) {
   }
   for (std::size_t j = 0; j < m.joints.size(); ++j) {
     const Constraint& c = m.joints[j];
-    if (is_expression(c)) continue;
+    if (!c.kind->reaction) continue;
     const std::string base = label(c, "joint", static_cast<int>(j));
     for (const char* part : {".fx", ".fy", ".tz"}) names.push_back(base + part);
   }
   return names;
 }
+
+bool is_distance(const Constraint& c) { return c.kind->squared_distance; }
+bool is_expression(const Constraint& c) { return !c.kind->reaction; }
 
 ForceSolver::ForceSolver(const CompiledModel& model, const ForceModel& forces)
     : model_(&model),

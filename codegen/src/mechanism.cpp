@@ -78,7 +78,8 @@ class Loader {
     Mechanism m;
     m.source = source_;
     m.name = name_of(root["name"], "name");
-    m.name_loc = loc_of(root["name"]);
+    if (m.name == "Params" || m.name == "Solver" || m.name == "models")
+      fail("name", loc_of(root["name"]), "'" + m.name + "' is reserved for the generated API");
     if (root["parameters"]) read_parameters(root["parameters"], m);
     if (!root["bodies"]) fail("file", loc_of(root), "missing key 'bodies' (the moving bodies)");
     read_bodies(root["bodies"], m);
@@ -255,6 +256,68 @@ class Loader {
     }
   }
 
+  // A driver's kValue key is `f`, its f(t), and always required.
+  static std::string key_name(const KeySpec& k, bool driver) {
+    return driver && k.kind == KeyKind::kValue ? "f" : k.name;
+  }
+
+  // The keys of `kind` from `c` into `con`: bodies first (then i != j), the rest in the
+  // kind's order; omitted optional keys take their defaults.
+  void read_keys(const YAML::Node& c, const ConstraintKind& kind, const std::string& item,
+                 const Mechanism& m, Constraint& con) {
+    const bool driver = con.is_driver;
+    std::vector<std::string> required, optional;
+    for (const KeySpec& k : kind.keys)
+      (k.required || (driver && k.kind == KeyKind::kValue) ? required : optional)
+          .push_back(key_name(k, driver));
+    check_keys(c, item, required, optional);
+
+    const auto is_body = [](const KeySpec& k) {
+      return k.kind == KeyKind::kBody || k.kind == KeyKind::kBodyOrGround;
+    };
+    for (const KeySpec& k : kind.keys) {
+      if (!is_body(k) || !c[k.name]) continue;
+      (std::string(k.name) == "j" ? con.j : con.i) =
+          body_ref(c[k.name], m, item, k.kind == KeyKind::kBodyOrGround);
+    }
+    if (c["i"] && c["j"] && con.i == con.j)
+      fail(item, loc_of(c["j"]), "i and j must be different bodies");
+    for (const KeySpec& k : kind.keys) {
+      if (is_body(k)) continue;
+      const std::string key = key_name(k, driver);
+      const YAML::Node node = c[key];
+      const Expr fallback{k.default_value, con.loc};
+      switch (k.kind) {
+        case KeyKind::kOffset:
+        case KeyKind::kDirection:
+          con.vectors[key] = node ? vec2_of(node, item + " " + key) : Vec2{fallback, fallback};
+          break;
+        case KeyKind::kValue:
+          con.value = node ? expr_of(node, item + " " + key) : fallback;
+          break;
+        case KeyKind::kScalar:
+          con.scalars[key] = node ? expr_of(node, item + " " + key) : fallback;
+          break;
+        case KeyKind::kEquations:
+          if (node.IsScalar()) {
+            con.equations.push_back(expr_of(node, item));
+          } else if (node.IsSequence() && node.size() > 0) {
+            for (std::size_t e = 0; e < node.size(); ++e)
+              con.equations.push_back(
+                  expr_of(node[e], item + " " + key + "[" + std::to_string(e) + "]"));
+          } else {
+            fail(item, loc_of(node), key + " must be a non-empty list of expression strings");
+          }
+          break;
+        case KeyKind::kCurve:
+          throw std::logic_error(item + ": curve keys are not supported yet");
+        case KeyKind::kBody:
+        case KeyKind::kBodyOrGround:
+          break;
+      }
+    }
+  }
+
   // Applied loads (format 6.5). Defaults beyond the spec's: s, si, sj [0, 0]; damping 0;
   // rotational angle0 0.
   void read_forces(const YAML::Node& node, Mechanism& m) {
@@ -315,68 +378,6 @@ class Loader {
       if (f["preload"]) load.preload = expr_of(f["preload"], item + " preload");
       if (f["angle0"]) load.angle0 = expr_of(f["angle0"], item + " angle0");
       m.forces.loads.push_back(std::move(load));
-    }
-  }
-
-  // A driver's kValue key is `f`, its f(t), and always required.
-  static std::string key_name(const KeySpec& k, bool driver) {
-    return driver && k.kind == KeyKind::kValue ? "f" : k.name;
-  }
-
-  // The keys of `kind` from `c` into `con`: bodies first (then i != j), the rest in the
-  // kind's order; omitted optional keys take their defaults.
-  void read_keys(const YAML::Node& c, const ConstraintKind& kind, const std::string& item,
-                 const Mechanism& m, Constraint& con) {
-    const bool driver = con.is_driver;
-    std::vector<std::string> required, optional;
-    for (const KeySpec& k : kind.keys)
-      (k.required || (driver && k.kind == KeyKind::kValue) ? required : optional)
-          .push_back(key_name(k, driver));
-    check_keys(c, item, required, optional);
-
-    const auto is_body = [](const KeySpec& k) {
-      return k.kind == KeyKind::kBody || k.kind == KeyKind::kBodyOrGround;
-    };
-    for (const KeySpec& k : kind.keys) {
-      if (!is_body(k) || !c[k.name]) continue;
-      (std::string(k.name) == "j" ? con.j : con.i) =
-          body_ref(c[k.name], m, item, k.kind == KeyKind::kBodyOrGround);
-    }
-    if (c["i"] && c["j"] && con.i == con.j)
-      fail(item, loc_of(c["j"]), "i and j must be different bodies");
-    for (const KeySpec& k : kind.keys) {
-      if (is_body(k)) continue;
-      const std::string key = key_name(k, driver);
-      const YAML::Node node = c[key];
-      const Expr fallback{k.default_value, con.loc};
-      switch (k.kind) {
-        case KeyKind::kOffset:
-        case KeyKind::kDirection:
-          con.vectors[key] = node ? vec2_of(node, item + " " + key) : Vec2{fallback, fallback};
-          break;
-        case KeyKind::kValue:
-          con.value = node ? expr_of(node, item + " " + key) : fallback;
-          break;
-        case KeyKind::kScalar:
-          con.scalars[key] = node ? expr_of(node, item + " " + key) : fallback;
-          break;
-        case KeyKind::kEquations:
-          if (node.IsScalar()) {
-            con.equations.push_back(expr_of(node, item));
-          } else if (node.IsSequence() && node.size() > 0) {
-            for (std::size_t e = 0; e < node.size(); ++e)
-              con.equations.push_back(
-                  expr_of(node[e], item + " " + key + "[" + std::to_string(e) + "]"));
-          } else {
-            fail(item, loc_of(node), key + " must be a non-empty list of expression strings");
-          }
-          break;
-        case KeyKind::kCurve:
-          throw std::logic_error(item + ": curve keys are not supported yet");
-        case KeyKind::kBody:
-        case KeyKind::kBodyOrGround:
-          break;
-      }
     }
   }
 

@@ -33,6 +33,7 @@ extern const ConstraintKind kAbsoluteX{
     .rows = 1,
     .equations = equations,
     .draw = draw,
+    .reaction_i = "s",
 };
 
 }  // namespace kinegen::codegen

@@ -34,7 +34,9 @@ extern const ConstraintKind kDistance{
     .rows = 1,
     .equations = equations,
     .draw = draw,
-    .effort = EffortRule::kAlongLength,
+    .reaction_i = "si",
+    .reaction_j = "sj",
+    .squared_distance = true,
 };
 
 }  // namespace kinegen::codegen

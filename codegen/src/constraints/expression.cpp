@@ -22,7 +22,7 @@ extern const ConstraintKind kExpression{
     .rows = 0,  // one per equation
     .equations = equations,
     .row_name = row_name,
-    .reaction_columns = false,
+    .reaction = false,
 };
 
 }  // namespace kinegen::codegen

@@ -29,4 +29,10 @@ std::vector<const Vec2*> offsets(const Constraint& c) {
   return out;
 }
 
+Vec2 reaction_point(const Constraint& c, const char* key) {
+  if (key) return c.vector(key);
+  const Expr zero{"0", c.loc};
+  return {zero, zero};
+}
+
 }  // namespace kinegen::codegen

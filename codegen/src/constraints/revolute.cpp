@@ -38,6 +38,8 @@ extern const ConstraintKind kRevolute{
     .equations = equations,
     .draw = draw,
     .row_name = row_name,
+    .reaction_i = "si",
+    .reaction_j = "sj",
 };
 
 }  // namespace kinegen::codegen

@@ -33,6 +33,8 @@ extern const ConstraintKind kRevoluteTranslational{
     .rows = 1,
     .equations = equations,
     .draw = draw,
+    .reaction_i = "si",
+    .reaction_j = "sj",
 };
 
 }  // namespace kinegen::codegen

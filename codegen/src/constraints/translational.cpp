@@ -42,6 +42,8 @@ extern const ConstraintKind kTranslational{
     .equations = equations,
     .draw = draw,
     .row_name = row_name,
+    .reaction_i = "si",
+    .reaction_j = "sj",
 };
 
 }  // namespace kinegen::codegen

@@ -129,13 +129,6 @@ struct CoordinateSpec {
   bool is_angle;  // an angle (radians) rather than a length or a plain number
 };
 
-// How `analyze --forces` reports a driver's effort (format 6.5): the force or torque along the
-// driven quantity, whose power is effort times the quantity's rate.
-enum class EffortRule {
-  kMinusLambda,  // Phi = quantity - f(t): effort = -lambda (one column per row)
-  kAlongLength,  // Phi = |d|^2 - f(t)^2: the force along d, effort = -2 lambda |d|
-};
-
 struct ConstraintKind {
   const char* name;    // the `type` in the file
   bool joint, driver;  // whether it may appear under `joints`, under `drivers`
@@ -150,11 +143,16 @@ struct ConstraintKind {
   // How a message names row `component` (0-based) when the type has more than one row
   // ("x-component" in "joints[1] (revolute) x-component").
   std::string (*row_name)(const Constraint& c, int component) = nullptr;
+  // Kinetostatics (forces.hpp): the keys of the points where the reaction acts on body i and
+  // on body j (nullptr: the body's origin).
+  const char* reaction_i = nullptr;
+  const char* reaction_j = nullptr;
+  // false: the rows are not a joint between two bodies (expression): no reaction columns, and
+  // a driver has one effort per row.
+  bool reaction = true;
+  // Phi is |d|^2 - f^2: a driver's effort is -2 lambda |d| rather than -lambda.
+  bool squared_distance = false;
   std::vector<CoordinateSpec> coordinates = {};  // planned; see CoordinateSpec
-  // Forces (format 6.5): the driver's effort rule, and whether a joint reports its reaction
-  // (J.fx, J.fy, J.tz on body j at sj, or on body i at si or s when j is ground).
-  EffortRule effort = EffortRule::kMinusLambda;
-  bool reaction_columns = true;
 
   const KeySpec* key(const std::string& key_name) const {
     for (const auto& k : keys)
@@ -170,5 +168,7 @@ const ConstraintKind* find_constraint_kind(const std::string& name);
 
 // The local vectors of `c` that are lengths (kOffset keys), for the mechanism's length scale.
 std::vector<const Vec2*> offsets(const Constraint& c);
+// The point of a reaction: the vector key `key` of `c`, or [0, 0] for nullptr.
+Vec2 reaction_point(const Constraint& c, const char* key);
 
 }  // namespace kinegen::codegen

@@ -25,10 +25,8 @@
 namespace kinegen::codegen {
 
 // Which rule a constraint follows for its effort and reaction columns (its kind says).
-inline bool is_distance(const Constraint& c) { return c.kind->effort == EffortRule::kAlongLength; }
-inline bool is_expression(const Constraint& c) { return !c.kind->reaction_columns; }
-// A driver with a variable number of rows (expression) numbers its efforts: D.effort<k>.
-inline bool numbered_efforts(const Constraint& c) { return c.kind->rows != 1; }
+bool is_distance(const Constraint& c);
+bool is_expression(const Constraint& c);
 
 // The numbers of the mass data and of the joints' points, in a scalar type T: double for the
 // analysis, GiNaC::numeric for the 40-digit reference.

@@ -49,7 +49,8 @@ class CompiledModel {
   // Local offsets of the named points, evaluated.
   const std::vector<Eigen::Vector2d>& point_offsets() const { return point_s_; }
 
-  // A label for the constraint behind row r ("joints[1] (revolute)", with its component).
+  // A label for the constraint behind row r, with the row's name when it has several
+  // ("joints[1] (revolute) x-component (line 12)"; the names are the kind's row_name).
   std::string row_label(int row) const;
 
  private:
