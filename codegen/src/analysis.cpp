@@ -1,5 +1,6 @@
 #include "kinegen/codegen/analysis.hpp"
 
+#include <kinegen/motion.hpp>
 #include <kinegen/solver.hpp>
 #include <kinegen/sparse_solver.hpp>
 
@@ -30,13 +31,11 @@ constexpr int kMaxDiagnosedNq = 400;
 
 std::string time_text(double t) { return "t = " + format_number(t); }
 
-// Phi_q with rows equilibrated and length columns multiplied by the length scale, as the
+// Phi_q with rows equilibrated and columns multiplied by their coordinate's scale, as the
 // solver sees it: its singular values compare like with like (metres and radians).
 Eigen::MatrixXd scaled_jacobian(const CompiledModel& model, const Eigen::MatrixXd& jac) {
   Eigen::MatrixXd s = jac;
-  const double length = model.symbolic().length_scale;
-  for (int k = 0; k < s.cols(); ++k)
-    if (k % 3 != 2) s.col(k) *= length;
+  for (int k = 0; k < s.cols(); ++k) s.col(k) *= model.symbolic().coordinate_scales[k];
   for (int r = 0; r < s.rows(); ++r) {
     const double n = s.row(r).cwiseAbs().maxCoeff();
     if (n > 0) s.row(r) /= n;
@@ -110,13 +109,6 @@ std::vector<int> dependent_rows(const Eigen::MatrixXd& scaled, double tol) {
   return dependent;
 }
 
-// Scaled infinity norm of a q-sized vector: lengths over the length scale, angles in radians.
-double scaled_norm(const Eigen::VectorXd& v, double length) {
-  double n = 0;
-  for (int k = 0; k < v.size(); ++k) n = std::max(n, std::abs(k % 3 == 2 ? v[k] : v[k] / length));
-  return n;
-}
-
 }  // namespace
 
 std::string format_number(double value) {
@@ -180,9 +172,12 @@ void check_redundancy(const CompiledModel& model, const Eigen::VectorXd& q, doub
 // Where an angle enters only through sin and cos, whole turns are not seen by Phi: bring each
 // such angle back into the turn of its estimate q0, so the first row reads as the file meant.
 template <class S>
-void keep_turns_of_estimates(S& solver, const Eigen::VectorXd& q0, Eigen::VectorXd& q, double t) {
+void keep_turns_of_estimates(S& solver, const CompiledModel& model, Eigen::VectorXd& q, double t) {
   const double two_pi = 2 * std::acos(-1.0);
-  for (int k = 2; k < q.size(); k += 3) {
+  const Eigen::VectorXd q0 = model.q0();
+  const auto& kinds = model.symbolic().coordinate_kinds;
+  for (int k = 0; k < q.size(); ++k) {
+    if (kinds[k] != CoordinateKind::kAngle) continue;
     const double turns = std::round((q[k] - q0[k]) / two_pi);
     if (turns == 0) continue;
     Eigen::VectorXd trial = q;
@@ -210,7 +205,8 @@ template <class S>
 void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
              const std::function<void(const StateRow&)>& sink, const AnalysisOptions& options) {
   const std::string& file = model.mechanism().source;
-  const double length = model.symbolic().length_scale;
+  const auto& scales = model.symbolic().coordinate_scales;
+  const auto scale = [&](int k) { return scales[k]; };
   StateRow row;
   row.q = model.q0();
   row.qd = Eigen::VectorXd::Zero(model.nq());
@@ -234,13 +230,17 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     throw AnalysisError(message);
   };
   StateRow previous;
+  Eigen::VectorXd qdd_before;  // the acceleration one step before `previous` (the jerk)
+  double h_before = 0;
   int previous_sign = 0;
   for (int k = 0; k <= grid.steps; ++k) {
     const double t = grid.at(k);
     if (k > 0) {
-      // Taylor predictor from the last solved state keeps Newton on its branch.
+      // The runtime's predictor from the last solved state keeps Newton on its branch.
       const double h = t - row.t;
-      row.q += h * row.qd + 0.5 * h * h * row.qdd;
+      const TaylorPredictor<double> predict(h, h_before, k > 1);
+      for (int c = 0; c < row.q.size(); ++c)
+        row.q[c] = predict(row.q[c], row.qd[c], row.qdd[c], k > 1 ? qdd_before[c] : 0.0);
     }
     row.t = t;
     if (auto r = solver.position(row.q, t); !r) {
@@ -251,7 +251,7 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
       if (auto r2 = solver.position(row.q, t); !r2) fail("position", t, r2);
     }
     if (k == 0) {
-      keep_turns_of_estimates(solver, model.q0(), row.q, t);
+      keep_turns_of_estimates(solver, model, row.q, t);
       check_redundancy(model, row.q, t, options);
     }
     if (auto r = solver.velocity(row.q, t, row.qd); !r) {
@@ -264,24 +264,17 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     }
     if (auto r = solver.acceleration(row.q, row.qd, t, row.qdd); !r) fail("acceleration", t, r);
     if (k > 0 && options.check_jumps) {
-      // q(t1) - q(t0) = h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 + O(h^5) on a smooth
-      // motion (Euler-Maclaurin). A solution that breaks this by a large fraction of the
-      // motion was not reached along the motion: Newton jumped to another branch.
-      const double h = t - previous.t;
-      const Eigen::VectorXd dq = row.q - previous.q;
-      const Eigen::VectorXd mismatch =
-          dq - 0.5 * h * (previous.qd + row.qd) - h * h / 12 * (previous.qdd - row.qdd);
-      const double motion = std::max({scaled_norm(dq, length), scaled_norm(h * previous.qd, length),
-                                      scaled_norm(h * row.qd, length)});
-      const double miss = scaled_norm(mismatch, length);
-      const double eps = std::numeric_limits<double>::epsilon();
-      const double floor = 1e-6 + 64 * eps * scaled_norm(row.q.cwiseAbs(), length);
-      if (miss > options.jump_fraction * motion + floor)
+      // The runtime's test (kinegen/motion.hpp), the one Solver::step applies.
+      const MotionCheck motion = check_motion(
+          static_cast<int>(row.q.size()), t - previous.t, previous.q, previous.qd, previous.qdd,
+          row.q, row.qd, row.qdd, scale, options.jump_fraction,
+          std::numeric_limits<double>::epsilon());
+      if (motion.jumped())
         throw AnalysisError(
             file + ": position analysis failed at " + time_text(t) +
-            ": the solution jumped (scaled change " + format_number(scaled_norm(dq, length)) +
-            " since " + time_text(previous.t) + " disagrees with the velocities by " +
-            format_number(miss) +
+            ": the solution jumped (scaled change " + format_number(motion.change) + " since " +
+            time_text(previous.t) + " disagrees with the velocities by " +
+            format_number(motion.miss) +
             "): Newton left the assembly branch it started on, or the step is too coarse to tell; "
             "use smaller steps (--steps)");
       const int sign = solver.jacobian_sign();
@@ -300,6 +293,10 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
                                        row.qdd.segment<3>(b), model.point_offsets()[p]));
     }
     sink(row);
+    if (k > 0) {
+      qdd_before = previous.qdd;
+      h_before = t - previous.t;
+    }
     previous = row;
   }
 }

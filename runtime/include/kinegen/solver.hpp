@@ -12,6 +12,8 @@
 #include <limits>
 #include <type_traits>
 
+#include "kinegen/motion.hpp"
+
 namespace kinegen {
 
 // Why a solve stopped.
@@ -122,10 +124,10 @@ struct Workspace {
   bool rectangular() const { return jac.rows() != jac.cols(); }
 
   Jacobian jac;     // Phi_q
-  Jacobian scaled;  // R Phi_q D: rows equilibrated, length columns times the length scale
+  Jacobian scaled;  // R Phi_q D: rows equilibrated, columns times their coordinate's scale
   VectorC rhs, rhs_new;
   VectorC row_scale;  // R (1 / row norm of Phi_q D)
-  VectorQ col_scale;  // D (length scale for x, y; 1 for phi)
+  VectorQ col_scale;  // D (each coordinate's scale: coordinate_scale)
   VectorQ dq;
   VectorQ q_factored;  // where the factorization was computed
   VectorQ q_trial;
@@ -184,9 +186,8 @@ bool factor(const System& sys, WS& ws, const VQ& q, typename System::Scalar t,
     result.status = Status::kNonFinite;
     return false;
   }
-  const Scalar length = Scalar(sys.length_scale());
   for (int k = 0; k < ws.col_scale.size(); ++k)
-    ws.col_scale[k] = k % 3 == 2 ? Scalar(1) : length;
+    ws.col_scale[k] = Scalar(coordinate_scale(sys, k));
   ws.scaled = ws.jac * ws.col_scale.asDiagonal();
   for (int r = 0; r < ws.scaled.rows(); ++r) {
     const Scalar n = ws.scaled.row(r).cwiseAbs().maxCoeff();
@@ -297,7 +298,6 @@ Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
   Result result;
   const double eps =
       static_cast<double>(std::numeric_limits<typename Eigen::NumTraits<Scalar>::Real>::epsilon());
-  const Scalar inv_length = Scalar(1) / Scalar(sys.length_scale());
   sys.phi(q.data(), t, ws.rhs.data());
   for (int it = 1; it <= options.max_iterations; ++it) {
     if (!all_finite(ws.rhs) || !all_finite(q)) {
@@ -325,8 +325,8 @@ Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
     double step = 0;
     bool small = true;
     for (int k = 0; k < q.size(); ++k) {
-      const Scalar d = alpha * (k % 3 == 2 ? ws.dq[k] : ws.dq[k] * inv_length);
-      const double scale_k = k % 3 == 2 ? 1.0 : static_cast<double>(abs(Scalar(1) / inv_length));
+      const Scalar d = alpha * ws.dq[k] / ws.col_scale[k];
+      const double scale_k = static_cast<double>(abs(ws.col_scale[k]));
       step = std::max(step, static_cast<double>(abs(d)));
       small = small && static_cast<double>(abs(alpha * ws.dq[k])) <=
                            options.tolerance * scale_k + 4 * eps * static_cast<double>(abs(q[k]));
@@ -397,6 +397,7 @@ class GeneratedSystem {
   int nq() const { return kNq; }
   int nc() const { return kNc; }
   double length_scale() const { return Model::length_scale; }
+  double coordinate_scale(int k) const { return detail::model_coordinate_scale<Model>(k); }
 
   void phi(const Scalar* q, Scalar t, Scalar* out) const { Model::phi(q, t, params_, out); }
   void nu(const Scalar* q, Scalar t, Scalar* out) const { Model::nu(q, t, params_, out); }
