@@ -579,8 +579,9 @@ void emit_block_helpers(std::ostringstream& os) {
     double step = 0;           // largest last scaled Newton step
   };
   struct BlockOptions {
-    // Newton on a block stops when its step, each coordinate divided by its coordinate_scales
-    // entry (angles in radians), is at most this; or after exactly fixed_iterations when that is positive.
+    // Newton on a block stops when its step, each coordinate over its coordinate_scales
+    // entry (angles in radians), is at most this; or after exactly fixed_iterations when
+    // that is positive.
     double tolerance = 1e-10;
     int max_iterations = 30;  // per block
     int fixed_iterations = 0;

@@ -85,6 +85,10 @@ struct SolverOptions {
   // Block solver (block_solver.hpp) only: when positive, exactly this many Newton iterations
   // per block and no convergence test, for a fixed cost per step (real-time use).
   int fixed_iterations = 0;
+  // Solver::step: a solved position that misses every velocity-based estimate of the step by
+  // more than this fraction of the motion over it is a jump to another branch
+  // (Status::kBranchJump; check_motion in motion.hpp, as `kinegen analyze` applies it).
+  double jump_fraction = 0.25;
 };
 
 namespace detail {
