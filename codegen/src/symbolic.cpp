@@ -455,7 +455,8 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
   // (the local vectors on it, a distance joint's length), so a 1e-6 follower next to a 1e6 arm
   // keeps its own accuracy. q0, reported points and ground anchors never enter: they do not
   // set how precisely a link must close. A body without such geometry (a slider pinned at its
-  // origin) takes the largest body scale; a mechanism without any, 1.
+  // origin) takes the largest of the bodies joined to it, else the largest body scale; a
+  // mechanism without any, 1.
   const int num_bodies = static_cast<int>(m.bodies.size());
   std::vector<double> body_scale(num_bodies, 0.0);
   const auto grow = [&](int body, const ex& e) {
@@ -479,8 +480,17 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
   double largest = 0;
   for (double v : body_scale) largest = std::max(largest, v);
   model.length_scale = largest > 0 ? largest : 1.0;
+  // A body without geometry of its own moves with the bodies it is joined to.
+  std::vector<double> joined(num_bodies, 0.0);
+  for (const auto* c : m.constraints())
+    if (c->type != ConstraintType::kExpression && c->i != kGround && c->j != kGround) {
+      joined[c->i] = std::max(joined[c->i], body_scale[c->j]);
+      joined[c->j] = std::max(joined[c->j], body_scale[c->i]);
+    }
   for (int b = 0; b < num_bodies; ++b) {
-    const double length = body_scale[b] > 0 ? body_scale[b] : model.length_scale;
+    const double length = body_scale[b] > 0 ? body_scale[b]
+                          : joined[b] > 0   ? joined[b]
+                                            : model.length_scale;
     for (auto kind : {CoordinateKind::kLength, CoordinateKind::kLength, CoordinateKind::kAngle}) {
       model.coordinate_kinds.push_back(kind);
       model.coordinate_scales.push_back(scale_of(kind, length));
