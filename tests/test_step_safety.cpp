@@ -236,7 +236,8 @@ TEMPLATE_TEST_CASE("A far reported point and a 1e6 arm next to a 1e-6 follower k
     for (int k = 0; k <= 36; ++k) {
       INFO("t = " << k * h);
       REQUIRE(solver.step(TestType(k * h), q, qd, qdd));
-      const auto big = four_bar_q(k * h, 1e6), small = slider_crank_q(k * h, 1e-6);
+      const auto big = four_bar_q(k * h, 1e6);
+      const auto small = slider_crank_q(k * h, 1e-6);
       std::array<double, 15> exact;
       for (int c = 0; c < 9; ++c) exact[c] = big[c];
       for (int c = 0; c < 6; ++c) exact[9 + c] = small[c];
@@ -260,7 +261,8 @@ TEST_CASE("analyze and check keep every body's tolerance next to far points and 
         const auto f = slider_crank_q(row.t, 1);
         exact.assign(f.begin(), f.end());
       } else {
-        const auto big = four_bar_q(row.t, 1e6), small = slider_crank_q(row.t, 1e-6);
+        const auto big = four_bar_q(row.t, 1e6);
+        const auto small = slider_crank_q(row.t, 1e-6);
         exact.assign(big.begin(), big.end());
         exact.insert(exact.end(), small.begin(), small.end());
       }
