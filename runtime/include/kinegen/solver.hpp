@@ -52,11 +52,13 @@ struct Result {
   double step = 0;      // the last scaled Newton step (position only)
   double pivot_ratio = 1;  // smallest / largest |pivot| of the last (scaled) factorization
   // Estimated condition number of the scaled Phi_q of the last factorization (rows equilibrated,
-  // length columns multiplied by the length scale, angle columns as they are): infinity when
-  // singular.
+  // columns multiplied by their coordinate's scale): infinity when singular; NaN when not
+  // estimated (the block path on headers whose kernels estimate none).
   double condition = 1;
-  double residual = 0;  // largest scaled |Phi| after the last step (position only)
-  int rank = 0;         // numerical rank of Phi_q at the last factorization
+  // Largest scaled |Phi| after the last step, less its rounding (position only; the block path
+  // measures it from Model::phi when the kernels do not report it).
+  double residual = 0;
+  int rank = 0;  // numerical rank of Phi_q at the last factorization (block path: nq on success)
   int block = -1;       // block solver: the block that failed (-1: none, or the dense path)
 
   explicit operator bool() const { return status == Status::kConverged; }
@@ -64,20 +66,24 @@ struct Result {
 };
 
 struct SolverOptions {
-  // Newton stops when the step, with lengths divided by the model's length scale and angles
-  // in radians, is at most this (plus the rounding of the coordinate itself, 4 eps |q|, which no
+  // Newton stops when the step, each coordinate divided by its scale (coordinate_scale: a
+  // body's x and y by its joints' geometry; angles in radians), is at most this (plus the rounding of the coordinate itself, 4 eps |q|, which no
   // solver can beat: an angle of 6e6 rad is only known to about 1e-9). Convergence is
   // quadratic, so the position is then accurate to far below it.
   double tolerance = 1e-10;
   int max_iterations = 30;
   // Phi_q counts as singular when the reciprocal of its scaled condition estimate is below this.
+  // Block path: against the kernels' per-block estimate where the header reports one
+  // (BlockReport::rcond); older headers check singular_pivot_ratio only.
   double min_rcond = 1e-12;
   // After the step criterion holds, every |Phi_r| must also be at most this times the row's
-  // scale (|Phi_q row| with lengths scaled) plus the rounding of its terms; the step alone can
-  // miss a stalled least-squares iteration on contradictory constraints.
+  // scale (|Phi_q row| with columns scaled) plus the rounding of its terms; the step alone can
+  // miss a stalled least-squares iteration on contradictory constraints. Every path checks it,
+  // fixed iteration counts included (kBudgetExhausted).
   double residual_tolerance = 1e-8;
   // Backtracking: a Newton step that increases the scaled residual is halved up to this many
-  // times, which keeps large updates from throwing the iteration onto another branch.
+  // times, which keeps large updates from throwing the iteration onto another branch. Block
+  // path: passed to the kernels where their BlockOptions take it (older headers: no damping).
   int max_halvings = 8;
   // The LU pivot ratio below which Phi_q (or a block of it, in the block solver) counts as
   // singular; the dense path also checks min_rcond, so this is only its backstop there.
