@@ -107,8 +107,8 @@ StepError step_error(const cg::CompiledModel& model, const cg::ReferenceRow& ref
     }
     for (std::size_t p = 0; p < points.size(); ++p)
       for (int c = 0; c < 2; ++c)
-        err =
-            std::max(err, diff(point_value(points[p])[c], ref.points[p][point_slot + c]) / length);
+        err = std::max(err, diff(point_value(points[p])[c], ref.points[p][point_slot + c]) /
+                                model.symbolic().length_scale);
     return err / (kEps * std::max(size, 1e-300));
   };
   StepError e;

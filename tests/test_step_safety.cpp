@@ -2,11 +2,10 @@
 // 8), in double and float, against closed forms: a coarse step on another assembly branch
 // fails, reset() really resets, the block path's Result says what happened, and a far point or
 // a 1e6 arm next to a 1e-6 follower leaves every body its own tolerance.
-#include <kinegen/block_solver.hpp>
-
 #include <array>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <kinegen/block_solver.hpp>
 #include <string>
 #include <vector>
 
@@ -38,8 +37,9 @@ std::array<double, 2> circles(std::array<double, 2> p, double r1, std::array<dou
 std::array<double, 9> four_bar_q(double th, double s) {
   const std::array<double, 2> a{s * std::cos(th), s * std::sin(th)}, o4{3 * s, 0};
   const auto b = circles(a, 3.5 * s, o4, 2.5 * s, 1);
-  return {0, 0, th, a[0], a[1], std::atan2(b[1] - a[1], b[0] - a[0]), o4[0], o4[1],
-          std::atan2(b[1] - o4[1], b[0] - o4[0])};
+  return {0,     0,     th,
+          a[0],  a[1],  std::atan2(b[1] - a[1], b[0] - a[0]),
+          o4[0], o4[1], std::atan2(b[1] - o4[1], b[0] - o4[0])};
 }
 
 // The small slider-crank of tests/mechanisms/big_small.yaml: crank r, the slider on the line
@@ -155,8 +155,8 @@ TEMPLATE_TEST_CASE("Solver::step on a Stephenson III six-bar never succeeds on a
   }
 }
 
-TEMPLATE_TEST_CASE("Solver::step works again after a failure, reset() and a restored q",
-                   "[step]", double, float) {
+TEMPLATE_TEST_CASE("Solver::step works again after a failure, reset() and a restored q", "[step]",
+                   double, float) {
   using Model = kinegen::models::four_bar;
   kinegen::Solver<Model, TestType> solver(Model::Params{}, options_for<TestType>());
   auto q = solver.initial_estimate();

@@ -211,7 +211,11 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
   row.q = model.q0();
   row.qd = Eigen::VectorXd::Zero(model.nq());
   row.qdd = Eigen::VectorXd::Zero(model.nq());
-  const auto fail = [&](const char* stage, double t, const Result& r) {
+  const auto fail = [&](const char* stage, double t, Result r) {
+    // Newton that ends near a singular Phi_q (as at a toggle, where it converges only
+    // linearly) is reported as singular, as a solved position there is.
+    if (r.status == Status::kMaxIterations && r.condition > options.max_condition)
+      r.status = Status::kSingular;
     std::string message = file + ": " + stage + " analysis failed at " + time_text(t) + ": " +
                           r.message();
     if (r.status == Status::kMaxIterations || r.status == Status::kInconsistent) {

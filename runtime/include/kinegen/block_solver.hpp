@@ -53,8 +53,7 @@ struct ReportHasResidual<R, std::void_t<decltype(std::declval<const R&>().residu
 template <class R, class = void>
 struct ReportHasRcond : std::false_type {};
 template <class R>
-struct ReportHasRcond<R, std::void_t<decltype(std::declval<const R&>().rcond)>>
-    : std::true_type {};
+struct ReportHasRcond<R, std::void_t<decltype(std::declval<const R&>().rcond)>> : std::true_type {};
 template <class O, class = void>
 struct OptionsHaveMinRcond : std::false_type {};
 template <class O>
@@ -68,8 +67,8 @@ struct OptionsHaveMaxHalvings<O, std::void_t<decltype(std::declval<O&>().max_hal
 template <class O, class = void>
 struct OptionsHaveResidualTolerance : std::false_type {};
 template <class O>
-struct OptionsHaveResidualTolerance<
-    O, std::void_t<decltype(std::declval<O&>().residual_tolerance)>> : std::true_type {};
+struct OptionsHaveResidualTolerance<O, std::void_t<decltype(std::declval<O&>().residual_tolerance)>>
+    : std::true_type {};
 template <class Model, class = void>
 struct NumBlocks : std::integral_constant<int, 0> {};
 template <class Model>
@@ -293,8 +292,7 @@ class Solver {
       return detail::to_result<Model>(
           Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), o, trig_.data()));
     } else {
-      return detail::to_result<Model>(
-          Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), o));
+      return detail::to_result<Model>(Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), o));
     }
   }
   // What the dense path checks after its Newton loop, for a block solve: the residual (from
@@ -318,8 +316,7 @@ class Solver {
   // Whether a block's determinant changed sign since the last step (headers that report them).
   bool signs_changed() const {
     for (std::size_t b = 0; b < signs_.size(); ++b)
-      if (kSigns && signs_[b] != 0 && signs_new_[b] != 0 && signs_[b] != signs_new_[b])
-        return true;
+      if (kSigns && signs_[b] != 0 && signs_new_[b] != 0 && signs_[b] != signs_new_[b]) return true;
     return false;
   }
 
@@ -362,8 +359,8 @@ class Solver {
   template <class M>
   struct TakesSigns<M, std::void_t<decltype(M::solve_position(
                            std::declval<Scalar*>(), Scalar(0), std::declval<const Params&>(),
-                           std::declval<const typename M::BlockOptions&>(),
-                           std::declval<Scalar*>(), std::declval<signed char*>()))>>
+                           std::declval<const typename M::BlockOptions&>(), std::declval<Scalar*>(),
+                           std::declval<signed char*>()))>>
       : std::bool_constant<(detail::NumBlocks<M>::value > 0)> {};
   static constexpr bool kSigns = [] {
     if constexpr (kBlockSolver) {

@@ -26,8 +26,8 @@ constexpr CoordinateKind body_coordinate_kind(int k) {
 template <class System, class = void>
 struct HasCoordinateScale : std::false_type {};
 template <class System>
-struct HasCoordinateScale<
-    System, std::void_t<decltype(std::declval<const System&>().coordinate_scale(0))>>
+struct HasCoordinateScale<System,
+                          std::void_t<decltype(std::declval<const System&>().coordinate_scale(0))>>
     : std::true_type {};
 
 // The size against which coordinate k's Newton steps and errors are measured: its own scale
@@ -44,8 +44,8 @@ double coordinate_scale(const System& sys, int k) {
 template <class Model, class = void>
 struct HasCoordinateTable : std::false_type {};
 template <class Model>
-struct HasCoordinateTable<Model, std::void_t<decltype(Model::coordinate_kinds),
-                                             decltype(Model::coordinate_scales)>>
+struct HasCoordinateTable<
+    Model, std::void_t<decltype(Model::coordinate_kinds), decltype(Model::coordinate_scales)>>
     : std::true_type {};
 
 // The same for a generated header: its coordinate_scales table, or the fallback above for
@@ -79,8 +79,7 @@ class TaylorPredictor {
   TaylorPredictor(Scalar h, Scalar h_previous, bool has_jerk)
       : h_(h),
         h2_(h * h / Scalar(2)),
-        h3_(has_jerk && h_previous != Scalar(0) ? h * h * h / (Scalar(6) * h_previous)
-                                                : Scalar(0)),
+        h3_(has_jerk && h_previous != Scalar(0) ? h * h * h / (Scalar(6) * h_previous) : Scalar(0)),
         has_jerk_(h3_ != Scalar(0)) {}
   // The predicted value of one coordinate; qdd_previous is read only with a jerk, so it may be
   // anything (NaN included) otherwise.
@@ -124,8 +123,8 @@ MotionCheck check_motion(int n, double h, const V& q0, const V& qd0, const V& qd
     const double v0 = static_cast<double>(qd0[k]), v1 = static_cast<double>(qd1[k]);
     const double b0 = static_cast<double>(qdd0[k]), b1 = static_cast<double>(qdd1[k]);
     const double dq = a1 - a0;
-    miss_trapezoid = std::max(
-        miss_trapezoid, std::abs(dq - 0.5 * h * (v0 + v1) - h2 / 12 * (b0 - b1)) / s);
+    miss_trapezoid =
+        std::max(miss_trapezoid, std::abs(dq - 0.5 * h * (v0 + v1) - h2 / 12 * (b0 - b1)) / s);
     miss_old = std::max(miss_old, std::abs(dq - h * v0 - 0.5 * h2 * b0) / s);
     miss_new = std::max(miss_new, std::abs(dq - h * v1 + 0.5 * h2 * b1) / s);
     c.change = std::max(c.change, std::abs(dq) / s);
