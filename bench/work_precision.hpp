@@ -55,7 +55,8 @@ struct Errors {
 
 inline const char* kErrorDefinition =
     "error = max over the reference times of\n"
-    "  e_q = max_k |q_k - qref_k| / s_k           (s_k = coordinate_scales[k]: x, y by their body's joints; 1 for phi)\n"
+    "  e_q = max_k |q_k - qref_k| / s_k           (s_k = coordinate_scales[k]: x, y by their "
+    "body's joints; 1 for phi)\n"
     "  e_v = max_k |qd_k - qdref_k| / s_k / V      (V = max over the run of max_k |qdref_k| / "
     "s_k)\n"
     "  e_a = max_k |qdd_k - qddref_k| / s_k / A    (A likewise for qddref)\n"

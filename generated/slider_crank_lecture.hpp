@@ -28,7 +28,7 @@ struct slider_crank_lecture {
   static constexpr std::array<double, nq> q0 = {0, 0, 0, 3.0, 0, 1.57};
   // A typical length of the mechanism; position tolerances scale with it.
   static constexpr double length_scale = 1.0;
-  // What each coordinate measures (0 length, 1 angle, 2 scalar: kinegen::CoordinateKind)
+  // What each coordinate measures (kinegen::CoordinateKind: 0 length, 1 angle, 2 scalar)
   // and the size its tolerances scale with (a body's x and y: its joints' geometry).
   static constexpr std::array<int, nq> coordinate_kinds = {0, 0, 1, 0, 0, 1};
   static constexpr std::array<double, nq> coordinate_scales = {1.0, 1.0, 1.0, 1.0, 1.0, 1.0};

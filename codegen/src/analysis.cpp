@@ -1,12 +1,11 @@
 #include "kinegen/codegen/analysis.hpp"
 
-#include <kinegen/motion.hpp>
-#include <kinegen/solver.hpp>
-#include <kinegen/sparse_solver.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <kinegen/motion.hpp>
+#include <kinegen/solver.hpp>
+#include <kinegen/sparse_solver.hpp>
 #include <limits>
 #include <sstream>
 
@@ -269,10 +268,10 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     if (auto r = solver.acceleration(row.q, row.qd, t, row.qdd); !r) fail("acceleration", t, r);
     if (k > 0 && options.check_jumps) {
       // The runtime's test (kinegen/motion.hpp), the one Solver::step applies.
-      const MotionCheck motion = check_motion(
-          static_cast<int>(row.q.size()), t - previous.t, previous.q, previous.qd, previous.qdd,
-          row.q, row.qd, row.qdd, scale, options.jump_fraction,
-          std::numeric_limits<double>::epsilon());
+      const MotionCheck motion =
+          check_motion(static_cast<int>(row.q.size()), t - previous.t, previous.q, previous.qd,
+                       previous.qdd, row.q, row.qd, row.qdd, scale, options.jump_fraction,
+                       std::numeric_limits<double>::epsilon());
       if (motion.jumped())
         throw AnalysisError(
             file + ": position analysis failed at " + time_text(t) +

@@ -1896,7 +1896,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
       kinds.push_back(std::to_string(static_cast<int>(model.coordinate_kinds[k])));
       scales.push_back(format_double(model.coordinate_scales[k]));
     }
-    os << "  // What each coordinate measures (0 length, 1 angle, 2 scalar: kinegen::CoordinateKind)\n"
+    os << "  // What each coordinate measures (kinegen::CoordinateKind: 0 length, 1 angle, 2 scalar)\n"
        << "  // and the size its tolerances scale with (a body's x and y: its joints' geometry).\n"
        << "  static constexpr std::array<int, nq> coordinate_kinds = {" << join(kinds) << "};\n"
        << "  static constexpr std::array<double, nq> coordinate_scales = {" << join(scales)

@@ -449,7 +449,8 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
     const std::string item = "body '" + b.name + "' q0";
     for (int c = 0; c < 3; ++c) model.q0.push_back(builder.geometry(b.q0[c], item));
   }
-  for (const auto& p : m.points) model.point_s.push_back(builder.vec(p.s, "point '" + p.name + "' s"));
+  for (const auto& p : m.points)
+    model.point_s.push_back(builder.vec(p.s, "point '" + p.name + "' s"));
 
   // Tolerance scales: a body's x and y scale with the geometry of its own joints and drivers
   // (the local vectors on it, a distance joint's length), so a 1e-6 follower next to a 1e6 arm

@@ -67,9 +67,10 @@ struct Result {
 
 struct SolverOptions {
   // Newton stops when the step, each coordinate divided by its scale (coordinate_scale: a
-  // body's x and y by its joints' geometry; angles in radians), is at most this (plus the rounding of the coordinate itself, 4 eps |q|, which no
-  // solver can beat: an angle of 6e6 rad is only known to about 1e-9). Convergence is
-  // quadratic, so the position is then accurate to far below it.
+  // body's x and y by its joints' geometry; angles in radians), is at most this (plus the rounding
+  // of the coordinate itself, 4 eps |q|, which no solver can beat: an angle of 6e6 rad is only
+  // known to about 1e-9). Convergence is quadratic, so the position is then accurate to far below
+  // it.
   double tolerance = 1e-10;
   int max_iterations = 30;
   // Phi_q counts as singular when the reciprocal of its scaled condition estimate is below this.
@@ -196,8 +197,7 @@ bool factor(const System& sys, WS& ws, const VQ& q, typename System::Scalar t,
     result.status = Status::kNonFinite;
     return false;
   }
-  for (int k = 0; k < ws.col_scale.size(); ++k)
-    ws.col_scale[k] = Scalar(coordinate_scale(sys, k));
+  for (int k = 0; k < ws.col_scale.size(); ++k) ws.col_scale[k] = Scalar(coordinate_scale(sys, k));
   ws.scaled = ws.jac * ws.col_scale.asDiagonal();
   for (int r = 0; r < ws.scaled.rows(); ++r) {
     const Scalar n = ws.scaled.row(r).cwiseAbs().maxCoeff();

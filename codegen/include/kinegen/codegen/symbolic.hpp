@@ -4,7 +4,6 @@
 #pragma once
 
 #include <ginac/ginac.h>
-#include <kinegen/motion.hpp>
 
 #include <map>
 #include <string>
@@ -12,6 +11,7 @@
 #include <vector>
 
 #include "kinegen/codegen/mechanism.hpp"
+#include "kinegen/motion.hpp"
 
 namespace kinegen::codegen {
 
