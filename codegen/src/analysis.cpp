@@ -205,7 +205,9 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
              const std::function<void(const StateRow&)>& sink, const AnalysisOptions& options) {
   const std::string& file = model.mechanism().source;
   const auto& scales = model.symbolic().coordinate_scales;
-  const auto scale = [&](int k) { return scales[k]; };
+  const auto inv_scale = [&](int k) { return 1 / scales[k]; };
+  std::vector<int> all_coordinates(model.nq());
+  for (int k = 0; k < model.nq(); ++k) all_coordinates[k] = k;
   StateRow row;
   row.q = model.q0();
   row.qd = Eigen::VectorXd::Zero(model.nq());
@@ -269,8 +271,8 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     if (k > 0 && options.check_jumps) {
       // The runtime's test (kinegen/motion.hpp), the one Solver::step applies.
       const MotionCheck motion =
-          check_motion(static_cast<int>(row.q.size()), t - previous.t, previous.q, previous.qd,
-                       previous.qdd, row.q, row.qd, row.qdd, scale, options.jump_fraction,
+          check_motion(all_coordinates, t - previous.t, previous.q, previous.qd,
+                       previous.qdd, row.q, row.qd, row.qdd, inv_scale, options.jump_fraction,
                        std::numeric_limits<double>::epsilon());
       if (motion.jumped())
         throw AnalysisError(

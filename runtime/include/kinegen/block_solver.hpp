@@ -218,8 +218,8 @@ class Solver {
     if (r && has_previous_ && signs_changed()) r.status = Status::kBranchJump;
     if (r && has_previous_) {
       const MotionCheck motion = check_motion(
-          Model::nq, static_cast<double>(h), q_previous_, qd_previous_, qdd_previous_, q, qd, qdd,
-          [](int k) { return detail::model_coordinate_scale<Model>(k); },
+          predicted_coordinates(), static_cast<double>(h), q_previous_, qd_previous_, qdd_previous_,
+          q, qd, qdd, [](int k) { return detail::model_coordinate_scale<Model>(k); },
           dense_.options().jump_fraction,
           static_cast<double>(std::numeric_limits<Scalar>::epsilon()));
       if (motion.jumped()) r.status = Status::kBranchJump;
@@ -232,10 +232,12 @@ class Solver {
     // Only solved values enter the history, so a failed step leaves nothing behind.
     has_two_ = has_previous_;
     h_previous_ = h;
-    qdd_before_ = qdd_previous_;
-    q_previous_ = q;
-    qd_previous_ = qd;
-    qdd_previous_ = qdd;
+    for_predicted([&](int k) {
+      qdd_before_[k] = qdd_previous_[k];
+      q_previous_[k] = q[k];
+      qd_previous_[k] = qd[k];
+      qdd_previous_[k] = qdd[k];
+    });
     signs_ = signs_new_;
     t_previous_ = t;
     has_previous_ = true;
@@ -322,14 +324,24 @@ class Solver {
 
   // Calls f(k) for each coordinate the predictor extrapolates: those Newton iterates when the
   // header lists them (the block solver computes every other one from them), otherwise all.
-  template <class F>
-  static void for_predicted(F&& f) {
+  // The jump test compares the same ones: an explicit block has one solution given the blocks
+  // before it, so only a Newton block can change branch.
+  static constexpr const auto& predicted_coordinates() {
     if constexpr (kBlockSolver && detail::HasNewtonCoordinates<Model>::value) {
-      for (int k : Model::newton_coordinates) f(k);
+      return Model::newton_coordinates;
     } else {
-      for (int k = 0; k < Model::nq; ++k) f(k);
+      return kAllCoordinates;
     }
   }
+  template <class F>
+  static void for_predicted(F&& f) {
+    for (const int k : predicted_coordinates()) f(k);
+  }
+  static constexpr std::array<int, Model::nq> kAllCoordinates = [] {
+    std::array<int, Model::nq> a{};
+    for (int k = 0; k < Model::nq; ++k) a[k] = k;
+    return a;
+  }();
   // The block solver needs no dense workspace (none of nq x nq is ever formed).
   struct NoDense {
     NoDense() = default;

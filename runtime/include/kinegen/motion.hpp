@@ -5,6 +5,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <type_traits>
@@ -49,7 +50,7 @@ struct HasCoordinateTable<
     : std::true_type {};
 
 // The same for a generated header: its coordinate_scales table, or the fallback above for
-// headers generated before it.
+// headers generated before it; and the inverses, computed once at compile time.
 template <class Model>
 constexpr double model_coordinate_scale(int k) {
   if constexpr (HasCoordinateTable<Model>::value) {
@@ -58,6 +59,14 @@ constexpr double model_coordinate_scale(int k) {
     return body_coordinate_kind(k) == CoordinateKind::kAngle ? 1.0 : Model::length_scale;
   }
 }
+template <class Model>
+struct InverseCoordinateScales {
+  static constexpr auto kValues = [] {
+    std::array<double, Model::nq> a{};
+    for (int k = 0; k < Model::nq; ++k) a[k] = 1.0 / model_coordinate_scale<Model>(k);
+    return a;
+  }();
+};
 template <class Model>
 constexpr CoordinateKind model_coordinate_kind(int k) {
   if constexpr (HasCoordinateTable<Model>::value) {
@@ -108,32 +117,44 @@ struct MotionCheck {
 // (q0 + h qd0 + h^2 qdd0 / 2, or q1 - h qd1 + h^2 qdd1 / 2): the nearest of the three counts.
 // A solution that misses all three by more than `fraction` of the motion over the step (plus a
 // rounding floor in the scalar's epsilon) was not reached along the motion: Newton jumped to
-// another assembly branch, or the step is too coarse to tell. V: anything indexable with
-// [k]; scale(k): the coordinate's scale.
-template <class V, class ScaleOf>
-MotionCheck check_motion(int n, double h, const V& q0, const V& qd0, const V& qdd0, const V& q1,
-                         const V& qd1, const V& qdd1, ScaleOf&& scale, double fraction,
-                         double eps) {
+// another assembly branch, or the step is too coarse to tell. coords: the coordinates to
+// compare (all, or those Newton iterates where every other one follows from them and t); V:
+// anything indexable with [k]; inv_scale(k): 1 / the coordinate's scale (multiplications: this
+// runs every step).
+template <class Coords, class V, class InvScaleOf>
+MotionCheck check_motion(const Coords& coords, double h, const V& q0, const V& qd0, const V& qdd0,
+                         const V& q1, const V& qd1, const V& qdd1, InvScaleOf&& inv_scale,
+                         double fraction, double eps) {
   MotionCheck c;
-  double miss_trapezoid = 0, miss_old = 0, miss_new = 0, motion = 0, size = 0;
-  const double h2 = h * h;
-  for (int k = 0; k < n; ++k) {
-    const double s = scale(k);
-    const double a0 = static_cast<double>(q0[k]), a1 = static_cast<double>(q1[k]);
+  const double half_h = 0.5 * h, h2_12 = h * h / 12;
+  double motion = 0, size = 0;
+  for (const int k : coords) {
+    const double w = inv_scale(k);
+    const double dq = static_cast<double>(q1[k]) - static_cast<double>(q0[k]);
     const double v0 = static_cast<double>(qd0[k]), v1 = static_cast<double>(qd1[k]);
-    const double b0 = static_cast<double>(qdd0[k]), b1 = static_cast<double>(qdd1[k]);
-    const double dq = a1 - a0;
-    miss_trapezoid =
-        std::max(miss_trapezoid, std::abs(dq - 0.5 * h * (v0 + v1) - h2 / 12 * (b0 - b1)) / s);
-    miss_old = std::max(miss_old, std::abs(dq - h * v0 - 0.5 * h2 * b0) / s);
-    miss_new = std::max(miss_new, std::abs(dq - h * v1 + 0.5 * h2 * b1) / s);
-    c.change = std::max(c.change, std::abs(dq) / s);
-    motion = std::max({motion, std::abs(h * v0) / s, std::abs(h * v1) / s});
-    size = std::max(size, std::abs(a1) / s);
+    const double trapezoid = dq - half_h * (v0 + v1) -
+                             h2_12 * (static_cast<double>(qdd0[k]) - static_cast<double>(qdd1[k]));
+    c.miss = std::max(c.miss, std::abs(trapezoid) * w);
+    c.change = std::max(c.change, std::abs(dq) * w);
+    motion = std::max(motion, std::max(std::abs(v0), std::abs(v1)) * w);
+    size = std::max(size, std::abs(static_cast<double>(q1[k])) * w);
   }
-  motion = std::max(motion, c.change);
-  c.miss = std::min({miss_trapezoid, miss_old, miss_new});
+  motion = std::max(std::abs(h) * motion, c.change);
   c.allowed = fraction * motion + 1e-6 + 1e4 * eps + 64 * eps * size;
+  if (c.miss <= c.allowed) return c;  // the smooth case: one pass
+  double miss_old = 0, miss_new = 0;
+  const double h2_2 = 0.5 * h * h;
+  for (const int k : coords) {
+    const double w = inv_scale(k);
+    const double dq = static_cast<double>(q1[k]) - static_cast<double>(q0[k]);
+    miss_old = std::max(
+        miss_old,
+        std::abs(dq - h * static_cast<double>(qd0[k]) - h2_2 * static_cast<double>(qdd0[k])) * w);
+    miss_new = std::max(
+        miss_new,
+        std::abs(dq - h * static_cast<double>(qd1[k]) + h2_2 * static_cast<double>(qdd1[k])) * w);
+  }
+  c.miss = std::min({c.miss, miss_old, miss_new});
   return c;
 }
 
