@@ -1,5 +1,7 @@
 #include "kinegen/codegen/reference.hpp"
 
+#include "kinegen/codegen/forces.hpp"
+
 #include <cln/cln.h>
 
 #include <cmath>
@@ -142,25 +144,32 @@ class TapeBuilder {
 }  // namespace
 
 HighPrecisionEvaluator::HighPrecisionEvaluator(const CompiledModel& model, int digits)
-    : digits_(digits), nq_(model.nq()) {
-  const DigitsGuard guard(digits);  // for evalf of pi
+    : model_(&model), digits_(digits), nq_(model.nq()) {
   const auto& sym = model.symbolic();
-  const auto build = [&](const std::vector<ex>& outputs) {
-    auto tape = std::make_unique<Tape>();
-    TapeBuilder builder(*this, model);
-    for (const ex& e : outputs) {
-      const ex v = substitute_params(e, model.symbols(), sym.param_values);
-      tape->outputs.push_back(v.is_zero() ? -1 : builder.compile(v, *tape));
-    }
-    tape->values.resize(tape->nodes.size());
-    return tape;
-  };
   std::vector<ex> jac;
   for (const auto& e : sym.phi_q) jac.push_back(e.value);
   phi_ = build(sym.phi);
   phi_q_ = build(jac);
   nu_ = build(sym.nu);
   gamma_ = build(sym.gamma);
+}
+
+std::unique_ptr<HighPrecisionEvaluator::Tape> HighPrecisionEvaluator::build(
+    const std::vector<ex>& outputs) const {
+  const DigitsGuard guard(digits_);  // for evalf of pi
+  auto tape = std::make_unique<Tape>();
+  TapeBuilder builder(*this, *model_);
+  for (const ex& e : outputs) {
+    const ex v = substitute_params(e, model_->symbols(), model_->symbolic().param_values);
+    tape->outputs.push_back(v.is_zero() ? -1 : builder.compile(v, *tape));
+  }
+  tape->values.resize(tape->nodes.size());
+  return tape;
+}
+
+int HighPrecisionEvaluator::add_outputs(const std::vector<ex>& outputs) {
+  extra_.push_back(build(outputs));
+  return static_cast<int>(extra_.size()) - 1;
 }
 
 HighPrecisionEvaluator::~HighPrecisionEvaluator() = default;
@@ -249,40 +258,35 @@ Vector run_tape(Tape& tape, const std::vector<numeric>& inputs) {
 
 }  // namespace
 
+Vector HighPrecisionEvaluator::run(Tape& tape, const Vector& q, const Vector* qd,
+                                   const numeric& t) {
+  auto& in = tape.inputs;
+  in.assign(q.begin(), q.end());
+  if (qd) {
+    in.insert(in.end(), qd->begin(), qd->end());
+  } else {
+    in.resize(2 * nq_, numeric(0));
+  }
+  in.push_back(t);
+  for (auto& v : in) v = to_float(v);
+  return run_tape(tape, in);
+}
+
 Vector HighPrecisionEvaluator::phi(const Vector& q, const numeric& t) {
-  auto& in = phi_->inputs;
-  in.assign(q.begin(), q.end());
-  in.resize(2 * nq_, numeric(0));
-  in.push_back(t);
-  for (auto& v : in) v = to_float(v);
-  return run_tape(*phi_, in);
+  return run(*phi_, q, nullptr, t);
 }
-
 Vector HighPrecisionEvaluator::phi_q_values(const Vector& q, const numeric& t) {
-  auto& in = phi_q_->inputs;
-  in.assign(q.begin(), q.end());
-  in.resize(2 * nq_, numeric(0));
-  in.push_back(t);
-  for (auto& v : in) v = to_float(v);
-  return run_tape(*phi_q_, in);
+  return run(*phi_q_, q, nullptr, t);
 }
-
 Vector HighPrecisionEvaluator::nu(const Vector& q, const numeric& t) {
-  auto& in = nu_->inputs;
-  in.assign(q.begin(), q.end());
-  in.resize(2 * nq_, numeric(0));
-  in.push_back(t);
-  for (auto& v : in) v = to_float(v);
-  return run_tape(*nu_, in);
+  return run(*nu_, q, nullptr, t);
 }
-
 Vector HighPrecisionEvaluator::gamma(const Vector& q, const Vector& qd, const numeric& t) {
-  auto& in = gamma_->inputs;
-  in.assign(q.begin(), q.end());
-  in.insert(in.end(), qd.begin(), qd.end());
-  in.push_back(t);
-  for (auto& v : in) v = to_float(v);
-  return run_tape(*gamma_, in);
+  return run(*gamma_, q, &qd, t);
+}
+Vector HighPrecisionEvaluator::evaluate(int handle, const Vector& q, const Vector& qd,
+                                        const numeric& t) {
+  return run(*extra_[handle], q, &qd, t);
 }
 
 namespace {
@@ -343,6 +347,71 @@ class Lu {
 };
 
 std::string time_text(double t) { return "t = " + format_number(t); }
+
+}  // namespace
+
+struct ReferenceForces::Data {
+  ForceData<numeric> numbers;
+  numeric pivot_ratio;
+};
+
+ReferenceForces::ReferenceForces(const CompiledModel& model, const ForceModel& forces,
+                                 int digits)
+    : model_(&model),
+      forces_(&forces),
+      eval_(std::make_unique<HighPrecisionEvaluator>(model, digits)),
+      data_(std::make_unique<Data>()) {
+  if (model.nc() != model.nq())
+    throw UsageError("--forces needs as many independent equations as coordinates (" +
+                     std::to_string(model.nc()) + " equations, " + std::to_string(model.nq()) +
+                     " coordinates): the reactions of redundant constraints are not unique");
+  applied_ = eval_->add_outputs(forces.applied);
+  const DigitsGuard guard(digits);
+  const auto value = [&](const ex& e) {
+    return eval_->to_float(GiNaC::ex_to<numeric>(GiNaC::evalf(e)));
+  };
+  const auto values = [&](const std::vector<ex>& v) {
+    std::vector<numeric> r;
+    for (const ex& e : v) r.push_back(value(e));
+    return r;
+  };
+  const auto pairs = [&](const std::vector<std::array<ex, 2>>& v) {
+    std::vector<std::array<numeric, 2>> r;
+    for (const auto& e : v) r.push_back({value(e[0]), value(e[1])});
+    return r;
+  };
+  data_->numbers = {values(forces.exact.mass), values(forces.exact.inertia),
+                    pairs(forces.exact.com), pairs(forces.exact.si), pairs(forces.exact.sj)};
+  data_->pivot_ratio = numeric(10).power(-(digits - 3));
+}
+
+ReferenceForces::~ReferenceForces() = default;
+
+std::vector<numeric> ReferenceForces::solve(const ReferenceRow& row) {
+  const DigitsGuard guard(eval_->digits());
+  const int nq = model_->nq();
+  const auto& sym = model_->symbolic();
+  std::vector<numeric> jac(static_cast<std::size_t>(nq) * nq, numeric(0)), transposed = jac;
+  const Vector values = eval_->phi_q_values(row.q, row.t);
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    jac[sym.phi_q[k].row * nq + sym.phi_q[k].col] = values[k];
+    transposed[sym.phi_q[k].col * nq + sym.phi_q[k].row] = values[k];
+  }
+  Vector q_total = eval_->evaluate(applied_, row.q, row.qd, row.t);
+  add_inertia_forces(data_->numbers, static_cast<int>(model_->mechanism().bodies.size()),
+                     row.q.data(), row.qd.data(), row.qdd.data(), q_total.data());
+  Lu lu;
+  if (!lu.factor(transposed, nq, data_->pivot_ratio))
+    throw AnalysisError(model_->mechanism().source + ": --forces: Phi_q is singular at " +
+                        time_text(row.t.to_double()) + " (reference)");
+  const Vector lambda = lu.solve(q_total);
+  std::vector<numeric> columns;
+  columns_from_lambda(model_->mechanism(), *forces_, data_->numbers, row.q.data(), jac, lambda,
+                      columns);
+  return columns;
+}
+
+namespace {
 
 }  // namespace
 

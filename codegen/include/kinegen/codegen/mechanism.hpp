@@ -77,6 +77,34 @@ struct Point {
   SourceLoc loc;
 };
 
+// Kinetostatics (format 6.5). Mass data of one body: all default to 0; mass and inertia (about the centre of mass) >= 0.
+struct BodyMass {
+  Expr mass{"0", {}}, inertia{"0", {}};
+  Vec2 com{{"0", {}}, {"0", {}}};  // in the body's frame
+  SourceLoc loc;
+};
+
+struct Load {
+  enum class Kind { kForce, kTorque, kSpringDamper, kRotationalSpringDamper };
+  Kind kind = Kind::kForce;
+  std::string name;  // optional
+  std::string item;  // "forces[2] (spring_damper)"
+  SourceLoc loc;
+  int body = kGround;     // force, torque
+  int i = kGround, j = kGround;  // spring-dampers
+  Vec2 s, si, sj;         // points (force: s; linear spring-damper: si, sj)
+  Vec2 f;                 // force: global components
+  Expr value;             // torque
+  Expr stiffness, damping, length0, preload, angle0;
+};
+
+struct ForceSpec {
+  std::vector<BodyMass> bodies;  // one per body (empty: all zero)
+  Vec2 gravity{{"0", {}}, {"0", {}}};
+  SourceLoc gravity_loc;
+  std::vector<Load> loads;
+};
+
 struct Mechanism {
   std::string name;
   std::string source;  // the file it was read from, as given by the user
@@ -85,6 +113,7 @@ struct Mechanism {
   std::vector<Constraint> joints;
   std::vector<Constraint> drivers;
   std::vector<Point> points;
+  ForceSpec forces;  // masses, gravity and loads (`analyze --forces`)
 
   int nq() const { return 3 * static_cast<int>(bodies.size()); }
   int nc() const;

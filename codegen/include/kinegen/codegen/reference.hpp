@@ -46,11 +46,21 @@ class HighPrecisionEvaluator {
   Vector nu(const Vector& q, const GiNaC::numeric& t);
   Vector gamma(const Vector& q, const Vector& qd, const GiNaC::numeric& t);
 
+  // Further outputs (expressions in q, qd, t and the parameters, such as the applied
+  // generalized forces), compiled like the others; the handle is for evaluate().
+  int add_outputs(const std::vector<GiNaC::ex>& outputs);
+  Vector evaluate(int handle, const Vector& q, const Vector& qd, const GiNaC::numeric& t);
+
  private:
   struct Tape;
+  std::unique_ptr<Tape> build(const std::vector<GiNaC::ex>& outputs) const;
+  Vector run(Tape& tape, const Vector& q, const Vector* qd, const GiNaC::numeric& t);
+
+  const CompiledModel* model_;
   int digits_;
   int nq_;
   std::unique_ptr<Tape> phi_, phi_q_, nu_, gamma_;
+  std::vector<std::unique_ptr<Tape>> extra_;
 };
 
 // A solved state in high precision, before rounding to double.
@@ -71,6 +81,26 @@ StateRow to_state_row(const ReferenceRow& row);
 // failure and UsageError when digits is outside [kMinReferenceDigits, kMaxReferenceDigits].
 void run_reference_analysis(const CompiledModel& model, const TimeGrid& grid, int digits,
                             const std::function<void(const StateRow&)>& sink);
+
+struct ForceModel;
+
+// `analyze --forces` on the reference: Phi_q^T lambda = Q solved in the reference's precision
+// at each high-precision row, the columns in force_columns order (forces.hpp).
+class ReferenceForces {
+ public:
+  ReferenceForces(const CompiledModel& model, const ForceModel& forces, int digits);
+  ~ReferenceForces();
+  // Throws AnalysisError when Phi_q^T is singular at the row.
+  std::vector<GiNaC::numeric> solve(const ReferenceRow& row);
+
+ private:
+  const CompiledModel* model_;
+  const ForceModel* forces_;
+  std::unique_ptr<HighPrecisionEvaluator> eval_;
+  int applied_ = 0;
+  struct Data;
+  std::unique_ptr<Data> data_;
+};
 
 // The same, handing over the rows in high precision.
 void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& grid, int digits,
