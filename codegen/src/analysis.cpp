@@ -270,10 +270,9 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     if (auto r = solver.acceleration(row.q, row.qd, t, row.qdd); !r) fail("acceleration", t, r);
     if (k > 0 && options.check_jumps) {
       // The runtime's test (kinegen/motion.hpp), the one Solver::step applies.
-      const MotionCheck motion =
-          check_motion(all_coordinates, t - previous.t, previous.q, previous.qd,
-                       previous.qdd, row.q, row.qd, row.qdd, inv_scale, options.jump_fraction,
-                       std::numeric_limits<double>::epsilon());
+      const MotionCheck motion = check_motion(
+          all_coordinates, t - previous.t, previous.q, previous.qd, previous.qdd, row.q, row.qd,
+          row.qdd, inv_scale, options.jump_fraction, std::numeric_limits<double>::epsilon());
       if (motion.jumped())
         throw AnalysisError(
             file + ": position analysis failed at " + time_text(t) +
