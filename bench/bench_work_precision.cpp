@@ -45,7 +45,7 @@ constexpr std::array<double, 6> kTolerances = {1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1
 constexpr double kDefaultTolerance = 1e-10;  // the runtime's default: the ratios' baseline
 
 // Phi from the generated code; Phi_q, nu and gamma by central differences.
-//   Phi_q column k: step h_k = eps^(1/3) * max(|q_k|, s_k), s_k = L (lengths) or 1 (angles)
+//   Phi_q column k: step h_k = eps^(1/3) * max(|q_k|, s_k), s_k = the coordinate's scale
 //   nu = -Phi_t:    step eps^(1/3) * max(|t|, 1)
 //   gamma = -d^2/ds^2 Phi(q + s qd, t + s) at s = 0: second central difference, h = 2^-13
 //   (about eps^(1/4); a power of two so that t +- h is exact on the benchmark's grid)
@@ -57,6 +57,7 @@ class FiniteDifferenceSystem {
   int nq() const { return kNq; }
   int nc() const { return kNc; }
   double length_scale() const { return Model::length_scale; }
+  double coordinate_scale(int k) const { return detail::model_coordinate_scale<Model>(k); }
 
   void phi(const double* q, double t, double* out) const { Model::phi(q, t, params_, out); }
   template <class M>
@@ -66,7 +67,7 @@ class FiniteDifferenceSystem {
     std::array<double, kNc> fp, fm;
     std::copy(q, q + kNq, x.begin());
     for (int k = 0; k < kNq; ++k) {
-      const double s = k % 3 == 2 ? 1.0 : Model::length_scale;
+      const double s = detail::model_coordinate_scale<Model>(k);
       const double h = eps3 * std::max(std::abs(q[k]), s);
       x[k] = q[k] + h;
       const double hp = x[k] - q[k];
@@ -119,6 +120,7 @@ class ComplexStepSystem {
   int nq() const { return kNq; }
   int nc() const { return kNc; }
   double length_scale() const { return Model::length_scale; }
+  double coordinate_scale(int k) const { return detail::model_coordinate_scale<Model>(k); }
 
   void phi(const double* q, double t, double* out) const { Model::phi(q, t, params_, out); }
   template <class M>
@@ -237,7 +239,7 @@ double generic_self_check(const generic::GenericSystem& sys) {
 
 struct Report {
   std::string example;
-  double length_scale;
+  std::vector<double> scales;  // per coordinate (coordinate_scales)
   RunResult run;
   Errors err;
 };
@@ -261,7 +263,8 @@ class Bench {
     const double ref_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - ref_start).count();
     std::printf("reference: %zu times in %.1f s\n", ref.size(), ref_s);
-    const double L = Model::length_scale;
+    std::vector<double> L;  // the coordinates' scales, as the solvers measure them
+    for (int k = 0; k < Model::nq; ++k) L.push_back(detail::model_coordinate_scale<Model>(k));
 
     // Every kinegen method and setting is a job; the repetitions are interleaved (each
     // repetition runs every job once) so that a change of machine load during the run does
@@ -376,7 +379,8 @@ class Bench {
   }
 
  private:
-  void add(const std::string& example, double L, const std::vector<Sample>& ref, RunResult run) {
+  void add(const std::string& example, const std::vector<double>& L, const std::vector<Sample>& ref,
+           RunResult run) {
     Report rep{example, L, std::move(run), {}};
     if (rep.run.ok) rep.err = measure(rep.run.samples, ref, L);
     rep.run.samples.clear();

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include KINEGEN_SCALE_HEADER
+#include <kinegen/motion.hpp>
 
 #ifdef KINEGEN_SCALE_FUNCTIONS_ONLY
 // Only the generated functions, for double: what compiling the generated code costs without
@@ -102,7 +103,7 @@ int main(int argc, char** argv) {
   const double dt = argc > 3 ? std::atof(argv[3]) : 0.01;
   const Model::Params p{};
   const Model::BlockOptions options{};
-  std::vector<double> q(Model::nq), qd(Model::nq), qdd(Model::nq);
+  std::vector<double> q(Model::nq), qd(Model::nq), qdd(Model::nq), qdd_before(Model::nq);
   // The sin/cos cache, as Solver<Model> keeps it (NaN: empty).
   std::vector<double> trig(Model::trig_cache_size);
   double best = 1e300, checksum = 0;
@@ -114,8 +115,14 @@ int main(int argc, char** argv) {
     const auto start = std::chrono::steady_clock::now();
     for (int k = 0; k < steps; ++k) {
       const double t = k * dt;
-      if (k > 0)  // second-order Taylor predictor from the previous step
-        for (int j = 0; j < Model::nq; ++j) q[j] += dt * qd[j] + (dt * dt / 2) * qdd[j];
+      if (k > 0) {  // the predictor of Solver<Model>::step
+        const kinegen::TaylorPredictor<double> predict(dt, dt, k > 1);
+        for (int j : Model::newton_coordinates) {
+          const double a = qdd[j];
+          q[j] = predict(q[j], qd[j], qdd[j], qdd_before[j]);
+          qdd_before[j] = a;
+        }
+      }
       const auto r = Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), options, trig.data());
       if (r.status != 0) {
         std::fprintf(stderr, "error: step failed at t = %g in block %d (status %d)\n", t, r.block,

@@ -55,7 +55,8 @@ struct Errors {
 
 inline const char* kErrorDefinition =
     "error = max over the reference times of\n"
-    "  e_q = max_k |q_k - qref_k| / s_k           (s_k = length scale L for x, y; 1 for phi)\n"
+    "  e_q = max_k |q_k - qref_k| / s_k           (s_k = coordinate_scales[k]: x, y by their "
+    "body's joints; 1 for phi)\n"
     "  e_v = max_k |qd_k - qdref_k| / s_k / V      (V = max over the run of max_k |qdref_k| / "
     "s_k)\n"
     "  e_a = max_k |qdd_k - qddref_k| / s_k / A    (A likewise for qddref)\n"
@@ -63,10 +64,10 @@ inline const char* kErrorDefinition =
 
 // Errors of `samples` against `ref` (same times) by the definition above.
 inline Errors measure(const std::vector<Sample>& samples, const std::vector<Sample>& ref,
-                      double length_scale) {
+                      const std::vector<double>& scales) {
   Errors e;
   if (samples.size() != ref.size()) return e;
-  auto scale = [&](int k) { return k % 3 == 2 ? 1.0 : length_scale; };
+  auto scale = [&](int k) { return scales[k]; };
   double vmax = 0, amax = 0;
   for (const auto& r : ref)
     for (int k = 0; k < r.q.size(); ++k) {

@@ -32,6 +32,10 @@ struct four_bar {
   static constexpr std::array<double, nq> q0 = {0, 0, 0, 1.0, 0, 0.78, 3.0, 0, 1.37};
   // A typical length of the mechanism; position tolerances scale with it.
   static constexpr double length_scale = 3.5;
+  // What each coordinate measures (kinegen::CoordinateKind: 0 length, 1 angle, 2 scalar)
+  // and the size its tolerances scale with (a body's x and y: its joints' geometry).
+  static constexpr std::array<int, nq> coordinate_kinds = {0, 0, 1, 0, 0, 1, 0, 0, 1};
+  static constexpr std::array<double, nq> coordinate_scales = {1.0, 1.0, 1.0, 3.5, 3.5, 1.0, 2.5, 2.5, 1.0};
 
   struct Params {
     double a = 1.0;
@@ -157,8 +161,9 @@ struct four_bar {
     double step = 0;           // largest last scaled Newton step
   };
   struct BlockOptions {
-    // Newton on a block stops when its step, lengths divided by length_scale and angles in
-    // radians, is at most this; or after exactly fixed_iterations when that is positive.
+    // Newton on a block stops when its step, each coordinate over its coordinate_scales
+    // entry (angles in radians), is at most this; or after exactly fixed_iterations when
+    // that is positive.
     double tolerance = 1e-10;
     int max_iterations = 30;  // per block
     int fixed_iterations = 0;
@@ -365,11 +370,11 @@ struct four_bar {
       const T _old5 = q[5];
       q[5] = q[5] - _r[0];
       _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
-      _step = std::max(_step, _mag(_r[0]));
+      _step = std::max(_step, _mag(_r[0]) * (1.0 / coordinate_scales[5]));
       const T _old8 = q[8];
       q[8] = q[8] - _r[1];
       _rotate(_sin8, _cos8, q[8] - _old8, q[8]);
-      _step = std::max(_step, _mag(_r[1]));
+      _step = std::max(_step, _mag(_r[1]) * (1.0 / coordinate_scales[8]));
       if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
         _done(report, _it, _step);
@@ -600,11 +605,11 @@ struct four_bar {
       const T _old5 = q[5];
       q[5] = q[5] - _r[0];
       _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
-      _step = std::max(_step, _mag(_r[0]));
+      _step = std::max(_step, _mag(_r[0]) * (1.0 / coordinate_scales[5]));
       const T _old8 = q[8];
       q[8] = q[8] - _r[1];
       _rotate(_sin8, _cos8, q[8] - _old8, q[8]);
-      _step = std::max(_step, _mag(_r[1]));
+      _step = std::max(_step, _mag(_r[1]) * (1.0 / coordinate_scales[8]));
       if (!(_step <= 1e300)) return _fail(report, 3, 7, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
         _done(report, _it, _step);

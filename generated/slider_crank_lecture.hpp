@@ -27,7 +27,11 @@ struct slider_crank_lecture {
   // Initial estimates for the first position solve, from the mechanism file.
   static constexpr std::array<double, nq> q0 = {0, 0, 0, 3.0, 0, 1.57};
   // A typical length of the mechanism; position tolerances scale with it.
-  static constexpr double length_scale = 3.0;
+  static constexpr double length_scale = 1.0;
+  // What each coordinate measures (kinegen::CoordinateKind: 0 length, 1 angle, 2 scalar)
+  // and the size its tolerances scale with (a body's x and y: its joints' geometry).
+  static constexpr std::array<int, nq> coordinate_kinds = {0, 0, 1, 0, 0, 1};
+  static constexpr std::array<double, nq> coordinate_scales = {1.0, 1.0, 1.0, 1.0, 1.0, 1.0};
 
   struct Params {
     double l = 2.0;
@@ -131,8 +135,9 @@ struct slider_crank_lecture {
     double step = 0;           // largest last scaled Newton step
   };
   struct BlockOptions {
-    // Newton on a block stops when its step, lengths divided by length_scale and angles in
-    // radians, is at most this; or after exactly fixed_iterations when that is positive.
+    // Newton on a block stops when its step, each coordinate over its coordinate_scales
+    // entry (angles in radians), is at most this; or after exactly fixed_iterations when
+    // that is positive.
     double tolerance = 1e-10;
     int max_iterations = 30;  // per block
     int fixed_iterations = 0;
@@ -324,7 +329,7 @@ struct slider_crank_lecture {
       const T _old5 = q[5];
       q[5] = q[5] - _r[0];
       _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
-      _step = std::max(_step, _mag(_r[0]));
+      _step = std::max(_step, _mag(_r[0]) * (1.0 / coordinate_scales[5]));
       if (!(_step <= 1e300)) return _fail(report, 3, 4, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
         _done(report, _it, _step);
@@ -480,7 +485,7 @@ struct slider_crank_lecture {
       const T _old5 = q[5];
       q[5] = q[5] - _r[0];
       _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
-      _step = std::max(_step, _mag(_r[0]));
+      _step = std::max(_step, _mag(_r[0]) * (1.0 / coordinate_scales[5]));
       if (!(_step <= 1e300)) return _fail(report, 3, 4, _it);
       if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
         _done(report, _it, _step);

@@ -81,9 +81,7 @@ double scaled_condition(const cg::CompiledModel& model, const Eigen::VectorXd& q
   cg::ModelEvaluator<double> eval(model);
   Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(model.nc(), model.nq());
   eval.jacobian(q.data(), t, jac);
-  const double length = model.symbolic().length_scale;
-  for (int k = 0; k < model.nq(); ++k)
-    if (k % 3 != 2) jac.col(k) *= length;
+  for (int k = 0; k < model.nq(); ++k) jac.col(k) *= model.symbolic().coordinate_scales[k];
   for (int r = 0; r < model.nc(); ++r) jac.row(r) /= jac.row(r).cwiseAbs().maxCoeff();
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(jac);
   const auto& s = svd.singularValues();
@@ -98,19 +96,19 @@ struct StepError {
 StepError step_error(const cg::CompiledModel& model, const cg::ReferenceRow& ref,
                      const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                      const Eigen::VectorXd& qdd, const std::vector<cg::PointState>& points) {
-  const double length = model.symbolic().length_scale;
+  const auto& scales = model.symbolic().coordinate_scales;
   const auto block = [&](const std::vector<numeric>& want, const Eigen::VectorXd& got,
                          const auto& point_value, int point_slot) {
     double err = 0, size = 0;
     for (int k = 0; k < model.nq(); ++k) {
-      const double s = k % 3 == 2 ? 1.0 : length;
+      const double s = scales[k];
       err = std::max(err, diff(got[k], want[k]) / s);
       size = std::max(size, std::abs(want[k].to_double()) / s);
     }
     for (std::size_t p = 0; p < points.size(); ++p)
       for (int c = 0; c < 2; ++c)
-        err =
-            std::max(err, diff(point_value(points[p])[c], ref.points[p][point_slot + c]) / length);
+        err = std::max(err, diff(point_value(points[p])[c], ref.points[p][point_slot + c]) /
+                                model.symbolic().length_scale);
     return err / (kEps * std::max(size, 1e-300));
   };
   StepError e;

@@ -72,13 +72,12 @@ double max_difference(const std::vector<cg::StateRow>& a, const std::vector<cg::
 }
 
 // The exact 1-norm condition number of Phi_q as the solvers scale it (rows equilibrated by
-// their largest entry, length columns times the length scale), from a dense inverse.
+// their largest entry, columns times their coordinate's scale), from a dense inverse.
 double exact_condition(const cg::CompiledModel& model, const Eigen::VectorXd& q, double t) {
   cg::ModelEvaluator<double> eval(model);
   Eigen::MatrixXd a = Eigen::MatrixXd::Zero(model.nc(), model.nq());
   eval.jacobian(q.data(), t, a);
-  for (int k = 0; k < a.cols(); ++k)
-    if (k % 3 != 2) a.col(k) *= model.symbolic().length_scale;
+  for (int k = 0; k < a.cols(); ++k) a.col(k) *= model.symbolic().coordinate_scales[k];
   for (int r = 0; r < a.rows(); ++r) a.row(r) /= a.row(r).cwiseAbs().maxCoeff();
   const auto norm1 = [](const Eigen::MatrixXd& m) {
     return m.cwiseAbs().colwise().sum().maxCoeff();

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <kinegen/motion.hpp>
 #include <kinegen/solver.hpp>
 #include <kinegen/sparse_solver.hpp>
 #include <limits>
@@ -42,13 +43,11 @@ using LargeSolver = SparseSolver<RhsSystem>;
 // time (JacobiSVD: about 6 s at nq = 600).
 constexpr int kMaxDiagnosedNq = 400;
 
-// Phi_q with rows equilibrated and length columns multiplied by the length scale, as the
+// Phi_q with rows equilibrated and columns multiplied by their coordinate's scale, as the
 // solver sees it: its singular values compare like with like (metres and radians).
 Eigen::MatrixXd scaled_jacobian(const CompiledModel& model, const Eigen::MatrixXd& jac) {
   Eigen::MatrixXd s = jac;
-  const double length = model.symbolic().length_scale;
-  for (int k = 0; k < s.cols(); ++k)
-    if (k % 3 != 2) s.col(k) *= length;
+  for (int k = 0; k < s.cols(); ++k) s.col(k) *= model.symbolic().coordinate_scales[k];
   for (int r = 0; r < s.rows(); ++r) {
     const double n = s.row(r).cwiseAbs().maxCoeff();
     if (n > 0) s.row(r) /= n;
@@ -120,13 +119,6 @@ std::vector<int> dependent_rows(const Eigen::MatrixXd& scaled, double tol) {
       dependent.push_back(r);
   }
   return dependent;
-}
-
-// Scaled infinity norm of a q-sized vector: lengths over the length scale, angles in radians.
-double scaled_norm(const Eigen::VectorXd& v, double length) {
-  double n = 0;
-  for (int k = 0; k < v.size(); ++k) n = std::max(n, std::abs(k % 3 == 2 ? v[k] : v[k] / length));
-  return n;
 }
 
 }  // namespace
@@ -213,9 +205,12 @@ void check_redundancy(const CompiledModel& model, const Eigen::VectorXd& q, doub
 // Where an angle enters only through sin and cos, whole turns are not seen by Phi: bring each
 // such angle back into the turn of its estimate q0, so the first row reads as the file meant.
 template <class S>
-void keep_turns_of_estimates(S& solver, const Eigen::VectorXd& q0, Eigen::VectorXd& q, double t) {
+void keep_turns_of_estimates(S& solver, const CompiledModel& model, Eigen::VectorXd& q, double t) {
   const double two_pi = 2 * std::acos(-1.0);
-  for (int k = 2; k < q.size(); k += 3) {
+  const Eigen::VectorXd q0 = model.q0();
+  const auto& kinds = model.symbolic().coordinate_kinds;
+  for (int k = 0; k < q.size(); ++k) {
+    if (kinds[k] != CoordinateKind::kAngle) continue;
     const double turns = std::round((q[k] - q0[k]) / two_pi);
     if (turns == 0) continue;
     Eigen::VectorXd trial = q;
@@ -264,15 +259,22 @@ template <class S>
 void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
              const std::function<void(const StateRow&)>& sink, const AnalysisOptions& options) {
   const std::string& file = model.mechanism().source;
-  const double length = model.symbolic().length_scale;
+  const auto& scales = model.symbolic().coordinate_scales;
+  const auto inv_scale = [&](int k) { return 1 / scales[k]; };
+  std::vector<int> all_coordinates(model.nq());
+  for (int k = 0; k < model.nq(); ++k) all_coordinates[k] = k;
   StateRow row;
   row.q = model.q0();
   row.qd = Eigen::VectorXd::Zero(model.nq());
   row.qdd = Eigen::VectorXd::Zero(model.nq());
   bool first_solve = true;  // the first position solve starts from the file's q0
   const auto fail = [&](const char* stage, double t, Result r) {
-    // Newton stalled at a step that vanished, short of the residual: the constraints contradict
-    // each other (a redundant model slightly off), whatever the iteration count says.
+    // Newton that ends near a singular Phi_q (as at a toggle, where it converges only
+    // linearly) is reported as singular, as a solved position there is. Newton stalled at a
+    // step that vanished, short of the residual: the constraints contradict each other (a
+    // redundant model slightly off), whatever the iteration count says.
+    if (r.status == Status::kMaxIterations && r.condition > options.max_condition)
+      r.status = Status::kSingular;
     if (r.status == Status::kMaxIterations && r.step <= 1e-10) r.status = Status::kInconsistent;
     std::string message = file + ": " + stage + " analysis failed at " + format_time(t) + ": " +
                           r.message();
@@ -305,13 +307,17 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
   std::unique_ptr<ProgramEvaluator<double>> phi_p_eval;
   if (sensitivity) phi_p_eval = std::make_unique<ProgramEvaluator<double>>(sensitivity->phi_p);
   StateRow previous;
+  Eigen::VectorXd qdd_before;  // the acceleration one step before `previous` (the jerk)
+  double h_before = 0;
   int previous_sign = 0;
   for (int k = 0; k <= grid.steps; ++k) {
     const double t = grid.at(k);
     if (k > 0) {
-      // Taylor predictor from the last solved state keeps Newton on its branch.
+      // The runtime's predictor from the last solved state keeps Newton on its branch.
       const double h = t - row.t;
-      row.q += h * row.qd + 0.5 * h * h * row.qdd;
+      const TaylorPredictor<double> predict(h, h_before, k > 1);
+      for (int c = 0; c < row.q.size(); ++c)
+        row.q[c] = predict(row.q[c], row.qd[c], row.qdd[c], k > 1 ? qdd_before[c] : 0.0);
     }
     row.t = t;
     if (auto r = solver.position(row.q, t); !r) {
@@ -323,7 +329,7 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     }
     first_solve = false;
     if (k == 0) {
-      keep_turns_of_estimates(solver, model.q0(), row.q, t);
+      keep_turns_of_estimates(solver, model, row.q, t);
       check_redundancy(model, row.q, t, options);
     }
     if (auto r = solver.velocity(row.q, t, row.qd); !r) {
@@ -337,24 +343,16 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     if (auto r = solver.acceleration(row.q, row.qd, t, row.qdd); !r) fail("acceleration", t, r);
     if (sensitivity) solve_sensitivities(solver, *sensitivity, *phi_p_eval, model, t, row, fail);
     if (k > 0 && options.check_jumps) {
-      // q(t1) - q(t0) = h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 + O(h^5) on a smooth
-      // motion (Euler-Maclaurin). A solution that breaks this by a large fraction of the
-      // motion was not reached along the motion: Newton jumped to another branch.
-      const double h = t - previous.t;
-      const Eigen::VectorXd dq = row.q - previous.q;
-      const Eigen::VectorXd mismatch =
-          dq - 0.5 * h * (previous.qd + row.qd) - h * h / 12 * (previous.qdd - row.qdd);
-      const double motion = std::max({scaled_norm(dq, length), scaled_norm(h * previous.qd, length),
-                                      scaled_norm(h * row.qd, length)});
-      const double miss = scaled_norm(mismatch, length);
-      const double eps = std::numeric_limits<double>::epsilon();
-      const double floor = 1e-6 + 64 * eps * scaled_norm(row.q.cwiseAbs(), length);
-      if (miss > options.jump_fraction * motion + floor)
+      // The runtime's test (kinegen/motion.hpp), the one Solver::step applies.
+      const MotionCheck motion = check_motion(
+          all_coordinates, t - previous.t, previous.q, previous.qd, previous.qdd, row.q, row.qd,
+          row.qdd, inv_scale, options.jump_fraction, std::numeric_limits<double>::epsilon());
+      if (motion.jumped())
         throw AnalysisError(
             file + ": position analysis failed at " + format_time(t) +
-            ": the solution jumped (scaled change " + format_number(scaled_norm(dq, length)) +
-            " since " + format_time(previous.t) + " disagrees with the velocities by " +
-            format_number(miss) +
+            ": the solution jumped (scaled change " + format_number(motion.change) + " since " +
+            format_time(previous.t) + " disagrees with the velocities by " +
+            format_number(motion.miss) +
             "): Newton left the assembly branch it started on, or the step is too coarse to tell; "
             "use smaller steps (--steps)");
       const int sign = solver.jacobian_sign();
@@ -374,6 +372,10 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     }
     if (sensitivity) point_sensitivities(model, *sensitivity, row.q, row.dq_dp, row.dpoints_dp);
     sink(row);
+    if (k > 0) {
+      qdd_before = previous.qdd;
+      h_before = t - previous.t;
+    }
     previous = row;
   }
 }

@@ -72,8 +72,9 @@ std::vector<CheckRow> check_derivatives(const CompiledModel& model, const CheckO
                      std::to_string(kMaxReferenceDigits));
   const int nq = model.nq(), nc = model.nc();
   const int nnz = static_cast<int>(model.programs().jac_rows.size());
-  const double length = model.symbolic().length_scale;
-  const auto size_of = [&](int k) { return k % 3 == 2 ? 1.0 : length; };
+  const auto& sym = model.symbolic();
+  const auto size_of = [&](int k) { return sym.coordinate_scales[k]; };
+  const auto is_angle = [&](int k) { return sym.coordinate_kinds[k] == CoordinateKind::kAngle; };
   ModelEvaluator<double> real(model);
   ModelEvaluator<Complex> cplx(model);
   HighPrecisionEvaluator exact(model, options.digits);
@@ -100,8 +101,8 @@ std::vector<CheckRow> check_derivatives(const CompiledModel& model, const CheckO
   for (int s = 0; s < options.samples; ++s) {
     Sample x{VectorXd(nq), VectorXd(nq), 0};
     for (int k = 0; k < nq; ++k) {
-      x.q[k] = q0[k] + (k % 3 == 2 ? 0.5 : 0.1) * size_of(k) * unit(rng);
-      if (k % 3 == 2) x.q[k] += kTwoPi * options.turns;
+      x.q[k] = q0[k] + (is_angle(k) ? 0.5 : 0.1) * size_of(k) * unit(rng);
+      if (is_angle(k)) x.q[k] += kTwoPi * options.turns;
       x.qd[k] = size_of(k) * unit(rng);
       growth = std::max(growth, std::abs(x.q[k]) / size_of(k));
     }

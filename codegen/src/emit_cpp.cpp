@@ -580,8 +580,9 @@ void emit_block_helpers(std::ostringstream& os) {
     double step = 0;           // largest last scaled Newton step
   };
   struct BlockOptions {
-    // Newton on a block stops when its step, lengths divided by length_scale and angles in
-    // radians, is at most this; or after exactly fixed_iterations when that is positive.
+    // Newton on a block stops when its step, each coordinate over its coordinate_scales
+    // entry (angles in radians), is at most this; or after exactly fixed_iterations when
+    // that is positive.
     double tolerance = 1e-10;
     int max_iterations = 30;  // per block
     int fixed_iterations = 0;
@@ -1373,8 +1374,8 @@ class BlockEmitter {
       for (int i = 0; i < k; ++i) {
         const int c = b.cols[i];
         update(os, in2, rotated, c, ref("q", c) + " - _r[" + idx(i) + "]");
-        os << in2 << "_step = std::max(_step, _mag(_r[" << i << "])"
-           << (c % 3 == 2 ? "" : " * inv_length") << ");\n";
+        os << in2 << "_step = std::max(_step, _mag(_r[" << i << "]) * (1.0 / "
+           << ref("coordinate_scales", c) << "));\n";
       }
       os << in2 << "if (!(_step <= 1e300)) return _fail(report, 3, " << block_id(bi) << ", _it);\n"
          << in2
@@ -1621,8 +1622,8 @@ class BlockEmitter {
     for (int i = 0; i < m; ++i) {
       const int c = plan.tears[i];
       update(os, in2, rotated, c, ref("q", c) + " - _r[" + idx(i) + "]");
-      os << in2 << "_step" << b << " = std::max(_step" << b << ", _mag(_r[" << i << "])"
-         << (c % 3 == 2 ? "" : " * inv_length") << ");\n";
+      os << in2 << "_step" << b << " = std::max(_step" << b << ", _mag(_r[" << i << "]) * (1.0 / "
+         << ref("coordinate_scales", c) << "));\n";
     }
     os << in2 << "if (!(_step" << b << " <= 1e300)) return _fail(report, 3, " << block_id(bi) << ", _it);\n"
        << in2 << "_converged" << b << " = o.fixed_iterations > 0 ? _it >= o.fixed_iterations\n"
@@ -1879,7 +1880,19 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
   os << "  // Initial estimates for the first position solve, from the mechanism file.\n";
   os << "  static constexpr std::array<double, nq> q0 = {" << join(q0) << "};\n";
   os << "  // A typical length of the mechanism; position tolerances scale with it.\n";
-  os << "  static constexpr double length_scale = " << format_double(model.length_scale) << ";\n\n";
+  os << "  static constexpr double length_scale = " << format_double(model.length_scale) << ";\n";
+  {
+    std::vector<std::string> kinds, scales;
+    for (std::size_t k = 0; k < model.coordinate_kinds.size(); ++k) {
+      kinds.push_back(std::to_string(static_cast<int>(model.coordinate_kinds[k])));
+      scales.push_back(format_double(model.coordinate_scales[k]));
+    }
+    os << "  // What each coordinate measures (kinegen::CoordinateKind: 0 length, 1 angle, 2 scalar)\n"
+       << "  // and the size its tolerances scale with (a body's x and y: its joints' geometry).\n"
+       << "  static constexpr std::array<int, nq> coordinate_kinds = {" << join(kinds) << "};\n"
+       << "  static constexpr std::array<double, nq> coordinate_scales = {" << join(scales)
+       << "};\n\n";
+  }
   os << "  struct Params {\n";
   if (options.folded_params)
     os << "    // Ignored: these values were folded into the code at generation.\n";

@@ -227,22 +227,20 @@ bool ForceSolver::solve(double t, const Eigen::VectorXd& q, const Eigen::VectorX
   applied_.run(q.data(), qd.data(), t, params_.data(), q_total_.data());
   add_inertia_forces(forces_->numbers, static_cast<int>(m.bodies.size()), q.data(), qd.data(),
                      qdd.data(), q_total_.data());
-  // Phi_q^T lambda = Q, factored scaled like the position solve (rows equilibrated, length
-  // columns in units of the length scale) so that the condition estimate means the same.
-  const double length = model_->symbolic().length_scale;
+  // Phi_q^T lambda = Q, factored scaled like the position solve (rows equilibrated, columns
+  // in units of their coordinate's scale) so that the condition estimate means the same.
+  const auto& scales = model_->symbolic().coordinate_scales;
   Eigen::MatrixXd scaled = jac_;
   Eigen::VectorXd row_scale(jac_.rows());
   for (int r = 0; r < scaled.rows(); ++r) {
-    for (int k = 0; k < scaled.cols(); ++k)
-      if (k % 3 != 2) scaled(r, k) *= length;
+    for (int k = 0; k < scaled.cols(); ++k) scaled(r, k) *= scales[k];
     const double n = scaled.row(r).cwiseAbs().maxCoeff();
     row_scale[r] = n > 0 ? 1 / n : 1;
     scaled.row(r) *= row_scale[r];
   }
   // scaled = R J C; J^T lambda = Q  <=>  scaled^T (R^-1 lambda) = C Q.
   Eigen::VectorXd rhs = q_total_;
-  for (int k = 0; k < rhs.size(); ++k)
-    if (k % 3 != 2) rhs[k] *= length;
+  for (int k = 0; k < rhs.size(); ++k) rhs[k] *= scales[k];
   const Eigen::PartialPivLU<Eigen::MatrixXd> lu(scaled.transpose());
   const double rcond = lu.rcond();
   condition_ = rcond > 0 ? 1 / rcond : std::numeric_limits<double>::infinity();

@@ -417,7 +417,9 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
   const numeric tolerance = ten.power(-(digits - 5));
   const numeric stagnation = ten.power(-(digits / 2));
   const numeric pivot_ratio = ten.power(-(digits - 3));
-  const numeric inv_length = eval.to_float(numeric(1) / exact_numeric(sym.length_scale));
+  std::vector<numeric> inv_scale;  // per coordinate, as the runtime measures steps
+  for (double scale : sym.coordinate_scales)
+    inv_scale.push_back(eval.to_float(numeric(1) / exact_numeric(scale)));
   constexpr int kMaxIterations = 60;
 
   // Point offsets, exact parameters substituted.
@@ -470,7 +472,7 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
         numeric size = 0;
         for (int k = 0; k < nq; ++k) {
           row.q[k] = row.q[k] - dq[k];
-          size = std::max(size, GiNaC::abs(k % 3 == 2 ? dq[k] : dq[k] * inv_length));
+          size = std::max(size, GiNaC::abs(dq[k] * inv_scale[k]));
         }
         converged =
             size <= tolerance || (size <= stagnation && last_step >= 0 && size >= last_step);

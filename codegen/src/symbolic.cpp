@@ -625,6 +625,13 @@ std::vector<int> coordinates_in(const ex& e, const SymbolTable& s) {
   return coords;
 }
 
+// The size a coordinate's tolerance scales with. `length`: the scale of its body, or for an
+// extra coordinate of kind length (spec 6.1), the mechanism's. Angles are in radians and
+// scalars (curve parameters and the like) are taken as they are.
+double scale_of(CoordinateKind kind, double length) {
+  return kind == CoordinateKind::kLength ? length : 1.0;
+}
+
 }  // namespace
 
 EquationContext::Frame EquationContext::frame(int body) const {
@@ -816,31 +823,57 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
     model.gamma.push_back(-(w_q_qd + 2 * diff(w, s.t(), r) + diff(phi_t, s.t(), r)));
   }
 
-  double scale = 0;
-  const auto grow = [&](const ex& e) {
-    scale = std::max(scale, std::abs(to_double(substitute_params(e, s, model.param_values))));
-  };
   for (const auto& b : m.bodies) {
     const std::string item = "body '" + b.name + "' q0";
-    for (int c = 0; c < 3; ++c) {
-      model.q0.push_back(builder.geometry(b.q0[c], item));
-      if (c < 2) grow(model.q0.back());
-    }
+    for (int c = 0; c < 3; ++c) model.q0.push_back(builder.geometry(b.q0[c], item));
   }
-  for (const auto& p : m.points) {
-    const auto v = builder.vec(p.s, "point '" + p.name + "' s");
-    model.point_s.push_back(v);
-    grow(v.first);
-    grow(v.second);
-  }
+  for (const auto& p : m.points)
+    model.point_s.push_back(builder.vec(p.s, "point '" + p.name + "' s"));
+
+  // Tolerance scales: a body's x and y scale with the geometry of its own joints and drivers
+  // (the local vectors on it, a distance joint's length), so a 1e-6 follower next to a 1e6 arm
+  // keeps its own accuracy. q0, reported points and ground anchors never enter: they do not
+  // set how precisely a link must close. A body without such geometry (a slider pinned at its
+  // origin) takes the largest of the bodies joined to it, else the largest body scale; a
+  // mechanism without any, 1.
+  const int num_bodies = static_cast<int>(m.bodies.size());
+  std::vector<double> body_scale(num_bodies, 0.0);
+  const auto grow = [&](int body, const ex& e) {
+    if (body == kGround) return;
+    const double v = std::abs(to_double(substitute_params(e, s, model.param_values)));
+    if (std::isfinite(v)) body_scale[body] = std::max(body_scale[body], v);
+  };
   for (const auto* c : m.constraints()) {
-    for (const Vec2* v : offsets(*c)) {
+    for (const auto& [body, v] : offsets(*c)) {
       const auto lv = builder.vec(*v, c->item);
-      grow(lv.first);
-      grow(lv.second);
+      grow(body, lv.first);
+      grow(body, lv.second);
+    }
+    if (c->kind->squared_distance && !c->is_driver) {
+      const ex length = builder.geometry(c->value, c->item + " value");
+      grow(c->i, length);
+      grow(c->j, length);
     }
   }
-  model.length_scale = scale > 0 ? scale : 1.0;
+  double largest = 0;
+  for (double v : body_scale) largest = std::max(largest, v);
+  model.length_scale = largest > 0 ? largest : 1.0;
+  // A body without geometry of its own moves with the bodies it is joined to.
+  std::vector<double> joined(num_bodies, 0.0);
+  for (const auto* c : m.constraints())
+    if (c->i != kGround && c->j != kGround) {
+      joined[c->i] = std::max(joined[c->i], body_scale[c->j]);
+      joined[c->j] = std::max(joined[c->j], body_scale[c->i]);
+    }
+  for (int b = 0; b < num_bodies; ++b) {
+    const double length = body_scale[b] > 0 ? body_scale[b]
+                          : joined[b] > 0   ? joined[b]
+                                            : model.length_scale;
+    for (auto kind : {CoordinateKind::kLength, CoordinateKind::kLength, CoordinateKind::kAngle}) {
+      model.coordinate_kinds.push_back(kind);
+      model.coordinate_scales.push_back(scale_of(kind, length));
+    }
+  }
   return model;
 }
 

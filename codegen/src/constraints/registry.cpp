@@ -22,10 +22,11 @@ const ConstraintKind* find_constraint_kind(const std::string& name) {
   return nullptr;
 }
 
-std::vector<const Vec2*> offsets(const Constraint& c) {
-  std::vector<const Vec2*> out;
+std::vector<std::pair<int, const Vec2*>> offsets(const Constraint& c) {
+  std::vector<std::pair<int, const Vec2*>> out;
   for (const KeySpec& k : c.kind->keys)
-    if (k.kind == KeyKind::kOffset) out.push_back(&c.vector(k.name));
+    if (k.kind == KeyKind::kOffset)
+      out.emplace_back(std::string(k.name) == "sj" ? c.j : c.i, &c.vector(k.name));
   return out;
 }
 

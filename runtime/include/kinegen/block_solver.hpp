@@ -8,6 +8,7 @@
 #include <limits>
 #include <type_traits>
 
+#include "kinegen/motion.hpp"
 #include "kinegen/solver.hpp"
 
 namespace kinegen {
@@ -41,14 +42,90 @@ template <class Model>
 struct HasNewtonCoordinates<Model, std::void_t<decltype(Model::newton_coordinates)>>
     : std::true_type {};
 
-template <class Report>
+// Fields that newer headers' BlockReport and BlockOptions carry (detection, so that older
+// headers keep working): the residual and condition the kernels measured, the option fields
+// they honour, and solve functions that report each block's determinant sign.
+template <class R, class = void>
+struct ReportHasResidual : std::false_type {};
+template <class R>
+struct ReportHasResidual<R, std::void_t<decltype(std::declval<const R&>().residual)>>
+    : std::true_type {};
+template <class R, class = void>
+struct ReportHasRcond : std::false_type {};
+template <class R>
+struct ReportHasRcond<R, std::void_t<decltype(std::declval<const R&>().rcond)>> : std::true_type {};
+template <class O, class = void>
+struct OptionsHaveMinRcond : std::false_type {};
+template <class O>
+struct OptionsHaveMinRcond<O, std::void_t<decltype(std::declval<O&>().min_rcond)>>
+    : std::true_type {};
+template <class O, class = void>
+struct OptionsHaveMaxHalvings : std::false_type {};
+template <class O>
+struct OptionsHaveMaxHalvings<O, std::void_t<decltype(std::declval<O&>().max_halvings)>>
+    : std::true_type {};
+template <class O, class = void>
+struct OptionsHaveResidualTolerance : std::false_type {};
+template <class O>
+struct OptionsHaveResidualTolerance<O, std::void_t<decltype(std::declval<O&>().residual_tolerance)>>
+    : std::true_type {};
+template <class Model, class = void>
+struct NumBlocks : std::integral_constant<int, 0> {};
+template <class Model>
+struct NumBlocks<Model, std::void_t<decltype(Model::num_blocks)>>
+    : std::integral_constant<int, Model::num_blocks> {};
+
+// The block solver's report as a Result. What the report does not carry is left for Solver
+// to fill in (the residual) or marked unknown (condition NaN: older kernels estimate none).
+template <class Model, class Report>
 Result to_result(const Report& report) {
   Result r;
   r.status = static_cast<Status>(report.status);
   r.iterations = report.iterations;
   r.step = report.step;
-  if (r.status == Status::kSingular) r.pivot_ratio = 0;
+  r.block = report.block;
+  r.rank = Model::nq;  // every block's LU passed its pivot test
+  r.condition = std::numeric_limits<double>::quiet_NaN();
+  r.pivot_ratio = std::numeric_limits<double>::quiet_NaN();
+  if constexpr (ReportHasResidual<Report>::value) r.residual = static_cast<double>(report.residual);
+  if constexpr (ReportHasRcond<Report>::value) {
+    const double rcond = static_cast<double>(report.rcond);
+    r.condition = rcond > 0 ? 1 / rcond : std::numeric_limits<double>::infinity();
+  }
+  if (r.status == Status::kSingular) {
+    r.pivot_ratio = 0;
+    r.rank = Model::nq - 1;  // at most
+    r.condition = std::numeric_limits<double>::infinity();
+  }
   return r;
+}
+
+// Largest |Phi_r| of a generated model at q, against the row's scale (the largest
+// |dPhi_r/dq_k| times coordinate k's scale) less the rounding of the row's terms: the measure
+// of detail::scaled_residual, on the structural non-zeros only (nothing of nq x nc).
+template <class Model, class Scalar>
+double model_residual(const Scalar* q, Scalar t, const typename Model::Params& params) {
+  using std::abs;
+  Scalar phi[Model::nc];
+  Scalar values[Model::jac_nnz > 0 ? Model::jac_nnz : 1];
+  double row_size[Model::nc] = {}, terms[Model::nc] = {};
+  Model::phi(q, t, params, phi);
+  Model::phi_q(q, t, params, values);
+  for (int e = 0; e < Model::jac_nnz; ++e) {
+    const int r = Model::jac_rows[e], c = Model::jac_cols[e];
+    const double v = static_cast<double>(abs(values[e]));
+    row_size[r] = std::max(row_size[r], v * model_coordinate_scale<Model>(c));
+    terms[r] += v * static_cast<double>(abs(q[c]));
+  }
+  const double eps = static_cast<double>(std::numeric_limits<Scalar>::epsilon());
+  double worst = 0;
+  for (int r = 0; r < Model::nc; ++r) {
+    const double size = row_size[r] > 0 ? row_size[r] : 1.0;
+    const double excess = (static_cast<double>(abs(phi[r])) - 16 * eps * terms[r]) / size;
+    if (!(excess == excess)) return excess;  // NaN: not a solution
+    worst = std::max(worst, excess);
+  }
+  return worst;
 }
 
 }  // namespace detail
@@ -78,16 +155,11 @@ class Solver {
   SolverOptions& options() { return dense_.options(); }
 
   // Newton from the q given; q is overwritten with the solution (or the last iterate).
-  // Result::iterations is the largest count of any block.
+  // Result::iterations is the largest count of any block; Result::block names the block that
+  // failed. Success means the residual was checked (SolverOptions::residual_tolerance).
   Result position(Vector& q, Scalar t) {
     if constexpr (kBlockSolver) {
-      if constexpr (kTrigCache > 0) {
-        return detail::to_result(Model::solve_position(q.data(), t, dense_.system().params(),
-                                                       block_options(), trig_.data()));
-      } else {
-        return detail::to_result(
-            Model::solve_position(q.data(), t, dense_.system().params(), block_options()));
-      }
+      return checked(q, t, solve_block_position(q, t, block_options()));
     } else {
       return dense_.position(q, t);
     }
@@ -95,7 +167,7 @@ class Solver {
   // Solves Phi_q qd = nu at a solved q.
   Result velocity(const Vector& q, Scalar t, Vector& qd) {
     if constexpr (kBlockSolver) {
-      const Result r = detail::to_result(
+      const Result r = detail::to_result<Model>(
           Model::solve_velocity(q.data(), t, dense_.system().params(), qd.data(), block_options()));
       if (!r) qd.setConstant(kNaN);  // no stale or partial values after a failure
       return r;
@@ -106,7 +178,7 @@ class Solver {
   // Solves Phi_q qdd = gamma at a solved q and qd.
   Result acceleration(const Vector& q, const Vector& qd, Scalar t, Vector& qdd) {
     if constexpr (kBlockSolver) {
-      const Result r = detail::to_result(Model::solve_acceleration(
+      const Result r = detail::to_result<Model>(Model::solve_acceleration(
           q.data(), qd.data(), t, dense_.system().params(), qdd.data(), block_options()));
       if (!r) qdd.setConstant(kNaN);
       return r;
@@ -115,54 +187,72 @@ class Solver {
     }
   }
 
-  // One full step at time t: q is predicted from the previous step's q, qd and qdd (Taylor
-  // over h = t - t_previous, with the jerk estimated from the last two accelerations; none on
-  // the first call or after reset()), then solved, then qd and qdd. q, qd and qdd are the
-  // caller's state, passed back unchanged between steps (call reset() after changing them).
+  // One full step at time t: q is predicted from the last step (TaylorPredictor, none on the
+  // first call or after reset()), then solved, then qd and qdd. q, qd and qdd are the caller's
+  // state, passed back unchanged between steps (call reset() after changing them). A step
+  // whose solution is not the one the velocities predict (check_motion: another assembly
+  // branch, or a step too coarse to tell) fails with Status::kBranchJump, as does a change of
+  // a block's determinant sign where the header reports them.
   Result step(Scalar t, Vector& q, Vector& qd, Vector& qdd) {
     const Scalar h = has_previous_ ? t - t_previous_ : Scalar(0);
     if (has_previous_) {
-      // Third order: the jerk from the last two accelerations. The prediction error is then
-      // O(h^4), below the tolerance at small steps, so one iteration converges.
-      const Scalar h2 = h * h / Scalar(2);
-      const Scalar h3 =
-          has_two_ && h_previous_ != Scalar(0) ? h * h * h / (Scalar(6) * h_previous_) : Scalar(0);
-      for_predicted([&](int k) {  // one pass (Eigen would make three)
-        q[k] += h * qd[k] + h2 * qdd[k] + h3 * (qdd[k] - qdd_previous_[k]);
-      });
+      const TaylorPredictor<Scalar> predict(h, h_previous_, has_two_);
+      for_predicted([&](int k) { q[k] = predict(q[k], qd[k], qdd[k], qdd_before_[k]); });
     }
-    for_predicted([&](int k) { qdd_last_[k] = qdd[k]; });
-    // Without a prediction the first solve iterates to convergence even when the options fix
-    // the iteration count.
+    Result r;
     if constexpr (kBlockSolver && detail::HasAcceleration<Model>::value) {
+      // Without a prediction the first solve iterates to convergence even when the options
+      // fix the iteration count.
       auto o = block_options();
       if (!has_previous_) o.fixed_iterations = 0;
-      Result r;
-      if constexpr (kTrigCache > 0) {
-        r = detail::to_result(Model::solve_step(q.data(), t, dense_.system().params(), qd.data(),
-                                                qdd.data(), o, trig_.data()));
-      } else {
-        r = detail::to_result(
-            Model::solve_step(q.data(), t, dense_.system().params(), qd.data(), qdd.data(), o));
-      }
-      if (!r) {
-        qd.setConstant(kNaN);
-        qdd.setConstant(kNaN);
-        return r;
-      }
-      advance(t, h);
-      return r;
+      r = checked(q, t, solve_block_step(q, t, qd, qdd, o));
     } else {
-      const Result r = position(q, t);
-      if (!r) return r;
-      if (const Result rv = velocity(q, t, qd); !rv) return rv;
-      if (const Result ra = acceleration(q, qd, t, qdd); !ra) return ra;
-      advance(t, h);
+      r = position(q, t);
+      if (r) {
+        if (const Result rv = velocity(q, t, qd); !rv) r = rv;
+      }
+      if (r) {
+        if (const Result ra = acceleration(q, qd, t, qdd); !ra) r = ra;
+      }
+    }
+    if (r && has_previous_ && signs_changed()) r.status = Status::kBranchJump;
+    if (r && has_previous_) {
+      const MotionCheck motion = check_motion(
+          predicted_coordinates(), static_cast<double>(h), q_previous_, qd_previous_, qdd_previous_,
+          q, qd, qdd, [](int k) { return detail::model_coordinate_scale<Model>(k); },
+          dense_.options().jump_fraction,
+          static_cast<double>(std::numeric_limits<Scalar>::epsilon()));
+      if (motion.jumped()) r.status = Status::kBranchJump;
+    }
+    if (!r) {
+      qd.setConstant(kNaN);  // no stale or partial values after a failure
+      qdd.setConstant(kNaN);
       return r;
     }
+    // Only solved values enter the history, so a failed step leaves nothing behind.
+    has_two_ = has_previous_;
+    h_previous_ = h;
+    for_predicted([&](int k) {
+      qdd_before_[k] = qdd_previous_[k];
+      q_previous_[k] = q[k];
+      qd_previous_[k] = qd[k];
+      qdd_previous_[k] = qdd[k];
+    });
+    signs_ = signs_new_;
+    t_previous_ = t;
+    has_previous_ = true;
+    return r;
   }
-  // Forgets the previous step: the next step() starts Newton from the q given.
-  void reset() { has_previous_ = has_two_ = false; }
+  // Forgets everything the steps kept: the predictor's history, the sin/cos cache and the
+  // blocks' determinant signs. The next step() starts Newton from the q given.
+  void reset() {
+    has_previous_ = has_two_ = false;
+    h_previous_ = t_previous_ = Scalar(0);
+    qdd_before_.setZero();
+    trig_ = empty_trig_cache();
+    signs_.fill(0);
+    signs_new_.fill(0);
+  }
 
  private:
   auto block_options() const {
@@ -172,27 +262,86 @@ class Solver {
     o.max_iterations = s.max_iterations;
     o.fixed_iterations = s.fixed_iterations;
     o.singular_pivot_ratio = s.singular_pivot_ratio;
+    using O = typename Model::BlockOptions;
+    if constexpr (detail::OptionsHaveMinRcond<O>::value) o.min_rcond = s.min_rcond;
+    if constexpr (detail::OptionsHaveMaxHalvings<O>::value) o.max_halvings = s.max_halvings;
+    if constexpr (detail::OptionsHaveResidualTolerance<O>::value)
+      o.residual_tolerance = s.residual_tolerance;
     return o;
+  }
+
+  // The generated position and full-step solves, with the sin/cos cache and the blocks'
+  // determinant signs where the header takes them.
+  template <class O>
+  Result solve_block_position(Vector& q, Scalar t, const O& o) {
+    const auto& p = dense_.system().params();
+    if constexpr (kSigns) {
+      return detail::to_result<Model>(
+          Model::solve_position(q.data(), t, p, o, trig_.data(), signs_new_.data()));
+    } else if constexpr (kTrigCache > 0) {
+      return detail::to_result<Model>(Model::solve_position(q.data(), t, p, o, trig_.data()));
+    } else {
+      return detail::to_result<Model>(Model::solve_position(q.data(), t, p, o));
+    }
+  }
+  template <class O>
+  Result solve_block_step(Vector& q, Scalar t, Vector& qd, Vector& qdd, const O& o) {
+    const auto& p = dense_.system().params();
+    if constexpr (kSigns) {
+      return detail::to_result<Model>(Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), o,
+                                                        trig_.data(), signs_new_.data()));
+    } else if constexpr (kTrigCache > 0) {
+      return detail::to_result<Model>(
+          Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), o, trig_.data()));
+    } else {
+      return detail::to_result<Model>(Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), o));
+    }
+  }
+  // What the dense path checks after its Newton loop, for a block solve: the residual (from
+  // the report where the kernels measured it, else from Model::phi here) against
+  // residual_tolerance, and the condition against min_rcond where the kernels estimated it. A
+  // fixed iteration budget that leaves the constraints open is kBudgetExhausted.
+  Result checked(const Vector& q, Scalar t, Result r) {
+    if (r.status != Status::kConverged) return r;
+    const SolverOptions& s = dense_.options();
+    if constexpr (!detail::ReportHasResidual<typename Model::BlockReport>::value)
+      r.residual = detail::model_residual<Model>(q.data(), t, dense_.system().params());
+    if (!(r.residual <= s.residual_tolerance)) {
+      r.status = !(r.residual == r.residual) ? Status::kNonFinite
+                 : s.fixed_iterations > 0    ? Status::kBudgetExhausted
+                                             : Status::kInconsistent;
+    } else if (r.condition * s.min_rcond > 1) {  // NaN (not estimated) passes
+      r.status = Status::kSingular;
+    }
+    return r;
+  }
+  // Whether a block's determinant changed sign since the last step (headers that report them).
+  bool signs_changed() const {
+    for (std::size_t b = 0; b < signs_.size(); ++b)
+      if (kSigns && signs_[b] != 0 && signs_new_[b] != 0 && signs_[b] != signs_new_[b]) return true;
+    return false;
   }
 
   // Calls f(k) for each coordinate the predictor extrapolates: those Newton iterates when the
   // header lists them (the block solver computes every other one from them), otherwise all.
-  template <class F>
-  static void for_predicted(F&& f) {
+  // The jump test compares the same ones: an explicit block has one solution given the blocks
+  // before it, so only a Newton block can change branch.
+  static constexpr const auto& predicted_coordinates() {
     if constexpr (kBlockSolver && detail::HasNewtonCoordinates<Model>::value) {
-      for (int k : Model::newton_coordinates) f(k);
+      return Model::newton_coordinates;
     } else {
-      for (int k = 0; k < Model::nq; ++k) f(k);
+      return kAllCoordinates;
     }
   }
-  void advance(Scalar t, Scalar h) {
-    has_two_ = has_previous_;
-    h_previous_ = h;
-    for_predicted([&](int k) { qdd_previous_[k] = qdd_last_[k]; });
-    t_previous_ = t;
-    has_previous_ = true;
+  template <class F>
+  static void for_predicted(F&& f) {
+    for (const int k : predicted_coordinates()) f(k);
   }
-
+  static constexpr std::array<int, Model::nq> kAllCoordinates = [] {
+    std::array<int, Model::nq> a{};
+    for (int k = 0; k < Model::nq; ++k) a[k] = k;
+    return a;
+  }();
   // The block solver needs no dense workspace (none of nq x nq is ever formed).
   struct NoDense {
     NoDense() = default;
@@ -216,12 +365,31 @@ class Solver {
     return a;
   }
   std::array<Scalar, (kTrigCache > 0 ? kTrigCache : 1)> trig_ = empty_trig_cache();
+  // Whether solve_position and solve_step take the blocks' determinant signs.
+  template <class M, class = void>
+  struct TakesSigns : std::false_type {};
+  template <class M>
+  struct TakesSigns<M, std::void_t<decltype(M::solve_position(
+                           std::declval<Scalar*>(), Scalar(0), std::declval<const Params&>(),
+                           std::declval<const typename M::BlockOptions&>(), std::declval<Scalar*>(),
+                           std::declval<signed char*>()))>>
+      : std::bool_constant<(detail::NumBlocks<M>::value > 0)> {};
+  static constexpr bool kSigns = [] {
+    if constexpr (kBlockSolver) {
+      return TakesSigns<Model>::value;
+    } else {
+      return false;
+    }
+  }();
+  static constexpr int kNumSigns = kSigns ? detail::NumBlocks<Model>::value : 1;
+  std::array<signed char, kNumSigns> signs_{}, signs_new_{};
   Scalar t_previous_ = Scalar(0);
   bool has_previous_ = false, has_two_ = false;
   Scalar h_previous_ = Scalar(0);
-  // The caller's qdd at the last and the previous step (zero before: the predictor multiplies
-  // the difference by 0 then, and must not meet uninitialized values).
-  Vector qdd_last_ = Vector::Zero(), qdd_previous_ = Vector::Zero();
+  // The last solved step (the jump test's start) and the acceleration one step before it
+  // (the predictor's jerk; zero before, where the predictor does not read it).
+  Vector q_previous_ = Vector::Zero(), qd_previous_ = Vector::Zero(),
+         qdd_previous_ = Vector::Zero(), qdd_before_ = Vector::Zero();
 };
 
 }  // namespace kinegen

@@ -12,6 +12,8 @@
 #include <limits>
 #include <type_traits>
 
+#include "kinegen/motion.hpp"
+
 namespace kinegen {
 
 // Why a solve stopped.
@@ -50,11 +52,13 @@ struct Result {
   double step = 0;      // the last scaled Newton step (position only)
   double pivot_ratio = 1;  // smallest / largest |pivot| of the last (scaled) factorization
   // Estimated condition number of the scaled Phi_q of the last factorization (rows equilibrated,
-  // length columns multiplied by the length scale, angle columns as they are): infinity when
-  // singular.
+  // columns multiplied by their coordinate's scale): infinity when singular; NaN when not
+  // estimated (the block path on headers whose kernels estimate none).
   double condition = 1;
-  double residual = 0;  // largest scaled |Phi| after the last step (position only)
-  int rank = 0;         // numerical rank of Phi_q at the last factorization
+  // Largest scaled |Phi| after the last step, less its rounding (position only; the block path
+  // measures it from Model::phi when the kernels do not report it).
+  double residual = 0;
+  int rank = 0;  // numerical rank of Phi_q at the last factorization (block path: nq on success)
   int block = -1;       // block solver: the block that failed (-1: none, or the dense path)
 
   explicit operator bool() const { return status == Status::kConverged; }
@@ -62,20 +66,25 @@ struct Result {
 };
 
 struct SolverOptions {
-  // Newton stops when the step, with lengths divided by the model's length scale and angles
-  // in radians, is at most this (plus the rounding of the coordinate itself, 4 eps |q|, which no
-  // solver can beat: an angle of 6e6 rad is only known to about 1e-9). Convergence is
-  // quadratic, so the position is then accurate to far below it.
+  // Newton stops when the step, each coordinate divided by its scale (coordinate_scale: a
+  // body's x and y by its joints' geometry; angles in radians), is at most this (plus the rounding
+  // of the coordinate itself, 4 eps |q|, which no solver can beat: an angle of 6e6 rad is only
+  // known to about 1e-9). Convergence is quadratic, so the position is then accurate to far below
+  // it.
   double tolerance = 1e-10;
   int max_iterations = 30;
   // Phi_q counts as singular when the reciprocal of its scaled condition estimate is below this.
+  // Block path: against the kernels' per-block estimate where the header reports one
+  // (BlockReport::rcond); older headers check singular_pivot_ratio only.
   double min_rcond = 1e-12;
   // After the step criterion holds, every |Phi_r| must also be at most this times the row's
-  // scale (|Phi_q row| with lengths scaled) plus the rounding of its terms; the step alone can
-  // miss a stalled least-squares iteration on contradictory constraints.
+  // scale (|Phi_q row| with columns scaled) plus the rounding of its terms; the step alone can
+  // miss a stalled least-squares iteration on contradictory constraints. Every path checks it,
+  // fixed iteration counts included (kBudgetExhausted).
   double residual_tolerance = 1e-8;
   // Backtracking: a Newton step that increases the scaled residual is halved up to this many
-  // times, which keeps large updates from throwing the iteration onto another branch.
+  // times, which keeps large updates from throwing the iteration onto another branch. Block
+  // path: passed to the kernels where their BlockOptions take it (older headers: no damping).
   int max_halvings = 8;
   // The LU pivot ratio below which Phi_q (or a block of it, in the block solver) counts as
   // singular; the dense path also checks min_rcond, so this is only its backstop there.
@@ -83,6 +92,10 @@ struct SolverOptions {
   // Block solver (block_solver.hpp) only: when positive, exactly this many Newton iterations
   // per block and no convergence test, for a fixed cost per step (real-time use).
   int fixed_iterations = 0;
+  // Solver::step: a solved position that misses every velocity-based estimate of the step by
+  // more than this fraction of the motion over it is a jump to another branch
+  // (Status::kBranchJump; check_motion in motion.hpp, as `kinegen analyze` applies it).
+  double jump_fraction = 0.25;
 };
 
 namespace detail {
@@ -122,10 +135,10 @@ struct Workspace {
   bool rectangular() const { return jac.rows() != jac.cols(); }
 
   Jacobian jac;     // Phi_q
-  Jacobian scaled;  // R Phi_q D: rows equilibrated, length columns times the length scale
+  Jacobian scaled;  // R Phi_q D: rows equilibrated, columns times their coordinate's scale
   VectorC rhs, rhs_new;
   VectorC row_scale;  // R (1 / row norm of Phi_q D)
-  VectorQ col_scale;  // D (length scale for x, y; 1 for phi)
+  VectorQ col_scale;  // D (each coordinate's scale: coordinate_scale)
   VectorQ dq;
   VectorQ q_factored;  // where the factorization was computed
   VectorQ q_trial;
@@ -184,9 +197,7 @@ bool factor(const System& sys, WS& ws, const VQ& q, typename System::Scalar t,
     result.status = Status::kNonFinite;
     return false;
   }
-  const Scalar length = Scalar(sys.length_scale());
-  for (int k = 0; k < ws.col_scale.size(); ++k)
-    ws.col_scale[k] = k % 3 == 2 ? Scalar(1) : length;
+  for (int k = 0; k < ws.col_scale.size(); ++k) ws.col_scale[k] = Scalar(coordinate_scale(sys, k));
   ws.scaled = ws.jac * ws.col_scale.asDiagonal();
   for (int r = 0; r < ws.scaled.rows(); ++r) {
     const Scalar n = ws.scaled.row(r).cwiseAbs().maxCoeff();
@@ -297,7 +308,6 @@ Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
   Result result;
   const double eps =
       static_cast<double>(std::numeric_limits<typename Eigen::NumTraits<Scalar>::Real>::epsilon());
-  const Scalar inv_length = Scalar(1) / Scalar(sys.length_scale());
   sys.phi(q.data(), t, ws.rhs.data());
   for (int it = 1; it <= options.max_iterations; ++it) {
     if (!all_finite(ws.rhs) || !all_finite(q)) {
@@ -325,8 +335,8 @@ Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
     double step = 0;
     bool small = true;
     for (int k = 0; k < q.size(); ++k) {
-      const Scalar d = alpha * (k % 3 == 2 ? ws.dq[k] : ws.dq[k] * inv_length);
-      const double scale_k = k % 3 == 2 ? 1.0 : static_cast<double>(abs(Scalar(1) / inv_length));
+      const Scalar d = alpha * ws.dq[k] / ws.col_scale[k];
+      const double scale_k = static_cast<double>(abs(ws.col_scale[k]));
       step = std::max(step, static_cast<double>(abs(d)));
       small = small && static_cast<double>(abs(alpha * ws.dq[k])) <=
                            options.tolerance * scale_k + 4 * eps * static_cast<double>(abs(q[k]));
@@ -397,6 +407,7 @@ class GeneratedSystem {
   int nq() const { return kNq; }
   int nc() const { return kNc; }
   double length_scale() const { return Model::length_scale; }
+  double coordinate_scale(int k) const { return detail::model_coordinate_scale<Model>(k); }
 
   void phi(const Scalar* q, Scalar t, Scalar* out) const { Model::phi(q, t, params_, out); }
   void nu(const Scalar* q, Scalar t, Scalar* out) const { Model::nu(q, t, params_, out); }

@@ -58,8 +58,7 @@ struct SparseWorkspace {
         est_y(sys.nq()),
         est_z(sys.nq()) {
     eigen_assert(sys.nq() == sys.nc() && "the sparse path needs nc == nq");
-    const Scalar length = Scalar(sys.length_scale());
-    for (int k = 0; k < col_scale.size(); ++k) col_scale[k] = k % 3 == 2 ? Scalar(1) : length;
+    for (int k = 0; k < col_scale.size(); ++k) col_scale[k] = Scalar(coordinate_scale(sys, k));
     std::vector<Eigen::Triplet<Scalar, int>> entries;
     entries.reserve(rows.size());
     for (std::size_t k = 0; k < rows.size(); ++k) entries.emplace_back(rows[k], cols[k], Scalar(1));
@@ -87,7 +86,7 @@ struct SparseWorkspace {
   VectorC rhs, rhs_new;
   VectorC row_scale;  // R (1 / largest |entry| of the row of Phi_q D)
   VectorC row_work;   // per-row scratch
-  VectorQ col_scale;  // D (length scale for x, y; 1 for phi)
+  VectorQ col_scale;  // D (each coordinate's scale: coordinate_scale)
   VectorQ dq;
   VectorQ q_factored;
   VectorQ q_trial;

@@ -166,8 +166,9 @@ const std::vector<const ConstraintKind*>& constraint_kinds();
 // The kind called `name`, or nullptr.
 const ConstraintKind* find_constraint_kind(const std::string& name);
 
-// The local vectors of `c` that are lengths (kOffset keys), for the mechanism's length scale.
-std::vector<const Vec2*> offsets(const Constraint& c);
+// The local vectors of `c` that are lengths (kOffset keys), each with the body it is local to
+// (sj: body j, the others: body i), for the coordinates' tolerance scales.
+std::vector<std::pair<int, const Vec2*>> offsets(const Constraint& c);
 // The point of a reaction: the vector key `key` of `c`, or [0, 0] for nullptr.
 Vec2 reaction_point(const Constraint& c, const char* key);
 

@@ -113,6 +113,7 @@ class ProgramSystem {
   int nq() const { return model_->nq(); }
   int nc() const { return model_->nc(); }
   double length_scale() const { return model_->symbolic().length_scale; }
+  double coordinate_scale(int k) const { return model_->symbolic().coordinate_scales[k]; }
   void phi(const double* q, double t, double* out) const { eval_.phi(q, t, out); }
   void nu(const double* q, double t, double* out) const { eval_.nu(q, t, out); }
   void gamma(const double* q, const double* qd, double t, double* out) const {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "kinegen/codegen/mechanism.hpp"
+#include "kinegen/motion.hpp"
 
 namespace kinegen::codegen {
 
@@ -81,7 +82,14 @@ struct SymbolicModel {
   std::vector<GiNaC::ex> q0;             // nq, in the parameters
   std::vector<std::pair<GiNaC::ex, GiNaC::ex>> point_s;  // local offsets, in the parameters
   std::vector<GiNaC::numeric> param_values;  // defaults (after overrides), exact
-  double length_scale = 1.0;  // a typical length of the mechanism, for tolerances
+  // What each coordinate measures (nq; bodies give length, length, angle; the extra
+  // coordinates of spec 6.1 give their own kind) and the size its tolerances scale with: a
+  // body's x and y scale with the geometry of its own joints and drivers, angles with 1.
+  // Reported points and outputs never enter.
+  std::vector<CoordinateKind> coordinate_kinds;
+  std::vector<double> coordinate_scales;
+  // The largest length scale (the v1 header member; the solvers use coordinate_scales).
+  double length_scale = 1.0;
 };
 
 // A --param NAME=VALUE override.
