@@ -1155,8 +1155,7 @@ class BlockEmitter {
   }
 
   void finite_check(std::ostringstream& os, const char* v) {
-    os << kIn << "for (int _k = 0; _k < nq; ++_k)\n"
-       << kIn << "  if (!_finite(_mag(" << v << "[_k]))) return _fail(report, 3, -1);\n";
+    os << kIn << "if (!_all_finite<nq>(" << v << ")) return _fail(report, 3, -1);\n";
   }
 
   // Blocks [b0, b1).
@@ -1273,7 +1272,7 @@ class BlockEmitter {
   void step_criterion(std::ostringstream& os, const std::string& in, int c, int i) {
     const std::string scale = length_coordinate(c) ? " * inv_length" : "";
     os << in << "_qs += _mag(" << ref("q", c) << ")" << scale << ";\n"
-       << in << "_small = _small && _step_converged(_mag(_r[" << i << "])" << scale << ", _mag("
+       << in << "_small &= _step_converged(_mag(_r[" << i << "])" << scale << ", _mag("
        << ref("q", c) << ")" << scale << ", o.tolerance);\n";
   }
 
@@ -1304,10 +1303,11 @@ class BlockEmitter {
                      const std::vector<int>& rows, const std::string& step) {
     const std::string b = idx(static_cast<int>(bi));
     for (int o : rows) pr.ensure(out(o), os, kIn);
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-      const std::string term = "_mag(" + pr.text(out(rows[i])) + ") / _rmax" + b + "[" + idx(static_cast<int>(i)) + "]";
-      os << kIn << (i == 0 ? "R _res" + b + " = " + term : "_res" + b + " = std::max(_res" + b + ", " + term + ")") << ";\n";
-    }
+    std::vector<std::string> r;
+    for (int o : rows) r.push_back("_mag(" + pr.text(out(o)) + ")");
+    os << kIn << "const R _rr" << b << "[" << rows.size() << "] = {" << join(r) << "};\n"
+       << kIn << "const R _res" << b << " = _scaled_max<" << rows.size() << ">(_rr" << b << ", _rmax"
+       << b << ");\n";
     os << kIn << "if (!_newton_end(report, " << block_id(bi) << ", _n" << b << ", _conv" << b
        << ", o, " << step << ", _res" << b << ", _qs" << b << ", _rc" << b << ", _sg" << b
        << ", block_signs))\n"

@@ -72,6 +72,12 @@ struct LuKernel : ReportKernel {
   }
   template <int K, class T>
   static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
+    if constexpr (K == 2) {  // the loops below, written out (the same operations)
+      if (piv[0] != 0) std::swap(b[0], b[1]);
+      b[1] = (b[1] - a[2] * b[0]) * a[3];
+      b[0] = (b[0] - a[1] * b[1]) * a[0];
+      return;
+    }
     // _lu_factor swaps whole rows (multipliers included), so b takes every swap first.
     for (int k = 0; k < K; ++k)
       if (piv[k] != k) std::swap(b[k], b[piv[k]]);
@@ -109,11 +115,21 @@ struct LuKernel : ReportKernel {
                             const _real<T>* d) noexcept {
     using R = _real<T>;
     R sums[K] = {};
-    for (int j = 0; j < K; ++j) {
-      T x[K] = {};
-      x[j] = T(1);
-      _lu_solve<K>(a, piv, x);
-      for (int i = 0; i < K; ++i) sums[i] += _mag(x[i]) * row_max[j];
+    if constexpr (K == 2) {
+      // The loop below for K = 2, written out from the factors: J^-1 = U^-1 L^-1 P, with
+      // a = {1 / u00, u01, l10, 1 / u11} and P the row swap.
+      const T m01 = -a[1] * a[0] * a[3];
+      const T m[4] = {a[0] - m01 * a[2], m01, -a[2] * a[3], a[3]};
+      const int c0 = piv[0], c1 = 1 - piv[0];  // the columns of m that are J^-1's 0 and 1
+      sums[0] = _mag(m[c0]) * row_max[0] + _mag(m[c1]) * row_max[1];
+      sums[1] = _mag(m[2 + c0]) * row_max[0] + _mag(m[2 + c1]) * row_max[1];
+    } else {
+      for (int j = 0; j < K; ++j) {
+        T x[K] = {};
+        x[j] = T(1);
+        _lu_solve<K>(a, piv, x);
+        for (int i = 0; i < K; ++i) sums[i] += _mag(x[i]) * row_max[j];
+      }
     }
     R norm = 0;
     for (int i = 0; i < K; ++i) norm = std::max(norm, sums[i] / d[i]);

@@ -26,6 +26,16 @@ struct NewtonKernel : ReportKernel {
   static bool _step_converged(const R& dq, const R& q, const R& tolerance) noexcept {
     return dq <= tolerance + _rounding(q);
   }
+  // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
+  template <int K, class R>
+  static R _scaled_max(const R* v, const R* scale) noexcept {
+    int m = 0;
+    for (int i = 0; i < K; ++i) {
+      if (!(v[i] == v[i])) return v[i];
+      if (v[i] * scale[m] > v[m] * scale[i]) m = i;
+    }
+    return v[m] / scale[m];
+  }
   // A Newton block's end, after its last iteration: converged says whether the step criterion
   // held; residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum of its
   // scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
@@ -42,10 +52,12 @@ struct NewtonKernel : ReportKernel {
     r.residual = std::max(r.residual, residual);
     r.rcond = std::min(r.rcond, rcond);
     const bool budget = o.fixed_iterations > 0 && iterations >= o.fixed_iterations;
+    const bool small = residual <= o.residual_tolerance + _rounding(q_sum);
+    if (small && (converged || budget) && rcond > o.min_rcond && !signs) return true;
     int status = 0;
     if (!_finite(residual)) {
       status = 3;
-    } else if (!(residual <= o.residual_tolerance + _rounding(q_sum))) {
+    } else if (!small) {
       status = budget ? 5 : converged ? 4 : 1;
     } else if (!budget && !converged) {
       status = 1;

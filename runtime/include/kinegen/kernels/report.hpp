@@ -41,10 +41,16 @@ struct ReportKernel {
       return x.real();
     }
   }
-  // False for infinity and NaN.
+  // Whether a magnitude (|x|, never negative) is finite: false for infinity and NaN.
   template <class R>
-  static bool _finite(const R& x) noexcept {
-    return x <= std::numeric_limits<R>::max() && x >= -std::numeric_limits<R>::max();
+  static bool _finite(const R& magnitude) noexcept {
+    return magnitude <= std::numeric_limits<R>::max();
+  }
+  template <int N, class T>
+  static bool _all_finite(const T* v) noexcept {
+    bool ok = true;
+    for (int k = 0; k < N; ++k) ok &= _finite(_mag(v[k]));  // no branch per value
+    return ok;
   }
   // 2^-(num * digits / den) for the scalar's mantissa digits: tolerances that follow the
   // scalar's precision (double: 53 digits, float: 24).

@@ -30,24 +30,28 @@ struct TrigCacheKernel : RotationKernel {
   template <class T>
   static void _trig(T& s, T& c, const T& angle, T* cache, int slot) noexcept {
     using R = _real<T>;
-    using std::cos, std::sin;
     if (cache) {
-      T* a = cache + 3 * slot;
+      const T* a = cache + 3 * slot;
       const T d = angle - a[0];
       if (_mag(d) <= _rotate_limit<R>() &&
           _mag(a[1] * a[1] + a[2] * a[2] - T(1)) <= R(16) * std::numeric_limits<R>::epsilon()) {
         _rotated(a[1], a[2], d, s, c);
         return;
       }
-      s = sin(angle);
-      c = cos(angle);
+    }
+    _trig_anchor(s, c, angle, cache ? cache + 3 * slot : nullptr);
+  }
+  // The rare path of _trig, on its own so that the common one stays small enough to inline.
+  template <class T>
+  static void _trig_anchor(T& s, T& c, const T& angle, T* a) noexcept {
+    using std::cos, std::sin;
+    s = sin(angle);
+    c = cos(angle);
+    if (a) {
       a[0] = angle;
       a[1] = s;
       a[2] = c;
-      return;
     }
-    s = sin(angle);
-    c = cos(angle);
   }
   // kinegen-kernel-end trig_cache
 };
