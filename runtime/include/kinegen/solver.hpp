@@ -12,6 +12,8 @@
 #include <limits>
 #include <type_traits>
 
+#include "kinegen/kernels/newton.hpp"
+
 namespace kinegen {
 
 // Why a solve stopped.
@@ -328,8 +330,11 @@ Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
       const Scalar d = alpha * (k % 3 == 2 ? ws.dq[k] : ws.dq[k] * inv_length);
       const double scale_k = k % 3 == 2 ? 1.0 : static_cast<double>(abs(Scalar(1) / inv_length));
       step = std::max(step, static_cast<double>(abs(d)));
-      small = small && static_cast<double>(abs(alpha * ws.dq[k])) <=
-                           options.tolerance * scale_k + 4 * eps * static_cast<double>(abs(q[k]));
+      // The shared step criterion (kernels/newton.hpp), with the rounding allowance of Scalar.
+      using Real = typename Eigen::NumTraits<Scalar>::Real;
+      small = small && kernels::NewtonKernel::_step_converged(
+                           Real(static_cast<double>(abs(alpha * ws.dq[k])) / scale_k),
+                           Real(static_cast<double>(abs(q[k])) / scale_k), Real(options.tolerance));
     }
     result.iterations = it;
     result.step = step;
