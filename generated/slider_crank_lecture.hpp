@@ -356,6 +356,13 @@ struct slider_crank_lecture {
     const bool budget = o.fixed_iterations > 0 && iterations >= o.fixed_iterations;
     const bool small = residual <= o.residual_tolerance + _rounding(q_sum);
     if (small && (converged || budget) && rcond > o.min_rcond && !signs) return true;
+    return _newton_verdict(r, block, budget, converged, small, o, residual, rcond, sign, signs);
+  }
+  // The rest of _newton_end, apart so that the common path stays small.
+  template <class R>
+  static bool _newton_verdict(BlockReport<R>& r, int block, bool budget, bool converged,
+                              bool small, const BasicBlockOptions<R>& o, const R& residual,
+                              const R& rcond, int sign, signed char* signs) noexcept {
     int status = 0;
     if (!_finite(residual)) {
       status = 3;

@@ -88,7 +88,7 @@ struct LuKernel : ReportKernel {
       b[k] *= a[k * K + k];  // the pivot's reciprocal
     }
   }
-  // Sign of the determinant of the factored matrix: the pivots' signs and one per row swap.
+  // Sign of the determinant of the factored matrix: the pivots' signs, and one per row exchange.
   template <int K, class T>
   static int _lu_det_sign(const T* a, const int* piv) noexcept {
     int sign = 1;
@@ -117,7 +117,7 @@ struct LuKernel : ReportKernel {
     R sums[K] = {};
     if constexpr (K == 2) {
       // The loop below for K = 2, written out from the factors: J^-1 = U^-1 L^-1 P, with
-      // a = {1 / u00, u01, l10, 1 / u11} and P the row swap.
+      // a = {1 / u00, u01, l10, 1 / u11}, P the row exchange.
       const T m01 = -a[1] * a[0] * a[3];
       const T m[4] = {a[0] - m01 * a[2], m01, -a[2] * a[3], a[3]};
       const int c0 = piv[0], c1 = 1 - piv[0];  // the columns of m that are J^-1's 0 and 1
