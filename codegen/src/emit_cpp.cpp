@@ -995,7 +995,7 @@ class BlockEmitter {
        << "      BlockReport<_real<T>> report, [[maybe_unused]] T* trig,\n"
        << "      [[maybe_unused]] signed char* block_signs, const int* _i,\n"
        << "      [[maybe_unused]] const int* _s, [[maybe_unused]] int _b) noexcept {\n"
-       << kIn << "using R = _real<T>;\n";
+       << kIn << "using R [[maybe_unused]] = _real<T>;\n";
     if (const std::string used = std_functions(prog_); !used.empty())
       os << kIn << "using " << used << ";\n";
     FunctionPrinter pr(prog_, symbols_);
@@ -1011,7 +1011,7 @@ class BlockEmitter {
        << motion_args(velocity, acceleration, true) << ",\n"
        << "      [[maybe_unused]] T* trig, const int* _i, [[maybe_unused]] const int* _s,\n"
        << "      [[maybe_unused]] int _b) noexcept {\n"
-       << kIn << "using R = _real<T>;\n";
+       << kIn << "using R [[maybe_unused]] = _real<T>;\n";
     if (const std::string used = std_functions(prog_); !used.empty())
       os << kIn << "using " << used << ";\n";
     FunctionPrinter pr(prog_, symbols_);
@@ -1113,7 +1113,7 @@ class BlockEmitter {
        << name.substr(1) << ".\n"
        << "  template <class T>\n"
        << "  static BlockReport<_real<T>> " << name << "_part" << k << "(" << params << ") noexcept {\n"
-       << kIn << "using R = _real<T>;\n";
+       << kIn << "using R [[maybe_unused]] = _real<T>;\n";
     if (const std::string used = std_functions(prog_); !used.empty())
       os << kIn << "using " << used << ";\n";
   }
