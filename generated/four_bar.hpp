@@ -398,11 +398,11 @@ struct four_bar {
       sd = d * (T(1) - d2 * (T(1) / T(6)));
       cm = d2 * (T(1) / T(2)) * (T(1) - d2 * (T(1) / T(12)));
     } else {
-      sd = d * (T(1) - d2 * (T(1) / T(6)) *
-                           (T(1) - d2 * (T(1) / T(20)) * (T(1) - d2 * (T(1) / T(42)))));
+      sd = d * (T(1) -
+                d2 * (T(1) / T(6)) * (T(1) - d2 * (T(1) / T(20)) * (T(1) - d2 * (T(1) / T(42)))));
       cm = d2 * (T(1) / T(2)) *
-           (T(1) - d2 * (T(1) / T(12)) *
-                       (T(1) - d2 * (T(1) / T(30)) * (T(1) - d2 * (T(1) / T(56)))));
+           (T(1) -
+            d2 * (T(1) / T(12)) * (T(1) - d2 * (T(1) / T(30)) * (T(1) - d2 * (T(1) / T(56)))));
     }
     s = s0 + (c0 * sd - s0 * cm);
     c = c0 - (s0 * sd + c0 * cm);
@@ -512,9 +512,9 @@ struct four_bar {
   }
   // The rest of _newton_end, apart so that the common path stays small.
   template <class R>
-  static bool _newton_verdict(BlockReport<R>& r, int block, bool budget, bool converged,
-                              bool small, const BasicBlockOptions<R>& o, const R& residual,
-                              const R& rcond, int sign, signed char* signs) noexcept {
+  static bool _newton_verdict(BlockReport<R>& r, int block, bool budget, bool converged, bool small,
+                              const BasicBlockOptions<R>& o, const R& residual, const R& rcond,
+                              int sign, signed char* signs) noexcept {
     int status = 0;
     if (!_finite(residual)) {
       status = 3;

@@ -3,8 +3,8 @@
 // with default options, long runs converge, an exhausted fixed budget is a failure with its
 // residual, a zero-filled sin/cos cache is not trusted, and a jump to another assembly branch
 // is seen through the determinant signs.
-#include <catch2/catch.hpp>
 #include <array>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <kinegen/solver.hpp>
 
@@ -33,8 +33,8 @@ double max_phi(const typename Model::Params& p, const Eigen::Matrix<T, Model::nq
 
 }  // namespace
 
-TEMPLATE_TEST_CASE("four-bar turn of 361 steps succeeds with default options", "[embedded]",
-                   double, float) {
+TEMPLATE_TEST_CASE("four-bar turn of 361 steps succeeds with default options", "[embedded]", double,
+                   float) {
   using M = kinegen::models::four_bar;
   kinegen::Solver<M, TestType> solver;
   auto q = solver.initial_estimate();
@@ -52,8 +52,8 @@ TEMPLATE_TEST_CASE("four-bar turn of 361 steps succeeds with default options", "
   CHECK(worst_phi <= (sizeof(TestType) == 4 ? 1e-5 : 1e-13));
 }
 
-TEMPLATE_TEST_CASE("slider-crank: 200 solves from q0 succeed with default options",
-                   "[embedded]", double, float) {
+TEMPLATE_TEST_CASE("slider-crank: 200 solves from q0 succeed with default options", "[embedded]",
+                   double, float) {
   using M = kinegen::models::slider_crank;
   kinegen::Solver<M, TestType> solver;
   int failures = 0;
@@ -71,8 +71,7 @@ TEMPLATE_TEST_CASE("slider-crank: 200 solves from q0 succeed with default option
 // A drag-link turns every link fully, so its angles grow with the turns: after 1e6 turns
 // (angles about 6e6 rad, an ulp of 9e-10 against the 1e-10 tolerance) every step still
 // converges, to the motion of the first turn shifted by whole turns.
-TEST_CASE("drag-link after 1e6 turns: every step converges, to the right position",
-          "[embedded]") {
+TEST_CASE("drag-link after 1e6 turns: every step converges, to the right position", "[embedded]") {
   using M = kinegen::models::drag_link;
   const double turns = 1e6, offset = turns * kTwoPi;
   kinegen::Solver<M> solver, reference;
@@ -132,8 +131,8 @@ TEMPLATE_TEST_CASE("fixed_iterations on a four-bar that cannot close: budget exh
 
 // A cache of zeros where the code expects NaN (or anything not written by the solver): not
 // trusted, so the answer is the one without a cache.
-TEMPLATE_TEST_CASE("zero-filled trig cache does not give a wrong converged answer",
-                   "[embedded]", double, float) {
+TEMPLATE_TEST_CASE("zero-filled trig cache does not give a wrong converged answer", "[embedded]",
+                   double, float) {
   using M = kinegen::models::four_bar;
   using T = TestType;
   const M::Params p;
@@ -168,16 +167,20 @@ TEST_CASE("block determinant signs catch a jump to the other assembly branch", "
   std::array<double, M::nq> q;
   for (int k = 0; k < M::nq; ++k) q[k] = M::q0[k];
   const double t = 0.3;
-  REQUIRE(M::solve_position(q.data(), t, p, o, static_cast<double*>(nullptr), signs.data()).status == 0);
+  REQUIRE(
+      M::solve_position(q.data(), t, p, o, static_cast<double*>(nullptr), signs.data()).status ==
+      0);
   CHECK(signs[7] != 0);
   auto same = q;
-  CHECK(M::solve_position(same.data(), t + 0.01, p, o, static_cast<double*>(nullptr), signs.data()).status == 0);
+  CHECK(M::solve_position(same.data(), t + 0.01, p, o, static_cast<double*>(nullptr), signs.data())
+            .status == 0);
   // The crossed branch: mirror the coupler and rocker directions about A -> O4.
   const double ax = q[3], ay = q[4], theta = std::atan2(-ay, p.d - ax);
   auto crossed = q;
   crossed[5] = 2 * theta - q[5];
   crossed[8] = 2 * theta - q[8];
-  const auto r = M::solve_position(crossed.data(), t, p, o, static_cast<double*>(nullptr), signs.data());
+  const auto r =
+      M::solve_position(crossed.data(), t, p, o, static_cast<double*>(nullptr), signs.data());
   CHECK(r.status == static_cast<int>(kinegen::Status::kBranchJump));
   CHECK(r.block == 7);
   // Without signs the crossed branch is a valid solution (and is what it converged to).

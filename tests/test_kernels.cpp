@@ -2,8 +2,8 @@
 // against Eigen, the rotation series and the sin/cos cache against long double and std::sin,
 // the Newton step criterion in float; and the generated headers carry the kernels' text
 // unchanged, only those they call.
-#include <catch2/catch.hpp>
 #include <Eigen/Dense>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -109,8 +109,7 @@ std::string read(const std::filesystem::path& p) {
 
 }  // namespace
 
-TEST_CASE("LU kernel agrees with Eigen on random and singular matrices, K = 1..6",
-          "[kernels]") {
+TEST_CASE("LU kernel agrees with Eigen on random and singular matrices, K = 1..6", "[kernels]") {
   std::mt19937 rng(12);
   check_lu_sizes(rng, std::make_integer_sequence<int, 6>{});
 }
@@ -246,11 +245,10 @@ TEST_CASE("generated headers carry the kernel text unchanged", "[kernels]") {
     if (header.find("has_block_solver = true") == std::string::npos) continue;
     ++headers;
     for (const char* name : kernels) {
-      const std::string body =
-          kernel_body(read(root / "runtime/include/kinegen/kernels" / (std::string(name) + ".hpp")),
-                      name);
-      const std::string begin = std::string("// ---- kinegen kernel ") + name + " (kinegen/kernels/" +
-                                name + ".hpp)\n";
+      const std::string body = kernel_body(
+          read(root / "runtime/include/kinegen/kernels" / (std::string(name) + ".hpp")), name);
+      const std::string begin =
+          std::string("// ---- kinegen kernel ") + name + " (kinegen/kernels/" + name + ".hpp)\n";
       const std::string end = std::string("  // ---- end of kinegen kernel ") + name + "\n";
       const auto b = header.find(begin);
       if (b == std::string::npos) continue;

@@ -58,9 +58,9 @@ struct NewtonKernel : ReportKernel {
   }
   // The rest of _newton_end, apart so that the common path stays small.
   template <class R>
-  static bool _newton_verdict(BlockReport<R>& r, int block, bool budget, bool converged,
-                              bool small, const BasicBlockOptions<R>& o, const R& residual,
-                              const R& rcond, int sign, signed char* signs) noexcept {
+  static bool _newton_verdict(BlockReport<R>& r, int block, bool budget, bool converged, bool small,
+                              const BasicBlockOptions<R>& o, const R& residual, const R& rcond,
+                              int sign, signed char* signs) noexcept {
     int status = 0;
     if (!_finite(residual)) {
       status = 3;
