@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <type_traits>
 #include <utility>
 
 namespace kinegen::models {
@@ -27,11 +29,7 @@ struct slider_crank_lecture {
   // Initial estimates for the first position solve, from the mechanism file.
   static constexpr std::array<double, nq> q0 = {0, 0, 0, 3.0, 0, 1.57};
   // A typical length of the mechanism; position tolerances scale with it.
-  static constexpr double length_scale = 1.0;
-  // What each coordinate measures (kinegen::CoordinateKind: 0 length, 1 angle, 2 scalar)
-  // and the size its tolerances scale with (a body's x and y: its joints' geometry).
-  static constexpr std::array<int, nq> coordinate_kinds = {0, 0, 1, 0, 0, 1};
-  static constexpr std::array<double, nq> coordinate_scales = {1.0, 1.0, 1.0, 1.0, 1.0, 1.0};
+  static constexpr double length_scale = 3.0;
 
   struct Params {
     double l = 2.0;
@@ -124,123 +122,135 @@ struct slider_crank_lecture {
   // coordinate whose sin or cos the model uses).
   static constexpr int trig_cache_size = 6;
 
-  // Outcome of a block solve. status: 0 converged, 1 Newton did not converge within
-  // max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value appeared (the
-  // order of kinegen::Status).
+  // ---- kinegen kernel report (kinegen/kernels/report.hpp)
+  // The real type of a scalar: T itself, or the value_type of std::complex<T>.
+  template <class T, class = void>
+  struct _RealOf {
+    using type = T;
+  };
+  template <class T>
+  struct _RealOf<T, std::void_t<typename T::value_type>> {
+    using type = typename T::value_type;
+  };
+  template <class T>
+  using _real = typename _RealOf<T>::type;
+
+  template <class T>
+  static _real<T> _mag(const T& x) noexcept {
+    using std::abs;
+    return abs(x);
+  }
+  template <class T>
+  static _real<T> _re(const T& x) noexcept {
+    if constexpr (std::is_same_v<T, _real<T>>) {
+      return x;
+    } else {
+      return x.real();
+    }
+  }
+  // Whether a magnitude (|x|, never negative) is finite: false for infinity and NaN.
+  template <class R>
+  static bool _finite(const R& magnitude) noexcept {
+    return magnitude <= std::numeric_limits<R>::max();
+  }
+  template <int N, class T>
+  static bool _all_finite(const T* v) noexcept {
+    bool ok = true;
+    for (int k = 0; k < N; ++k) ok &= _finite(_mag(v[k]));  // no branch per value
+    return ok;
+  }
+  // 2^-(num * digits / den) for the scalar's mantissa digits: tolerances that follow the
+  // scalar's precision (double: 53 digits, float: 24).
+  template <class R>
+  static constexpr R _precision_power(int num, int den) noexcept {
+    R x = R(1);
+    for (int k = 0; k < num * std::numeric_limits<R>::digits / den; ++k) x /= R(2);
+    return x;
+  }
+
+  // Outcome of a block solve. status: the order of kinegen::Status (0 converged, 1 Newton did
+  // not converge within max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value
+  // appeared, 4 Newton's step vanished but the residual did not, 5 a fixed iteration budget ran
+  // out with the residual above tolerance, 6 a block's determinant changed sign: another
+  // assembly branch).
+  template <class R>
   struct BlockReport {
     int status = 0;
     int block = -1;            // the block that failed
     int iterations = 0;        // largest Newton iteration count of any block
     int total_iterations = 0;  // Newton iterations summed over the blocks
-    double step = 0;           // largest last scaled Newton step
+    R step = 0;                // largest last scaled Newton step
+    R residual = 0;            // largest scaled |Phi| of a Newton block at its end
+    R rcond = 1;               // smallest estimated reciprocal condition of a Newton block
   };
-  struct BlockOptions {
-    // Newton on a block stops when its step, each coordinate over its coordinate_scales
-    // entry (angles in radians), is at most this; or after exactly fixed_iterations when
-    // that is positive.
-    double tolerance = 1e-10;
+  // Tolerances in the scalar's real type R, with defaults from its precision.
+  template <class R>
+  struct BasicBlockOptions {
+    // Newton on a block stops when its step, lengths divided by length_scale and angles in
+    // radians, is at most this plus the rounding allowance (newton kernel); or after exactly
+    // fixed_iterations when that is positive. 2^-(5 digits / 8): double 1.2e-10, float 3.1e-5.
+    R tolerance = _precision_power<R>(5, 8);
     int max_iterations = 30;  // per block
     int fixed_iterations = 0;
     // A block's Jacobian counts as singular when its smallest LU pivot is below this times
-    // its largest (1 x 1 blocks: when it is zero).
-    double singular_pivot_ratio = 1e-13;
+    // its largest (1 x 1 blocks: when it is zero). 2^9 eps: double 1.1e-13, float 6.1e-5.
+    R singular_pivot_ratio = R(512) * std::numeric_limits<R>::epsilon();
+    // After the last iteration every scaled |Phi| of the block must be at most this (plus the
+    // rounding allowance). 2^-(digits / 2): double 1.5e-8, float 2.4e-4.
+    R residual_tolerance = _precision_power<R>(1, 2);
+    // A block whose estimated reciprocal condition is at most this counts as singular.
+    // 2^-(3 digits / 4): double 1.8e-12, float 3.8e-6.
+    R min_rcond = _precision_power<R>(3, 4);
   };
-
-  template <class T>
-  static double _mag(const T& x) noexcept {
-    using std::abs;
-    return static_cast<double>(abs(x));
+  // The options of earlier headers (double); any BasicBlockOptions<U> works with any scalar.
+  using BlockOptions = BasicBlockOptions<double>;
+  template <class R, class U>
+  static BasicBlockOptions<R> _options_as(const BasicBlockOptions<U>& u) noexcept {
+    BasicBlockOptions<R> o;
+    o.tolerance = R(u.tolerance);
+    o.max_iterations = u.max_iterations;
+    o.fixed_iterations = u.fixed_iterations;
+    o.singular_pivot_ratio = R(u.singular_pivot_ratio);
+    o.residual_tolerance = R(u.residual_tolerance);
+    o.min_rcond = R(u.min_rcond);
+    return o;
   }
-  static BlockReport _fail(BlockReport r, int status, int block, int iterations = 0,
-                           double step = 0) noexcept {
+
+  template <class R>
+  static BlockReport<R> _fail(BlockReport<R> r, int status, int block,
+                              int iterations = 0) noexcept {
     r.status = status;
     r.block = block;
     r.iterations = std::max(r.iterations, iterations);
     r.total_iterations += iterations;
-    r.step = std::max(r.step, step);
     return r;
   }
-  static void _done(BlockReport& r, int iterations, double step) noexcept {
-    r.iterations = std::max(r.iterations, iterations);
-    r.total_iterations += iterations;
-    r.step = std::max(r.step, step);
-  }
-  // In-place LU with partial pivoting; returns smallest / largest |pivot| (0 when singular,
-  // NaN when a value is not finite). The diagonal keeps the pivots' reciprocals, so that
-  // _lu_solve multiplies: a division costs several multiplications' time, and a step solves
-  // with each factorization more than once.
-  template <int K, class T>
-  static double _lu_factor(T* a, int* piv) noexcept {
-    if constexpr (K == 2) {
-      // The loop below for K = 2, written out: small enough to be inlined (a loop of two
-      // bodies is the most common block).
-      const bool swap = _mag(a[2]) > _mag(a[0]);
-      piv[0] = swap ? 1 : 0;
-      piv[1] = 1;
-      if (swap) {
-        std::swap(a[0], a[2]);
-        std::swap(a[1], a[3]);
-      }
-      const double p0 = _mag(a[0]);
-      if (!(p0 > 0)) return p0;  // 0, or NaN
-      const T i0 = T(1) / a[0];
-      const T f = a[2] * i0;
-      a[2] = f;
-      a[3] -= f * a[1];
-      const double p1 = _mag(a[3]);
-      if (!(p1 > 0)) return p1;
-      const T i1 = T(1) / a[3];
-      a[0] = i0;
-      a[3] = i1;
-      return p0 < p1 ? p0 * _mag(i1) : p1 * _mag(i0);  // the ratio without a third division
-    }
-    double largest = 0, smallest = 0;
-    for (int k = 0; k < K; ++k) {
-      int m = k;
-      double best = _mag(a[k * K + k]);
-      for (int i = k + 1; i < K; ++i) {
-        const double v = _mag(a[i * K + k]);
-        if (v > best) {
-          best = v;
-          m = i;
-        }
-      }
-      if (!(best == best)) return best;
-      piv[k] = m;
-      if (m != k)
-        for (int j = 0; j < K; ++j) std::swap(a[k * K + j], a[m * K + j]);
-      if (best == 0) return 0;
-      largest = k == 0 ? best : std::max(largest, best);
-      smallest = k == 0 ? best : std::min(smallest, best);
-      const T inv = T(1) / a[k * K + k];
-      a[k * K + k] = inv;
-      for (int i = k + 1; i < K; ++i) {
-        const T f = a[i * K + k] * inv;
-        a[i * K + k] = f;
-        for (int j = k + 1; j < K; ++j) a[i * K + j] -= f * a[k * K + j];
-      }
-    }
-    return smallest / largest;
-  }
+  // ---- end of kinegen kernel report
+
+  // ---- kinegen kernel rotation (kinegen/kernels/rotation.hpp)
   // Rotations of sin and cos by a small angle d, so that a Newton update or the step from a
   // cached angle needs no new sin or cos: on |d| <= 1/32 the series below are exact to double
   // rounding (the first omitted terms are below 3e-18 relative), and Newton's updates, mostly
   // below 2^-14, take two terms (the next below 2e-19 relative).
-  static constexpr double kRotateLimit = 1.0 / 32;
+  template <class R>
+  static constexpr R _rotate_limit() noexcept {
+    return R(1) / R(32);
+  }
   template <class T>
   static void _rotated(const T& s0, const T& c0, const T& d, T& s, T& c) noexcept {
+    using R = _real<T>;
     // Horner forms; the reciprocals are constants the compiler folds (no division at run time).
     const T d2 = d * d;
     T sd, cm;  // sin d and 1 - cos d
-    if (_mag(d) <= 1.0 / 16384) {
+    if (_mag(d) <= R(1) / R(16384)) {
       sd = d * (T(1) - d2 * (T(1) / T(6)));
       cm = d2 * (T(1) / T(2)) * (T(1) - d2 * (T(1) / T(12)));
     } else {
-      sd = d * (T(1) - d2 * (T(1) / T(6)) *
-                           (T(1) - d2 * (T(1) / T(20)) * (T(1) - d2 * (T(1) / T(42)))));
+      sd = d * (T(1) -
+                d2 * (T(1) / T(6)) * (T(1) - d2 * (T(1) / T(20)) * (T(1) - d2 * (T(1) / T(42)))));
       cm = d2 * (T(1) / T(2)) *
-           (T(1) - d2 * (T(1) / T(12)) *
-                       (T(1) - d2 * (T(1) / T(30)) * (T(1) - d2 * (T(1) / T(56)))));
+           (T(1) -
+            d2 * (T(1) / T(12)) * (T(1) - d2 * (T(1) / T(30)) * (T(1) - d2 * (T(1) / T(56)))));
     }
     s = s0 + (c0 * sd - s0 * cm);
     c = c0 - (s0 * sd + c0 * cm);
@@ -248,7 +258,7 @@ struct slider_crank_lecture {
   // sin and cos of an angle after a Newton update d (angle = the new value).
   template <class T>
   static void _rotate(T& s, T& c, const T& d, const T& angle) noexcept {
-    if (_mag(d) <= kRotateLimit) {
+    if (_mag(d) <= _rotate_limit<_real<T>>()) {
       _rotated(T(s), T(c), d, s, c);
     } else {
       using std::cos, std::sin;
@@ -256,56 +266,146 @@ struct slider_crank_lecture {
       c = cos(angle);
     }
   }
-  // sin and cos of a coordinate at the start of a solve. With a cache (trig_cache_size values,
-  // 3 per cached coordinate: an anchor angle and its exact sin and cos; NaN anchors are empty),
-  // a coordinate within kRotateLimit of its anchor is rotated from it, so a step along a smooth
-  // motion costs no sin or cos; otherwise they are evaluated and become the new anchor. Always
-  // one rotation from exact values, so no error accumulates over many steps.
+  // ---- end of kinegen kernel rotation
+
+  // ---- kinegen kernel trig_cache (kinegen/kernels/trig_cache.hpp)
+  // The cache: 3 values per cached coordinate, an anchor angle and its exact sin and cos. It
+  // starts empty (NaN), and a slot is used only when its sin and cos lie on the unit circle, so
+  // storage that was zero-filled or overwritten is recomputed, not trusted.
+  template <class T, int N>
+  struct BasicTrigCache {
+    T values[N > 0 ? N : 1];
+    BasicTrigCache() noexcept { clear(); }
+    void clear() noexcept {
+      for (T& v : values) v = T(std::numeric_limits<_real<T>>::quiet_NaN());
+    }
+    T* data() noexcept { return values; }
+  };
+  // sin and cos of a coordinate at the start of a solve. With a cache, a coordinate within
+  // _rotate_limit of a valid anchor is rotated from it, so a step along a smooth motion costs
+  // no sin or cos; otherwise they are evaluated and become the new anchor. Always one rotation
+  // from exact values, so no error accumulates over many steps.
   template <class T>
   static void _trig(T& s, T& c, const T& angle, T* cache, int slot) noexcept {
-    using std::cos, std::sin;
+    using R = _real<T>;
     if (cache) {
-      T* a = cache + 3 * slot;
+      const T* a = cache + 3 * slot;
       const T d = angle - a[0];
-      if (_mag(d) <= kRotateLimit) {
+      if (_mag(d) <= _rotate_limit<R>() &&
+          _mag(a[1] * a[1] + a[2] * a[2] - T(1)) <= R(16) * std::numeric_limits<R>::epsilon()) {
         _rotated(a[1], a[2], d, s, c);
         return;
       }
-      s = sin(angle);
-      c = cos(angle);
+    }
+    _trig_anchor(s, c, angle, cache ? cache + 3 * slot : nullptr);
+  }
+  // The rare path of _trig, on its own so that the common one stays small enough to inline.
+  template <class T>
+  static void _trig_anchor(T& s, T& c, const T& angle, T* a) noexcept {
+    using std::cos, std::sin;
+    s = sin(angle);
+    c = cos(angle);
+    if (a) {
       a[0] = angle;
       a[1] = s;
       a[2] = c;
-      return;
-    }
-    s = sin(angle);
-    c = cos(angle);
-  }
-  template <int K, class T>
-  static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
-    // _lu_factor swaps whole rows (multipliers included), so b takes every swap first.
-    for (int k = 0; k < K; ++k)
-      if (piv[k] != k) std::swap(b[k], b[piv[k]]);
-    for (int k = 0; k < K; ++k)
-      for (int i = k + 1; i < K; ++i) b[i] -= a[i * K + k] * b[k];
-    for (int k = K - 1; k >= 0; --k) {
-      for (int j = k + 1; j < K; ++j) b[k] -= a[k * K + j] * b[j];
-      b[k] *= a[k * K + k];  // the pivot's reciprocal
     }
   }
+  // ---- end of kinegen kernel trig_cache
+
+  // ---- kinegen kernel newton (kinegen/kernels/newton.hpp)
+  // Rounding allowance, in units of the scalar's epsilon: no Newton step or residual can get
+  // below the rounding of the terms it is made of (about 1 in scaled units: the mechanism's
+  // lengths) and of the coordinate itself (an angle of 6e6 rad is known to 1e-9 in double).
+  static constexpr int kRoundingUlps = 64;
+  template <class R>
+  static R _rounding(const R& magnitude) noexcept {
+    return R(kRoundingUlps) * std::numeric_limits<R>::epsilon() * (R(1) + magnitude);
+  }
+  // The step criterion for one coordinate: dq is |Newton update| and q is |coordinate|, both
+  // scaled (lengths divided by the length scale, angles in radians).
+  template <class R>
+  static bool _step_converged(const R& dq, const R& q, const R& tolerance) noexcept {
+    return dq <= tolerance + _rounding(q);
+  }
+  // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
+  template <int K, class R>
+  static R _scaled_max(const R* v, const R* scale) noexcept {
+    int m = 0;
+    for (int i = 0; i < K; ++i) {
+      if (!(v[i] == v[i])) return v[i];
+      if (v[i] * scale[m] > v[m] * scale[i]) m = i;
+    }
+    return v[m] / scale[m];
+  }
+  // A Newton block's end, after its last iteration: converged says whether the step criterion
+  // held; residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum of its
+  // scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
+  // the last factorization. Records the block in r; false (r.status and r.block set) when the
+  // block failed. signs: nullptr, or the caller's entry per block (0: record the sign; else a
+  // change of sign is a jump to another assembly branch).
+  template <class R>
+  static bool _newton_end(BlockReport<R>& r, int block, int iterations, bool converged,
+                          const BasicBlockOptions<R>& o, const R& step, const R& residual,
+                          const R& q_sum, const R& rcond, int sign, signed char* signs) noexcept {
+    r.iterations = std::max(r.iterations, iterations);
+    r.total_iterations += iterations;
+    r.step = std::max(r.step, step);
+    r.residual = std::max(r.residual, residual);
+    r.rcond = std::min(r.rcond, rcond);
+    const bool budget = o.fixed_iterations > 0 && iterations >= o.fixed_iterations;
+    const bool small = residual <= o.residual_tolerance + _rounding(q_sum);
+    if (small && (converged || budget) && rcond > o.min_rcond && !signs) return true;
+    return _newton_verdict(r, block, budget, converged, small, o, residual, rcond, sign, signs);
+  }
+  // The rest of _newton_end, apart so that the common path stays small.
+  template <class R>
+  static bool _newton_verdict(BlockReport<R>& r, int block, bool budget, bool converged, bool small,
+                              const BasicBlockOptions<R>& o, const R& residual, const R& rcond,
+                              int sign, signed char* signs) noexcept {
+    int status = 0;
+    if (!_finite(residual)) {
+      status = 3;
+    } else if (!small) {
+      status = budget ? 5 : converged ? 4 : 1;
+    } else if (!budget && !converged) {
+      status = 1;
+    } else if (!(rcond > o.min_rcond)) {
+      status = 2;
+    } else if (signs) {
+      if (signs[block] == 0)
+        signs[block] = static_cast<signed char>(sign);
+      else if (signs[block] != sign)
+        status = 6;
+    }
+    if (status == 0) return true;
+    r.status = status;
+    r.block = block;
+    return false;
+  }
+  // ---- end of kinegen kernel newton
+
+  // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then cache.data().
+  template <class T>
+  using TrigCache = BasicTrigCache<T, trig_cache_size>;
 
   // Position: each block in turn, explicit or by Newton on the block alone; q holds
   // the start (the previous solution or a prediction) and receives the solution.
   // trig: optional cache of trig_cache_size values, kept by the caller from call to call
   // (fill it with NaN first), so that sin and cos near the last values are rotations.
-  template <class T>
-  static BlockReport solve_position(T* q, [[maybe_unused]] T t,
+  // block_signs: optional, num_blocks entries kept by the caller (zero first): each Newton
+  // block's determinant sign is recorded there, and a change fails with status 6.
+  template <class T, class U>
+  static BlockReport<_real<T>> solve_position(T* q, [[maybe_unused]] T t,
       [[maybe_unused]] const Params& p,
-      [[maybe_unused]] const BlockOptions& o,
-      [[maybe_unused]] T* trig = nullptr) noexcept {
+      [[maybe_unused]] const BasicBlockOptions<U>& options,
+      [[maybe_unused]] T* trig = nullptr,
+      [[maybe_unused]] signed char* block_signs = nullptr) noexcept {
+    using R = _real<T>;
     using std::cos, std::sin;
-    BlockReport report;
-    [[maybe_unused]] const double inv_length = 1.0 / length_scale;
+    [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);
+    BlockReport<R> report;
+    [[maybe_unused]] const R inv_length = R(1 / length_scale);
     // Block 0: rows 0 -> q[0] (explicit)
     q[0] = T(0);
     // Block 1: rows 1 -> q[1] (explicit)
@@ -319,39 +419,57 @@ struct slider_crank_lecture {
     // Block 4: rows 3 -> q[5] (newton)
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
+    R _rmax4[1], _qs4 = 0, _rc4 = 1;
+    [[maybe_unused]] const R _cs4[1] = {R(1)};
+    int _n4 = 0, _sg4 = 1;
+    bool _conv4 = false;
+    R _st4 = 0;
     for (int _it = 1;; ++_it) {
       const T _t0 = T(p.l)*_sin5;
       T _r[1] = {-_cos5*T(p.l) - q[4] + q[1] + _sin2};
       const T _a = _t0;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 4, _it);
+      _rmax4[0] = _mag(_a) * _cs4[0];
       _r[0] /= _a;
-      double _step = 0;
+      R _step = 0, _qs = 0;
+      bool _small = true;
       const T _old5 = q[5];
       q[5] = q[5] - _r[0];
       _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
-      _step = std::max(_step, _mag(_r[0]) * (1.0 / coordinate_scales[5]));
-      if (!(_step <= 1e300)) return _fail(report, 3, 4, _it);
-      if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
-        _done(report, _it, _step);
+      _step = std::max(_step, _mag(_r[0]));
+      _qs += _mag(q[5]);
+      _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
+      if (!_finite(_step)) return _fail(report, 3, 4, _it);
+      _conv4 = _small;
+      if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||
+          _it >= o.max_iterations) {
+        _n4 = _it;
+        _qs4 = _qs;
+        _sg4 = _re(_a) < 0 ? -1 : 1;
+        _st4 = _step;
         break;
       }
-      if (_it >= o.max_iterations) return _fail(report, 1, 4, _it, _step);
     }
+    const R _rr4[1] = {_mag(-_cos5*T(p.l) - q[4] + q[1] + _sin2)};
+    const R _res4 = _scaled_max<1>(_rr4, _rmax4);
+    if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _res4, _qs4, _rc4, _sg4, block_signs))
+      return report;
     // Block 5: rows 2 -> q[3] (explicit)
     const T _t1 = T(p.l)*_sin5;
     q[3] = _t1 + _cos2 + q[0];
-    for (int _k = 0; _k < nq; ++_k)
-      if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
     return report;
   }
 
   // Velocity: Phi_q qd = nu at a solved q, block by block.
-  template <class T>
-  static BlockReport solve_velocity([[maybe_unused]] const T* q,
+  template <class T, class U>
+  static BlockReport<_real<T>> solve_velocity([[maybe_unused]] const T* q,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd,
-      [[maybe_unused]] const BlockOptions& o) noexcept {
+      [[maybe_unused]] const BasicBlockOptions<U>& options) noexcept {
+    using R = _real<T>;
     using std::cos, std::sin;
-    BlockReport report;
+    [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);
+    BlockReport<R> report;
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -371,19 +489,20 @@ struct slider_crank_lecture {
     const T _t3 = sin(q[2]);
     const T _t4 = cos(q[5]);
     qd[3] = (-qd[0] - (-_t3)*qd[2] - (_t4*T(p.l))*qd[5]) / T(-1);
-    for (int _k = 0; _k < nq; ++_k)
-      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
     return report;
   }
 
   // Acceleration: Phi_q qdd = gamma at a solved q and qd, block by block.
-  template <class T>
-  static BlockReport solve_acceleration([[maybe_unused]] const T* q,
+  template <class T, class U>
+  static BlockReport<_real<T>> solve_acceleration([[maybe_unused]] const T* q,
       [[maybe_unused]] const T* qd, [[maybe_unused]] T t,
       [[maybe_unused]] const Params& p, T* qdd,
-      [[maybe_unused]] const BlockOptions& o) noexcept {
+      [[maybe_unused]] const BasicBlockOptions<U>& options) noexcept {
+    using R = _real<T>;
     using std::cos, std::sin;
-    BlockReport report;
+    [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);
+    BlockReport<R> report;
     // Block 0: rows 0 -> q[0]
     // Block 1: rows 1 -> q[1]
     // Block 2: rows 5 -> q[2]
@@ -405,19 +524,20 @@ struct slider_crank_lecture {
     const T _t6 = cos(q[2]);
     qdd[5] = (-_t2*_t3*T(p.l) + _t4*_t5 - qdd[1] - _t6*qdd[2] + qdd[4]) / _a4;
     qdd[3] = (_t4*_t6 + _t2*T(p.l)*_t0 - qdd[0] - (-_t5)*qdd[2] - (_t3*T(p.l))*qdd[5]) / T(-1);
-    for (int _k = 0; _k < nq; ++_k)
-      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }
 
   // Velocity (Phi_q qd = nu) and acceleration (Phi_q qdd = gamma) at a solved q,
   // block by block with one factorization per block.
-  template <class T>
-  static BlockReport solve_velocity_acceleration([[maybe_unused]] const T* q,
+  template <class T, class U>
+  static BlockReport<_real<T>> solve_velocity_acceleration([[maybe_unused]] const T* q,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd, T* qdd,
-      [[maybe_unused]] const BlockOptions& o) noexcept {
+      [[maybe_unused]] const BasicBlockOptions<U>& options) noexcept {
+    using R = _real<T>;
     using std::cos, std::sin;
-    BlockReport report;
+    [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);
+    BlockReport<R> report;
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -437,8 +557,7 @@ struct slider_crank_lecture {
     const T _t3 = sin(q[2]);
     const T _t4 = cos(q[5]);
     qd[3] = (-qd[0] - (-_t3)*qd[2] - (_t4*T(p.l))*qd[5]) / T(-1);
-    for (int _k = 0; _k < nq; ++_k)
-      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -447,21 +566,23 @@ struct slider_crank_lecture {
     const T _t6 = qd[2]*qd[2];
     qdd[5] = (-_t5*_t4*T(p.l) + _t6*_t3 - qdd[1] - _t2*qdd[2] + qdd[4]) / _a4;
     qdd[3] = (_t6*_t2 + _t5*T(p.l)*_t0 - qdd[0] - (-_t3)*qdd[2] - (_t4*T(p.l))*qdd[5]) / T(-1);
-    for (int _k = 0; _k < nq; ++_k)
-      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }
 
   // A full step: solve_position, then solve_velocity_acceleration, in one function
   // so that terms at the solved q are computed once.
-  template <class T>
-  static BlockReport solve_step(T* q, [[maybe_unused]] T t,
+  template <class T, class U>
+  static BlockReport<_real<T>> solve_step(T* q, [[maybe_unused]] T t,
       [[maybe_unused]] const Params& p, T* qd, T* qdd,
-      [[maybe_unused]] const BlockOptions& o,
-      [[maybe_unused]] T* trig = nullptr) noexcept {
+      [[maybe_unused]] const BasicBlockOptions<U>& options,
+      [[maybe_unused]] T* trig = nullptr,
+      [[maybe_unused]] signed char* block_signs = nullptr) noexcept {
+    using R = _real<T>;
     using std::cos, std::sin;
-    BlockReport report;
-    [[maybe_unused]] const double inv_length = 1.0 / length_scale;
+    [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);
+    BlockReport<R> report;
+    [[maybe_unused]] const R inv_length = R(1 / length_scale);
     // Block 0: rows 0 -> q[0] (explicit)
     q[0] = T(0);
     // Block 1: rows 1 -> q[1] (explicit)
@@ -475,29 +596,45 @@ struct slider_crank_lecture {
     // Block 4: rows 3 -> q[5] (newton)
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
+    R _rmax4[1], _qs4 = 0, _rc4 = 1;
+    [[maybe_unused]] const R _cs4[1] = {R(1)};
+    int _n4 = 0, _sg4 = 1;
+    bool _conv4 = false;
+    R _st4 = 0;
     for (int _it = 1;; ++_it) {
       const T _t0 = T(p.l)*_sin5;
       T _r[1] = {-_cos5*T(p.l) - q[4] + q[1] + _sin2};
       const T _a = _t0;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 4, _it);
+      _rmax4[0] = _mag(_a) * _cs4[0];
       _r[0] /= _a;
-      double _step = 0;
+      R _step = 0, _qs = 0;
+      bool _small = true;
       const T _old5 = q[5];
       q[5] = q[5] - _r[0];
       _rotate(_sin5, _cos5, q[5] - _old5, q[5]);
-      _step = std::max(_step, _mag(_r[0]) * (1.0 / coordinate_scales[5]));
-      if (!(_step <= 1e300)) return _fail(report, 3, 4, _it);
-      if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {
-        _done(report, _it, _step);
+      _step = std::max(_step, _mag(_r[0]));
+      _qs += _mag(q[5]);
+      _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
+      if (!_finite(_step)) return _fail(report, 3, 4, _it);
+      _conv4 = _small;
+      if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||
+          _it >= o.max_iterations) {
+        _n4 = _it;
+        _qs4 = _qs;
+        _sg4 = _re(_a) < 0 ? -1 : 1;
+        _st4 = _step;
         break;
       }
-      if (_it >= o.max_iterations) return _fail(report, 1, 4, _it, _step);
     }
+    const R _rr4[1] = {_mag(-_cos5*T(p.l) - q[4] + q[1] + _sin2)};
+    const R _res4 = _scaled_max<1>(_rr4, _rmax4);
+    if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _res4, _qs4, _rc4, _sg4, block_signs))
+      return report;
     // Block 5: rows 2 -> q[3] (explicit)
     const T _t1 = T(p.l)*_sin5;
     q[3] = _t1 + _cos2 + q[0];
-    for (int _k = 0; _k < nq; ++_k)
-      if (!(_mag(q[_k]) <= 1e300)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -512,8 +649,7 @@ struct slider_crank_lecture {
     qd[5] = (-qd[1] - _cos2*qd[2] + qd[4]) / _a4;
     // Block 5: rows 2 -> q[3]
     qd[3] = (-qd[0] - (-_sin2)*qd[2] - (_cos5*T(p.l))*qd[5]) / T(-1);
-    for (int _k = 0; _k < nq; ++_k)
-      if (!(_mag(qd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -522,8 +658,7 @@ struct slider_crank_lecture {
     const T _t3 = qd[2]*qd[2];
     qdd[5] = (-_t2*_cos5*T(p.l) + _t3*_sin2 - qdd[1] - _cos2*qdd[2] + qdd[4]) / _a4;
     qdd[3] = (_t3*_cos2 + _t2*T(p.l)*_sin5 - qdd[0] - (-_sin2)*qdd[2] - (_cos5*T(p.l))*qdd[5]) / T(-1);
-    for (int _k = 0; _k < nq; ++_k)
-      if (!(_mag(qdd[_k]) <= 1e300)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }
 };

@@ -10,6 +10,7 @@
 #include <set>
 #include <sstream>
 
+#include "kinegen/codegen/embedded_kernels.hpp"
 #include "kinegen/codegen/reserved_names.hpp"
 #include "kinegen/codegen/structure.hpp"
 
@@ -566,180 +567,24 @@ void emit_function_rolled_if(std::ostringstream& os, const char* name, const cha
 
 std::string idx(int k) { return std::to_string(k); }
 
-// Runtime helpers shared by the block functions: magnitudes in double, a fixed-size LU with
-// partial pivoting (row-major K x K), and the report's bookkeeping.
-void emit_block_helpers(std::ostringstream& os) {
-  os << R"(  // Outcome of a block solve. status: 0 converged, 1 Newton did not converge within
-  // max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value appeared (the
-  // order of kinegen::Status).
-  struct BlockReport {
-    int status = 0;
-    int block = -1;            // the block that failed
-    int iterations = 0;        // largest Newton iteration count of any block
-    int total_iterations = 0;  // Newton iterations summed over the blocks
-    double step = 0;           // largest last scaled Newton step
-  };
-  struct BlockOptions {
-    // Newton on a block stops when its step, each coordinate over its coordinate_scales
-    // entry (angles in radians), is at most this; or after exactly fixed_iterations when
-    // that is positive.
-    double tolerance = 1e-10;
-    int max_iterations = 30;  // per block
-    int fixed_iterations = 0;
-    // A block's Jacobian counts as singular when its smallest LU pivot is below this times
-    // its largest (1 x 1 blocks: when it is zero).
-    double singular_pivot_ratio = 1e-13;
-  };
-
-  template <class T>
-  static double _mag(const T& x) noexcept {
-    using std::abs;
-    return static_cast<double>(abs(x));
+// The block-solver kernels (runtime/include/kinegen/kernels/, embedded at build time) that
+// `code` calls, with those they call, in dependency order: each pasted unchanged between marker
+// comments (tests/test_kernels.cpp compares them with the files).
+void emit_kernels(std::ostringstream& os, const std::string& code) {
+  const auto calls = [&](const char* name) { return code.find(name) != std::string::npos; };
+  const bool trig = calls("_trig(");
+  const bool rotation = trig || calls("_rotate(");
+  const bool lu = calls("_lu_factor<");
+  const bool newton = calls("_newton_end(");
+  for (const auto& k : embedded::kKernels) {
+    const std::string name = k.name;
+    const bool used = name == "report" || (name == "lu" && lu) ||
+                      (name == "rotation" && rotation) || (name == "trig_cache" && trig) ||
+                      (name == "newton" && newton);
+    if (!used) continue;
+    os << "  // ---- kinegen kernel " << name << " (kinegen/kernels/" << name << ".hpp)\n"
+       << k.text << "  // ---- end of kinegen kernel " << name << "\n\n";
   }
-  static BlockReport _fail(BlockReport r, int status, int block, int iterations = 0,
-                           double step = 0) noexcept {
-    r.status = status;
-    r.block = block;
-    r.iterations = std::max(r.iterations, iterations);
-    r.total_iterations += iterations;
-    r.step = std::max(r.step, step);
-    return r;
-  }
-  static void _done(BlockReport& r, int iterations, double step) noexcept {
-    r.iterations = std::max(r.iterations, iterations);
-    r.total_iterations += iterations;
-    r.step = std::max(r.step, step);
-  }
-  // In-place LU with partial pivoting; returns smallest / largest |pivot| (0 when singular,
-  // NaN when a value is not finite). The diagonal keeps the pivots' reciprocals, so that
-  // _lu_solve multiplies: a division costs several multiplications' time, and a step solves
-  // with each factorization more than once.
-  template <int K, class T>
-  static double _lu_factor(T* a, int* piv) noexcept {
-    if constexpr (K == 2) {
-      // The loop below for K = 2, written out: small enough to be inlined (a loop of two
-      // bodies is the most common block).
-      const bool swap = _mag(a[2]) > _mag(a[0]);
-      piv[0] = swap ? 1 : 0;
-      piv[1] = 1;
-      if (swap) {
-        std::swap(a[0], a[2]);
-        std::swap(a[1], a[3]);
-      }
-      const double p0 = _mag(a[0]);
-      if (!(p0 > 0)) return p0;  // 0, or NaN
-      const T i0 = T(1) / a[0];
-      const T f = a[2] * i0;
-      a[2] = f;
-      a[3] -= f * a[1];
-      const double p1 = _mag(a[3]);
-      if (!(p1 > 0)) return p1;
-      const T i1 = T(1) / a[3];
-      a[0] = i0;
-      a[3] = i1;
-      return p0 < p1 ? p0 * _mag(i1) : p1 * _mag(i0);  // the ratio without a third division
-    }
-    double largest = 0, smallest = 0;
-    for (int k = 0; k < K; ++k) {
-      int m = k;
-      double best = _mag(a[k * K + k]);
-      for (int i = k + 1; i < K; ++i) {
-        const double v = _mag(a[i * K + k]);
-        if (v > best) {
-          best = v;
-          m = i;
-        }
-      }
-      if (!(best == best)) return best;
-      piv[k] = m;
-      if (m != k)
-        for (int j = 0; j < K; ++j) std::swap(a[k * K + j], a[m * K + j]);
-      if (best == 0) return 0;
-      largest = k == 0 ? best : std::max(largest, best);
-      smallest = k == 0 ? best : std::min(smallest, best);
-      const T inv = T(1) / a[k * K + k];
-      a[k * K + k] = inv;
-      for (int i = k + 1; i < K; ++i) {
-        const T f = a[i * K + k] * inv;
-        a[i * K + k] = f;
-        for (int j = k + 1; j < K; ++j) a[i * K + j] -= f * a[k * K + j];
-      }
-    }
-    return smallest / largest;
-  }
-  // Rotations of sin and cos by a small angle d, so that a Newton update or the step from a
-  // cached angle needs no new sin or cos: on |d| <= 1/32 the series below are exact to double
-  // rounding (the first omitted terms are below 3e-18 relative), and Newton's updates, mostly
-  // below 2^-14, take two terms (the next below 2e-19 relative).
-  static constexpr double kRotateLimit = 1.0 / 32;
-  template <class T>
-  static void _rotated(const T& s0, const T& c0, const T& d, T& s, T& c) noexcept {
-    // Horner forms; the reciprocals are constants the compiler folds (no division at run time).
-    const T d2 = d * d;
-    T sd, cm;  // sin d and 1 - cos d
-    if (_mag(d) <= 1.0 / 16384) {
-      sd = d * (T(1) - d2 * (T(1) / T(6)));
-      cm = d2 * (T(1) / T(2)) * (T(1) - d2 * (T(1) / T(12)));
-    } else {
-      sd = d * (T(1) - d2 * (T(1) / T(6)) *
-                           (T(1) - d2 * (T(1) / T(20)) * (T(1) - d2 * (T(1) / T(42)))));
-      cm = d2 * (T(1) / T(2)) *
-           (T(1) - d2 * (T(1) / T(12)) *
-                       (T(1) - d2 * (T(1) / T(30)) * (T(1) - d2 * (T(1) / T(56)))));
-    }
-    s = s0 + (c0 * sd - s0 * cm);
-    c = c0 - (s0 * sd + c0 * cm);
-  }
-  // sin and cos of an angle after a Newton update d (angle = the new value).
-  template <class T>
-  static void _rotate(T& s, T& c, const T& d, const T& angle) noexcept {
-    if (_mag(d) <= kRotateLimit) {
-      _rotated(T(s), T(c), d, s, c);
-    } else {
-      using std::cos, std::sin;
-      s = sin(angle);
-      c = cos(angle);
-    }
-  }
-  // sin and cos of a coordinate at the start of a solve. With a cache (trig_cache_size values,
-  // 3 per cached coordinate: an anchor angle and its exact sin and cos; NaN anchors are empty),
-  // a coordinate within kRotateLimit of its anchor is rotated from it, so a step along a smooth
-  // motion costs no sin or cos; otherwise they are evaluated and become the new anchor. Always
-  // one rotation from exact values, so no error accumulates over many steps.
-  template <class T>
-  static void _trig(T& s, T& c, const T& angle, T* cache, int slot) noexcept {
-    using std::cos, std::sin;
-    if (cache) {
-      T* a = cache + 3 * slot;
-      const T d = angle - a[0];
-      if (_mag(d) <= kRotateLimit) {
-        _rotated(a[1], a[2], d, s, c);
-        return;
-      }
-      s = sin(angle);
-      c = cos(angle);
-      a[0] = angle;
-      a[1] = s;
-      a[2] = c;
-      return;
-    }
-    s = sin(angle);
-    c = cos(angle);
-  }
-  template <int K, class T>
-  static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
-    // _lu_factor swaps whole rows (multipliers included), so b takes every swap first.
-    for (int k = 0; k < K; ++k)
-      if (piv[k] != k) std::swap(b[k], b[piv[k]]);
-    for (int k = 0; k < K; ++k)
-      for (int i = k + 1; i < K; ++i) b[i] -= a[i * K + k] * b[k];
-    for (int k = K - 1; k >= 0; --k) {
-      for (int j = k + 1; j < K; ++j) b[k] -= a[k * K + j] * b[j];
-      b[k] *= a[k * K + k];  // the pivot's reciprocal
-    }
-  }
-
-)";
 }
 
 std::string block_comment(const Block& b, const char* kind) {
@@ -770,7 +615,7 @@ class BlockEmitter {
  public:
   BlockEmitter(const SymbolicModel& model, const SymbolTable& symbols, const Structure& st,
                int max_ops, int roll_min = 0)
-      : symbols_(symbols), st_(st) {
+      : symbols_(symbols), st_(st), kinds_(model.coordinate_kinds) {
     std::map<std::pair<int, int>, GiNaC::ex> jac;
     for (const auto& e : model.phi_q) jac[{e.row, e.col}] = e.value;
     std::vector<GiNaC::ex> outs;
@@ -897,14 +742,17 @@ class BlockEmitter {
        << "  // the start (the previous solution or a prediction) and receives the solution.\n"
        << "  // trig: optional cache of trig_cache_size values, kept by the caller from call to call\n"
        << "  // (fill it with NaN first), so that sin and cos near the last values are rotations.\n"
-       << "  template <class T>\n"
-       << "  static BlockReport solve_position(T* q, [[maybe_unused]] T t,\n"
+       << "  // block_signs: optional, num_blocks entries kept by the caller (zero first): each Newton\n"
+       << "  // block's determinant sign is recorded there, and a change fails with status 6.\n"
+       << "  template <class T, class U>\n"
+       << "  static BlockReport<_real<T>> solve_position(T* q, [[maybe_unused]] T t,\n"
        << "      [[maybe_unused]] const Params& p,\n"
-       << "      [[maybe_unused]] const BlockOptions& o,\n"
-       << "      [[maybe_unused]] T* trig = nullptr) noexcept {\n";
+       << "      [[maybe_unused]] const BasicBlockOptions<U>& options,\n"
+       << "      [[maybe_unused]] T* trig = nullptr,\n"
+       << "      [[maybe_unused]] signed char* block_signs = nullptr) noexcept {\n";
     if (!ranges_.empty()) {
-      os << kIn << "BlockReport report;\n";
-      call_parts(os, "_solve_position_part", "q, t, p, o, report, trig");
+      os << kIn << "using R = _real<T>;\n" << kOptions << kIn << "BlockReport<R> report;\n";
+      call_parts(os, "_solve_position_part", "q, t, p, o, report, trig, block_signs");
       finite_check(os, "q");
       os << kIn << "return report;\n  }\n";
       emit_position_parts(os);
@@ -921,25 +769,25 @@ class BlockEmitter {
     if (velocity && acceleration) {
       os << "  // Velocity (Phi_q qd = nu) and acceleration (Phi_q qdd = gamma) at a solved q,\n"
          << "  // block by block with one factorization per block.\n"
-         << "  template <class T>\n"
-         << "  static BlockReport solve_velocity_acceleration([[maybe_unused]] const T* q,\n"
+         << "  template <class T, class U>\n"
+         << "  static BlockReport<_real<T>> solve_velocity_acceleration([[maybe_unused]] const T* q,\n"
          << "      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd, T* qdd,\n";
     } else if (velocity) {
       os << "  // Velocity: Phi_q qd = nu at a solved q, block by block.\n"
-         << "  template <class T>\n"
-         << "  static BlockReport solve_velocity([[maybe_unused]] const T* q,\n"
+         << "  template <class T, class U>\n"
+         << "  static BlockReport<_real<T>> solve_velocity([[maybe_unused]] const T* q,\n"
          << "      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd,\n";
     } else {
       os << "  // Acceleration: Phi_q qdd = gamma at a solved q and qd, block by block.\n"
-         << "  template <class T>\n"
-         << "  static BlockReport solve_acceleration([[maybe_unused]] const T* q,\n"
+         << "  template <class T, class U>\n"
+         << "  static BlockReport<_real<T>> solve_acceleration([[maybe_unused]] const T* q,\n"
          << "      [[maybe_unused]] const T* qd, [[maybe_unused]] T t,\n"
          << "      [[maybe_unused]] const Params& p, T* qdd,\n";
     }
-    os << "      [[maybe_unused]] const BlockOptions& o) noexcept {\n";
+    os << "      [[maybe_unused]] const BasicBlockOptions<U>& options) noexcept {\n";
     if (!ranges_.empty()) {
       const std::string name = motion_name(velocity, acceleration);
-      os << kIn << "BlockReport report;\n";
+      os << kIn << "using R = _real<T>;\n" << kOptions << kIn << "BlockReport<R> report;\n";
       call_parts(os, "_" + name + "_part",
                  motion_args(velocity, acceleration, false) + ", static_cast<T*>(nullptr)");
       if (velocity) finite_check(os, "qd");
@@ -958,15 +806,16 @@ class BlockEmitter {
   void emit_step(std::ostringstream& os) {
     os << "  // A full step: solve_position, then solve_velocity_acceleration, in one function\n"
        << "  // so that terms at the solved q are computed once.\n"
-       << "  template <class T>\n"
-       << "  static BlockReport solve_step(T* q, [[maybe_unused]] T t,\n"
+       << "  template <class T, class U>\n"
+       << "  static BlockReport<_real<T>> solve_step(T* q, [[maybe_unused]] T t,\n"
        << "      [[maybe_unused]] const Params& p, T* qd, T* qdd,\n"
-       << "      [[maybe_unused]] const BlockOptions& o,\n"
-       << "      [[maybe_unused]] T* trig = nullptr) noexcept {\n";
+       << "      [[maybe_unused]] const BasicBlockOptions<U>& options,\n"
+       << "      [[maybe_unused]] T* trig = nullptr,\n"
+       << "      [[maybe_unused]] signed char* block_signs = nullptr) noexcept {\n";
     if (!ranges_.empty()) {
       // Split: the parts of solve_position and solve_velocity_acceleration (emitted with them).
-      os << kIn << "BlockReport report;\n";
-      call_parts(os, "_solve_position_part", "q, t, p, o, report, trig");
+      os << kIn << "using R = _real<T>;\n" << kOptions << kIn << "BlockReport<R> report;\n";
+      call_parts(os, "_solve_position_part", "q, t, p, o, report, trig, block_signs");
       finite_check(os, "q");
       call_parts(os, "_solve_velocity_acceleration_part",
                  motion_args(true, true, false) + ", trig");
@@ -996,6 +845,9 @@ class BlockEmitter {
     std::vector<int> nu, gamma;                               // per row
   };
   static constexpr const char* kIn = "    ";
+  // The public functions take options of any real type; the blocks compute in T's.
+  static constexpr const char* kOptions =
+      "    [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);\n";
   // Repeated blocks emitted once (find_rolls).
   struct Roll {
     std::unique_ptr<Structure> st;          // the first block alone
@@ -1138,10 +990,13 @@ class BlockEmitter {
 
   void emit_rolled_position(std::ostringstream& os, const std::string& name) {
     os << "  template <class T>\n"
-       << "  static BlockReport " << name << "_position(T* q, [[maybe_unused]] T t,\n"
-       << "      [[maybe_unused]] const Params& p, [[maybe_unused]] const BlockOptions& o,\n"
-       << "      BlockReport report, [[maybe_unused]] T* trig, const int* _i,\n"
-       << "      [[maybe_unused]] const int* _s, [[maybe_unused]] int _b) noexcept {\n";
+       << "  static BlockReport<_real<T>> " << name << "_position(T* q, [[maybe_unused]] T t,\n"
+       << "      [[maybe_unused]] const Params& p,\n"
+       << "      [[maybe_unused]] const BasicBlockOptions<_real<T>>& o,\n"
+       << "      BlockReport<_real<T>> report, [[maybe_unused]] T* trig,\n"
+       << "      [[maybe_unused]] signed char* block_signs, const int* _i,\n"
+       << "      [[maybe_unused]] const int* _s, [[maybe_unused]] int _b) noexcept {\n"
+       << kIn << "using R [[maybe_unused]] = _real<T>;\n";
     if (const std::string used = std_functions(prog_); !used.empty())
       os << kIn << "using " << used << ";\n";
     FunctionPrinter pr(prog_, symbols_);
@@ -1153,10 +1008,11 @@ class BlockEmitter {
   void emit_rolled_motion(std::ostringstream& os, const std::string& name, bool velocity,
                           bool acceleration) {
     os << "  template <class T>\n"
-       << "  static BlockReport " << name << "_" << motion_name(velocity, acceleration) << "("
+       << "  static BlockReport<_real<T>> " << name << "_" << motion_name(velocity, acceleration) << "("
        << motion_args(velocity, acceleration, true) << ",\n"
        << "      [[maybe_unused]] T* trig, const int* _i, [[maybe_unused]] const int* _s,\n"
-       << "      [[maybe_unused]] int _b) noexcept {\n";
+       << "      [[maybe_unused]] int _b) noexcept {\n"
+       << kIn << "using R [[maybe_unused]] = _real<T>;\n";
     if (const std::string used = std_functions(prog_); !used.empty())
       os << kIn << "using " << used << ";\n";
     FunctionPrinter pr(prog_, symbols_);
@@ -1237,8 +1093,8 @@ class BlockEmitter {
     arg("const Params&", "p");
     if (velocity) arg("T*", "qd");
     if (acceleration) arg("T*", "qdd");
-    arg("const BlockOptions&", "o");
-    arg("BlockReport", "report");
+    arg("const BasicBlockOptions<_real<T>>&", "o");
+    arg("BlockReport<_real<T>>", "report");
     std::string s;
     for (std::size_t k = 0; k < a.size(); ++k)
       s += (k == 0 ? "" : declare && k % 2 == 0 ? ",\n      " : ", ") + a[k];
@@ -1257,7 +1113,8 @@ class BlockEmitter {
     os << "  // Blocks " << ranges_[k].first << " to " << ranges_[k].second - 1 << " of "
        << name.substr(1) << ".\n"
        << "  template <class T>\n"
-       << "  static BlockReport " << name << "_part" << k << "(" << params << ") noexcept {\n";
+       << "  static BlockReport<_real<T>> " << name << "_part" << k << "(" << params << ") noexcept {\n"
+       << kIn << "using R [[maybe_unused]] = _real<T>;\n";
     if (const std::string used = std_functions(prog_); !used.empty())
       os << kIn << "using " << used << ";\n";
   }
@@ -1267,8 +1124,9 @@ class BlockEmitter {
     for (std::size_t k = 0; k < ranges_.size(); ++k) {
       part_header(os, "_solve_position", k,
                   "T* q, [[maybe_unused]] T t, [[maybe_unused]] const Params& p,\n"
-                  "      [[maybe_unused]] const BlockOptions& o, BlockReport report,\n"
-                  "      [[maybe_unused]] T* trig");
+                  "      [[maybe_unused]] const BasicBlockOptions<_real<T>>& o,\n"
+                  "      BlockReport<_real<T>> report, [[maybe_unused]] T* trig,\n"
+                  "      [[maybe_unused]] signed char* block_signs");
       FunctionPrinter pr(prog_, symbols_);
       position_body(os, pr, ranges_[k].first, ranges_[k].second);
       os << kIn << "return report;\n  }\n";
@@ -1291,21 +1149,19 @@ class BlockEmitter {
   }
 
   void prologue(std::ostringstream& os) {
+    os << kIn << "using R = _real<T>;\n";
     if (const std::string used = std_functions(prog_); !used.empty())
       os << kIn << "using " << used << ";\n";
-    os << kIn << "BlockReport report;\n";
+    os << kOptions << kIn << "BlockReport<R> report;\n";
   }
 
   void finite_check(std::ostringstream& os, const char* v) {
-    os << kIn << "for (int _k = 0; _k < nq; ++_k)\n"
-       << kIn << "  if (!(_mag(" << v << "[_k]) <= 1e300)) return _fail(report, 3, -1);\n";
+    os << kIn << "if (!_all_finite<nq>(" << v << ")) return _fail(report, 3, -1);\n";
   }
 
   // Blocks [b0, b1).
   void position_body(std::ostringstream& os, FunctionPrinter& pr, int b0, int b1) {
     const std::string in = kIn;
-    if (st_.newton_count() > 0)
-      os << in << "[[maybe_unused]] const double inv_length = 1.0 / length_scale;\n";
     for (std::size_t bi = b0; bi < static_cast<std::size_t>(b1); ++bi) {
       const BlockPlan& plan = st_.plans[bi];
       const Block& b = plan.block;
@@ -1314,7 +1170,7 @@ class BlockEmitter {
       os << in << "// " << block_label(bi) << ": " << block_comment(b, to_string(plan.kind))
          << "\n";
       if (roll_of_[bi] >= 0) {
-        call_rolled(os, bi, "position", "q, t, p, o, report, trig", true);
+        call_rolled(os, bi, "position", "q, t, p, o, report, trig, block_signs", true);
         continue;
       }
       if (plan.torn()) {
@@ -1361,6 +1217,9 @@ class BlockEmitter {
         torn_position(os, pr, bi, rotated);
         continue;
       }
+      const std::string bs = idx(static_cast<int>(bi));
+      newton_declare(os, bi, b.cols);
+      os << in << "R _st" << bs << " = 0;\n";
       os << in << "for (int _it = 1;; ++_it) {\n";
       pr.open_scope();
       const std::string in2 = in + "  ";
@@ -1370,40 +1229,113 @@ class BlockEmitter {
       for (int o = k; o < n_out; ++o) a.push_back(pr.text(out(f + o)));
       os << in2 << "T _r[" << k << "] = {" << join(r) << "};\n";
       newton_solve(os, in2, bi, k, a);
-      os << in2 << "double _step = 0;\n";
+      os << in2 << "R _step = 0, _qs = 0;\n" << in2 << "bool _small = true;\n";
       for (int i = 0; i < k; ++i) {
         const int c = b.cols[i];
         update(os, in2, rotated, c, ref("q", c) + " - _r[" + idx(i) + "]");
-        os << in2 << "_step = std::max(_step, _mag(_r[" << i << "]) * (1.0 / "
-           << ref("coordinate_scales", c) << "));\n";
+        os << in2 << "_step = std::max(_step, _mag(_r[" << i << "])"
+           << inv_scale(c) << ");\n";
+        step_criterion(os, in2, c, i);
       }
-      os << in2 << "if (!(_step <= 1e300)) return _fail(report, 3, " << block_id(bi) << ", _it);\n"
-         << in2
-         << "if (o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _step <= o.tolerance) {\n"
-         << in2 << "  _done(report, _it, _step);\n"
-         << in2 << "  break;\n"
-         << in2 << "}\n"
-         << in2 << "if (_it >= o.max_iterations) return _fail(report, 1, " << block_id(bi)
-         << ", _it, _step);\n";
+      os << in2 << "if (!_finite(_step)) return _fail(report, 3, " << block_id(bi) << ", _it);\n";
+      newton_stop(os, in2, bi, k, {"_st" + bs + " = _step;", "break;"});
       pr.close_scope();
       os << in << "}\n";
+      std::vector<int> rows;
+      for (int o = 0; o < k; ++o) rows.push_back(f + o);
+      newton_finish(os, pr, bi, rows, "_st" + bs);
     }
+  }
+
+  // Newton blocks check what the dense path checks (kernels/newton.hpp): before the loop, the
+  // state its last iteration leaves for the recheck: the row scales (_rmax), the columns'
+  // scales (_d: lengths times length_scale), the scaled |q| sum, the condition estimate and
+  // the determinant's sign of the last factorization, the iteration count and whether the step
+  // criterion held.
+  void newton_declare(std::ostringstream& os, std::size_t bi, const std::vector<int>& cols) {
+    const std::string b = idx(static_cast<int>(bi));
+    const int k = static_cast<int>(cols.size());
+    std::vector<std::string> d;
+    for (int c : cols)
+      d.push_back(length_coordinate(c) ? "R(" + ref("coordinate_scales", c) + ")" : "R(1)");
+    os << kIn << "R _rmax" << b << "[" << k << "], _qs" << b << " = 0, _rc" << b << " = 1;\n"
+       << kIn << "[[maybe_unused]] const R _cs" << b << "[" << k << "] = {" << join(d) << "};\n"
+       << kIn << "int _n" << b << " = 0, _sg" << b << " = 1;\n"
+       << kIn << "bool _conv" << b << " = false;\n";
+  }
+
+  // Whether a coordinate is a length (scaled by length_scale) rather than an angle.
+  // Lengths (and scalars) are measured in units of their coordinate_scales entry, angles in
+  // radians: the factor that does it in steps and roundings ("" for an angle), and the scale.
+  bool length_coordinate(int c) const { return kinds_[c] != CoordinateKind::kAngle; }
+  std::string inv_scale(int c) const {
+    return length_coordinate(c) ? " * R(1 / " + ref("coordinate_scales", c) + ")" : "";
+  }
+
+  // The step criterion for block coordinate c (the update in _r[i]), with the rounding
+  // allowance; adds its scaled |q| to _qs.
+  void step_criterion(std::ostringstream& os, const std::string& in, int c, int i) {
+    const std::string scale = inv_scale(c);
+    os << in << "_qs += _mag(" << ref("q", c) << ")" << scale << ";\n"
+       << in << "_small &= _step_converged(_mag(_r[" << i << "])" << scale << ", _mag("
+       << ref("q", c) << ")" << scale << ", o.tolerance);\n";
+  }
+
+  // The end of an iteration: stop when the step criterion holds (or the fixed budget is
+  // spent), or at max_iterations; then keep what the recheck needs (`keep`: more of it).
+  void newton_stop(std::ostringstream& os, const std::string& in, std::size_t bi, int k,
+                   const std::vector<std::string>& keep) {
+    const std::string b = idx(static_cast<int>(bi));
+    os << in << "_conv" << b << " = _small;\n"
+       << in << "if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||\n"
+       << in << "    _it >= o.max_iterations) {\n"
+       << in << "  _n" << b << " = _it;\n"
+       << in << "  _qs" << b << " = _qs;\n";
+    if (k == 1) {
+      os << in << "  _sg" << b << " = _re(_a) < 0 ? -1 : 1;\n";
+    } else {
+      os << in << "  _rc" << b << " = _lu_rcond<" << k << ">(_a, _piv, _rmax" << b << ", _cs" << b
+         << ");\n"
+         << in << "  _sg" << b << " = _lu_det_sign<" << k << ">(_a, _piv);\n";
+    }
+    for (const std::string& line : keep) os << in << "  " << line << "\n";
+    os << in << "}\n";
+  }
+
+  // After the loop: the residual rows (outputs) at the final q, scaled by the last row scales,
+  // and the block's verdict (_newton_end).
+  void newton_finish(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                     const std::vector<int>& rows, const std::string& step) {
+    const std::string b = idx(static_cast<int>(bi));
+    for (int o : rows) pr.ensure(out(o), os, kIn);
+    std::vector<std::string> r;
+    for (int o : rows) r.push_back("_mag(" + pr.text(out(o)) + ")");
+    os << kIn << "const R _rr" << b << "[" << rows.size() << "] = {" << join(r) << "};\n"
+       << kIn << "const R _res" << b << " = _scaled_max<" << rows.size() << ">(_rr" << b << ", _rmax"
+       << b << ");\n";
+    os << kIn << "if (!_newton_end(report, " << block_id(bi) << ", _n" << b << ", _conv" << b
+       << ", o, " << step << ", _res" << b << ", _qs" << b << ", _rc" << b << ", _sg" << b
+       << ", block_signs))\n"
+       << kIn << "  return report;\n";
   }
 
   // One Newton update inside an iteration: _r[] holds the residuals of a k x k system whose
   // matrix is `a` (row-major texts); leaves the step in _r, or reports a singular block.
   void newton_solve(std::ostringstream& os, const std::string& in, std::size_t bi, int k,
                     const std::vector<std::string>& a) {
+    const std::string b = idx(static_cast<int>(bi));
     if (k == 1) {
       os << in << "const T _a = " << a[0] << ";\n"
          << in << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << block_id(bi)
          << ", _it);\n"
+         << in << "_rmax" << b << "[0] = _mag(_a) * _cs" << b << "[0];\n"
          << in << "_r[0] /= _a;\n";
       return;
     }
     os << in << "T _a[" << k * k << "] = {" << join(a) << "};\n"
+       << in << "_row_max<" << k << ">(_a, _cs" << b << ", _rmax" << b << ");\n"
        << in << "int _piv[" << k << "];\n"
-       << in << "const double _ratio = _lu_factor<" << k << ">(_a, _piv);\n"
+       << in << "const R _ratio = _lu_factor<" << k << ">(_a, _piv);\n"
        << in << "if (!(_ratio > o.singular_pivot_ratio))\n"
        << in << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << block_id(bi) << ", _it);\n"
        << in << "_lu_solve<" << k << ">(_a, _piv, _r);\n";
@@ -1421,7 +1353,7 @@ class BlockEmitter {
     }
     os << in << "T _a" << b << "[" << k * k << "] = {" << join(a) << "};\n"
        << in << "int _piv" << b << "[" << k << "];\n"
-       << in << "const double _ratio" << b << " = _lu_factor<" << k << ">(_a" << b << ", _piv"
+       << in << "const R _ratio" << b << " = _lu_factor<" << k << ">(_a" << b << ", _piv"
        << b << ");\n"
        << in << "if (!(_ratio" << b << " > o.singular_pivot_ratio))\n"
        << in << "  return _fail(report, _ratio" << b << " == _ratio" << b << " ? 2 : 3, " << block_id(bi)
@@ -1599,18 +1531,16 @@ class BlockEmitter {
     const int f = pos_first_[bi];
     const int n_assigned = static_cast<int>(plan.assigned.size());
     const std::string in = kIn, in2 = in + "  ", b = idx(static_cast<int>(bi));
-    os << in << "double _step" << b << " = 0;\n"
-       << in << "bool _converged" << b << " = false;\n"
+    newton_declare(os, bi, plan.tears);
+    os << in << "R _step" << b << " = 0;\n"
+       << in << "bool _stop" << b << " = false;\n"
        << in << "for (int _it = 1;; ++_it) {\n";
     pr.open_scope();
     for (int a = 0; a < n_assigned; ++a) {
       pr.ensure(out(f + a), os, in2);
       update(os, in2, rotated, plan.assigned[a].second, pr.text(out(f + a)));
     }
-    os << in2 << "if (_converged" << b << ") {\n"
-       << in2 << "  _done(report, _it - 1, _step" << b << ");\n"
-       << in2 << "  break;\n"
-       << in2 << "}\n";
+    os << in2 << "if (_stop" << b << ") break;\n";
     std::vector<std::string> r;
     for (int i = 0; i < m; ++i) {
       pr.ensure(out(f + n_assigned + i), os, in2);
@@ -1618,20 +1548,21 @@ class BlockEmitter {
     }
     os << in2 << "T _r[" << m << "] = {" << join(r) << "};\n";
     newton_solve(os, in2, bi, m, schur(os, pr, bi, pos_tjac_[bi], in2, "_d"));
-    os << in2 << "_step" << b << " = 0;\n";
+    os << in2 << "_step" << b << " = 0;\n" << in2 << "R _qs = 0;\n" << in2 << "bool _small = true;\n";
     for (int i = 0; i < m; ++i) {
       const int c = plan.tears[i];
       update(os, in2, rotated, c, ref("q", c) + " - _r[" + idx(i) + "]");
-      os << in2 << "_step" << b << " = std::max(_step" << b << ", _mag(_r[" << i << "]) * (1.0 / "
-         << ref("coordinate_scales", c) << "));\n";
+      os << in2 << "_step" << b << " = std::max(_step" << b << ", _mag(_r[" << i << "])"
+         << inv_scale(c) << ");\n";
+      step_criterion(os, in2, c, i);
     }
-    os << in2 << "if (!(_step" << b << " <= 1e300)) return _fail(report, 3, " << block_id(bi) << ", _it);\n"
-       << in2 << "_converged" << b << " = o.fixed_iterations > 0 ? _it >= o.fixed_iterations\n"
-       << in2 << "                                        : _step" << b << " <= o.tolerance;\n"
-       << in2 << "if (!_converged" << b << " && _it >= o.max_iterations)\n"
-       << in2 << "  return _fail(report, 1, " << block_id(bi) << ", _it, _step" << b << ");\n";
+    os << in2 << "if (!_finite(_step" << b << ")) return _fail(report, 3, " << block_id(bi) << ", _it);\n";
+    newton_stop(os, in2, bi, m, {"_stop" + b + " = true;"});
     pr.close_scope();
     os << in << "}\n";
+    std::vector<int> rows;
+    for (int i = 0; i < m; ++i) rows.push_back(f + n_assigned + i);
+    newton_finish(os, pr, bi, rows, "_step" + b);
   }
 
   // Blocks [b0, b1); checks: end with the finite checks of qd and qdd.
@@ -1791,6 +1722,7 @@ class BlockEmitter {
 
   const SymbolTable& symbols_;
   const Structure& st_;
+  std::vector<CoordinateKind> kinds_;  // per coordinate
   std::vector<GiNaC::ex> outs_;       // the program's outputs before lowering
   std::vector<Roll> rolls_;
   std::vector<int> roll_of_, roll_member_;  // per block: its Roll and row there, or -1
@@ -1851,7 +1783,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
   os << "//\n"
      << "// Planar Cartesian kinematics of mechanism '" << m.name << "': Phi(q, t) = 0 with\n"
      << "// nu = -Phi_t and gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.\n"
-     << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include <utility>\n\n"
+     << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include <limits>\n#include <type_traits>\n#include <utility>\n\n"
      << "namespace " << options.name_space << " {\n\n";
 
   os << "// Coordinates:";
@@ -1958,21 +1890,28 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     os << "  // Values in the optional sin/cos cache of solve_position and solve_step (3 per\n"
        << "  // coordinate whose sin or cos the model uses).\n"
        << "  static constexpr int trig_cache_size = " << blocks.trig_cache_size() << ";\n\n";
-    emit_block_helpers(os);
-    blocks.emit_position(os);
+    // The block functions first, so that only the kernels they call are emitted (before them).
+    std::ostringstream code;
+    blocks.emit_position(code);
     if (velocity) {
-      os << "\n";
-      blocks.emit_motion(os, true, false);
+      code << "\n";
+      blocks.emit_motion(code, true, false);
     }
     if (acceleration) {
-      os << "\n";
-      blocks.emit_motion(os, false, true);
-      os << "\n";
-      blocks.emit_motion(os, true, true);
-      os << "\n";
-      blocks.emit_step(os);
+      code << "\n";
+      blocks.emit_motion(code, false, true);
+      code << "\n";
+      blocks.emit_motion(code, true, true);
+      code << "\n";
+      blocks.emit_step(code);
     }
-    blocks.emit_rolls(os, velocity, acceleration);
+    blocks.emit_rolls(code, velocity, acceleration);
+    emit_kernels(os, code.str());
+    if (code.str().find("_trig(") != std::string::npos)
+      os << "  // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then cache.data().\n"
+         << "  template <class T>\n"
+         << "  using TrigCache = BasicTrigCache<T, trig_cache_size>;\n\n";
+    os << code.str();
   }
   os << "};\n\n}  // namespace " << options.name_space << "\n";
   return os.str();

@@ -13,6 +13,7 @@
 #include <type_traits>
 
 #include "kinegen/motion.hpp"
+#include "kinegen/kernels/newton.hpp"
 
 namespace kinegen {
 
@@ -338,8 +339,11 @@ Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
       const Scalar d = alpha * ws.dq[k] / ws.col_scale[k];
       const double scale_k = static_cast<double>(abs(ws.col_scale[k]));
       step = std::max(step, static_cast<double>(abs(d)));
-      small = small && static_cast<double>(abs(alpha * ws.dq[k])) <=
-                           options.tolerance * scale_k + 4 * eps * static_cast<double>(abs(q[k]));
+      // The shared step criterion (kernels/newton.hpp), with the rounding allowance of Scalar.
+      using Real = typename Eigen::NumTraits<Scalar>::Real;
+      small = small && kernels::NewtonKernel::_step_converged(
+                           Real(static_cast<double>(abs(alpha * ws.dq[k])) / scale_k),
+                           Real(static_cast<double>(abs(q[k])) / scale_k), Real(options.tolerance));
     }
     result.iterations = it;
     result.step = step;

@@ -1,0 +1,267 @@
+// The block-solver kernels (runtime/include/kinegen/kernels/), compiled on their own: the LU
+// against Eigen, the rotation series and the sin/cos cache against long double and std::sin,
+// the Newton step criterion in float; and the generated headers carry the kernels' text
+// unchanged, only those they call.
+#include <Eigen/Dense>
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <kinegen/kernels/lu.hpp>
+#include <kinegen/kernels/newton.hpp>
+#include <kinegen/kernels/trig_cache.hpp>
+#include <random>
+#include <sstream>
+#include <string>
+#include <utility>
+
+namespace {
+
+using Lu = kinegen::kernels::LuKernel;
+using Trig = kinegen::kernels::TrigCacheKernel;
+using Newton = kinegen::kernels::NewtonKernel;
+
+// Factors a random K x K matrix (and a singular one) and checks solve, determinant sign,
+// condition estimate and singular detection against Eigen.
+template <int K>
+void check_lu(std::mt19937& rng) {
+  using Mat = Eigen::Matrix<double, K, K, Eigen::RowMajor>;
+  using Vec = Eigen::Matrix<double, K, 1>;
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int trial = 0; trial < 200; ++trial) {
+    Mat m;
+    for (int i = 0; i < K; ++i)
+      for (int j = 0; j < K; ++j) m(i, j) = u(rng);
+    Vec b;
+    for (int i = 0; i < K; ++i) b[i] = u(rng);
+    Mat a = m;
+    int piv[K];
+    const double ratio = Lu::_lu_factor<K>(a.data(), piv);
+    const Eigen::PartialPivLU<Mat> ref(m);
+    const auto diag = ref.matrixLU().diagonal().cwiseAbs();
+    // The same pivots as Eigen's partial pivoting, so the same ratio (to rounding).
+    CHECK(ratio == Approx(diag.minCoeff() / diag.maxCoeff()).epsilon(1e-12));
+    Vec x = b;
+    Lu::_lu_solve<K>(a.data(), piv, x.data());
+    const double cond = m.norm() * m.inverse().norm();
+    CHECK((m * x - b).norm() <= 64 * 2.2e-16 * cond * (m.norm() * x.norm() + b.norm()));
+    CHECK(Lu::_lu_det_sign<K>(a.data(), piv) == (m.determinant() > 0 ? 1 : -1));
+    // Condition estimate: 1 / |A^-1|_inf of the equilibrated A = R m D, exactly (K solves).
+    double d[K], row_max[K];
+    for (int j = 0; j < K; ++j) d[j] = j % 2 == 0 ? 1.0 : 2.5;
+    Lu::_row_max<K>(m.data(), d, row_max);
+    Mat scaled;
+    for (int i = 0; i < K; ++i)
+      for (int j = 0; j < K; ++j) scaled(i, j) = m(i, j) * d[j] / row_max[i];
+    const double inv_norm = scaled.inverse().cwiseAbs().rowwise().sum().maxCoeff();
+    const double rcond = Lu::_lu_rcond<K>(a.data(), piv, row_max, d);
+    CHECK(rcond == Approx(1 / inv_norm).epsilon(1e-9));
+    // Within a factor K of the true reciprocal condition number (infinity norm).
+    const double true_rcond = 1 / (scaled.cwiseAbs().rowwise().sum().maxCoeff() * inv_norm);
+    CHECK(rcond >= true_rcond * (1 - 1e-12));
+    CHECK(rcond <= K * true_rcond * (1 + 1e-12));
+  }
+  if constexpr (K >= 2) {
+    // Singular: the last row a combination of the others (exactly representable).
+    Mat m;
+    for (int i = 0; i < K; ++i)
+      for (int j = 0; j < K; ++j) m(i, j) = std::round(8 * u(rng)) / 4;
+    for (int j = 0; j < K; ++j) m(K - 1, j) = m(0, j) + (K > 2 ? m(1, j) : m(0, j));
+    int piv[K];
+    Mat a = m;
+    const double ratio = Lu::_lu_factor<K>(a.data(), piv);
+    CHECK(!(ratio > 1e-13));
+    // Not finite: reported as NaN.
+    a = m;
+    a(0, 0) = std::nan("");
+    CHECK(std::isnan(Lu::_lu_factor<K>(a.data(), piv)));
+  } else {
+    double a = 0;
+    int piv[1];
+    CHECK(Lu::_lu_factor<1>(&a, piv) == 0);
+  }
+}
+
+template <int... K>
+void check_lu_sizes(std::mt19937& rng, std::integer_sequence<int, K...>) {
+  (check_lu<K + 1>(rng), ...);
+}
+
+// The kernel text of a file: the lines between its markers (as cmake/embed_kernels.cmake).
+std::string kernel_body(const std::string& source, const std::string& name) {
+  const std::string begin = "// kinegen-kernel-begin " + name + "\n";
+  const std::string end = "// kinegen-kernel-end " + name + "\n";
+  const auto b = source.find(begin);
+  const auto e = source.find(end);
+  REQUIRE(b != std::string::npos);
+  REQUIRE(e != std::string::npos);
+  std::string text = source.substr(b + begin.size(), e - b - begin.size());
+  while (!text.empty() && text.back() == ' ') text.pop_back();
+  return text;
+}
+
+std::string read(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+}  // namespace
+
+TEST_CASE("LU kernel agrees with Eigen on random and singular matrices, K = 1..6", "[kernels]") {
+  std::mt19937 rng(12);
+  check_lu_sizes(rng, std::make_integer_sequence<int, 6>{});
+}
+
+TEST_CASE("float LU computes in float", "[kernels]") {
+  float a[4] = {2, 1, 1, 3}, b[2] = {3, 4};
+  int piv[2];
+  const auto ratio = Lu::_lu_factor<2>(a, piv);
+  STATIC_REQUIRE(std::is_same_v<decltype(ratio), const float>);
+  Lu::_lu_solve<2>(a, piv, b);
+  CHECK(b[0] == Approx(1).epsilon(1e-6));
+  CHECK(b[1] == Approx(1).epsilon(1e-6));
+}
+
+// Rotation by |d| <= 1/32 from exact (rounded) sin and cos: against long double sin and cos of
+// the rotated angle, at most 2 ulps of 1 (2^-52 absolute: the rounding of the inputs, half an
+// ulp each, and of the rotation's few operations).
+TEST_CASE("rotation series within 2 ulps of long double over |d| <= 1/32", "[kernels]") {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> angle(-10, 10), small(-1.0 / 32, 1.0 / 32);
+  const double ulp = std::ldexp(1.0, -52);
+  double worst = 0;
+  for (int k = 0; k < 200000; ++k) {
+    const double a = angle(rng);
+    const double d = k % 4 == 0 ? small(rng) * 1e-4 : small(rng);  // both series branches
+    const double s0 = std::sin(a), c0 = std::cos(a);
+    double s, c;
+    Trig::_rotated(s0, c0, d, s, c);
+    const long double exact = static_cast<long double>(a) + d;
+    worst = std::max(worst, static_cast<double>(std::fabs(s - sinl(exact))));
+    worst = std::max(worst, static_cast<double>(std::fabs(c - cosl(exact))));
+  }
+  INFO("largest error " << worst / ulp << " ulps of 1");
+  CHECK(worst <= 2 * ulp);
+}
+
+// The cache over long random walks with jumps: every value one rotation from exact, so the
+// error stays at the rotation's and does not grow.
+TEST_CASE("trig cache over a random walk of 1e5 steps with jumps", "[kernels]") {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> walk(-0.02, 0.02), jump(-50, 50), u(0, 1);
+  Trig::BasicTrigCache<double, 6> cache;
+  double angles[2] = {0.3, -2.0};
+  const double ulp = std::ldexp(1.0, -52);
+  double worst = 0;
+  int recomputed = 0;
+  for (int k = 0; k < 100000; ++k) {
+    for (int slot = 0; slot < 2; ++slot) {
+      angles[slot] += u(rng) < 0.001 ? jump(rng) : walk(rng);
+      const double anchor = cache.values[3 * slot];
+      double s, c;
+      Trig::_trig(s, c, angles[slot], cache.data(), slot);
+      recomputed += cache.values[3 * slot] != anchor;
+      const long double exact = angles[slot];
+      worst = std::max(worst, static_cast<double>(std::fabs(s - sinl(exact))));
+      worst = std::max(worst, static_cast<double>(std::fabs(c - cosl(exact))));
+    }
+  }
+  INFO("largest error " << worst / ulp << " ulps of 1, " << recomputed << " anchors");
+  CHECK(worst <= 2 * ulp);
+  CHECK(recomputed < 20000);  // mostly rotations
+}
+
+// A cache that was zero-filled (or overwritten) rather than constructed: its slots are not on
+// the unit circle, so they are recomputed, never rotated from.
+TEST_CASE("trig cache recomputes zero-filled and garbage slots", "[kernels]") {
+  for (const double fill : {0.0, 1.0, 1e300}) {
+    double cache[3] = {fill, fill, fill};
+    double s, c;
+    Trig::_trig(s, c, 0.01, cache, 0);
+    CHECK(s == std::sin(0.01));
+    CHECK(c == std::cos(0.01));
+    CHECK(cache[0] == 0.01);
+  }
+  Trig::BasicTrigCache<float, 3> typed;
+  CHECK(std::isnan(typed.values[0]));
+  float s, c;
+  Trig::_trig(s, c, 0.5f, typed.data(), 0);
+  CHECK(s == std::sin(0.5f));
+}
+
+TEST_CASE("Newton step criterion: tolerance plus rounding in the scalar's type", "[kernels]") {
+  // float: a step of a few ulps of an angle of 100 rad converges whatever the tolerance asked;
+  // double keeps 1e-10 near 1.
+  CHECK(Newton::_step_converged(3e-5f, 100.f, 1e-10f));
+  CHECK_FALSE(Newton::_step_converged(1e-3f, 100.f, 1e-10f));
+  CHECK(Newton::_step_converged(1e-10, 1.0, 1e-10));
+  CHECK_FALSE(Newton::_step_converged(2e-10, 1.0, 1e-10));
+  // An angle of 6e6 rad: its ulp (9.3e-10) passes, 1e-6 does not.
+  CHECK(Newton::_step_converged(9.3e-10, 6e6, 1e-10));
+  CHECK_FALSE(Newton::_step_converged(1e-6, 6e6, 1e-10));
+  // Defaults follow the scalar.
+  const Newton::BasicBlockOptions<float> of;
+  const Newton::BasicBlockOptions<double> od;
+  CHECK(of.tolerance == Approx(std::ldexp(1.0, -15)));
+  CHECK(od.tolerance == Approx(std::ldexp(1.0, -33)));
+  CHECK(od.residual_tolerance == Approx(std::ldexp(1.0, -26)));
+  CHECK(of.singular_pivot_ratio == Approx(512 * std::ldexp(1.0, -23)));
+}
+
+TEST_CASE("_newton_end: budget, inconsistency, condition and branch", "[kernels]") {
+  const Newton::BasicBlockOptions<double> o;
+  Newton::BlockReport<double> r;
+  signed char signs[3] = {0, 0, 0};
+  CHECK(Newton::_newton_end(r, 1, 2, true, o, 1e-12, 1e-14, 2.0, 0.5, -1, signs));
+  CHECK(signs[1] == -1);
+  CHECK(Newton::_newton_end(r, 1, 2, true, o, 1e-12, 1e-14, 2.0, 0.5, -1, signs));
+  CHECK_FALSE(Newton::_newton_end(r, 1, 2, true, o, 1e-12, 1e-14, 2.0, 0.5, 1, signs));
+  CHECK(r.status == 6);
+  CHECK(r.block == 1);
+  Newton::BasicBlockOptions<double> fixed;
+  fixed.fixed_iterations = 3;
+  Newton::BlockReport<double> rf;
+  CHECK_FALSE(Newton::_newton_end(rf, 0, 3, false, fixed, 0.5, 2.2, 1.0, 0.5, 1, nullptr));
+  CHECK(rf.status == 5);
+  CHECK(rf.residual == 2.2);
+  Newton::BlockReport<double> ri;
+  CHECK_FALSE(Newton::_newton_end(ri, 0, 5, true, o, 1e-14, 1e-3, 1.0, 0.5, 1, nullptr));
+  CHECK(ri.status == 4);
+  Newton::BlockReport<double> rs;
+  CHECK_FALSE(Newton::_newton_end(rs, 2, 5, true, o, 1e-14, 1e-15, 1.0, 1e-14, 1, nullptr));
+  CHECK(rs.status == 2);
+  CHECK(rs.rcond == 1e-14);
+}
+
+// Generated headers paste the kernel files' text unchanged, and only the kernels they call.
+TEST_CASE("generated headers carry the kernel text unchanged", "[kernels]") {
+  const std::filesystem::path root = KINEGEN_SOURCE_DIR;
+  const char* kernels[] = {"report", "lu", "rotation", "trig_cache", "newton"};
+  int headers = 0;
+  for (const auto& e : std::filesystem::directory_iterator(root / "generated")) {
+    const std::string header = read(e.path());
+    if (header.find("has_block_solver = true") == std::string::npos) continue;
+    ++headers;
+    for (const char* name : kernels) {
+      const std::string body = kernel_body(
+          read(root / "runtime/include/kinegen/kernels" / (std::string(name) + ".hpp")), name);
+      const std::string begin =
+          std::string("// ---- kinegen kernel ") + name + " (kinegen/kernels/" + name + ".hpp)\n";
+      const std::string end = std::string("  // ---- end of kinegen kernel ") + name + "\n";
+      const auto b = header.find(begin);
+      if (b == std::string::npos) continue;
+      const auto e2 = header.find(end, b);
+      REQUIRE(e2 != std::string::npos);
+      INFO(e.path().filename() << ": kernel " << name);
+      CHECK(header.substr(b + begin.size(), e2 - b - begin.size()) == body);
+    }
+    CHECK(header.find("// ---- kinegen kernel report") != std::string::npos);
+  }
+  CHECK(headers >= 4);
+  // Only the kernels a model calls: the four-bar's 2 x 2 block needs the LU; the slider-crank
+  // (1 x 1 blocks only) does not.
+  CHECK(read(root / "generated/four_bar.hpp").find("kinegen kernel lu") != std::string::npos);
+  CHECK(read(root / "generated/slider_crank.hpp").find("kinegen kernel lu") == std::string::npos);
+}
