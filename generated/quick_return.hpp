@@ -33,7 +33,11 @@ struct quick_return {
   // Initial estimates for the first position solve, from the mechanism file.
   static constexpr std::array<double, nq> q0 = {0, 0, 0, 0, -2.0, 1.11, 1.0, 0, 1.11};
   // A typical length of the mechanism; position tolerances scale with it.
-  static constexpr double length_scale = 4.0;
+  static constexpr double length_scale = 1.0;
+  // What each coordinate measures (kinegen::CoordinateKind: 0 length, 1 angle, 2 scalar)
+  // and the size its tolerances scale with (a body's x and y: its joints' geometry).
+  static constexpr std::array<int, nq> coordinate_kinds = {0, 0, 1, 0, 0, 1, 0, 0, 1};
+  static constexpr std::array<double, nq> coordinate_scales = {1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0};
 
   struct Params {
     double r = 1.0;
@@ -431,7 +435,6 @@ struct quick_return {
     using std::cos, std::sin;
     [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);
     BlockReport<R> report;
-    [[maybe_unused]] const R inv_length = R(1 / length_scale);
     // Block 0: rows 0 -> q[0] (explicit)
     q[0] = T(0);
     // Block 1: rows 1 -> q[1] (explicit)
@@ -648,7 +651,6 @@ struct quick_return {
     using std::cos, std::sin;
     [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);
     BlockReport<R> report;
-    [[maybe_unused]] const R inv_length = R(1 / length_scale);
     // Block 0: rows 0 -> q[0] (explicit)
     q[0] = T(0);
     // Block 1: rows 1 -> q[1] (explicit)

@@ -31,7 +31,11 @@ struct slider_crank {
   // Initial estimates for the first position solve, from the mechanism file.
   static constexpr std::array<double, nq> q0 = {0, 0, 0, 3.0, 0, 1.57};
   // A typical length of the mechanism; position tolerances scale with it.
-  static constexpr double length_scale = 3.0;
+  static constexpr double length_scale = 2.0;
+  // What each coordinate measures (kinegen::CoordinateKind: 0 length, 1 angle, 2 scalar)
+  // and the size its tolerances scale with (a body's x and y: its joints' geometry).
+  static constexpr std::array<int, nq> coordinate_kinds = {0, 0, 1, 0, 0, 1};
+  static constexpr std::array<double, nq> coordinate_scales = {1.0, 1.0, 1.0, 2.0, 2.0, 1.0};
 
   struct Params {
     double l = 2.0;
@@ -407,7 +411,6 @@ struct slider_crank {
     using std::cos, std::sin;
     [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);
     BlockReport<R> report;
-    [[maybe_unused]] const R inv_length = R(1 / length_scale);
     // Block 0: rows 0 -> q[0] (explicit)
     q[0] = T(0);
     // Block 1: rows 1 -> q[1] (explicit)
@@ -584,7 +587,6 @@ struct slider_crank {
     using std::cos, std::sin;
     [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);
     BlockReport<R> report;
-    [[maybe_unused]] const R inv_length = R(1 / length_scale);
     // Block 0: rows 0 -> q[0] (explicit)
     q[0] = T(0);
     // Block 1: rows 1 -> q[1] (explicit)

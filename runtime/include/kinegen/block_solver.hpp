@@ -140,8 +140,10 @@ class Solver {
   // True when the generated block functions are used; false: dense Newton on Phi_q.
   static constexpr bool kBlockSolver = detail::HasBlockSolver<Model>::value;
 
-  Solver() = default;
-  explicit Solver(const Params& params, SolverOptions options = {}) : dense_(params, options) {}
+  // Options default to the scalar's precision (default_options<Scalar>()).
+  Solver() : Solver(Params{}) {}
+  explicit Solver(const Params& params, SolverOptions options = default_options<Scalar>())
+      : dense_(params, options) {}
 
   // The model's initial estimates as a vector of this solver's scalar.
   static Vector initial_estimate() {
@@ -304,7 +306,10 @@ class Solver {
   Result checked(const Vector& q, Scalar t, Result r) {
     if (r.status != Status::kConverged) return r;
     const SolverOptions& s = dense_.options();
-    if constexpr (!detail::ReportHasResidual<typename Model::BlockReport>::value)
+    using Report = decltype(Model::solve_position(std::declval<Scalar*>(), Scalar(0),
+                                                  std::declval<const Params&>(),
+                                                  std::declval<typename Model::BlockOptions>()));
+    if constexpr (!detail::ReportHasResidual<Report>::value)
       r.residual = detail::model_residual<Model>(q.data(), t, dense_.system().params());
     if (!(r.residual <= s.residual_tolerance)) {
       r.status = !(r.residual == r.residual) ? Status::kNonFinite

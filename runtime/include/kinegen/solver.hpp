@@ -99,6 +99,21 @@ struct SolverOptions {
   double jump_fraction = 0.25;
 };
 
+// SolverOptions whose tolerances follow the precision of Scalar (its real type), as the block
+// kernels' defaults do (kernels/report.hpp): for double they are the defaults above to within
+// rounding, for float they are loose enough for float to meet.
+template <class Scalar>
+SolverOptions default_options() {
+  using Real = typename Eigen::NumTraits<Scalar>::Real;
+  const kernels::ReportKernel::BasicBlockOptions<Real> k;
+  SolverOptions o;
+  o.tolerance = static_cast<double>(k.tolerance);
+  o.residual_tolerance = static_cast<double>(k.residual_tolerance);
+  o.singular_pivot_ratio = static_cast<double>(k.singular_pivot_ratio);
+  o.min_rcond = static_cast<double>(k.min_rcond);
+  return o;
+}
+
 namespace detail {
 
 // Storage for one analysis: Phi_q, its factorization and the vectors around it. When the sizes
