@@ -56,11 +56,9 @@ int main(int argc, char** argv) {
   // convergence test, so every tick costs the same. From the Taylor prediction of the last
   // tick's state one iteration reaches rounding; the second one is margin.
   constexpr int kIterations = 2;
-  kinegen::SolverOptions options;
-  options.tolerance = kFloat ? 1e-5 : 1e-10;
   Model::Params params;
   params.omega = 2 * M_PI;  // one crank turn per second
-  Solver solver(params, options);
+  Solver solver(params);  // default options: tolerances that follow Scalar's precision
 
   // Everything the loop needs is set up here, before it starts.
   std::vector<long> ns(static_cast<std::size_t>(calls));

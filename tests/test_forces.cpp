@@ -9,6 +9,11 @@
 #include "kinegen/codegen/analysis.hpp"
 #include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/reference.hpp"
+#include "support/run_command.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
 
 namespace kc = kinegen::codegen;
 
@@ -357,4 +362,39 @@ TEST_CASE("forces: the double path agrees with the 40-digit reference", "[forces
   CHECK(k == rows.size());
   CHECK(worst < 1e-14);  // measured 9.8e-16 of the largest column
   CHECK(worst > 0);  // two independent roundings, not one path twice
+}
+
+TEST_CASE("analyze --forces from the command line", "[forces][cli]") {
+  namespace fs = std::filesystem;
+  const std::string exe = KINEGEN_EXE;
+  const std::string example = std::string(KINEGEN_SOURCE_DIR) + "/examples/four_bar_balanced.yaml";
+  auto r = kinegen::test::run_command(
+      {exe, "analyze", example, "--t0", "0", "--t1", "1", "--steps", "8", "--forces"});
+  REQUIRE(r.exit_code == 0);
+  const std::string header = r.out.substr(0, r.out.find('\n'));
+  CHECK_THAT(header, Catch::EndsWith("P.ay,motor.effort,O2.fx,O2.fy,O2.tz,A.fx,A.fy,A.tz,B.fx,"
+                                     "B.fy,B.tz,O4.fx,O4.fy,O4.tz"));
+  // The reference path gives the same columns, to about double rounding.
+  auto ref = kinegen::test::run_command({exe, "analyze", example, "--t0", "0", "--t1", "1",
+                                         "--steps", "8", "--forces", "--reference-digits", "40"});
+  REQUIRE(ref.exit_code == 0);
+  CHECK(ref.out.substr(0, ref.out.find('\n')) == header);
+  // Hostile input: one error line with the item and its line, exit 2, no output file.
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "forces_cli";
+  fs::create_directories(dir);
+  const std::string bad = (dir / "bad.yaml").string();
+  std::ofstream(bad) << kBase << "forces:\n  - {type: force, body: crank, f: [1, 0], s: [\"1/0\", 0]}\n";
+  const std::string csv = (dir / "out.csv").string();
+  fs::remove(csv);
+  r = kinegen::test::run_command({exe, "analyze", bad, "--t0", "0", "--t1", "1", "--steps", "2",
+                                  "--forces", "-o", csv});
+  CHECK(r.exit_code == 2);
+  CHECK_THAT(r.err, Catch::StartsWith("error: ") && Catch::Contains(":9:"));
+  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  CHECK_FALSE(fs::exists(csv));
+  // Without masses or loads: zeros, not an error.
+  std::ofstream(dir / "plain.yaml") << kBase;
+  r = kinegen::test::run_command({exe, "analyze", (dir / "plain.yaml").string(), "--t0", "0",
+                                  "--t1", "1", "--steps", "2", "--forces"});
+  CHECK(r.exit_code == 0);
 }

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "kinegen/codegen/kinematics.hpp"
+#include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/sensitivity.hpp"
 
 namespace kinegen::codegen {
@@ -306,6 +307,9 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
   const SensitivityModel* sensitivity = options.sensitivity;
   std::unique_ptr<ProgramEvaluator<double>> phi_p_eval;
   if (sensitivity) phi_p_eval = std::make_unique<ProgramEvaluator<double>>(sensitivity->phi_p);
+  std::unique_ptr<ForceSolver> force_solver;
+  if (options.forces) force_solver = std::make_unique<ForceSolver>(model, *options.forces);
+  bool force_warned = false;
   StateRow previous;
   Eigen::VectorXd qdd_before;  // the acceleration one step before `previous` (the jerk)
   double h_before = 0;
@@ -371,6 +375,20 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
                                        row.qdd.segment<3>(b), model.point_offsets()[p]));
     }
     if (sensitivity) point_sensitivities(model, *sensitivity, row.q, row.dq_dp, row.dpoints_dp);
+    if (force_solver) {
+      if (!force_solver->solve(t, row.q, row.qd, row.qdd, row.forces))
+        throw AnalysisError(file + ": force analysis failed at " + format_time(t) +
+                            ": Phi_q is singular, so no finite efforts hold the motion (a toggle "
+                            "or dead-centre position)");
+      if (!force_warned && force_solver->condition() > options.force_warning && options.warn) {
+        options.warn(file + ": at " + format_time(t) + " the scaled condition estimate of Phi_q is " +
+                     format_estimate(force_solver->condition()) + " (above " +
+                     format_estimate(options.force_warning) +
+                     "): the mechanism nears a toggle, where efforts and reactions grow without "
+                     "bound");
+        force_warned = true;
+      }
+    }
     sink(row);
     if (k > 0) {
       qdd_before = previous.qdd;
@@ -411,8 +429,14 @@ std::string csv_header(const Mechanism& m) {
 }
 
 std::string csv_header(const Mechanism& m, const std::vector<std::string>& sensitivity) {
+  return csv_header(m, {}, sensitivity);
+}
+
+std::string csv_header(const Mechanism& m, const std::vector<std::string>& forces,
+                       const std::vector<std::string>& sensitivity) {
   std::string h = csv_header(m);
   h.pop_back();  // the line break
+  for (const auto& c : forces) h += "," + c;
   for (const auto& c : sensitivity_columns(m, sensitivity)) h += "," + c;
   return h + "\n";
 }
@@ -427,6 +451,7 @@ std::string csv_row(const StateRow& row) {
   for (const auto& p : row.points)
     for (const Eigen::Vector2d* v : {&p.r, &p.v, &p.a})
       s += "," + format_number((*v)[0]) + "," + format_number((*v)[1]);
+  for (double f : row.forces) s += "," + format_number(f);
   // Sensitivities: per parameter, the bodies' x, y, phi, then the points' x, y (spec 6.6).
   for (int k = 0; k < row.dq_dp.cols(); ++k) {
     for (int i = 0; i < row.dq_dp.rows(); ++i) s += "," + format_number(row.dq_dp(i, k));

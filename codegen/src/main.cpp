@@ -16,6 +16,7 @@
 #include "kinegen/codegen/animate.hpp"
 #include "kinegen/codegen/check.hpp"
 #include "kinegen/codegen/emit_cpp.hpp"
+#include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/log.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/output_file.hpp"
@@ -153,7 +154,8 @@ int run_animate(const Common& c, const kc::AnimateOptions& options, const std::s
 }
 
 int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output,
-                int reference_digits, bool strict, const std::string& sensitivity_list = "") {
+                int reference_digits, bool strict, const std::string& sensitivity_list,
+                bool with_forces) {
   const auto model = load(c);
   kc::require_driven(*model);
   check_grid(t0, t1, steps);
@@ -168,9 +170,22 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
       throw kc::UsageError("--sensitivity is not available with --reference-digits");
     sensitivity = kc::build_sensitivity(*model, kc::split_parameter_list(sensitivity_list));
   }
+  // Forces: every input error (masses, loads) before any output.
+  std::unique_ptr<kc::ForceModel> forces;
+  std::vector<std::string> force_names;
+  if (with_forces) {
+    if (model->nc() != model->nq())
+      throw kc::UsageError(
+          "--forces needs as many independent equations as coordinates (" +
+          std::to_string(model->nc()) + " equations, " + std::to_string(model->nq()) +
+          " coordinates): the reactions of redundant constraints are not unique; remove the "
+          "redundant joints that `kinegen analyze` names in its warning");
+    forces = std::make_unique<kc::ForceModel>(kc::derive_forces(*model));
+    force_names = kc::force_columns(model->mechanism());
+  }
   kc::OutputFile file(output.empty() ? "-" : output);
   std::ostream& out = file.stream();
-  out << kc::csv_header(model->mechanism(), sensitivity.names);
+  out << kc::csv_header(model->mechanism(), force_names, sensitivity.names);
   int status = 0;
   int rows = 0;
   try {
@@ -179,12 +194,22 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
       file.check();  // a full disk or a closed pipe ends the run now, not after it
       ++rows;
     };
-    if (reference_digits != 0) {
+    if (reference_digits != 0 && forces) {
+      // The forces of the reference come from its own high-precision rows.
+      kc::ReferenceForces reference(*model, *forces, reference_digits);
+      kc::run_reference_analysis_exact(
+          *model, {t0, t1, steps}, reference_digits, [&](const kc::ReferenceRow& exact) {
+            kc::StateRow row = kc::to_state_row(exact);
+            for (const auto& v : reference.solve(exact)) row.forces.push_back(v.to_double());
+            sink(row);
+          });
+    } else if (reference_digits != 0) {
       kc::run_reference_analysis(*model, {t0, t1, steps}, reference_digits, sink);
     } else {
       kc::AnalysisOptions options;
       options.strict = strict;
       if (!sensitivity_list.empty()) options.sensitivity = &sensitivity;
+      options.forces = forces.get();
       options.warn = [](const std::string& w) { std::cerr << "warning: " << one_line(w) << "\n"; };
       kc::run_analysis(*model, {t0, t1, steps}, sink, options);
     }
@@ -365,6 +390,10 @@ int main(int argc, char** argv) {
                    "Add d(C)/d(p) columns for these parameters (comma-separated), after all "
                    "others")
       ->type_name("P1,P2,...");
+  bool with_forces = false;
+  analyze->add_flag("--forces", with_forces,
+                    "Add the drivers' efforts and the joints' reactions (masses, gravity and "
+                    "forces in the file): D.effort, J.fx, J.fy, J.tz columns");
 
   double t = 0;
   std::vector<double> q_arg, qd_arg;
@@ -448,7 +477,7 @@ int main(int argc, char** argv) {
                           name_space);
     if (*animate) return run_animate(common, animate_options, svg_file);
     if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits, strict,
-                                     sensitivity_list);
+                                       sensitivity_list, with_forces);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
     if (*tolerance) return run_tolerance(common, tol_options, tol_items, tol_csv);
     if (*check) return run_check(common, check_options, structure);

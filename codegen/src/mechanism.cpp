@@ -78,8 +78,7 @@ class Loader {
     Mechanism m;
     m.source = source_;
     m.name = name_of(root["name"], "name");
-    if (m.name == "Params" || m.name == "Solver" || m.name == "models")
-      fail("name", loc_of(root["name"]), "'" + m.name + "' is reserved for the generated API");
+    m.name_loc = loc_of(root["name"]);
     if (root["parameters"]) read_parameters(root["parameters"], m);
     if (!root["bodies"]) fail("file", loc_of(root), "missing key 'bodies' (the moving bodies)");
     read_bodies(root["bodies"], m);

@@ -25,12 +25,14 @@ namespace {
 const std::vector<std::string> kHeaderMembers = {
     // section 4
     "nq", "nc", "jac_nnz", "jac_rows", "jac_cols", "q0", "Params", "phi", "phi_q", "nu", "gamma",
-    "length_scale", "has_velocity", "has_acceleration",
+    "length_scale", "has_velocity", "has_acceleration", "coordinate_kinds", "coordinate_scales",
     // the block solver
     "has_block_solver", "num_blocks", "num_explicit_blocks", "max_block_size", "max_newton_size",
     "num_newton_coordinates", "newton_coordinates", "trig_cache_size", "BlockOptions",
     "BlockReport", "kRotateLimit", "solve_position", "solve_velocity", "solve_acceleration",
     "solve_velocity_acceleration", "solve_step",
+    // the kernels (runtime/include/kinegen/kernels/) pasted into the struct
+    "BasicBlockOptions", "BasicTrigCache", "TrigCache", "kRoundingUlps",
     // namespaces and the runtime's Solver, which a struct of that name would hide
     "Solver", "models", "kinegen", "std"};
 

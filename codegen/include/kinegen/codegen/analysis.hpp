@@ -31,9 +31,12 @@ struct StateRow {
   // With AnalysisOptions::sensitivity: dq/dp (nq x np) and the points' dC/dp (2 per point,
   // x then y, x np); empty otherwise.
   Eigen::MatrixXd dq_dp, dpoints_dp;
+  // With AnalysisOptions::forces: the force columns (forces.hpp, force_columns order).
+  std::vector<double> forces;
 };
 
 struct SensitivityModel;
+struct ForceModel;
 
 // Throws InputError when the model has fewer equations than coordinates (nc < nq). More
 // equations are allowed: run_analysis checks them for redundancy at the assembled position.
@@ -61,6 +64,12 @@ struct AnalysisOptions {
   // Adds dq/dp and the points' dC/dp to every row (sensitivity.hpp), solved with the
   // factorization of Phi_q that the velocities use. Not owned; must outlive the call.
   const SensitivityModel* sensitivity = nullptr;
+  // Adds the driver efforts and joint reactions to every row (forces.hpp): Phi_q^T lambda = Q
+  // at the solved q, qd, qdd. Rows whose scaled condition estimate exceeds force_warning get
+  // one warning (efforts grow without bound towards a toggle); a singular Phi_q fails as in
+  // the position solve.
+  const ForceModel* forces = nullptr;
+  double force_warning = 1e5;
 };
 
 // Solves every time of the grid, handing each row to `sink` as soon as it is solved, so a
@@ -81,6 +90,9 @@ PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,
 std::string csv_header(const Mechanism& mechanism);
 // With the sensitivity columns of these parameters after all others (spec 6.6).
 std::string csv_header(const Mechanism& mechanism, const std::vector<std::string>& sensitivity);
+// With the force columns (forces.hpp) before the sensitivity columns.
+std::string csv_header(const Mechanism& mechanism, const std::vector<std::string>& forces,
+                       const std::vector<std::string>& sensitivity);
 // Sensitivity columns follow when the row has them.
 std::string csv_row(const StateRow& row);
 
