@@ -367,7 +367,7 @@ TEST_CASE("forces: the double path agrees with the 40-digit reference", "[forces
 TEST_CASE("analyze --forces from the command line", "[forces][cli]") {
   namespace fs = std::filesystem;
   const std::string exe = KINEGEN_EXE;
-  const std::string example = std::string(KINEGEN_SOURCE_DIR) + "/examples/four_bar_balanced.yaml";
+  const std::string example = std::string(KINEGEN_SOURCE_DIR) + "/examples/forces/four_bar_balanced.yaml";
   auto r = kinegen::test::run_command(
       {exe, "analyze", example, "--t0", "0", "--t1", "1", "--steps", "8", "--forces"});
   REQUIRE(r.exit_code == 0);
