@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "kinegen/codegen/analysis.hpp"
+#include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/check.hpp"
 #include "kinegen/codegen/emit_cpp.hpp"
 #include "kinegen/codegen/log.hpp"
@@ -105,11 +106,6 @@ class Mechanism {
   // Column name -> numpy array, in the CSV's column order (a dict keeps insertion order).
   py::dict analyze(double t0, double t1, int steps, bool forces,
                    const std::vector<std::string>& sensitivity) {
-    if (forces) {
-      PyErr_SetString(PyExc_NotImplementedError,
-                      "forces=True: kinetostatics (analyze --forces) is not implemented yet");
-      throw py::error_already_set();
-    }
     std::vector<std::string> columns;
     std::vector<std::vector<double>> rows;
     translate(path_, [&] {
@@ -120,13 +116,20 @@ class Mechanism {
         throw kc::UsageError("--t0 and --t1 must be finite");
       kc::SensitivityModel sens;
       kc::AnalysisOptions options;
+      std::unique_ptr<kc::ForceModel> force_model;
+      std::vector<std::string> force_names;
+      if (forces) {
+        force_model = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*model_));
+        force_names = kc::force_columns(model_->mechanism());
+        options.forces = force_model.get();
+      }
       if (!sensitivity.empty()) {
         sens = kc::build_sensitivity(*model_, sensitivity);
         options.sensitivity = &sens;
       }
       std::vector<std::string> warnings;
       options.warn = [&](const std::string& w) { warnings.push_back(one_line(w)); };
-      std::string header = kc::csv_header(model_->mechanism(), sens.names);
+      std::string header = kc::csv_header(model_->mechanism(), force_names, sens.names);
       header.pop_back();
       columns = split(header);
       {

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 namespace kc = kinegen::codegen;
 
@@ -397,4 +398,39 @@ TEST_CASE("analyze --forces from the command line", "[forces][cli]") {
   r = kinegen::test::run_command({exe, "analyze", (dir / "plain.yaml").string(), "--t0", "0",
                                   "--t1", "1", "--steps", "2", "--forces"});
   CHECK(r.exit_code == 0);
+}
+
+TEST_CASE("forces near a toggle: a warning as the condition grows, then the singular error",
+          "[forces][cli]") {
+  const std::string exe = KINEGEN_EXE;
+  const std::string mech =
+      std::string(KINEGEN_SOURCE_DIR) + "/tests/stability/slider_toggle_forces.yaml";
+  const std::string csv = std::string(KINEGEN_TEST_TMP) + "/slider_toggle_forces.csv";
+  const auto r = kinegen::test::run_command({exe, "analyze", mech, "--t0", "0", "--t1", "1",
+                                             "--steps", "2000", "--forces", "-o", csv});
+  CHECK(r.exit_code == 1);  // the dead centre at t = 1 is singular
+  CHECK_THAT(r.err, Catch::Contains("warning:") && Catch::Contains("nears a toggle") &&
+                        Catch::Contains("error:") && Catch::Contains("at t = 1:") &&
+                        Catch::Contains("singular"));
+  // The rows before are kept, and the piston force grows without bound towards the toggle:
+  // with a constant torque on the crank, |F| ~ 1 / (r sin(crank angle)).
+  std::ifstream in(csv);
+  std::string line, header;
+  std::getline(in, header);
+  int column = 0;
+  for (std::size_t p = 0, q; (q = header.find(',', p)) != std::string::npos || p < header.size();
+       p = q + 1, ++column) {
+    if (header.substr(p, (q == std::string::npos ? header.size() : q) - p) == "piston.effort")
+      break;
+    if (q == std::string::npos) break;
+  }
+  std::vector<double> effort;
+  while (std::getline(in, line)) {
+    std::stringstream s(line);
+    std::string cell;
+    for (int c = 0; c <= column; ++c) std::getline(s, cell, ',');
+    effort.push_back(std::stod(cell));
+  }
+  REQUIRE(effort.size() == 2000);  // t = 0 .. 1 - 1/2000: every row before the toggle
+  CHECK(std::abs(effort.back()) > 100 * std::abs(effort.front()));
 }

@@ -172,6 +172,16 @@ ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec) {
   return f;
 }
 
+ForceModel forces_for_analysis(const CompiledModel& model) {
+  if (model.nc() != model.nq())
+    throw UsageError(
+        "--forces needs as many independent equations as coordinates (" +
+        std::to_string(model.nc()) + " equations, " + std::to_string(model.nq()) +
+        " coordinates): the reactions of redundant constraints are not unique; remove the "
+        "redundant joints that `kinegen analyze` names in its warning");
+  return derive_forces(model);
+}
+
 namespace {
 std::string label(const Constraint& c, const char* kind, int k) {
   return c.name.empty() ? std::string(kind) + std::to_string(k) : c.name;

@@ -174,13 +174,7 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   std::unique_ptr<kc::ForceModel> forces;
   std::vector<std::string> force_names;
   if (with_forces) {
-    if (model->nc() != model->nq())
-      throw kc::UsageError(
-          "--forces needs as many independent equations as coordinates (" +
-          std::to_string(model->nc()) + " equations, " + std::to_string(model->nq()) +
-          " coordinates): the reactions of redundant constraints are not unique; remove the "
-          "redundant joints that `kinegen analyze` names in its warning");
-    forces = std::make_unique<kc::ForceModel>(kc::derive_forces(*model));
+    forces = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*model));
     force_names = kc::force_columns(model->mechanism());
   }
   kc::OutputFile file(output.empty() ? "-" : output);

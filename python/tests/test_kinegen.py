@@ -150,7 +150,14 @@ def test_errors_carry_the_command_line_message(source, tmp_path):
         kinegen.Mechanism(path).eval([1.0, 2.0])
 
 
-def test_forces_not_yet(source):
-    m = kinegen.Mechanism(str(source / "examples" / "slider_crank.yaml"))
-    with pytest.raises(NotImplementedError, match="forces"):
-        m.analyze(0, 1, 2, forces=True)
+def test_forces_equal_command_line_bit_for_bit(source, tmp_path):
+    path = str(source / "examples" / "forces" / "four_bar_balanced.yaml")
+    out = tmp_path / "out.csv"
+    r = run("analyze", path, "--t0", "0", "--t1", "1", "--steps", "36", "--forces",
+            "--sensitivity", "k", "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    header, values = read_csv(out)
+    got = kinegen.Mechanism(path).analyze(0, 1, 36, forces=True, sensitivity=["k"])
+    assert list(got.keys()) == header
+    assert "motor.effort" in header and header.index("motor.effort") < header.index("d(rocker.x)/d(k)")
+    assert all(np.array_equal(got[h], values[:, k]) for k, h in enumerate(header))

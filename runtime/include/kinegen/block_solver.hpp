@@ -221,7 +221,7 @@ class Solver {
     if (r && has_previous_) {
       const MotionCheck motion = check_motion(
           predicted_coordinates(), static_cast<double>(h), q_previous_, qd_previous_, qdd_previous_,
-          q, qd, qdd, [](int k) { return detail::model_coordinate_scale<Model>(k); },
+          q, qd, qdd, [](int k) { return detail::InverseCoordinateScales<Model>::kValues[k]; },
           dense_.options().jump_fraction,
           static_cast<double>(std::numeric_limits<Scalar>::epsilon()));
       if (motion.jumped()) r.status = Status::kBranchJump;

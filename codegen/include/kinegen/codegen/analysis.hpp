@@ -69,7 +69,7 @@ struct AnalysisOptions {
   // one warning (efforts grow without bound towards a toggle); a singular Phi_q fails as in
   // the position solve.
   const ForceModel* forces = nullptr;
-  double force_warning = 1e5;
+  double force_warning = 1e3;
 };
 
 // Solves every time of the grid, handing each row to `sink` as soon as it is solved, so a

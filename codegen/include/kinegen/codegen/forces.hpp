@@ -122,6 +122,10 @@ inline ForceModel derive_forces(const CompiledModel& model) {
   return derive_forces(model, model.mechanism().forces);
 }
 
+// What `analyze --forces` needs, checked first: UsageError for a redundant model (more
+// equations than coordinates), whose reactions are not unique; derive_forces' InputErrors.
+ForceModel forces_for_analysis(const CompiledModel& model);
+
 // Column names added by `analyze --forces`: every driver's effort(s), then every joint's
 // reaction (fx, fy, tz), in file order.
 std::vector<std::string> force_columns(const Mechanism& mechanism);
