@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <kinegen/kernels/block_linear.hpp>
 #include <kinegen/kernels/lu.hpp>
 #include <kinegen/kernels/newton.hpp>
 #include <kinegen/kernels/trig_cache.hpp>
@@ -46,6 +47,11 @@ void check_lu(std::mt19937& rng) {
     const double cond = m.norm() * m.inverse().norm();
     CHECK((m * x - b).norm() <= 64 * 2.2e-16 * cond * (m.norm() * x.norm() + b.norm()));
     CHECK(Lu::_lu_det_sign<K>(a.data(), piv) == (m.determinant() > 0 ? 1 : -1));
+    // The transposed solve with the same factors: m^T y = b.
+    Vec y = b;
+    Lu::_lu_solve_transposed<K>(a.data(), piv, y.data());
+    CHECK((m.transpose() * y - b).norm() <=
+          64 * 2.2e-16 * cond * (m.norm() * y.norm() + b.norm()));
     // Condition estimate: 1 / |A^-1|_inf of the equilibrated A = R m D, exactly (K solves).
     double d[K], row_max[K];
     for (int j = 0; j < K; ++j) d[j] = j % 2 == 0 ? 1.0 : 2.5;
@@ -112,6 +118,93 @@ std::string read(const std::filesystem::path& p) {
 TEST_CASE("LU kernel agrees with Eigen on random and singular matrices, K = 1..6", "[kernels]") {
   std::mt19937 rng(12);
   check_lu_sizes(rng, std::make_integer_sequence<int, 6>{});
+}
+
+// A model's structure tables for the block_linear kernel, as the emitter writes them: blocks
+// of sizes 1, 3, 2, 1 over 7 coordinates, rows and coordinates permuted.
+struct LinearModel {
+  static constexpr int nq = 7, nc = 7, num_blocks = 4, max_block_size = 3;
+  static constexpr std::array<int, num_blocks + 1> block_begin = {0, 1, 4, 6, 7};
+  static constexpr std::array<int, nc> block_rows = {3, 0, 5, 6, 1, 4, 2};
+  static constexpr std::array<int, nq> block_cols = {6, 1, 2, 4, 0, 5, 3};
+  static constexpr std::array<int, nq> coordinate_block = {2, 1, 1, 3, 1, 2, 0};
+  static constexpr std::array<int, nq> coordinate_slot = {4, 1, 2, 6, 3, 5, 0};
+  static constexpr std::array<double, nq> coordinate_scales = {1, 2, 1, 0.5, 1, 3, 1};
+  // Filled by the test: a block-lower-triangular pattern, entries sorted by row.
+  static inline std::array<int, nc + 1> jac_row_begin{};
+  static inline std::array<int, nc * nq> jac_cols{};
+};
+
+TEST_CASE("block_linear kernel: Phi_q X = B and Phi_q^T Y = B through the blocks", "[kernels]") {
+  using S = LinearModel;
+  using Linear = kinegen::kernels::BlockLinearKernel;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int trial = 0; trial < 50; ++trial) {
+    // Every row has its own block's coordinates and a random subset of earlier blocks'; the
+    // i-th row of a block is strong in the block's i-th coordinate, so blocks are regular.
+    std::array<int, S::nc> row_block{}, diagonal_col{};
+    for (int k = 0; k < S::num_blocks; ++k)
+      for (int i = S::block_begin[k]; i < S::block_begin[k + 1]; ++i) {
+        row_block[S::block_rows[i]] = k;
+        diagonal_col[S::block_rows[i]] = S::block_cols[i];
+      }
+    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(S::nc, S::nq);
+    std::vector<double> values;
+    int e = 0;
+    for (int r = 0; r < S::nc; ++r) {
+      S::jac_row_begin[r] = e;
+      const int k = row_block[r];
+      for (int c = 0; c < S::nq; ++c) {
+        const int bc = S::coordinate_block[c];
+        if (bc > k || (bc < k && u(rng) < 0)) continue;
+        j(r, c) = u(rng) + (c == diagonal_col[r] ? 3.0 : 0.0);
+        S::jac_cols[e++] = c;
+        values.push_back(j(r, c));
+      }
+    }
+    S::jac_row_begin[S::nc] = e;
+    constexpr int m = 2;
+    Eigen::MatrixXd b = Eigen::MatrixXd::Random(S::nq, m), x(S::nq, m), y(S::nq, m);
+    const kinegen::kernels::ReportKernel::BasicBlockOptions<double> o;
+    const auto forward = Linear::_block_forward<S>(values.data(), b.data(), x.data(), m, o);
+    REQUIRE(forward.status == 0);
+    const Eigen::MatrixXd x_ref = j.fullPivLu().solve(b);
+    const double cond = j.norm() * j.inverse().norm();
+    CHECK((x - x_ref).norm() <= 1e-13 * cond * x_ref.norm());
+    Eigen::MatrixXd work = b;
+    const auto transposed = Linear::_block_transposed<S>(values.data(), work.data(), y.data(), m, o);
+    REQUIRE(transposed.status == 0);
+    const Eigen::MatrixXd y_ref = j.transpose().fullPivLu().solve(b);
+    CHECK((y - y_ref).norm() <= 1e-13 * cond * y_ref.norm());
+    CHECK(forward.rcond == transposed.rcond);
+    CHECK(forward.rcond > 0);
+    CHECK(forward.rcond <= 1);
+    // A singular block: block 1's rows made dependent; both solves name block 1.
+    std::vector<double> singular = values;
+    for (int r : {0, 5})
+      for (int q = S::jac_row_begin[r]; q < S::jac_row_begin[r + 1]; ++q)
+        if (S::coordinate_block[S::jac_cols[q]] == 1) singular[q] = 0;
+    const auto f2 = Linear::_block_forward<S>(singular.data(), b.data(), x.data(), m, o);
+    CHECK(f2.status == 2);
+    CHECK(f2.block == 1);
+    work = b;
+    const auto t2 = Linear::_block_transposed<S>(singular.data(), work.data(), y.data(), m, o);
+    CHECK(t2.status == 2);
+    CHECK(t2.block == 1);
+    // A NaN in the last block's row, inside or outside the block: status 3 at the block that
+    // meets it (forward: block 3, the row's; backward: the block of the entry's coordinate).
+    std::vector<double> nan = values;
+    const int at = S::jac_row_begin[2] + trial % (S::jac_row_begin[3] - S::jac_row_begin[2]);
+    nan[at] = std::nan("");
+    const auto f3 = Linear::_block_forward<S>(nan.data(), b.data(), x.data(), m, o);
+    CHECK(f3.status == 3);
+    CHECK(f3.block == 3);
+    work = b;
+    const auto t3 = Linear::_block_transposed<S>(nan.data(), work.data(), y.data(), m, o);
+    CHECK(t3.status == 3);
+    CHECK(t3.block == S::coordinate_block[S::jac_cols[at]]);
+  }
 }
 
 TEST_CASE("float LU computes in float", "[kernels]") {
@@ -238,7 +331,7 @@ TEST_CASE("_newton_end: budget, inconsistency, condition and branch", "[kernels]
 // Generated headers paste the kernel files' text unchanged, and only the kernels they call.
 TEST_CASE("generated headers carry the kernel text unchanged", "[kernels]") {
   const std::filesystem::path root = KINEGEN_SOURCE_DIR;
-  const char* kernels[] = {"report", "lu", "rotation", "trig_cache", "newton"};
+  const char* kernels[] = {"report", "lu", "rotation", "trig_cache", "newton", "block_linear"};
   int headers = 0;
   for (const auto& e : std::filesystem::directory_iterator(root / "generated")) {
     const std::string header = read(e.path());

@@ -576,15 +576,62 @@ void emit_kernels(std::ostringstream& os, const std::string& code) {
   const bool rotation = trig || calls("_rotate(");
   const bool lu = calls("_lu_factor<");
   const bool newton = calls("_newton_end(");
+  const bool linear = calls("_block_forward<") || calls("_block_transposed<");
   for (const auto& k : embedded::kKernels) {
     const std::string name = k.name;
-    const bool used = name == "report" || (name == "lu" && lu) ||
+    const bool used = name == "report" || (name == "lu" && (lu || linear)) ||
+                      (name == "block_linear" && linear) ||
                       (name == "rotation" && rotation) || (name == "trig_cache" && trig) ||
                       (name == "newton" && newton);
     if (!used) continue;
     os << "  // ---- kinegen kernel " << name << " (kinegen/kernels/" << name << ".hpp)\n"
        << k.text << "  // ---- end of kinegen kernel " << name << "\n\n";
   }
+}
+
+// The block-linear kernel keeps a K x K matrix per block on the stack and instantiates its LU
+// for every size up to the largest block; beyond this size the linear solves after a position
+// solve (sensitivities, forces) are not generated.
+constexpr int kMaxLinearBlock = 16;
+
+bool linear_blocks_supported(const Structure& st) {
+  return st.order.perfect && !st.plans.empty() && st.largest_block() <= kMaxLinearBlock;
+}
+
+// The structure tables the block_linear kernel reads (kernels/block_linear.hpp).
+void emit_structure_tables(std::ostringstream& os, const Structure& st,
+                           const ModelPrograms& programs) {
+  std::vector<std::string> begin{"0"}, rows, cols, block(programs.nq), slot(programs.nq);
+  for (std::size_t k = 0; k < st.order.blocks.size(); ++k) {
+    const Block& b = st.order.blocks[k];
+    for (std::size_t i = 0; i < b.cols.size(); ++i) {
+      block[b.cols[i]] = std::to_string(k);
+      slot[b.cols[i]] = std::to_string(cols.size());
+      rows.push_back(std::to_string(b.rows[i]));
+      cols.push_back(std::to_string(b.cols[i]));
+    }
+    begin.push_back(std::to_string(cols.size()));
+  }
+  std::vector<std::string> row_begin;
+  std::size_t e = 0;
+  for (int r = 0; r <= programs.nc; ++r) {
+    while (e < programs.jac_rows.size() && programs.jac_rows[e] < r) ++e;
+    row_begin.push_back(std::to_string(e));
+  }
+  for (std::size_t k = 1; k < programs.jac_rows.size(); ++k)
+    if (programs.jac_rows[k] < programs.jac_rows[k - 1])
+      throw std::logic_error("emit_structure_tables: Phi_q entries are not sorted by row");
+  os << "  // The block structure as tables, for the linear solves with Phi_q after a position\n"
+     << "  // solve (kinegen/kernels/block_linear.hpp): each block's rows and coordinates in solve\n"
+     << "  // order, each coordinate's block and place, each row's first Phi_q entry.\n"
+     << "  static constexpr std::array<int, num_blocks + 1> block_begin = {" << join(begin)
+     << "};\n"
+     << "  static constexpr std::array<int, nc> block_rows = {" << join(rows) << "};\n"
+     << "  static constexpr std::array<int, nq> block_cols = {" << join(cols) << "};\n"
+     << "  static constexpr std::array<int, nq> coordinate_block = {" << join(block) << "};\n"
+     << "  static constexpr std::array<int, nq> coordinate_slot = {" << join(slot) << "};\n"
+     << "  static constexpr std::array<int, nc + 1> jac_row_begin = {" << join(row_begin)
+     << "};\n\n";
 }
 
 std::string block_comment(const Block& b, const char* kind) {
@@ -1906,6 +1953,17 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
       blocks.emit_step(code);
     }
     blocks.emit_rolls(code, velocity, acceleration);
+    // Linear solves with Phi_q after a position solve (the block_linear kernel): parameter
+    // sensitivities and kinetostatics append their functions here.
+    std::ostringstream linear;
+    if (linear_blocks_supported(st)) {
+      // (sensitivity functions)
+      // (force functions)
+    }
+    if (!linear.str().empty()) {
+      emit_structure_tables(os, st, programs);
+      code << linear.str();
+    }
     emit_kernels(os, code.str());
     if (code.str().find("_trig(") != std::string::npos)
       os << "  // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then cache.data().\n"

@@ -72,6 +72,10 @@ struct LuKernel : ReportKernel {
   }
   template <int K, class T>
   static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
+    if constexpr (K == 1) {  // no exchange; the loops below would index past b
+      b[0] *= a[0];
+      return;
+    }
     if constexpr (K == 2) {  // the loops below, written out (the same operations)
       if (piv[0] != 0) std::swap(b[0], b[1]);
       b[1] = (b[1] - a[2] * b[0]) * a[3];
@@ -87,6 +91,24 @@ struct LuKernel : ReportKernel {
       for (int j = k + 1; j < K; ++j) b[k] -= a[k * K + j] * b[j];
       b[k] *= a[k * K + k];  // the pivot's reciprocal
     }
+  }
+  // Solves A^T y = b with A's factors (P A = L U, so A^T = U^T L^T P): U^T w = b forward, then
+  // L^T v = w backward, then the row exchanges undone in reverse order. For Phi_q^T lambda = Q
+  // with the factorization the forward solves use.
+  template <int K, class T>
+  static void _lu_solve_transposed(const T* a, const int* piv, T* b) noexcept {
+    if constexpr (K == 1) {  // no exchange; the loops below would index past b
+      b[0] *= a[0];
+      return;
+    }
+    for (int k = 0; k < K; ++k) {
+      for (int j = 0; j < k; ++j) b[k] -= a[j * K + k] * b[j];
+      b[k] *= a[k * K + k];  // the pivot's reciprocal
+    }
+    for (int k = K - 1; k >= 0; --k)
+      for (int i = k + 1; i < K; ++i) b[k] -= a[i * K + k] * b[i];
+    for (int k = K - 1; k >= 0; --k)
+      if (piv[k] != k) std::swap(b[k], b[piv[k]]);
   }
   // Sign of the determinant of the factored matrix: the pivots' signs, and one per row exchange.
   template <int K, class T>
