@@ -209,3 +209,87 @@ TEST_CASE("animate: usage errors write nothing", "[animate]") {
   CHECK(q.err.empty());  // --quiet: not even the "wrote" line
   CHECK(fs::exists(svg_file));
 }
+
+namespace {
+
+// The rows of a CSV file as numbers, after its header (returned in `header`).
+std::vector<std::vector<double>> read_csv(const fs::path& path, std::vector<std::string>& header) {
+  std::ifstream in(path);
+  std::string line;
+  std::vector<std::vector<double>> rows;
+  header.clear();
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
+    if (header.empty()) {
+      header = cells;
+      continue;
+    }
+    std::vector<double> row;
+    for (const auto& cell : cells) row.push_back(std::stod(cell));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+}  // namespace
+
+TEST_CASE("animate --forces: one arrow per joint, along its reaction, to one scale", "[animate]") {
+  const fs::path dir = scratch("forces");
+  const std::string mech = KINEGEN_SOURCE_DIR "/examples/forces/four_bar_balanced.yaml";
+  const std::vector<std::string> grid = {"--t0", "0", "--t1", "6.283185307179586", "--steps", "36"};
+  std::vector<std::string> analyze = {KINEGEN_EXE, "analyze", mech, "--forces", "-o",
+                                      (dir / "forces.csv").string()};
+  analyze.insert(analyze.end(), grid.begin(), grid.end());
+  REQUIRE(run_command(analyze).exit_code == 0);
+  std::vector<std::string> header;
+  const auto rows = read_csv(dir / "forces.csv", header);
+  REQUIRE(rows.size() == 37);
+  const auto column = [&](const std::string& name) {
+    const auto it = std::find(header.begin(), header.end(), name);
+    REQUIRE(it != header.end());
+    return static_cast<int>(it - header.begin());
+  };
+  const std::vector<std::string> joints = {"O2", "A", "B", "O4"};
+  double largest = 0;
+  for (const auto& row : rows)
+    for (const auto& j : joints)
+      largest = std::max(largest, std::hypot(row[column(j + ".fx")], row[column(j + ".fy")]));
+  REQUIRE(largest > 0);
+  for (const int frame : {0, 11, 25}) {
+    const fs::path svg_file = dir / ("frame" + std::to_string(frame) + ".svg");
+    std::vector<std::string> animate = {KINEGEN_EXE, "animate", mech, "--forces", "--frame",
+                                        std::to_string(frame), "-o", svg_file.string()};
+    animate.insert(animate.end(), grid.begin(), grid.end());
+    const auto r = run_command(animate);
+    INFO(r.err);
+    REQUIRE(r.exit_code == 0);
+    const std::string svg = read(svg_file);
+    const double width = attribute(svg, "svg xmlns=\"http://www.w3.org/2000/svg\" width");
+    const double height = attribute(svg, " height");
+    // The largest reaction over the analysis is a quarter of the smaller side (the title's
+    // 24 pixels apart): pixels per unit of force.
+    const double per_force = 0.25 * std::min(width, height - 24) / largest;
+    for (const auto& j : joints) {
+      INFO("frame " << frame << ", joint " << j);
+      // The comment names the joint's item, e.g. "joints[1] 'A' (revolute)".
+      const auto at = svg.find("<!-- reaction of joints[");
+      const auto named = svg.find("'" + j + "' (revolute) -->", at);
+      REQUIRE(named != std::string::npos);
+      const auto from = svg.find("points=\"", named);
+      REQUIRE(from != std::string::npos);
+      std::stringstream pts(svg.substr(from + 8, svg.find('"', from + 8) - from - 8));
+      std::vector<std::array<double, 2>> p;
+      for (std::string xy; pts >> xy;) {
+        const auto comma = xy.find(',');
+        p.push_back({std::stod(xy.substr(0, comma)), std::stod(xy.substr(comma + 1))});
+      }
+      REQUIRE(p.size() == 6);
+      // Tail to tip (the 4th point) is the force in pixels, y down; to the SVG's 2 decimals.
+      const double fx = rows[frame][column(j + ".fx")], fy = rows[frame][column(j + ".fy")];
+      CHECK(p[3][0] - p[0][0] == Approx(per_force * fx).margin(0.02));
+      CHECK(p[3][1] - p[0][1] == Approx(-per_force * fy).margin(0.02));
+    }
+  }
+}

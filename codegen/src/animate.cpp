@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/format.hpp"
 #include "kinegen/codegen/kinematics.hpp"
 
@@ -106,10 +107,40 @@ class Picture {
                        std::to_string(g.steps) + ")");
     if (options_.width < 50 || options_.width > 20000)
       throw UsageError("--width must be between 50 and 20000 pixels");
-    run_analysis(model_, g, [&](const StateRow& row) {
-      q_.push_back(row.q);
-      t_.push_back(row.t);
-    });
+    AnalysisOptions analysis;
+    analysis.warn = options_.warn;
+    if (options_.forces) {
+      force_model_ = forces_for_analysis(model_);
+      analysis.forces = &force_model_;
+    }
+    run_analysis(
+        model_, g,
+        [&](const StateRow& row) {
+          q_.push_back(row.q);
+          t_.push_back(row.t);
+          if (options_.forces) forces_.push_back(row.forces);
+        },
+        analysis);
+    if (options_.forces) collect_reactions();
+  }
+
+  // Where each joint's J.fx, J.fy act (the body and point columns_from_lambda reports) and
+  // their column in the force columns: after the drivers' efforts, three per joint.
+  void collect_reactions() {
+    const Mechanism& m = model_.mechanism();
+    int column = 0;
+    for (const Constraint& d : m.drivers) column += is_distance(d) ? 1 : d.equation_count();
+    for (std::size_t j = 0; j < m.joints.size(); ++j) {
+      const Constraint& c = m.joints[j];
+      if (is_expression(c)) continue;
+      const bool on_j = c.j != kGround;
+      const auto& s = on_j ? force_model_.numbers.sj[j] : force_model_.numbers.si[j];
+      reactions_.push_back({{on_j ? c.j : c.i, Vector2d(s[0], s[1])}, column, c.item});
+      column += 3;
+    }
+    for (const auto& row : forces_)
+      for (const auto& r : reactions_)
+        largest_force_ = std::max(largest_force_, std::hypot(row[r.column], row[r.column + 1]));
   }
 
   void collect() {
@@ -384,6 +415,44 @@ class Picture {
            {"cy", [&, at](int f) { return num(at(f)[1]); }}});
     }
 
+    // Reaction forces: an arrow from each joint's point, to one scale for the whole picture.
+    if (options_.forces) {
+      // Of the picture as written (whole pixels).
+      const double longest =
+          0.25 * std::min(std::round(width_), std::round(height_) - kTitle);
+      const double per_force = largest_force_ > 0 ? longest / largest_force_ : 0;
+      for (const auto& r : reactions_) {
+        // In pixels: the tail at the point, the head along the force (y down).
+        auto arrow = [&, r](int f) {
+          const Vector2d tail = px(world(q_[f], r.at.body, r.at.s));
+          const Vector2d force(forces_[f][r.column], -forces_[f][r.column + 1]);
+          const Vector2d tip = tail + per_force * force;
+          const double length = (tip - tail).norm();
+          const Vector2d d = length > 0 ? Vector2d((tip - tail) / length) : Vector2d(1, 0);
+          const Vector2d n(-d[1], d[0]);
+          const double head = std::min(9.0, 0.4 * length);
+          const Vector2d base = tip - head * d;
+          return std::vector<Vector2d>{tail, base, base + 0.45 * head * n, tip,
+                                       base - 0.45 * head * n, base};
+        };
+        const auto pixels = [&, arrow](int f) {
+          std::string s;
+          for (const auto& p : arrow(f)) s += (s.empty() ? "" : " ") + num(p[0]) + "," + num(p[1]);
+          return s;
+        };
+        os << "  <!-- reaction of " << escape(r.item) << " -->\n";
+        element(os, "polyline",
+                "fill=\"" + std::string(kForceColour) + "\" stroke=\"" + kForceColour +
+                    "\" stroke-width=\"2.5\" stroke-linejoin=\"round\"",
+                {{"points", pixels}});
+      }
+      os << "  <text x=\"" << num(kMargin) << "\" y=\"" << num(height_ - 8)
+         << "\" font-family=\"sans-serif\" font-size=\"12\" fill=\"" << kForceColour
+         << "\">reactions: the longest arrow is "
+         << escape(format_number(largest_force_, NumberStyle::kShort))
+         << "</text>\n";
+    }
+
     // Named points and their labels.
     for (std::size_t k = 0; k < named_.size(); ++k) {
       auto at = [&, n = named_[k]](int f) { return px(world(q_[f], n.body, n.s)); };
@@ -413,6 +482,16 @@ class Picture {
   std::vector<Vector2d> ground_pivots_;
   std::vector<Slider> sliders_;
   std::vector<std::pair<Attach, Attach>> struts_;
+  // With options_.forces.
+  struct Reaction {
+    Attach at;
+    int column;
+    std::string item;
+  };
+  ForceModel force_model_;
+  std::vector<std::vector<double>> forces_;
+  std::vector<Reaction> reactions_;
+  double largest_force_ = 0;
   double scale_ = 1, x0_ = 0, y0_ = 0, width_ = 0, height_ = 0, duration_ = 1;
 };
 

@@ -134,8 +134,9 @@ int run_generate(const Common& c, const std::string& dir, const std::string& out
   return 0;
 }
 
-int run_animate(const Common& c, const kc::AnimateOptions& options, const std::string& output) {
+int run_animate(const Common& c, kc::AnimateOptions options, const std::string& output) {
   check_grid(options.grid.t0, options.grid.t1, options.grid.steps);
+  options.warn = [](const std::string& w) { std::cerr << "warning: " << one_line(w) << "\n"; };
   if (!std::isfinite(options.duration) || options.duration < 0)
     throw kc::UsageError("--duration must be a finite number of seconds (0: t1 - t0)");
   const auto model = load(c);
@@ -425,6 +426,8 @@ int main(int argc, char** argv) {
   animate->add_option("-o,--output", svg_file, "SVG file")->required();
   animate->add_option("--frame", animate_options.frame, "Draw only frame K (0..N), not animated");
   animate->add_option("--width", animate_options.width, "Width in pixels (default 800)");
+  animate->add_flag("--forces", animate_options.forces,
+                    "Draw each joint's reaction force as an arrow (needs masses or loads)");
   animate->add_option("--duration", animate_options.duration,
                       "Seconds per pass (default: t1 - t0)");
 
