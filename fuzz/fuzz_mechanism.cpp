@@ -1,13 +1,15 @@
-// libFuzzer target: the loader, the expression parser and the symbolic pipeline on arbitrary
-// text. Any input must end in a model or an InputError; anything else (a crash, a sanitizer
-// report, another exception) is a bug.
+// libFuzzer target: the loader, the expression parser, the symbolic pipeline, the emitter, the
+// kinetostatics and the sensitivities on arbitrary text. Any input must end in a model or an
+// InputError; anything else (a crash, a sanitizer report, another exception) is a bug.
 #include <cstddef>
 #include <cstdint>
 #include <string>
 
 #include "kinegen/codegen/diagnostics.hpp"
 #include "kinegen/codegen/emit_cpp.hpp"
+#include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/sensitivity.hpp"
 
 namespace kc = kinegen::codegen;
 
@@ -28,6 +30,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     eval.jacobian(q.data(), 0.5, jac);
     Eigen::VectorXd qd = Eigen::VectorXd::Ones(model->nq());
     eval.gamma(q.data(), qd.data(), 0.5, out.data());
+    // Masses and loads, then Phi_p for every parameter (what --forces and --sensitivity build).
+    (void)kc::derive_forces(*model);
+    std::vector<std::string> names;
+    for (int k = 0; k < model->symbols().num_params() && k < 8; ++k)
+      names.push_back(model->symbols().param_name(k));
+    (void)kc::build_sensitivity(*model, names);
   } catch (const kc::InputError&) {
     // Expected for invalid input.
   }

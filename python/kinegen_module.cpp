@@ -119,7 +119,7 @@ class Mechanism {
       std::unique_ptr<kc::ForceModel> force_model;
       std::vector<std::string> force_names;
       if (forces) {
-        force_model = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*model_));
+        force_model = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*model_, t0));
         force_names = kc::force_columns(model_->mechanism());
         options.forces = force_model.get();
       }

@@ -2,7 +2,8 @@
 # Fuzzes the loader, the expression parser and the symbolic pipeline with libFuzzer, under
 # AddressSanitizer and UndefinedBehaviorSanitizer.
 #   scripts/fuzz.sh [SECONDS] [extra libFuzzer options...]   (default 600 s)
-# Builds with clang in build-fuzz/; the seed corpus is examples/*.yaml, tests/mechanisms/*.yaml
+# Builds with clang in build-fuzz/; the seed corpus is examples/*.yaml, examples/forces/*.yaml,
+# tests/mechanisms/*.yaml
 # and tests/stability/*.yaml; the growing corpus lives in build-fuzz/corpus, crashes in
 # build-fuzz/artifacts.
 set -euo pipefail
@@ -16,7 +17,7 @@ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=
   -DKINEGEN_BUILD_FUZZ=ON >/dev/null
 cmake --build build-fuzz -j2 --target fuzz_mechanism
 mkdir -p build-fuzz/corpus build-fuzz/seeds build-fuzz/artifacts
-cp examples/*.yaml tests/mechanisms/*.yaml build-fuzz/seeds/
+cp examples/*.yaml examples/forces/*.yaml tests/mechanisms/*.yaml build-fuzz/seeds/
 cp tests/stability/*.yaml build-fuzz/seeds/ 2>/dev/null || true
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=0}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"

@@ -434,3 +434,46 @@ TEST_CASE("forces near a toggle: a warning as the condition grows, then the sing
   REQUIRE(effort.size() == 2000);  // t = 0 .. 1 - 1/2000: every row before the toggle
   CHECK(std::abs(effort.back()) > 100 * std::abs(effort.front()));
 }
+
+TEST_CASE("forces on a redundant model: refused, naming the redundant equations", "[forces][cli]") {
+  namespace fs = std::filesystem;
+  // A parallelogram with a third crank parallel to the other two: 13 equations for 12
+  // coordinates, consistent, so the analysis runs (with a warning) but the reactions of the
+  // cranks are not unique. The last joint closes the redundant loop.
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "forces_redundant";
+  fs::create_directories(dir);
+  const std::string mech = (dir / "parallelogram.yaml").string();
+  std::ofstream(mech) << R"y(name: parallelogram
+bodies:
+  - {name: crank, q0: [0, 0, 1], mass: 1}
+  - {name: coupler, q0: [0.54, 0.84, 0], mass: 2}
+  - {name: rocker, q0: [2, 0, 1], mass: 1}
+  - {name: extra, q0: [1, 0, 1], mass: 1}
+gravity: [0, -9.81]
+joints:
+  - {type: revolute, name: O2, i: ground, j: crank}
+  - {type: revolute, name: A, i: crank, j: coupler, si: [1, 0]}
+  - {type: revolute, name: B, i: coupler, j: rocker, si: [2, 0], sj: [1, 0]}
+  - {type: revolute, name: O4, i: ground, j: rocker, si: [2, 0]}
+  - {type: revolute, name: E1, i: ground, j: extra, si: [1, 0]}
+  - {type: revolute, name: E2, i: coupler, j: extra, si: [1, 0], sj: [1, 0]}
+drivers:
+  - {type: absolute_angle, name: motor, body: crank, f: "1 + t"}
+)y";
+  const std::string exe = KINEGEN_EXE, csv = (dir / "out.csv").string();
+  fs::remove(csv);
+  // The kinematics alone run, with the redundancy warning.
+  auto r = kinegen::test::run_command({exe, "analyze", mech, "--t0", "0", "--t1", "1", "--steps",
+                                       "4", "-o", csv});
+  INFO(r.err);
+  REQUIRE(r.exit_code == 0);
+  fs::remove(csv);
+  r = kinegen::test::run_command({exe, "analyze", mech, "--t0", "0", "--t1", "1", "--steps", "4",
+                                  "--forces", "-o", csv});
+  CHECK(r.exit_code == 2);
+  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  CHECK_THAT(r.err, Catch::StartsWith("error: ") && Catch::Contains("not unique") &&
+                        Catch::Contains("remove the redundant equations") &&
+                        Catch::Contains("E2"));
+  CHECK_FALSE(fs::exists(csv));
+}

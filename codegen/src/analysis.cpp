@@ -177,6 +177,18 @@ PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,
 
 namespace {
 
+}  // namespace
+
+std::string redundant_constraints(const CompiledModel& model, const Eigen::VectorXd& q, double t) {
+  if (model.nc() <= model.nq()) return "";
+  const Eigen::MatrixXd scaled = scaled_jacobian(model, jacobian_at(model, q, t));
+  std::string names;
+  for (int r : dependent_rows(scaled, 1e-9)) names += (names.empty() ? "" : "; ") + model.row_label(r);
+  return names;
+}
+
+namespace {
+
 // At the assembled configuration: the rank of Phi_q, and the equations that repeat earlier
 // ones. Consistent redundancy is solved by least squares with a warning (an error under
 // --strict); a rank below nq is left to the solver, which reports it as singular.

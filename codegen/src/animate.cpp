@@ -110,7 +110,7 @@ class Picture {
     AnalysisOptions analysis;
     analysis.warn = options_.warn;
     if (options_.forces) {
-      force_model_ = forces_for_analysis(model_);
+      force_model_ = forces_for_analysis(model_, g.t0);
       analysis.forces = &force_model_;
     }
     run_analysis(

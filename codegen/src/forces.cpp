@@ -172,13 +172,26 @@ ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec) {
   return f;
 }
 
-ForceModel forces_for_analysis(const CompiledModel& model) {
-  if (model.nc() != model.nq())
+ForceModel forces_for_analysis(const CompiledModel& model, double t0) {
+  if (model.nc() != model.nq()) {
+    // Name the redundant equations where the analysis would assemble (at t0): solve that one
+    // position, quietly; if even that fails, the message says so instead.
+    std::string names;
+    try {
+      Eigen::VectorXd q;
+      run_analysis(model, {t0, t0, 0}, [&](const StateRow& row) { q = row.q; });
+      if (q.size()) names = redundant_constraints(model, q, t0);
+    } catch (const AnalysisError&) {
+      names = "";
+    }
     throw UsageError(
         "--forces needs as many independent equations as coordinates (" +
         std::to_string(model.nc()) + " equations, " + std::to_string(model.nq()) +
-        " coordinates): the reactions of redundant constraints are not unique; remove the "
-        "redundant joints that `kinegen analyze` names in its warning");
+        " coordinates): the reactions of redundant constraints are not unique; " +
+        (names.empty() ? std::string("remove the redundant joints")
+                       : "remove the redundant equations (at " + format_time(t0) +
+                             "): " + names));
+  }
   return derive_forces(model);
 }
 

@@ -175,7 +175,7 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   std::unique_ptr<kc::ForceModel> forces;
   std::vector<std::string> force_names;
   if (with_forces) {
-    forces = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*model));
+    forces = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*model, t0));
     force_names = kc::force_columns(model->mechanism());
   }
   kc::OutputFile file(output.empty() ? "-" : output);

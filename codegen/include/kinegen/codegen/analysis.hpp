@@ -72,6 +72,10 @@ struct AnalysisOptions {
   double force_warning = 1e3;
 };
 
+// The equations of a model with more equations than coordinates that depend on earlier ones
+// (file order) at q, t, named by row_label and joined by "; "; empty when none do.
+std::string redundant_constraints(const CompiledModel& model, const Eigen::VectorXd& q, double t);
+
 // Solves every time of the grid, handing each row to `sink` as soon as it is solved, so a
 // failure keeps what came before. Throws AnalysisError naming the file and time on failure.
 // Singular or near-singular Phi_q (scaled condition estimate), contradictory constraints,

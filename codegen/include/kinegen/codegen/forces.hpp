@@ -123,8 +123,9 @@ inline ForceModel derive_forces(const CompiledModel& model) {
 }
 
 // What `analyze --forces` needs, checked first: UsageError for a redundant model (more
-// equations than coordinates), whose reactions are not unique; derive_forces' InputErrors.
-ForceModel forces_for_analysis(const CompiledModel& model);
+// equations than coordinates), whose reactions are not unique, naming the equations that are
+// redundant where it assembles at t0; derive_forces' InputErrors.
+ForceModel forces_for_analysis(const CompiledModel& model, double t0 = 0);
 
 // Column names added by `analyze --forces`: every driver's effort(s), then every joint's
 // reaction (fx, fy, tz), in file order.
