@@ -29,3 +29,15 @@ csv=$(mktemp --suffix=.csv)
 "$kinegen" analyze examples/four_bar.yaml --t0 0 --t1 $turn --steps 360 -o "$csv"
 scripts/plot_analysis.sh "$csv" -o "$out/four_bar_analysis.png" --only coupler,rocker,P
 rm -f "$csv"
+# Forces: the balanced four-bar's reactions as arrows, and the motor torque over one turn (one
+# second) with and without its balancing spring.
+"$kinegen" animate examples/forces/four_bar_balanced.yaml --t0 0 --t1 1 --steps 120 --forces \
+  --width 480 -o "$out/four_bar_balanced_forces.svg"
+dir=$(mktemp -d)
+"$kinegen" analyze examples/forces/four_bar_balanced.yaml --t0 0 --t1 1 --steps 360 --forces \
+  -o "$dir/with_spring.csv"
+"$kinegen" analyze examples/forces/four_bar_balanced.yaml --t0 0 --t1 1 --steps 360 --forces \
+  --param k=0 -o "$dir/without_spring.csv"
+scripts/plot_analysis.sh "$dir/with_spring.csv" "$dir/without_spring.csv" --columns motor.effort \
+  --ylabel "motor torque (N m)" -o "$out/four_bar_balanced_torque.png"
+rm -rf "$dir"

@@ -3,28 +3,44 @@
 # velocities and accelerations in three panels, one curve per column.
 #
 #   scripts/plot_analysis.sh FILE.csv [-o OUT.png|OUT.svg] [--only NAME[,NAME...]]
+#   scripts/plot_analysis.sh FILE.csv [MORE.csv...] --columns COL[,COL...] [--ylabel TEXT] [-o OUT]
 #
 # OUT defaults to FILE.png; its extension picks PNG or SVG. --only keeps the columns of the
 # named bodies and points (e.g. --only rocker,P). Lengths and angles share a panel: x, y in the
 # file's length unit, phi in radians (likewise for velocities and accelerations).
+# --columns plots exactly the named columns (any of the CSV's, e.g. motor.effort or
+# d(P.x)/d(a)) in one panel, from every file given (each curve titled file: column).
 set -euo pipefail
 
-usage() { echo "usage: $0 FILE.csv [-o OUT.png|OUT.svg] [--only NAME[,NAME...]]" >&2; exit 2; }
+usage() {
+  echo "usage: $0 FILE.csv [-o OUT.png|OUT.svg] [--only NAME[,NAME...]]" >&2
+  echo "       $0 FILE.csv [MORE.csv...] --columns COL[,COL...] [--ylabel TEXT] [-o OUT]" >&2
+  exit 2
+}
 [[ $# -ge 1 ]] || usage
 csv=$1; shift
+files=("$csv")
 out="${csv%.csv}.png"
 only=""
+columns=""
+ylabel="value"
 while [[ $# -gt 0 ]]; do
   case $1 in
     -o|--output) [[ $# -ge 2 ]] || usage; out=$2; shift 2 ;;
     --only) [[ $# -ge 2 ]] || usage; only=$2; shift 2 ;;
-    *) usage ;;
+    --columns) [[ $# -ge 2 ]] || usage; columns=$2; shift 2 ;;
+    --ylabel) [[ $# -ge 2 ]] || usage; ylabel=$2; shift 2 ;;
+    -*) usage ;;
+    *) files+=("$1"); shift ;;
   esac
 done
-[[ -r $csv ]] || { echo "error: $csv: cannot read" >&2; exit 2; }
+[[ ${#files[@]} -eq 1 || -n $columns ]] || { echo "error: more than one CSV needs --columns" >&2; exit 2; }
 command -v gnuplot >/dev/null || { echo "error: gnuplot not found (apt-get install gnuplot-nox)" >&2; exit 2; }
+for f in "${files[@]}"; do
+  [[ -r $f ]] || { echo "error: $f: cannot read" >&2; exit 2; }
+  [[ $(head -n 1 "$f") == t,* ]] || { echo "error: $f: not a kinegen analyze CSV (no 't' column first)" >&2; exit 2; }
+done
 header=$(head -n 1 "$csv")
-[[ $header == t,* ]] || { echo "error: $csv: not a kinegen analyze CSV (no 't' column first)" >&2; exit 2; }
 
 case $out in
   *.svg) terminal="svg size 900,900 dynamic background rgb 'white' font 'sans,11'" ;;
@@ -47,8 +63,51 @@ plot_clause() {
   echo "${clause:-NaN notitle}"
 }
 
+# Gnuplot strings are single-quoted; a quote in a name or label would end them.
+for text in "$ylabel" "$columns" "${files[@]}"; do
+  [[ $text != *"'"* ]] || { echo "error: quotes are not allowed in names and labels" >&2; exit 2; }
+done
+
 tmp="$out.tmp-plot-$$"
 trap 'rm -f "$tmp"' EXIT
+
+if [[ -n $columns ]]; then
+  # The named columns, found by name in each file's own header.
+  clause=""
+  IFS=, read -ra wanted <<<"$columns"
+  for f in "${files[@]}"; do
+    IFS=, read -ra names <<<"$(head -n 1 "$f")"
+    for col in "${wanted[@]}"; do
+      i=0 found=0
+      for name in "${names[@]}"; do
+        i=$((i + 1))
+        if [[ $name == "$col" ]]; then found=$i; break; fi
+      done
+      [[ $found -gt 0 ]] || { echo "error: $f: no column '$col'" >&2; exit 2; }
+      title=$col
+      [[ ${#files[@]} -gt 1 ]] && title="$(basename "$f" .csv): $col"
+      clause+="${clause:+, }'$f' using 1:$found with lines lw 1.5 title '$title'"
+    done
+  done
+  gnuplot <<GNUPLOT
+set terminal ${terminal/900,900/900,450}
+set output '$tmp'
+set datafile separator ','
+set termoption noenhanced
+set autoscale xfix
+set key outside right top
+set grid
+set title '$(basename "$csv")'
+set xlabel 't'
+set ylabel '$ylabel'
+plot $clause
+GNUPLOT
+  mv "$tmp" "$out"
+  trap - EXIT
+  echo "wrote $out" >&2
+  exit 0
+fi
+
 gnuplot <<GNUPLOT
 set terminal $terminal
 set output '$tmp'
