@@ -44,18 +44,6 @@ using LargeSolver = SparseSolver<RhsSystem>;
 // time (JacobiSVD: about 6 s at nq = 600).
 constexpr int kMaxDiagnosedNq = 400;
 
-// Phi_q with rows equilibrated and columns multiplied by their coordinate's scale, as the
-// solver sees it: its singular values compare like with like (metres and radians).
-Eigen::MatrixXd scaled_jacobian(const CompiledModel& model, const Eigen::MatrixXd& jac) {
-  Eigen::MatrixXd s = jac;
-  for (int k = 0; k < s.cols(); ++k) s.col(k) *= model.symbolic().coordinate_scales[k];
-  for (int r = 0; r < s.rows(); ++r) {
-    const double n = s.row(r).cwiseAbs().maxCoeff();
-    if (n > 0) s.row(r) /= n;
-  }
-  return s;
-}
-
 Eigen::MatrixXd jacobian_at(const CompiledModel& model, const Eigen::VectorXd& q, double t) {
   ModelEvaluator<double> eval(model);
   Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(model.nc(), model.nq());
@@ -123,6 +111,20 @@ std::vector<int> dependent_rows(const Eigen::MatrixXd& scaled, double tol) {
 }
 
 }  // namespace
+
+Eigen::MatrixXd scaled_jacobian(const CompiledModel& model, const Eigen::MatrixXd& jac,
+                                Eigen::VectorXd* row_scale) {
+  Eigen::MatrixXd s = jac;
+  for (int k = 0; k < s.cols(); ++k) s.col(k) *= model.symbolic().coordinate_scales[k];
+  if (row_scale) row_scale->resize(s.rows());
+  for (int r = 0; r < s.rows(); ++r) {
+    const double n = s.row(r).cwiseAbs().maxCoeff();
+    const double scale = n > 0 ? 1 / n : 1;
+    s.row(r) *= scale;
+    if (row_scale) (*row_scale)[r] = scale;
+  }
+  return s;
+}
 
 void require_driven(const CompiledModel& model) {
   const int nq = model.nq(), nc = model.nc();

@@ -253,14 +253,8 @@ bool ForceSolver::solve(double t, const Eigen::VectorXd& q, const Eigen::VectorX
   // Phi_q^T lambda = Q, factored scaled like the position solve (rows equilibrated, columns
   // in units of their coordinate's scale) so that the condition estimate means the same.
   const auto& scales = model_->symbolic().coordinate_scales;
-  Eigen::MatrixXd scaled = jac_;
-  Eigen::VectorXd row_scale(jac_.rows());
-  for (int r = 0; r < scaled.rows(); ++r) {
-    for (int k = 0; k < scaled.cols(); ++k) scaled(r, k) *= scales[k];
-    const double n = scaled.row(r).cwiseAbs().maxCoeff();
-    row_scale[r] = n > 0 ? 1 / n : 1;
-    scaled.row(r) *= row_scale[r];
-  }
+  Eigen::VectorXd row_scale;
+  const Eigen::MatrixXd scaled = scaled_jacobian(*model_, jac_, &row_scale);
   // scaled = R J C; J^T lambda = Q  <=>  scaled^T (R^-1 lambda) = C Q.
   Eigen::VectorXd rhs = q_total_;
   for (int k = 0; k < rhs.size(); ++k) rhs[k] *= scales[k];

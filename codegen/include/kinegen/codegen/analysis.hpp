@@ -72,6 +72,13 @@ struct AnalysisOptions {
   double force_warning = 1e3;
 };
 
+// Phi_q with rows equilibrated and columns multiplied by their coordinate's scale, as the
+// solver sees it, so that its singular values and condition compare like with like (metres
+// and radians): R J C. row_scale, if given, receives R's diagonal (1 / the row's largest
+// scaled entry, 1 for a zero row).
+Eigen::MatrixXd scaled_jacobian(const CompiledModel& model, const Eigen::MatrixXd& jac,
+                                Eigen::VectorXd* row_scale = nullptr);
+
 // The equations of a model with more equations than coordinates that depend on earlier ones
 // (file order) at q, t, named by row_label and joined by "; "; empty when none do.
 std::string redundant_constraints(const CompiledModel& model, const Eigen::VectorXd& q, double t);
