@@ -109,7 +109,11 @@ class Mechanism {
     std::vector<std::string> columns;
     std::vector<std::vector<double>> rows;
     translate(path_, [&] {
-      kc::require_driven(*model_);
+      // The model analysed: this one, or with derived parameters named for sensitivities made
+      // base ones.
+      std::unique_ptr<kc::CompiledModel> base;
+      const kc::CompiledModel* m = model_.get();
+      kc::require_driven(*m);
       // The checks main.cpp's run_analyze makes before solving.
       if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
       if (!std::isfinite(t0) || !std::isfinite(t1))
@@ -118,24 +122,27 @@ class Mechanism {
       kc::AnalysisOptions options;
       std::unique_ptr<kc::ForceModel> force_model;
       std::vector<std::string> force_names;
-      if (forces) {
-        force_model = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*model_, t0));
-        force_names = kc::force_columns(model_->mechanism());
-        options.forces = force_model.get();
-      }
       if (!sensitivity.empty()) {
-        sens = kc::build_sensitivity(*model_, sensitivity);
+        // Naming a derived parameter treats it as overridden (spec 6.6), as on the command line.
+        base = model_->with_base_parameters(sensitivity);
+        if (base) m = base.get();
+        sens = kc::build_sensitivity(*m, sensitivity);
         options.sensitivity = &sens;
+      }
+      if (forces) {
+        force_model = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*m, t0));
+        force_names = kc::force_columns(m->mechanism());
+        options.forces = force_model.get();
       }
       std::vector<std::string> warnings;
       options.warn = [&](const std::string& w) { warnings.push_back(one_line(w)); };
-      std::string header = kc::csv_header(model_->mechanism(), force_names, sens.names);
+      std::string header = kc::csv_header(m->mechanism(), force_names, sens.names);
       header.pop_back();
       columns = split(header);
       {
         py::gil_scoped_release release;
         kc::run_analysis(
-            *model_, {t0, t1, steps},
+            *m, {t0, t1, steps},
             [&](const kc::StateRow& row) {
               std::string line = kc::csv_row(row);
               line.pop_back();
@@ -271,8 +278,7 @@ class Mechanism {
 
   py::dict parameters() const {
     py::dict out;
-    const auto& p = model_->mechanism().parameters;
-    for (std::size_t k = 0; k < p.size(); ++k) out[py::str(p[k].name)] = model_->params()[k];
+    for (const auto& [name, value] : model_->parameter_table()) out[py::str(name)] = value;
     return out;
   }
 

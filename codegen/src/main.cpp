@@ -157,7 +157,7 @@ int run_animate(const Common& c, kc::AnimateOptions options, const std::string& 
 int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output,
                 int reference_digits, bool strict, const std::string& sensitivity_list,
                 bool with_forces) {
-  const auto model = load(c);
+  auto model = load(c);
   kc::require_driven(*model);
   check_grid(t0, t1, steps);
   if (reference_digits != 0 &&
@@ -169,7 +169,10 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   if (!sensitivity_list.empty()) {
     if (reference_digits != 0)
       throw kc::UsageError("--sensitivity is not available with --reference-digits");
-    sensitivity = kc::build_sensitivity(*model, kc::split_parameter_list(sensitivity_list));
+    const auto names = kc::split_parameter_list(sensitivity_list);
+    // Naming a derived parameter treats it as overridden (spec 6.6).
+    if (auto base = model->with_base_parameters(names)) model = std::move(base);
+    sensitivity = kc::build_sensitivity(*model, names);
   }
   // Forces: every input error (masses, loads) before any output.
   std::unique_ptr<kc::ForceModel> forces;
@@ -235,9 +238,15 @@ std::function<void(int, int)> terminal_progress(const std::string& what) {
 int run_tolerance(const Common& c, kc::ToleranceOptions options,
                   const std::vector<std::string>& tol, const std::string& output) {
   options.overrides = parse_overrides(c.params);
-  const auto model = load(c);
+  auto model = load(c);
   kc::require_driven(*model);
   options.tolerances = kc::parse_tolerances(tol);
+  {
+    // A derived parameter with a tolerance varies on its own (spec 6.6).
+    std::vector<std::string> names;
+    for (const auto& t : options.tolerances) names.push_back(t.name);
+    if (auto base = model->with_base_parameters(names)) model = std::move(base);
+  }
   options.progress = terminal_progress("Monte Carlo");
   const auto result = kc::tolerance_analysis(*model, options);
   kc::OutputFile summary("-");

@@ -74,12 +74,14 @@ class Loader {
     if (!root.IsDefined() || root.IsNull()) fail("file", {}, "the file is empty");
     if (!root.IsMap()) fail("file", loc_of(root), "the top level must be a mapping of keys");
     check_keys(root, "file", {"name"},
-               {"parameters", "bodies", "joints", "drivers", "points", "gravity", "forces"});
+               {"parameters", "definitions", "bodies", "joints", "drivers", "points", "gravity",
+                "forces"});
     Mechanism m;
     m.source = source_;
     m.name = name_of(root["name"], "name");
     m.name_loc = loc_of(root["name"]);
     if (root["parameters"]) read_parameters(root["parameters"], m);
+    if (root["definitions"]) read_definitions(root["definitions"], m);
     if (!root["bodies"]) fail("file", loc_of(root), "missing key 'bodies' (the moving bodies)");
     read_bodies(root["bodies"], m);
     read_constraints(root["joints"], "joints", false, m);
@@ -175,6 +177,18 @@ class Loader {
       const std::string item = "parameters." + name;
       if (!seen.insert(name).second) fail(item, loc_of(it->first), "duplicate parameter");
       m.parameters.push_back({name, expr_of(it->second, item), loc_of(it->first)});
+    }
+  }
+
+  void read_definitions(const YAML::Node& node, Mechanism& m) {
+    if (node.IsNull()) return;
+    if (!node.IsMap()) fail("definitions", loc_of(node), "expected a mapping name: expression");
+    std::set<std::string> seen;
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      const std::string name = name_of(it->first, "definitions");
+      const std::string item = "definitions." + name;
+      if (!seen.insert(name).second) fail(item, loc_of(it->first), "duplicate definition");
+      m.definitions.push_back({name, expr_of(it->second, item), loc_of(it->first)});
     }
   }
 
@@ -410,6 +424,14 @@ class Loader {
         fail("parameters." + p.name, p.loc,
              "the name clashes with a body or a coordinate name (x_<body>, y_<body>, phi_<body>)");
     }
+    std::set<std::string> parameter_names;
+    for (const auto& p : m.parameters) parameter_names.insert(p.name);
+    for (const auto& d : m.definitions)
+      if (taken.count(d.name) || m.find_body(d.name) || parameter_names.count(d.name) ||
+          d.name == "t" || d.name == "pi")
+        fail("definitions." + d.name, d.loc,
+             "the name clashes with a parameter, a body, a coordinate name (x_<body>, y_<body>, "
+             "phi_<body>), t or pi");
     std::set<std::string> points;
     for (const auto& p : m.points) {
       if (!points.insert(p.name).second) fail("point '" + p.name + "'", p.loc, "duplicate point name");

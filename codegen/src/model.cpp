@@ -1,5 +1,7 @@
 #include "kinegen/codegen/model.hpp"
 
+#include <sstream>
+
 #include "kinegen/codegen/constraints.hpp"
 
 namespace kinegen::codegen {
@@ -23,9 +25,44 @@ std::unique_ptr<CompiledModel> CompiledModel::from_mechanism(
   return model;
 }
 
+std::vector<std::pair<std::string, double>> CompiledModel::parameter_table() const {
+  std::vector<std::pair<std::string, double>> table;
+  for (const Parameter& p : mechanism_.parameters) {
+    const int k = symbols_->find_param(p.name);
+    if (k >= 0) {
+      table.emplace_back(p.name, params_[k]);
+    } else if (const DerivedParameter* d = symbols_->find_derived(p.name)) {
+      table.emplace_back(p.name, to_double(substitute_params(d->value, *symbols_,
+                                                             symbolic_.param_values)));
+    }
+  }
+  return table;
+}
+
+std::unique_ptr<CompiledModel> CompiledModel::with_base_parameters(
+    const std::vector<std::string>& names) const {
+  std::vector<ParamOverride> overrides = overrides_;
+  for (const std::string& name : names) {
+    const DerivedParameter* d = symbols_->find_derived(name);
+    if (!d) continue;
+    // Its present value, exactly (rational, or the 40 digits irrational values are kept to).
+    const GiNaC::ex exact = substitute_params(d->value, *symbols_, symbolic_.param_values);
+    const DigitsGuard digits(40);
+    std::ostringstream value;
+    value << (GiNaC::is_a<GiNaC::numeric>(exact) ? exact : GiNaC::evalf(exact));
+    overrides.push_back({name, value.str()});
+  }
+  if (overrides.size() == overrides_.size()) return nullptr;
+  return from_mechanism(mechanism_, overrides, options_);
+}
+
 void CompiledModel::build(const std::vector<ParamOverride>& overrides,
                           const BuildOptions& options) {
-  symbols_ = std::make_unique<SymbolTable>(mechanism_);
+  std::vector<std::string> overridden;
+  for (const auto& o : overrides) overridden.push_back(o.name);
+  overrides_ = overrides;
+  options_ = options;
+  symbols_ = std::make_unique<SymbolTable>(mechanism_, overridden);
   {
     ProgressStage stage(options.progress, "deriving Phi, Phi_q, nu and gamma (" +
                                               std::to_string(mechanism_.nc()) + " equations)");

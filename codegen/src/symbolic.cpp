@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -396,7 +397,8 @@ const char* scope_hint(Scope scope) {
 
 }  // namespace
 
-SymbolTable::SymbolTable(const Mechanism& m) : source_(m.source), t_("t") {
+SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& overridden)
+    : source_(m.source), t_("t") {
   for (const auto& b : m.bodies) {
     for (const char* prefix : {"x_", "y_", "phi_"}) {
       const std::string name = prefix + b.name;
@@ -405,18 +407,55 @@ SymbolTable::SymbolTable(const Mechanism& m) : source_(m.source), t_("t") {
       qd_.emplace_back(name + "_dot");
     }
   }
-  for (const auto& p : m.parameters) {
-    param_names_.push_back(p.name);
-    params_.emplace_back(p.name);
-  }
   for (int k = 0; k < nq(); ++k) {
     roles_.emplace(q_[k], Input{InputKind::kQ, k});
     roles_.emplace(qd_[k], Input{InputKind::kQd, k});
   }
   roles_.emplace(t_, Input{InputKind::kT, 0});
-  for (int k = 0; k < num_params(); ++k) roles_.emplace(params_[k], Input{InputKind::kParam, k});
   for (int k = 0; k < nq(); ++k) names_[coord_names_[k]] = q_[k];
-  for (int k = 0; k < num_params(); ++k) names_[param_names_[k]] = params_[k];
+  // Parameters in file order, each seeing only the earlier ones: a value that reads another
+  // parameter makes a derived one (unless --param overrides it, which drops the formula).
+  params_.reserve(m.parameters.size());
+  for (std::size_t i = 0; i < m.parameters.size(); ++i) {
+    const Parameter& p = m.parameters[i];
+    const bool forced = std::find(overridden.begin(), overridden.end(), p.name) != overridden.end();
+    if (!forced) {
+      const ex value = parse(p.value, Scope::kGeometry, "parameters." + p.name);
+      if (!value.info(GiNaC::info_flags::numeric) && has_symbol(value)) {
+        derived_.push_back({p.name, static_cast<int>(i), value});
+        names_[p.name] = value;
+        continue;
+      }
+    }
+    const int k = num_params();
+    param_names_.push_back(p.name);
+    params_.emplace_back(p.name);
+    param_source_.push_back(static_cast<int>(i));
+    roles_.emplace(params_[k], Input{InputKind::kParam, k});
+    names_[p.name] = params_[k];
+  }
+  // Definitions, in order, each in the names before it; a context's restrictions apply to
+  // what a definition stands for (parse checks the substituted expression).
+  for (const Definition& d : m.definitions)
+    names_[d.name] = parse(d.value, Scope::kDriver, "definitions." + d.name);
+}
+
+bool SymbolTable::has_symbol(const ex& e) {
+  for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it)
+    if (GiNaC::is_a<GiNaC::symbol>(*it)) return true;
+  return false;
+}
+
+int SymbolTable::find_param(const std::string& name) const {
+  for (int k = 0; k < num_params(); ++k)
+    if (param_names_[k] == name) return k;
+  return -1;
+}
+
+const DerivedParameter* SymbolTable::find_derived(const std::string& name) const {
+  for (const auto& d : derived_)
+    if (d.name == name) return &d;
+  return nullptr;
 }
 
 ex SymbolTable::parse(const Expr& expr, Scope scope, const std::string& item) const {
@@ -584,31 +623,55 @@ std::vector<GiNaC::numeric> parameter_values(const Mechanism& m, const SymbolTab
       throw InputError(m.source, item, e.loc, "'" + e.text + "' is not a real number");
     return GiNaC::ex_to<GiNaC::numeric>(v);
   };
-  for (const auto& p : m.parameters) values.push_back(constant(p.value, "parameters." + p.name));
-  std::set<std::size_t> overridden;
+  // The base parameters (SymbolTable order): the file's constant, or the override's.
+  std::vector<const ParamOverride*> given(s.num_params(), nullptr);
   for (const auto& o : overrides) {
     const auto it = std::find_if(m.parameters.begin(), m.parameters.end(),
                                  [&](const Parameter& p) { return p.name == o.name; });
     if (it == m.parameters.end())
       throw InputError(m.source, "--param " + o.name, {}, "the mechanism has no such parameter");
+    const int k = s.find_param(o.name);
+    if (k < 0)  // the table was built without this override
+      throw std::logic_error("parameter_values: '" + o.name + "' is not a base parameter");
+    given[k] = &o;
+  }
+  for (int k = 0; k < s.num_params(); ++k) {
+    const Parameter& p = m.parameters[s.param_source(k)];
+    values.push_back(given[k] ? GiNaC::numeric(0) : constant(p.value, "parameters." + p.name));
+  }
+  std::set<std::size_t> overridden;
+  for (const auto& o : overrides) {
     // YAML's special floats are not numbers to the expression reader; say so plainly.
     std::string bare = o.value.substr(o.value[0] == '+' || o.value[0] == '-' ? 1 : 0);
     for (char& ch : bare) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     if (bare == ".nan" || bare == ".inf" || bare == "nan" || bare == "inf" || bare == "infinity")
       throw InputError(m.source, "--param " + o.name, {},
                        "'" + o.value + "' is not a finite number");
-    const std::size_t k = it - m.parameters.begin();
+    const std::size_t k = static_cast<std::size_t>(s.find_param(o.name));
     values[k] = constant(Expr{o.value, {}}, "--param " + o.name);
     overridden.insert(k);
   }
   // An overridden value is the option's fault, not the file's.
-  for (std::size_t k = 0; k < values.size(); ++k)
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    const Parameter& p = m.parameters[s.param_source(static_cast<int>(k))];
     if (!std::isfinite(values[k].to_double()))
       throw overridden.count(k)
-          ? InputError(m.source, "--param " + m.parameters[k].name, {},
-                       "the value is not a finite number")
-          : InputError(m.source, "parameters." + m.parameters[k].name, m.parameters[k].loc,
-                       "the value is not a finite number");
+          ? InputError(m.source, "--param " + p.name, {}, "the value is not a finite number")
+          : InputError(m.source, "parameters." + p.name, p.loc, "the value is not a finite number");
+  }
+  // A derived parameter must come out a finite real number from the base values.
+  for (const DerivedParameter& d : s.derived_params()) {
+    const Parameter& p = m.parameters[d.source];
+    double v = 0;
+    try {
+      v = to_double(substitute_params(d.value, s, values));
+    } catch (const std::exception&) {
+      v = std::numeric_limits<double>::quiet_NaN();
+    }
+    if (!std::isfinite(v))
+      throw InputError(m.source, "parameters." + p.name, p.loc,
+                       "'" + p.value.text + "' is not a finite real number with the parameters' values");
+  }
   return values;
 }
 

@@ -26,7 +26,14 @@ struct Vec2 {
 
 struct Parameter {
   std::string name;
-  Expr value;  // a constant expression
+  Expr value;  // a constant, or an expression of earlier parameters (a derived parameter)
+  SourceLoc loc;
+};
+
+// A named subexpression (format 6.1): coordinates, parameters, t and earlier definitions.
+struct Definition {
+  std::string name;
+  Expr value;
   SourceLoc loc;
 };
 
@@ -104,6 +111,7 @@ struct Mechanism {
   SourceLoc name_loc;  // of the `name:` value
   std::string source;  // the file it was read from, as given by the user
   std::vector<Parameter> parameters;
+  std::vector<Definition> definitions;
   std::vector<Body> bodies;
   std::vector<Constraint> joints;
   std::vector<Constraint> drivers;

@@ -43,8 +43,16 @@ class CompiledModel {
   const ModelPrograms& programs() const { return programs_; }
   int nq() const { return programs_.nq; }
   int nc() const { return programs_.nc; }
-  // Parameter values in double, in file order.
+  // The base parameters' values in double, in SymbolTable order (file order without the
+  // derived parameters, which follow from these).
   const std::vector<double>& params() const { return params_; }
+  // Every parameter, derived ones included, in file order, with its value.
+  std::vector<std::pair<std::string, double>> parameter_table() const;
+  // The same model with the named parameters' derived formulas dropped (each keeps its
+  // present value; spec 6.6: naming a derived parameter for a sensitivity treats it as
+  // overridden), or nullptr when none of them is derived.
+  std::unique_ptr<CompiledModel> with_base_parameters(const std::vector<std::string>& names) const;
+  const std::vector<ParamOverride>& overrides() const { return overrides_; }
   Eigen::VectorXd q0() const;
   // Local offsets of the named points, evaluated.
   const std::vector<Eigen::Vector2d>& point_offsets() const { return point_s_; }
@@ -62,6 +70,8 @@ class CompiledModel {
   SymbolicModel symbolic_;
   ModelPrograms programs_;
   std::vector<double> params_;
+  std::vector<ParamOverride> overrides_;
+  BuildOptions options_;
   std::vector<Eigen::Vector2d> point_s_;
 };
 

@@ -31,9 +31,21 @@ enum class Scope {
   kDriver,      // parameters, coordinates and t: expression drivers
 };
 
+// A parameter whose value is an expression of earlier ones (format 6.1): not a symbol of its
+// own, but that expression in the base parameters wherever its name is used, so that it moves
+// with them (in generated code too, where it is not a member of Params).
+struct DerivedParameter {
+  std::string name;
+  int source = 0;     // index in Mechanism::parameters
+  GiNaC::ex value;    // in the base parameters' symbols
+};
+
 class SymbolTable {
  public:
-  explicit SymbolTable(const Mechanism& mechanism);
+  // `overridden`: the parameters given a value by --param; a derived one among them becomes a
+  // base parameter (its formula dropped). Parses the derived parameters and the definitions
+  // (InputError for a bad one).
+  explicit SymbolTable(const Mechanism& mechanism, const std::vector<std::string>& overridden = {});
   SymbolTable(const SymbolTable&) = delete;
   SymbolTable& operator=(const SymbolTable&) = delete;
 
@@ -44,6 +56,12 @@ class SymbolTable {
   int nq() const { return static_cast<int>(q_.size()); }
   int num_params() const { return static_cast<int>(params_.size()); }
   const std::string& param_name(int k) const { return param_names_[k]; }
+  // The base parameter k's index in Mechanism::parameters.
+  int param_source(int k) const { return param_source_[k]; }
+  // The base parameter called `name`, or -1.
+  int find_param(const std::string& name) const;
+  const std::vector<DerivedParameter>& derived_params() const { return derived_; }
+  const DerivedParameter* find_derived(const std::string& name) const;
   const std::string& coord_name(int k) const { return coord_names_[k]; }
 
   // Parses `expr` for use in `scope`: decimals become exact rationals, only the format's
@@ -54,12 +72,18 @@ class SymbolTable {
   Input classify(const GiNaC::ex& symbol) const;
 
  private:
+  static bool has_symbol(const GiNaC::ex& e);
+
   std::string source_;
   std::vector<GiNaC::realsymbol> q_, qd_, params_;
   GiNaC::realsymbol t_;
   std::vector<std::string> param_names_, coord_names_;
+  std::vector<int> param_source_;
+  std::vector<DerivedParameter> derived_;
   std::map<GiNaC::ex, Input, GiNaC::ex_is_less> roles_;
-  std::map<std::string, GiNaC::ex> names_;  // coordinates and parameters by name
+  // What each name in an expression stands for: coordinates and base parameters (symbols),
+  // derived parameters and definitions (their expressions).
+  std::map<std::string, GiNaC::ex> names_;
 };
 
 // One row of Phi and where it came from, for messages that name joints and drivers.
