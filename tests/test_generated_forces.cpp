@@ -83,7 +83,7 @@ TEST_CASE("generated forces: virtual power on a slider-crank with only a slider 
   }
   INFO("largest |effort * theta_dot - m xdd xd| " << worst << " of " << scale);
   CHECK(scale > 10);
-  CHECK(worst <= 1e-12 * scale);
+  CHECK(worst <= 32 * kEps * scale);
 }
 
 TEST_CASE("generated forces: an accelerating crank under gravity, Params read at run time",
@@ -186,8 +186,8 @@ TEST_CASE("generated forces equal the in-process ForceSolver on the balanced fou
   }
   INFO("largest difference relative to the row's largest force: same q, qd, qdd "
        << same_input << ", generated step " << own_step);
-  CHECK(same_input <= 64 * kEps);
-  CHECK(own_step <= 1e-10);
+  CHECK(same_input <= 16 * kEps);
+  CHECK(own_step <= 1e-12);
 }
 
 TEST_CASE("generated forces in float (default options) and std::complex<double>",
@@ -209,8 +209,8 @@ TEST_CASE("generated forces in float (default options) and std::complex<double>"
     }
   }
   INFO("float " << worst_float << ", complex " << worst_complex << " of the row's largest force");
-  CHECK(worst_float <= 1e-4);
-  CHECK(worst_complex <= 1e-10);
+  CHECK(worst_float <= 1e-5);
+  CHECK(worst_complex <= 1e-13);
   CHECK(imag == 0);
 }
 
@@ -229,16 +229,17 @@ TEST_CASE("generated forces: a toggle position fails with its block, never a val
   CHECK(report.status == 2);
   CHECK(report.block >= 0);
   CHECK(report.block < M::num_blocks);
-  // Approaching the toggle along the motion: the reported condition grows.
+  // Approaching the toggle (t = 2) along the motion: the reported condition grows.
   Generated<M, double> g;
   double last_rcond = 1;
-  for (double t : {1.0, 0.3, 0.1, 0.03, 0.01}) {
+  for (double t = 0; t < 1.995; t += 0.01) {
     REQUIRE(M::solve_step(g.q, t, g.p, g.qd, g.qdd, g.options).status == 0);
     const auto r = M::solve_forces(g.q, g.qd, g.qdd, t, g.p, g.lambda, g.options);
     REQUIRE(r.status == 0);
-    M::force_columns(g.q, t, g.p, g.lambda, g.columns);
-    INFO("t " << t << " rcond " << r.rcond << " effort " << g.columns[0]);
+    if (t < 1.5) continue;
+    INFO("t " << t << " rcond " << r.rcond);
     CHECK(r.rcond < last_rcond);
     last_rcond = r.rcond;
   }
+  CHECK(last_rcond < 0.01);
 }
