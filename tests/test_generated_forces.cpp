@@ -223,9 +223,9 @@ TEST_CASE("generated forces: a toggle position fails with its block, never a val
   // Crank and rod in line, slider at r + l: the crank's angle is not fixed to first order.
   const double toggle[M::nq] = {0, 0, 0, p.r, 0, 0, p.r + p.l, 0, 0};
   double phi[M::nc];
-  M::phi(toggle, 0.0, p, phi);
+  M::phi(toggle, 2.0, p, phi);  // the toggle time
   for (double v : phi) REQUIRE(v == 0);
-  const auto report = M::solve_forces(toggle, zero, zero, 0.0, p, lambda, M::BlockOptions{});
+  const auto report = M::solve_forces(toggle, zero, zero, 2.0, p, lambda, M::BlockOptions{});
   CHECK(report.status == 2);
   CHECK(report.block >= 0);
   CHECK(report.block < M::num_blocks);
