@@ -2,7 +2,8 @@
 // independent truths: virtual power on a slider-crank whose only mass is the slider, the
 // closed form of an accelerating crank under gravity (also with Params changed at run time),
 // the in-process ForceSolver of `analyze --forces` over a turn of the balanced four-bar, float
-// with default options, std::complex<double>, and a toggle position reported as a failure.
+// with default options, std::complex<double>, --fold-params against Params, and a toggle
+// position reported as a failure.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -14,6 +15,7 @@
 
 #include "crank_gravity.hpp"
 #include "four_bar_balanced.hpp"
+#include "four_bar_balanced_folded.hpp"
 #include "kinegen/codegen/analysis.hpp"
 #include "kinegen/codegen/forces.hpp"
 #include "slider_driven.hpp"
@@ -242,4 +244,29 @@ TEST_CASE("generated forces: a toggle position fails with its block, never a val
     last_rcond = r.rcond;
   }
   CHECK(last_rcond < 0.01);
+}
+
+TEST_CASE("generated forces with --fold-params equal the run-time Params header",
+          "[forces][generated]") {
+  using M = km::four_bar_balanced;
+  using F = km::four_bar_balanced_folded;
+  static_assert(F::has_forces && F::num_force_columns == M::num_force_columns);
+  const Reference& ref = four_bar_reference();
+  double worst = 0;
+  for (std::size_t k = 0; k < ref.t.size(); ++k) {
+    double lm[M::nc], lf[F::nc], cm[M::num_force_columns], cf[F::num_force_columns];
+    REQUIRE(M::solve_forces(ref.q[k].data(), ref.qd[k].data(), ref.qdd[k].data(), ref.t[k],
+                            M::Params{}, lm, M::BlockOptions{})
+                .status == 0);
+    REQUIRE(F::solve_forces(ref.q[k].data(), ref.qd[k].data(), ref.qdd[k].data(), ref.t[k],
+                            F::Params{}, lf, F::BlockOptions{})
+                .status == 0);
+    M::force_columns(ref.q[k].data(), ref.t[k], M::Params{}, lm, cm);
+    F::force_columns(ref.q[k].data(), ref.t[k], F::Params{}, lf, cf);
+    const double scale = largest(ref.columns[k]);
+    for (int c = 0; c < M::num_force_columns; ++c)
+      worst = std::max(worst, std::abs(cm[c] - cf[c]) / scale);
+  }
+  INFO("largest difference folded / Params, relative to the row's largest force: " << worst);
+  CHECK(worst <= 16 * kEps);
 }
