@@ -77,11 +77,10 @@ bool feedforward(long calls, std::vector<long>& ns) {
     const auto start = std::chrono::steady_clock::now();
     if (tick == 0) q[2] -= Scalar(2 * M_PI);
     q += kDt * qd + Scalar(0.5) * kDt * kDt * qdd;
-    const bool ok = solver.position(q, t) && solver.velocity(q, t, qd) &&
-                    solver.acceleration(q, qd, t, qdd) &&
-                    Model::solve_forces(q.data(), qd.data(), qdd.data(), t, params, lambda,
-                                        force_options)
-                            .status == 0;
+    const bool ok =
+        solver.position(q, t) && solver.velocity(q, t, qd) && solver.acceleration(q, qd, t, qdd) &&
+        Model::solve_forces(q.data(), qd.data(), qdd.data(), t, params, lambda, force_options)
+                .status == 0;
     if (ok) Model::force_columns(q.data(), t, params, lambda, columns);
     const auto stop = std::chrono::steady_clock::now();
     ns[static_cast<std::size_t>(k - 1)] =
@@ -91,11 +90,12 @@ bool feedforward(long calls, std::vector<long>& ns) {
   }
   const long allocations = g_allocations - allocations_before;
   std::sort(ns.begin(), ns.end());
-  std::printf("  balanced four-bar with feedforward torque (kinematics + solve_forces + "
-              "force_columns):\n    median %ld ns, 99.9%% %ld ns, worst %ld ns; failures: %ld; "
-              "peak |motor torque| %.6g N m; heap allocations: %ld\n",
-              ns[ns.size() / 2], ns[std::min(ns.size() - 1, ns.size() * 999 / 1000)], ns.back(),
-              failures, peak, allocations);
+  std::printf(
+      "  balanced four-bar with feedforward torque (kinematics + solve_forces + "
+      "force_columns):\n    median %ld ns, 99.9%% %ld ns, worst %ld ns; failures: %ld; "
+      "peak |motor torque| %.6g N m; heap allocations: %ld\n",
+      ns[ns.size() / 2], ns[std::min(ns.size() - 1, ns.size() * 999 / 1000)], ns.back(), failures,
+      peak, allocations);
   return allocations == 0 && failures == 0;
 }
 
@@ -169,8 +169,7 @@ int main(int argc, char** argv) {
   std::printf("  heap allocations in the loop: %ld\n", allocations);
   const double residual_bound = kFloat ? 1e-4 : 1e-9;
   const bool feedforward_ok = feedforward<Scalar>(calls, ns);
-  return allocations == 0 && failures == 0 && worst_residual <= residual_bound &&
-                 feedforward_ok
+  return allocations == 0 && failures == 0 && worst_residual <= residual_bound && feedforward_ok
              ? 0
              : 1;
 }

@@ -4,9 +4,8 @@
 // the in-process ForceSolver of `analyze --forces` over a turn of the balanced four-bar, float
 // with default options, std::complex<double>, --fold-params against Params, and a toggle
 // position reported as a failure.
-#include <catch2/catch.hpp>
-
 #include <algorithm>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <complex>
 #include <limits>
@@ -76,7 +75,8 @@ TEST_CASE("generated forces: virtual power on a slider-crank with only a slider 
                  thdd = -1.6 * std::sin(2 * t);
     const double c = std::cos(th), s = std::sin(th), w = std::sqrt(l * l - r * r * s * s);
     const double x1 = -r * s - r * r * s * c / w;
-    const double x2 = -r * c - r * r * (c * c - s * s) / w - std::pow(r, 4) * s * s * c * c / (w * w * w);
+    const double x2 =
+        -r * c - r * r * (c * c - s * s) / w - std::pow(r, 4) * s * s * c * c / (w * w * w);
     const double xd = x1 * thd, xdd = x2 * thd * thd + x1 * thdd;
     REQUIRE(g.q[6] == Approx(r * c + w).epsilon(1e-12));
     const double power = m * xdd * xd;
@@ -91,8 +91,8 @@ TEST_CASE("generated forces: virtual power on a slider-crank with only a slider 
 TEST_CASE("generated forces: an accelerating crank under gravity, Params read at run time",
           "[forces][generated]") {
   using M = km::crank_gravity;
-  for (const auto& [mass, grav, rc] : {std::array<double, 3>{1.5, 9.81, 0.3},
-                                       std::array<double, 3>{2.0, 3.0, 0.25}}) {
+  for (const auto& [mass, grav, rc] :
+       {std::array<double, 3>{1.5, 9.81, 0.3}, std::array<double, 3>{2.0, 3.0, 0.25}}) {
     Generated<M, double> g;
     g.p.m = mass;
     g.p.g = grav;
@@ -131,8 +131,8 @@ struct Reference {
 const Reference& four_bar_reference() {
   static const Reference ref = [] {
     Reference r;
-    const auto model = kc::CompiledModel::from_file(
-        std::string(KINEGEN_SOURCE_DIR) + "/examples/forces/four_bar_balanced.yaml");
+    const auto model = kc::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
+                                                    "/examples/forces/four_bar_balanced.yaml");
     const kc::ForceModel forces = kc::forces_for_analysis(*model);
     kc::ForceSolver solver(*model, forces);
     kc::run_analysis(*model, {0, 1, 360}, [&](const kc::StateRow& row) {

@@ -1880,8 +1880,8 @@ void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
       // Phi = d.d - f^2: the force along d is -lambda dPhi/dL = -2 lambda L.
       const auto pj = at(c.j, f.symbolic.sj[k]), pi = at(c.i, f.symbolic.si[k]);
       const GiNaC::ex dx = pj[0] - pi[0], dy = pj[1] - pi[1];
-      columns << "    out[" << col << "] = T(-2) * lambda[" << r0 << "] * g["
-              << geometry.size() << "];  // " << names[col] << "\n";
+      columns << "    out[" << col << "] = T(-2) * lambda[" << r0 << "] * g[" << geometry.size()
+              << "];  // " << names[col] << "\n";
       geometry.push_back(fold(sqrt(dx * dx + dy * dy)));
       ++col;
     } else {
@@ -1912,16 +1912,17 @@ void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
   }
   std::vector<GiNaC::ex> applied;
   for (const auto& e : f.applied) applied.push_back(fold(e));
+  if (geometry.empty()) geometry.push_back(0);  // out[1], so that the function reads `out`
   const Program applied_program = lower(applied, symbols);
   const Program geometry_program = lower(geometry, symbols);
   const std::string ng = idx(std::max<int>(1, static_cast<int>(geometry.size())));
   std::vector<std::string> quoted;
   for (const auto& n : names) quoted.push_back("\"" + n + "\"");
 
-  os << "\n  // ---- Kinetostatics (mechanism format 6.5): driver efforts and joint reactions of the\n"
-     << "  // motion from M qdd + Phi_q^T lambda = Q^A, i.e. Phi_q^T lambda = Q with Q = Q^A + the\n"
-     << "  // inertia forces, solved through the blocks in reverse order. Usable straight after\n"
-     << "  // solve_step at the same t (feedforward efforts).\n"
+  os << "\n  // ---- Kinetostatics (mechanism format 6.5): driver efforts and joint reactions\n"
+     << "  // of the motion from M qdd + Phi_q^T lambda = Q^A, i.e. Phi_q^T lambda = Q with\n"
+     << "  // Q = Q^A + the inertia forces, solved through the blocks in reverse order. Usable\n"
+     << "  // straight after solve_step at the same t (feedforward efforts).\n"
      << "  static constexpr bool has_forces = true;\n"
      << "  // The columns of `kinegen analyze --forces`, in its order: each driver's effort(s),\n"
      << "  // each joint's fx, fy (global) and tz about its point.\n"
@@ -1937,27 +1938,27 @@ void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
   emit_function(os, "_force_geometry", ng.c_str(), geometry_program, symbols, false,
                 options.max_function_ops);
   os << "\n public:\n"
-     << "  // Q = Q^A + the inertia forces of the motion: -m a_com at each centre of mass (with the\n"
-     << "  // omega^2 term of an offset centre) and -J alpha. out[nq].\n"
+     << "  // Q = Q^A + the inertia forces of the motion: -m a_com at each centre of mass\n"
+     << "  // (with the omega^2 term of an offset centre) and -J alpha. out[nq].\n"
      << "  template <class T>\n"
-     << "  static void generalized_force(const T* q, const T* qd, const T* qdd, T t, const Params& p,\n"
-     << "                                T* out) noexcept {\n"
+     << "  static void generalized_force(const T* q, const T* qd, [[maybe_unused]] const T* qdd,\n"
+     << "                                T t, const Params& p, T* out) noexcept {\n"
      << "    applied_force(q, qd, t, p, out);\n"
      << "    T g[" << ng << "];\n"
      << "    _force_geometry(q, t, p, g);\n"
      << inertia.str() << "  }\n\n"
-     << "  // Phi_q^T lambda = Q (generalized_force) at a solved q, qd, qdd: one LU per block, in\n"
-     << "  // reverse block order. lambda[nc]. Fails with status 2 (a singular or ill-conditioned\n"
-     << "  // block: a toggle position, where the efforts grow without bound) or 3 (not finite) and\n"
-     << "  // the block; report.rcond is the smallest block's reciprocal condition.\n"
+     << "  // Phi_q^T lambda = Q (generalized_force) at a solved q, qd, qdd: one LU per block,\n"
+     << "  // in reverse block order. lambda[nc]. Fails with status 2 (a singular or\n"
+     << "  // ill-conditioned block: a toggle position, where the efforts grow without bound)\n"
+     << "  // or 3 (not finite) and the block; report.rcond is the smallest block's.\n"
      << "  template <class T, class U>\n"
      << "  static BlockReport<_real<T>> solve_forces(const T* q, const T* qd, const T* qdd, T t,\n"
      << "      const Params& p, T* lambda, const BasicBlockOptions<U>& options) noexcept {\n"
      << "    T jac[jac_nnz], b[nq];\n"
      << "    phi_q(q, t, p, jac);\n"
      << "    generalized_force(q, qd, qdd, t, p, b);\n"
-     << "    return _block_transposed<" << m.name
-     << ">(jac, b, lambda, 1, _options_as<_real<T>>(options));\n"
+     << "    return _block_transposed<" << m.name << ">(jac, b, lambda, 1,\n"
+     << "                                   _options_as<_real<T>>(options));\n"
      << "  }\n\n"
      << "  // The force_column_names columns from lambda (solve_forces) at the same q and t. The\n"
      << "  // reaction on the bodies is -Phi_q^T lambda; an effort is positive when it pushes its\n"
