@@ -6,8 +6,11 @@
 //
 // Prints the median and worst-case time per call (position + velocity + acceleration) over N
 // calls (default 1e6), the worst constraint residual, and the number of heap allocations
-// during the loop, counted by a replaced global operator new. Exits 1 if anything was
-// allocated, a solve failed, or the residual is out of bounds.
+// during the loop, counted by a replaced global operator new. Then the same loop on the
+// balanced four-bar (examples/forces/four_bar_balanced.yaml, with masses, gravity and a
+// spring) adds the feedforward motor torque of each tick (solve_forces, force_columns) and
+// prints its time and the torque's peak over a turn. Exits 1 if anything was allocated, a
+// solve failed, or the residual is out of bounds.
 //
 //   build/examples/controller_double [calls]
 #include <algorithm>
@@ -17,9 +20,11 @@
 #include <cstdlib>
 #include <kinegen/solver.hpp>
 #include <new>
+#include <string_view>
 #include <vector>
 
 #include "four_bar.hpp"
+#include "four_bar_balanced.hpp"
 
 #ifndef KINEGEN_SCALAR
 #define KINEGEN_SCALAR double
@@ -41,6 +46,60 @@ void operator delete(void* p) noexcept { std::free(p); }
 void operator delete[](void* p) noexcept { std::free(p); }
 void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+
+namespace {
+
+// The kinematics as above, then the motor torque the planned motion needs (feedforward):
+// Phi_q^T lambda = Q through the blocks, then motor.effort from lambda.
+template <class Scalar>
+bool feedforward(long calls, std::vector<long>& ns) {
+  using Model = kinegen::models::four_bar_balanced;
+  using Solver = kinegen::Solver<Model, Scalar>;
+  constexpr double kRate = 1000.0;
+  constexpr Scalar kDt = Scalar(1 / kRate);
+  static_assert(Model::has_forces);
+  static_assert(std::string_view(Model::force_column_names[0]) == "motor.effort");
+  const Model::Params params{};  // omega: one turn per second
+  Solver solver(params);
+  const typename Model::template BasicBlockOptions<Scalar> force_options{};
+  typename Solver::Vector q = solver.initial_estimate(), qd, qdd;
+  if (!solver.position(q, Scalar(0)) || !solver.velocity(q, Scalar(0), qd) ||
+      !solver.acceleration(q, qd, Scalar(0), qdd))
+    return false;
+  solver.options().fixed_iterations = 2;
+  Scalar lambda[Model::nc], columns[Model::num_force_columns];
+  double peak = 0;
+  long failures = 0;
+  const long allocations_before = g_allocations;
+  for (long k = 1; k <= calls; ++k) {
+    const long tick = k % static_cast<long>(kRate);
+    const Scalar t = Scalar(tick) * kDt;
+    const auto start = std::chrono::steady_clock::now();
+    if (tick == 0) q[2] -= Scalar(2 * M_PI);
+    q += kDt * qd + Scalar(0.5) * kDt * kDt * qdd;
+    const bool ok =
+        solver.position(q, t) && solver.velocity(q, t, qd) && solver.acceleration(q, qd, t, qdd) &&
+        Model::solve_forces(q.data(), qd.data(), qdd.data(), t, params, lambda, force_options)
+                .status == 0;
+    if (ok) Model::force_columns(q.data(), t, params, lambda, columns);
+    const auto stop = std::chrono::steady_clock::now();
+    ns[static_cast<std::size_t>(k - 1)] =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(stop - start).count();
+    failures += !ok;
+    if (ok) peak = std::max(peak, double(std::abs(columns[0])));
+  }
+  const long allocations = g_allocations - allocations_before;
+  std::sort(ns.begin(), ns.end());
+  std::printf(
+      "  balanced four-bar with feedforward torque (kinematics + solve_forces + "
+      "force_columns):\n    median %ld ns, 99.9%% %ld ns, worst %ld ns; failures: %ld; "
+      "peak |motor torque| %.6g N m; heap allocations: %ld\n",
+      ns[ns.size() / 2], ns[std::min(ns.size() - 1, ns.size() * 999 / 1000)], ns.back(), failures,
+      peak, allocations);
+  return allocations == 0 && failures == 0;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using Scalar = KINEGEN_SCALAR;
@@ -109,5 +168,8 @@ int main(int argc, char** argv) {
   std::printf("  failures: %ld; worst |Phi|: %.3g\n", failures, worst_residual);
   std::printf("  heap allocations in the loop: %ld\n", allocations);
   const double residual_bound = kFloat ? 1e-4 : 1e-9;
-  return allocations == 0 && failures == 0 && worst_residual <= residual_bound ? 0 : 1;
+  const bool feedforward_ok = feedforward<Scalar>(calls, ns);
+  return allocations == 0 && failures == 0 && worst_residual <= residual_bound && feedforward_ok
+             ? 0
+             : 1;
 }

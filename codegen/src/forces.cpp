@@ -19,8 +19,8 @@ struct Vec {
 
 class Builder {
  public:
-  Builder(const CompiledModel& model) : m_(model.mechanism()), s_(model.symbols()),
-        values_(model.symbolic().param_values) {}
+  Builder(const Mechanism& m, const SymbolTable& s, const SymbolicModel& model)
+      : m_(m), s_(s), values_(model.param_values) {}
 
   ex parse(const Expr& e, Scope scope, const std::string& item) const {
     return s_.parse(e, scope, item);
@@ -83,9 +83,12 @@ class Builder {
 }  // namespace
 
 ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec) {
-  const Mechanism& m = model.mechanism();
-  const SymbolTable& s = model.symbols();
-  const Builder b(model);
+  return derive_forces(model.mechanism(), model.symbols(), model.symbolic(), spec);
+}
+
+ForceModel derive_forces(const Mechanism& m, const SymbolTable& s, const SymbolicModel& model,
+                         const ForceSpec& spec) {
+  const Builder b(m, s, model);
   ForceModel f;
   const int nb = static_cast<int>(m.bodies.size());
   f.applied.assign(s.nq(), ex(0));
@@ -102,8 +105,11 @@ ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec) {
     f.exact.inertia.push_back(b.exact(bm.inertia, item + " inertia"));
     f.exact.com.push_back(b.exact(bm.com, item + " com"));
     const ex mass = b.parse(bm.mass, Scope::kGeometry, item + " mass");
-    b.add_force(f.applied, k, b.vec(bm.com, Scope::kGeometry, item + " com"), mass * g.x,
-                mass * g.y);
+    const Vec com = b.vec(bm.com, Scope::kGeometry, item + " com");
+    f.symbolic.mass.push_back(mass);
+    f.symbolic.inertia.push_back(b.parse(bm.inertia, Scope::kGeometry, item + " inertia"));
+    f.symbolic.com.push_back({com.x, com.y});
+    b.add_force(f.applied, k, com, mass * g.x, mass * g.y);
   }
   for (const Load& load : spec.loads) {
     switch (load.kind) {
@@ -155,6 +161,11 @@ ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec) {
   for (const Constraint* c : m.constraints()) {
     f.exact.si.push_back(b.exact(reaction_point(*c, c->kind->reaction_i), c->item + " si"));
     f.exact.sj.push_back(b.exact(reaction_point(*c, c->kind->reaction_j), c->item + " sj"));
+    for (const auto& [point, to] : {std::pair{c->kind->reaction_i, &f.symbolic.si},
+                                    std::pair{c->kind->reaction_j, &f.symbolic.sj}}) {
+      const Vec v = b.vec(reaction_point(*c, point), Scope::kGeometry, c->item);
+      to->push_back({v.x, v.y});
+    }
     f.row_begin.push_back(f.row_begin.back() + c->equation_count());
   }
   const auto to_d = [](const std::vector<ex>& v) {

@@ -42,6 +42,7 @@ struct ForceModel {
   Program applied_program;
   ForceData<GiNaC::ex> exact;      // parameters substituted, exact where they are
   ForceData<double> numbers;       // the same in double
+  ForceData<GiNaC::ex> symbolic;   // the same with the parameters as symbols (generated code)
   std::vector<int> row_begin;      // rows of constraint c: [row_begin[c], row_begin[c + 1])
 };
 
@@ -117,6 +118,9 @@ void columns_from_lambda(const Mechanism& m, const ForceModel& f, const ForceDat
 // Builds Q^A and evaluates the mass data. Throws InputError for negative or non-finite mass
 // data, unknown bodies, expressions that are not allowed (velocities) or not finite.
 ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec);
+// The same from the pieces a CompiledModel holds (the emitter has these).
+ForceModel derive_forces(const Mechanism& mechanism, const SymbolTable& symbols,
+                         const SymbolicModel& model, const ForceSpec& spec);
 // The same for the mechanism's own masses, gravity and loads.
 inline ForceModel derive_forces(const CompiledModel& model) {
   return derive_forces(model, model.mechanism().forces);

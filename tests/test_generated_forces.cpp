@@ -1,0 +1,272 @@
+// The generated kinetostatics (solve_forces, force_columns; mechanism format 6.5) against
+// independent truths: virtual power on a slider-crank whose only mass is the slider, the
+// closed form of an accelerating crank under gravity (also with Params changed at run time),
+// the in-process ForceSolver of `analyze --forces` over a turn of the balanced four-bar, float
+// with default options, std::complex<double>, --fold-params against Params, and a toggle
+// position reported as a failure.
+#include <algorithm>
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <complex>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "crank_gravity.hpp"
+#include "four_bar_balanced.hpp"
+#include "four_bar_balanced_folded.hpp"
+#include "kinegen/codegen/analysis.hpp"
+#include "kinegen/codegen/forces.hpp"
+#include "slider_driven.hpp"
+#include "slider_mass.hpp"
+
+namespace {
+
+namespace km = kinegen::models;
+namespace kc = kinegen::codegen;
+
+// One step of the generated model at t from the q in `s` (the previous solution), then the
+// force columns; false when either solve fails.
+template <class T>
+struct RealOf {
+  using type = T;
+};
+template <class T>
+struct RealOf<std::complex<T>> {
+  using type = T;
+};
+
+template <class M, class T>
+struct Generated {
+  typename M::Params p{};
+  T q[M::nq], qd[M::nq], qdd[M::nq], lambda[M::nc], columns[M::num_force_columns];
+  // The defaults of T's precision.
+  typename M::template BasicBlockOptions<typename RealOf<T>::type> options{};
+
+  Generated() {
+    for (int k = 0; k < M::nq; ++k) q[k] = T(M::q0[k]);
+  }
+  bool step(T t) {
+    if (M::solve_step(q, t, p, qd, qdd, options).status != 0) return false;
+    if (M::solve_forces(q, qd, qdd, t, p, lambda, options).status != 0) return false;
+    M::force_columns(q, t, p, lambda, columns);
+    return true;
+  }
+};
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+
+}  // namespace
+
+TEST_CASE("generated forces: virtual power on a slider-crank with only a slider mass",
+          "[forces][generated]") {
+  using M = km::slider_mass;
+  static_assert(M::has_forces && M::num_force_columns == 1 + 4 * 3);
+  CHECK(std::string(M::force_column_names[0]) == "motor.effort");
+  Generated<M, double> g;
+  const double r = g.p.r, l = g.p.l, m = g.p.ms, omega = g.p.omega;
+  double worst = 0, scale = 0;
+  for (int k = 0; k <= 720; ++k) {
+    const double t = 2 * kPi * k / 720;
+    REQUIRE(g.step(t));
+    // theta(t) and x(theta) in closed form (slider_mass.yaml).
+    const double th = omega * t + 0.4 * std::sin(2 * t), thd = omega + 0.8 * std::cos(2 * t),
+                 thdd = -1.6 * std::sin(2 * t);
+    const double c = std::cos(th), s = std::sin(th), w = std::sqrt(l * l - r * r * s * s);
+    const double x1 = -r * s - r * r * s * c / w;
+    const double x2 =
+        -r * c - r * r * (c * c - s * s) / w - std::pow(r, 4) * s * s * c * c / (w * w * w);
+    const double xd = x1 * thd, xdd = x2 * thd * thd + x1 * thdd;
+    REQUIRE(g.q[6] == Approx(r * c + w).epsilon(1e-12));
+    const double power = m * xdd * xd;
+    worst = std::max(worst, std::abs(g.columns[0] * thd - power));
+    scale = std::max(scale, std::abs(power));
+  }
+  INFO("largest |effort * theta_dot - m xdd xd| " << worst << " of " << scale);
+  CHECK(scale > 10);
+  CHECK(worst <= 32 * kEps * scale);
+}
+
+TEST_CASE("generated forces: an accelerating crank under gravity, Params read at run time",
+          "[forces][generated]") {
+  using M = km::crank_gravity;
+  for (const auto& [mass, grav, rc] :
+       {std::array<double, 3>{1.5, 9.81, 0.3}, std::array<double, 3>{2.0, 3.0, 0.25}}) {
+    Generated<M, double> g;
+    g.p.m = mass;
+    g.p.g = grav;
+    g.p.rc = rc;
+    const double j = g.p.J;
+    double worst = 0, scale = 0;
+    for (int k = 0; k <= 300; ++k) {
+      const double t = 3.0 * k / 300;
+      REQUIRE(g.step(t));
+      const double phi = 0.2 * t + 0.75 * t * t, w = 0.2 + 1.5 * t, alpha = 1.5;
+      const double torque = (j + mass * rc * rc) * alpha + mass * grav * rc * std::cos(phi);
+      // a_com of the point rc along the crank; the pin's force on the crank is m a_com - m g.
+      const double ax = rc * (-std::sin(phi) * alpha - std::cos(phi) * w * w),
+                   ay = rc * (std::cos(phi) * alpha - std::sin(phi) * w * w);
+      const double truth[4] = {torque, mass * ax, mass * ay + mass * grav, 0.0};
+      for (int c = 0; c < 4; ++c) {
+        worst = std::max(worst, std::abs(g.columns[c] - truth[c]));
+        scale = std::max(scale, std::abs(truth[c]));
+      }
+    }
+    INFO("m " << mass << " g " << grav << " rc " << rc << ": largest error " << worst << " of "
+              << scale);
+    CHECK(worst <= 16 * kEps * scale);
+  }
+}
+
+namespace {
+
+// The in-process columns of `analyze --forces` on the balanced four-bar over a turn.
+struct Reference {
+  std::vector<double> t;
+  std::vector<Eigen::VectorXd> q, qd, qdd;
+  std::vector<std::vector<double>> columns;
+};
+
+const Reference& four_bar_reference() {
+  static const Reference ref = [] {
+    Reference r;
+    const auto model = kc::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
+                                                    "/examples/forces/four_bar_balanced.yaml");
+    const kc::ForceModel forces = kc::forces_for_analysis(*model);
+    kc::ForceSolver solver(*model, forces);
+    kc::run_analysis(*model, {0, 1, 360}, [&](const kc::StateRow& row) {
+      std::vector<double> cols;
+      REQUIRE(solver.solve(row.t, row.q, row.qd, row.qdd, cols));
+      r.t.push_back(row.t);
+      r.q.push_back(row.q);
+      r.qd.push_back(row.qd);
+      r.qdd.push_back(row.qdd);
+      r.columns.push_back(cols);
+    });
+    REQUIRE(r.t.size() == 361);
+    REQUIRE(kc::force_columns(model->mechanism()).size() ==
+            static_cast<std::size_t>(km::four_bar_balanced::num_force_columns));
+    return r;
+  }();
+  return ref;
+}
+
+double largest(const std::vector<double>& v) {
+  double m = 0;
+  for (double x : v) m = std::max(m, std::abs(x));
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("generated forces equal the in-process ForceSolver on the balanced four-bar",
+          "[forces][generated]") {
+  using M = km::four_bar_balanced;
+  const Reference& ref = four_bar_reference();
+  const auto model = kc::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
+                                                  "/examples/forces/four_bar_balanced.yaml");
+  const auto names = kc::force_columns(model->mechanism());
+  for (int c = 0; c < M::num_force_columns; ++c) CHECK(names[c] == M::force_column_names[c]);
+  const M::Params p{};
+  double same_input = 0, own_step = 0;
+  Generated<M, double> g;
+  for (std::size_t k = 0; k < ref.t.size(); ++k) {
+    // The in-process row's q, qd, qdd: only the force arithmetic differs.
+    double lambda[M::nc], cols[M::num_force_columns];
+    const auto report = M::solve_forces(ref.q[k].data(), ref.qd[k].data(), ref.qdd[k].data(),
+                                        ref.t[k], p, lambda, M::BlockOptions{});
+    REQUIRE(report.status == 0);
+    M::force_columns(ref.q[k].data(), ref.t[k], p, lambda, cols);
+    // The generated step's own kinematics: the kinematics' rounding on top.
+    REQUIRE(g.step(ref.t[k]));
+    const double scale = largest(ref.columns[k]);
+    for (int c = 0; c < M::num_force_columns; ++c) {
+      same_input = std::max(same_input, std::abs(cols[c] - ref.columns[k][c]) / scale);
+      own_step = std::max(own_step, std::abs(g.columns[c] - ref.columns[k][c]) / scale);
+    }
+  }
+  INFO("largest difference relative to the row's largest force: same q, qd, qdd "
+       << same_input << ", generated step " << own_step);
+  CHECK(same_input <= 16 * kEps);
+  CHECK(own_step <= 1e-12);
+}
+
+TEST_CASE("generated forces in float (default options) and std::complex<double>",
+          "[forces][generated]") {
+  using M = km::four_bar_balanced;
+  const Reference& ref = four_bar_reference();
+  Generated<M, float> f;
+  Generated<M, std::complex<double>> z;
+  double worst_float = 0, worst_complex = 0, imag = 0;
+  for (std::size_t k = 0; k < ref.t.size(); ++k) {
+    REQUIRE(f.step(static_cast<float>(ref.t[k])));
+    REQUIRE(z.step(ref.t[k]));
+    const double scale = largest(ref.columns[k]);
+    for (int c = 0; c < M::num_force_columns; ++c) {
+      worst_float = std::max(worst_float, std::abs(f.columns[c] - ref.columns[k][c]) / scale);
+      worst_complex =
+          std::max(worst_complex, std::abs(z.columns[c].real() - ref.columns[k][c]) / scale);
+      imag = std::max(imag, std::abs(z.columns[c].imag()));
+    }
+  }
+  INFO("float " << worst_float << ", complex " << worst_complex << " of the row's largest force");
+  CHECK(worst_float <= 1e-5);
+  CHECK(worst_complex <= 1e-13);
+  CHECK(imag == 0);
+}
+
+TEST_CASE("generated forces: a toggle position fails with its block, never a value",
+          "[forces][generated]") {
+  using M = km::slider_driven;
+  const M::Params p{};
+  const double zero[M::nq] = {};
+  double lambda[M::nc];
+  // Crank and rod in line, slider at r + l: the crank's angle is not fixed to first order.
+  const double toggle[M::nq] = {0, 0, 0, p.r, 0, 0, p.r + p.l, 0, 0};
+  double phi[M::nc];
+  M::phi(toggle, 2.0, p, phi);  // the toggle time
+  for (double v : phi) REQUIRE(v == 0);
+  const auto report = M::solve_forces(toggle, zero, zero, 2.0, p, lambda, M::BlockOptions{});
+  CHECK(report.status == 2);
+  CHECK(report.block >= 0);
+  CHECK(report.block < M::num_blocks);
+  // Approaching the toggle (t = 2) along the motion: the reported condition grows.
+  Generated<M, double> g;
+  double last_rcond = 1;
+  for (double t = 0; t < 1.995; t += 0.01) {
+    REQUIRE(M::solve_step(g.q, t, g.p, g.qd, g.qdd, g.options).status == 0);
+    const auto r = M::solve_forces(g.q, g.qd, g.qdd, t, g.p, g.lambda, g.options);
+    REQUIRE(r.status == 0);
+    if (t < 1.5) continue;
+    INFO("t " << t << " rcond " << r.rcond);
+    CHECK(r.rcond < last_rcond);
+    last_rcond = r.rcond;
+  }
+  CHECK(last_rcond < 0.01);
+}
+
+TEST_CASE("generated forces with --fold-params equal the run-time Params header",
+          "[forces][generated]") {
+  using M = km::four_bar_balanced;
+  using F = km::four_bar_balanced_folded;
+  static_assert(F::has_forces && F::num_force_columns == M::num_force_columns);
+  const Reference& ref = four_bar_reference();
+  double worst = 0;
+  for (std::size_t k = 0; k < ref.t.size(); ++k) {
+    double lm[M::nc], lf[F::nc], cm[M::num_force_columns], cf[F::num_force_columns];
+    REQUIRE(M::solve_forces(ref.q[k].data(), ref.qd[k].data(), ref.qdd[k].data(), ref.t[k],
+                            M::Params{}, lm, M::BlockOptions{})
+                .status == 0);
+    REQUIRE(F::solve_forces(ref.q[k].data(), ref.qd[k].data(), ref.qdd[k].data(), ref.t[k],
+                            F::Params{}, lf, F::BlockOptions{})
+                .status == 0);
+    M::force_columns(ref.q[k].data(), ref.t[k], M::Params{}, lm, cm);
+    F::force_columns(ref.q[k].data(), ref.t[k], F::Params{}, lf, cf);
+    const double scale = largest(ref.columns[k]);
+    for (int c = 0; c < M::num_force_columns; ++c)
+      worst = std::max(worst, std::abs(cm[c] - cf[c]) / scale);
+  }
+  INFO("largest difference folded / Params, relative to the row's largest force: " << worst);
+  CHECK(worst <= 16 * kEps);
+}
