@@ -4,6 +4,7 @@
 #include <cln/cln.h>
 
 #include <stdexcept>
+#include <string>
 
 namespace kinegen::codegen {
 
@@ -65,7 +66,10 @@ void law_print(const ex& law, const ex& order, const ex& x, const GiNaC::print_c
 // aligned.
 template <int kLaw>
 [[gnu::aligned(16)]] ex read_law(const GiNaC::exvector& args) {
-  return kinegen_law(kLaw, 0, args.at(0));
+  if (args.size() != 1)  // GiNaC's message for other functions
+    throw std::invalid_argument("no function \"" + std::string(kMotionLaws[kLaw].name) +
+                                "\" with " + std::to_string(args.size()) + " arguments");
+  return kinegen_law(kLaw, 0, args[0]);
 }
 
 }  // namespace
@@ -137,7 +141,8 @@ numeric motion_law_high_precision(int law, int order, const numeric& x) {
 }
 
 void add_motion_law_readers(GiNaC::prototype_table& table) {
-  static_assert(kernels::kCycloidal == 0 && kernels::kPoly4567 == 3);
+  for (int k = 0; k < 4; ++k)  // read_law<k> names itself by kMotionLaws[k]
+    if (kMotionLaws[k].law != k) throw std::logic_error("kMotionLaws is not in law order");
   const GiNaC::reader_func readers[] = {read_law<0>, read_law<1>, read_law<2>, read_law<3>};
   for (const auto& l : kMotionLaws) table[{l.name, 1}] = readers[l.law];
 }

@@ -260,6 +260,11 @@ class CostScanner {
       const std::string name = text_.substr(pos_, end - pos_);
       pos_ = end;
       if (take('(')) {
+        // GiNaC's reader takes a call without arguments for a call of any arity of that name
+        // and crashes on it (sin() read out of bounds), so it never gets one.
+        if (take(')'))
+          throw CostError("cannot read '" + text_ + "': no function \"" + name +
+                          "\" with 0 arguments");
         const Approx a = expr();
         if (!take(')')) throw Unreadable{};
         return {apply_function(name, a.v), a.known};
