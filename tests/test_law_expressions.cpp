@@ -225,7 +225,7 @@ TEMPLATE_TEST_CASE("laws: the generated header agrees with the analysis", "[laws
       CHECK(qdd[2] == T(0));
     }
   }
-  const double bound = sizeof(T) == 4 ? 2e-5 : 1e-14;
+  const double bound = sizeof(T) == 4 ? 1e-6 : 1e-14;  // seen: 7e-8 and 3e-16
   INFO("relative to the analysis: q " << eq.relative() << ", qd " << eqd.relative() << ", qdd "
                                       << eqdd.relative());
   CHECK(eq.relative() < bound);
