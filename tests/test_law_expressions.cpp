@@ -18,6 +18,7 @@
 
 #include "dwell_slider_crank.hpp"
 #include "kinegen/codegen/analysis.hpp"
+#include "kinegen/codegen/check.hpp"
 #include "kinegen/codegen/functions.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/reference.hpp"
@@ -394,4 +395,19 @@ TEST_CASE("laws: analyze --forces balances a torque that follows a law", "[laws]
     ++rows;
   }
   CHECK(rows == 25);
+}
+
+TEST_CASE("laws: kinegen check's three methods agree with the symbolic derivatives", "[laws]") {
+  const auto model = cg::CompiledModel::from_file(mechanism_path());
+  for (double t : {0.0, 1.0, 2.0, 3.5}) {  // on a kink, inside the rises, on the dwell's end
+    cg::CheckOptions options;
+    options.samples = 10;
+    options.t = t;
+    const auto rows = cg::check_derivatives(*model, options);
+    CHECK(rows.size() == 9);
+    for (const auto& row : rows) {
+      INFO("t = " << t << ": " << row.block << " " << row.method << " " << row.max_rel);
+      CHECK(row.ok());
+    }
+  }
 }
