@@ -4,9 +4,8 @@
 // grid that lands exactly on every kink; the 40-digit reference against the double analysis;
 // the generated header in double and float; the complex step through the laws; the laws in
 // GiNaC (derivative, exact values); and a wrong argument count as an input error.
-#include <catch2/catch.hpp>
-
 #include <algorithm>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <complex>
 #include <filesystem>
@@ -198,8 +197,7 @@ TEST_CASE("laws: the 40-digit reference agrees with the double analysis", "[laws
   CHECK(exact.relative() < 1e-13);  // the formulas here are in double
 }
 
-TEMPLATE_TEST_CASE("laws: the generated header agrees with the analysis", "[laws]", double,
-                   float) {
+TEMPLATE_TEST_CASE("laws: the generated header agrees with the analysis", "[laws]", double, float) {
   using M = kinegen::models::dwell_slider_crank;
   using T = TestType;
   const auto model = cg::CompiledModel::from_file(mechanism_path());
@@ -246,8 +244,7 @@ TEMPLATE_TEST_CASE("laws: the generated header agrees with the analysis", "[laws
 }
 
 TEST_CASE("laws: a header without a law carries no motion_law kernel", "[laws]") {
-  const std::string header =
-      read_text(fs::path(KINEGEN_SOURCE_DIR) / "generated/slider_crank.hpp");
+  const std::string header = read_text(fs::path(KINEGEN_SOURCE_DIR) / "generated/slider_crank.hpp");
   REQUIRE(!header.empty());
   CHECK(header.find("motion_law") == std::string::npos);
 }
@@ -309,8 +306,7 @@ TEST_CASE("laws: GiNaC's kinegen_law differentiates within the family and evalua
     CHECK(ex(cg::kinegen_law(law, 0, 0)).is_equal(0));
     // 40 digits against the kernel in double at a point inside.
     const numeric v = cg::motion_law_high_precision(law, 1, numeric("0.3"));
-    CHECK(v.to_double() ==
-          Approx(kinegen::kernels::motion_law(law, 1, 0.3)).epsilon(1e-15));
+    CHECK(v.to_double() == Approx(kinegen::kernels::motion_law(law, 1, 0.3)).epsilon(1e-15));
   }
   // The polynomials stay exact at a rational argument: poly345(1/3) = 10/27 - 15/81 + 6/243.
   CHECK(cg::motion_law_high_precision(kinegen::kernels::kPoly345, 0, numeric(1, 3)) ==
@@ -354,8 +350,8 @@ TEST_CASE("laws: a wrong argument count is an error line with its YAML line, exi
     fs::remove(out);
     // --forces: loads are read only when they are asked for.
     const auto r =
-        kinegen::test::run_command({KINEGEN_EXE, "analyze", file.string(), "--t0", "0", "--t1",
-                                    "1", "--steps", "4", "--forces", "-o", out.string()});
+        kinegen::test::run_command({KINEGEN_EXE, "analyze", file.string(), "--t0", "0", "--t1", "1",
+                                    "--steps", "4", "--forces", "-o", out.string()});
     CAPTURE(r.err);
     CHECK(r.exit_code == 2);
     CHECK(r.err.rfind("error: " + file.string() + ":" + std::to_string(line) + ": " + c.item, 0) ==
@@ -370,9 +366,9 @@ TEST_CASE("laws: analyze --forces balances a torque that follows a law", "[laws]
   const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "laws";
   fs::create_directories(dir);
   const fs::path out = dir / "forces.csv";
-  const auto r = kinegen::test::run_command({KINEGEN_EXE, "analyze", mechanism_path(), "--t0", "-1",
-                                             "--t1", "5", "--steps", "24", "--forces", "-o",
-                                             out.string()});
+  const auto r =
+      kinegen::test::run_command({KINEGEN_EXE, "analyze", mechanism_path(), "--t0", "-1", "--t1",
+                                  "5", "--steps", "24", "--forces", "-o", out.string()});
   REQUIRE(r.exit_code == 0);
   std::istringstream in(read_text(out));
   std::string line;
