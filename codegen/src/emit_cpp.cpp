@@ -240,6 +240,10 @@ class FunctionPrinter {
       case OpKind::kAtan: return call("atan");
       case OpKind::kExp: return call("exp");
       case OpKind::kLog: return call("log");
+      case OpKind::kMotionLaw:  // the motion_law kernel (kernels/motion_law.hpp)
+        return {"_motion_law(" + std::to_string(n.law) + ", " + std::to_string(n.order) + ", " +
+                    print(n.args[0]).text + ")",
+                kAtom};
     }
     return {"?", kAtom};
   }
@@ -588,6 +592,19 @@ void emit_kernels(std::ostringstream& os, const std::string& code) {
     os << "  // ---- kinegen kernel " << name << " (kinegen/kernels/" << name << ".hpp)\n"
        << k.text << "  // ---- end of kinegen kernel " << name << "\n\n";
   }
+}
+
+// The kernels that expressions call (the motion laws), pasted at `at` (before the first
+// function) once the whole header is written, so that every function that calls one counts.
+std::string with_expression_kernels(std::string header, std::size_t at) {
+  if (header.find("_motion_law(", at) == std::string::npos) return header;
+  for (const auto& k : embedded::kKernels) {
+    if (std::string(k.name) != "motion_law") continue;
+    header.insert(
+        at, std::string("  // ---- kinegen kernel motion_law (kinegen/kernels/motion_law.hpp)\n") +
+                k.text + "  // ---- end of kinegen kernel motion_law\n\n");
+  }
+  return header;
 }
 
 // The block-linear kernel keeps a K x K matrix per block on the stack and instantiates its LU
@@ -2070,6 +2087,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     jac.push_back(e.value);
   }
   const int max_ops = options.max_function_ops, roll_min = options.roll_min;
+  const auto expression_kernels_at = static_cast<std::size_t>(os.tellp());
   os << "  // Phi(q, t)\n";
   emit_function_rolled_if(os, "phi", "nc", programs.phi, model.phi, row_group, symbols, false,
                           max_ops, roll_min);
@@ -2151,7 +2169,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     os << code.str();
   }
   os << "};\n\n}  // namespace " << options.name_space << "\n";
-  return os.str();
+  return with_expression_kernels(os.str(), expression_kernels_at);
 }
 
 }  // namespace kinegen::codegen

@@ -127,6 +127,9 @@ class Lowerer {
         n.kind = OpKind::kPow;
         n.args = {b, lower(exponent)};
       }
+    } else if (is_motion_law(e, n.law, n.order)) {
+      n.kind = OpKind::kMotionLaw;
+      n.args = {lower(e.op(2))};
     } else if (GiNaC::is_a<GiNaC::function>(e)) {
       const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
       const MathFunction* f = find_math_function(name);

@@ -22,7 +22,7 @@ using GiNaC::numeric;
 
 namespace {
 
-enum class Op { kConst, kVar, kAdd, kMul, kPowInt, kPow, kFunction };
+enum class Op { kConst, kVar, kAdd, kMul, kPowInt, kPow, kFunction, kMotionLaw };
 
 numeric require_real(const numeric& v, const char* what) {
   if (!v.is_real())
@@ -48,6 +48,7 @@ struct HighPrecisionEvaluator::Tape {
     numeric value;      // kConst
     int var = 0;        // kVar: q[0..nq), qd[nq..2nq), t at 2nq
     const MathFunction* function = nullptr;  // kFunction
+    int law = 0, order = 0;                  // kMotionLaw
   };
   std::vector<Node> nodes;
   std::vector<int> outputs;  // -1: identically zero
@@ -97,6 +98,9 @@ class TapeBuilder {
         n.op = Op::kPow;
         n.args.push_back(compile(expo, tape));
       }
+    } else if (is_motion_law(e, n.law, n.order)) {
+      n.op = Op::kMotionLaw;
+      n.args.push_back(compile(e.op(2), tape));
     } else if (GiNaC::is_a<GiNaC::function>(e)) {
       n.function = find_math_function(GiNaC::ex_to<GiNaC::function>(e).get_name());
       if (!n.function || e.nops() != 1)
@@ -207,6 +211,9 @@ Vector run_tape(Tape& tape, const std::vector<numeric>& inputs) {
         val[k] = n.function->partial ? require_real(v, n.function->name) : v;
         break;
       }
+      case Op::kMotionLaw:
+        val[k] = motion_law_high_precision(n.law, n.order, arg(0));
+        break;
     }
   }
   Vector out;

@@ -23,6 +23,7 @@ GiNaC::prototype_table allowed_functions() {
   GiNaC::prototype_table table;
   for (const auto& [proto, reader] : GiNaC::get_default_reader())
     if (find_math_function(proto.first) && proto.second == 1) table[proto] = reader;
+  add_motion_law_readers(table);
   return table;
 }
 
@@ -153,6 +154,7 @@ long double apply_function(const std::string& name, long double x) {
   if (name == "exp") return expl(x);
   if (name == "log") return logl(x);
   if (name == "sqrt") return sqrtl(x);
+  if (const int law = find_motion_law(name); law >= 0) return kernels::motion_law(law, 0, x);
   return NAN;
 }
 
@@ -259,6 +261,11 @@ class CostScanner {
       const std::string name = text_.substr(pos_, end - pos_);
       pos_ = end;
       if (take('(')) {
+        // GiNaC's reader takes a call without arguments for a call of any arity of that name
+        // and crashes on it (sin() read out of bounds), so it never gets one.
+        if (take(')'))
+          throw CostError("cannot read '" + text_ + "': no function \"" + name +
+                          "\" with 0 arguments");
         const Approx a = expr();
         if (!take(')')) throw Unreadable{};
         return {apply_function(name, a.v), a.known};
@@ -322,6 +329,10 @@ Approx approximate(const ex& e, const SymbolTable& s, const std::vector<GiNaC::n
       a = combine(a, b, sum ? a.v + b.v : a.v * b.v);
     }
     return a;
+  }
+  if (int law = 0, order = 0; is_motion_law(e, law, order)) {
+    const Approx a = approximate(e.op(2), s, values);
+    return {kernels::motion_law(law, order, a.v), a.known};
   }
   if (GiNaC::is_a<GiNaC::function>(e) && e.nops() == 1) {
     const Approx a = approximate(e.op(0), s, values);

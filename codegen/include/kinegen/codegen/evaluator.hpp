@@ -60,6 +60,9 @@ class ProgramEvaluator {
           v = n.exponent > 0 ? power(arg(0), n.exponent) : T(1) / power(arg(0), -n.exponent);
           break;
         case OpKind::kPow: v = pow(arg(0), arg(1)); break;
+        case OpKind::kMotionLaw:
+          v = kernels::motion_law(n.law, n.order, arg(0));
+          break;
         default:  // sqrt, sin, ... (functions.hpp)
           v = apply_function(n.kind, arg(0));
           break;

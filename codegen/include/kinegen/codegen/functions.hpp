@@ -3,6 +3,9 @@
 // it to, its value in CLN arithmetic (the reference) and, in apply_function below, in the std
 // arithmetic of the evaluator's scalar types. GiNaC's function of the same name is the one the
 // parser builds (symbolic.cpp takes it from GiNaC's reader table by this name).
+//
+// The motion laws (cycloidal, ...) are apart: each is one GiNaC function kinegen_law(law,
+// order, x), the order-th derivative of the law, so that differentiating stays in the family.
 #pragma once
 
 #include <ginac/ginac.h>
@@ -12,6 +15,7 @@
 #include <string>
 
 #include "kinegen/codegen/program.hpp"
+#include "kinegen/kernels/motion_law.hpp"
 
 namespace kinegen::codegen {
 
@@ -48,6 +52,42 @@ inline const MathFunction* math_function(OpKind op) {
     if (op == f.op) return &f;
   return nullptr;
 }
+
+// The built-in motion laws (mechanism format 6.3): `name(x)` in an expression is
+// kinegen_law(law, 0, x), law the kernel's number (kernels/motion_law.hpp).
+struct MotionLawName {
+  const char* name;
+  int law;
+};
+
+inline const MotionLawName kMotionLaws[] = {
+    {"cycloidal", kernels::kCycloidal},
+    {"harmonic", kernels::kHarmonic},
+    {"poly345", kernels::kPoly345},
+    {"poly4567", kernels::kPoly4567},
+};
+
+// The law called `name`, or -1.
+inline int find_motion_law(const std::string& name) {
+  for (const auto& l : kMotionLaws)
+    if (name == l.name) return l.law;
+  return -1;
+}
+
+// d^order/dx^order of a law at x, as a GiNaC function (law and order exact integers): its
+// derivative in x is kinegen_law(law, order + 1, x); evalf gives the value at the precision of
+// x (or Digits), exact for the polynomials at rational x; it prints as `poly345''(x)`.
+DECLARE_FUNCTION_3P(kinegen_law)
+
+// Whether `e` is a kinegen_law(law, order, x); then law and order are set.
+bool is_motion_law(const GiNaC::ex& e, int& law, int& order);
+
+// The law's value in CLN arithmetic at the precision of x (the reference; an exact x gets the
+// current Digits, the polynomials stay exact). Clamped on the real part, like the kernel.
+GiNaC::numeric motion_law_high_precision(int law, int order, const GiNaC::numeric& x);
+
+// The parser's readers of the laws' names, one argument each (symbolic.cpp).
+void add_motion_law_readers(GiNaC::prototype_table& table);
 
 // std::<name>(x) for a function's `op`, on any scalar type with std overloads (double, float,
 // std::complex); one case per row of kMathFunctions.

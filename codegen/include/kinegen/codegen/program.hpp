@@ -29,12 +29,14 @@ enum class OpKind {
   kAtan,
   kExp,
   kLog,
+  kMotionLaw,  // d^order/dx^order of motion law `law` at args[0] (kernels/motion_law.hpp)
 };
 
 struct Node {
   OpKind kind = OpKind::kConst;
   std::vector<int> args;
   int exponent = 0;   // kPowInt
+  int law = 0, order = 0;  // kMotionLaw
   double value = 0;   // kConst
   GiNaC::ex exact;    // kConst: the exact (or high-precision) value
   Input input{InputKind::kT, 0};  // kInput
