@@ -41,3 +41,11 @@ dir=$(mktemp -d)
 scripts/plot_analysis.sh "$dir/with_spring.csv" "$dir/without_spring.csv" --columns motor.effort \
   --ylabel "motor torque (N m)" -o "$out/four_bar_balanced_torque.png"
 rm -rf "$dir"
+# The press: its motor torque over one cycle, the forming force over the last 20 mm of stroke.
+dir=$(mktemp -d)
+"$kinegen" analyze examples/forces/press.yaml --t0 0 --t1 1 --steps 720 --forces -o "$dir/press.csv"
+scripts/plot_analysis.sh "$dir/press.csv" --columns motor.effort --ylabel "motor torque (N m)" \
+  -o "$out/press_torque.png"
+"$kinegen" animate examples/forces/press.yaml --t0 0 --t1 1 --steps 120 --forces --width 480 \
+  -o "$out/press_forces.svg"
+rm -rf "$dir"

@@ -477,3 +477,45 @@ drivers:
                         Catch::Contains("E2"));
   CHECK_FALSE(fs::exists(csv));
 }
+
+TEST_CASE("forces: the press example's motor work over a cycle is the forming work",
+          "[forces][laws]") {
+  // examples/forces/press.yaml: no gravity, so over one cycle (the kinetic energy back where
+  // it started) the motor's work, the integral of effort * omega, equals the work done against
+  // the forming force, the integral of -f_x * v_ram, each from its own columns: the torque
+  // from Phi_q^T lambda = Q, the force work from the kinematics and the load's formula
+  // (written out here with the 3-4-5 law).
+  const auto model = kc::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
+                                                  "/examples/forces/press.yaml");
+  const auto forces = kc::forces_for_analysis(*model);
+  const double r = 0.05, l = 0.2, f = 5000, contact = 0.02, ramp = 0.002, window = 0.05,
+               pi = std::acos(-1.0);
+  const auto poly345 = [](double x) {
+    x = std::clamp(x, 0.0, 1.0);
+    return x * x * x * (10 - 15 * x + 6 * x * x);
+  };
+  const int steps = 7200;
+  std::vector<double> motor, forming;
+  kc::ForceSolver solver(*model, forces);
+  kc::run_analysis(*model, {0, 1, steps}, [&](const kc::StateRow& row) {
+    std::vector<double> columns;
+    REQUIRE(solver.solve(row.t, row.q, row.qd, row.qdd, columns));
+    motor.push_back(columns[0] * row.qd[2]);  // motor.effort * crank rate
+    const double x = row.q[6], phi = row.q[2];
+    const double fx = -f * poly345((x - (r + l - contact)) / ramp) *
+                      (1 - poly345((phi - 2 * pi) / window));
+    forming.push_back(-fx * row.qd[6]);
+  });
+  REQUIRE(motor.size() == steps + 1u);
+  // Simpson's rule over the cycle.
+  const auto integral = [&](const std::vector<double>& v) {
+    double s = v.front() + v.back();
+    for (int k = 1; k < steps; ++k) s += (k % 2 ? 4 : 2) * v[k];
+    return s / (3.0 * steps);
+  };
+  const double w_motor = integral(motor), w_forming = integral(forming);
+  INFO("motor work " << w_motor << " J, forming work " << w_forming << " J");
+  // About F (contact - ramp / 2) = 95 J, less what the tool gives back as the window closes.
+  CHECK(w_forming == Approx(95).epsilon(0.01));
+  CHECK(w_motor == Approx(w_forming).epsilon(1e-6));
+}
