@@ -161,3 +161,41 @@ def test_forces_equal_command_line_bit_for_bit(source, tmp_path):
     assert list(got.keys()) == header
     assert "motor.effort" in header and header.index("motor.effort") < header.index("d(rocker.x)/d(k)")
     assert all(np.array_equal(got[h], values[:, k]) for k, h in enumerate(header))
+
+
+def test_derived_parameters(tmp_path):
+    """A parameter derived from another moves with it; .parameters lists it with its value;
+    a sensitivity to a derived one treats it as overridden, bit for bit with the command line."""
+    path = tmp_path / "derived.yaml"
+    path.write_text("""name: derived
+parameters:
+  r: 1.0
+  l: "2.5*r"
+  omega: 1.0
+bodies:
+  - {name: crank, q0: [0, 0, 0]}
+  - {name: rod, q0: [1, 0, 0]}
+  - {name: slider, q0: [3.5, 0, 0]}
+joints:
+  - {type: revolute, i: ground, j: crank}
+  - {type: revolute, i: crank, j: rod, si: ["r", 0]}
+  - {type: revolute, i: rod, j: slider, si: ["l", 0]}
+  - {type: translational, i: ground, j: slider, vi: [1, 0]}
+drivers:
+  - {type: absolute_angle, body: crank, f: "omega*t"}
+""")
+    m = kinegen.Mechanism(str(path), params={"r": 2})
+    assert list(m.parameters) == ["r", "l", "omega"]
+    assert m.parameters["l"] == 5.0
+    got = m.analyze(0, 1, 4, sensitivity=["l", "r"])
+    out = tmp_path / "out.csv"
+    r = run("analyze", str(path), "--param", "r=2", "--t0", "0", "--t1", "1", "--steps", "4",
+            "-o", str(out), "--sensitivity", "l,r")
+    assert r.returncode == 0, r.stderr
+    header, values = read_csv(out)
+    assert list(got) == header
+    assert all(np.array_equal(got[h], values[:, k]) for k, h in enumerate(header))
+    # l held at 5 (its formula dropped): d(slider.x)/d(l) = l / sqrt(l^2 - r^2 sin^2 th) at
+    # th = 0 is 1, and r's own sensitivity no longer moves l: d(slider.x)/d(r) = cos th = 1.
+    assert got["d(slider.x)/d(l)"][0] == pytest.approx(1.0, abs=1e-12)
+    assert got["d(slider.x)/d(r)"][0] == pytest.approx(1.0, abs=1e-12)
