@@ -80,8 +80,9 @@ class Loader {
     m.source = source_;
     m.name = name_of(root["name"], "name");
     m.name_loc = loc_of(root["name"]);
-    if (root["parameters"]) read_parameters(root["parameters"], m);
-    if (root["definitions"]) read_definitions(root["definitions"], m);
+    if (root["parameters"]) read_named(root["parameters"], "parameters", "value", m.parameters);
+    if (root["definitions"])
+      read_named(root["definitions"], "definitions", "expression", m.definitions);
     if (!root["bodies"]) fail("file", loc_of(root), "missing key 'bodies' (the moving bodies)");
     read_bodies(root["bodies"], m);
     read_constraints(root["joints"], "joints", false, m);
@@ -168,27 +169,18 @@ class Loader {
     return Vec2{expr_of(node[0], item), expr_of(node[1], item)};
   }
 
-  void read_parameters(const YAML::Node& node, Mechanism& m) {
+  // `parameters:` and `definitions:`: a mapping of names to expressions, in file order.
+  template <class Named>
+  void read_named(const YAML::Node& node, const std::string& section, const std::string& what,
+                  std::vector<Named>& out) {
     if (node.IsNull()) return;
-    if (!node.IsMap()) fail("parameters", loc_of(node), "expected a mapping name: value");
+    if (!node.IsMap()) fail(section, loc_of(node), "expected a mapping name: " + what);
     std::set<std::string> seen;
     for (auto it = node.begin(); it != node.end(); ++it) {
-      const std::string name = name_of(it->first, "parameters");
-      const std::string item = "parameters." + name;
-      if (!seen.insert(name).second) fail(item, loc_of(it->first), "duplicate parameter");
-      m.parameters.push_back({name, expr_of(it->second, item), loc_of(it->first)});
-    }
-  }
-
-  void read_definitions(const YAML::Node& node, Mechanism& m) {
-    if (node.IsNull()) return;
-    if (!node.IsMap()) fail("definitions", loc_of(node), "expected a mapping name: expression");
-    std::set<std::string> seen;
-    for (auto it = node.begin(); it != node.end(); ++it) {
-      const std::string name = name_of(it->first, "definitions");
-      const std::string item = "definitions." + name;
-      if (!seen.insert(name).second) fail(item, loc_of(it->first), "duplicate definition");
-      m.definitions.push_back({name, expr_of(it->second, item), loc_of(it->first)});
+      const std::string name = name_of(it->first, section);
+      const std::string item = section + "." + name;
+      if (!seen.insert(name).second) fail(item, loc_of(it->first), "duplicate name");
+      out.push_back({name, expr_of(it->second, item), loc_of(it->first)});
     }
   }
 

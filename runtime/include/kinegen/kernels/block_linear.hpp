@@ -66,44 +66,56 @@ struct BlockLinearKernel : LuKernel {
     return true;
   }
 
-  // Phi_q X = B: x and b hold m columns (column j at x + j * nq, b + j * nq; x must not
-  // overlap b). Blocks in solve order; row r of block k subtracts its entries in earlier
-  // blocks' coordinates, which are solved by then.
-  template <class S, class T, class R>
-  static BlockReport<R> _block_forward(const T* jac, const T* b, T* x, int m,
-                                       const BasicBlockOptions<R>& o) noexcept {
+  // Calls solve(size, k, a, piv) for each block k, in solve order or (kReverse) backwards,
+  // with a and piv its factors and size its std::integral_constant size; stops at the first
+  // block that fails to factor or whose solve returns false (a non-finite solution: status 3).
+  template <class S, bool kReverse, class T, class R, class F>
+  static BlockReport<R> _each_factored_block(const T* jac, const BasicBlockOptions<R>& o,
+                                             F&& solve) noexcept {
     BlockReport<R> r;
     bool ok = true;
-    for (int k = 0; ok && k < S::num_blocks; ++k) {
-      const int b0 = S::block_begin[k];
-      _with_block_size<S>(S::block_begin[k + 1] - b0, [&](auto size) {
+    for (int n = 0; ok && n < S::num_blocks; ++n) {
+      const int k = kReverse ? S::num_blocks - 1 - n : n;
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
         constexpr int K = decltype(size)::value;
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        for (int col = 0; col < m; ++col) {
-          const T* bc = b + col * S::nq;
-          T* xc = x + col * S::nq;
-          T v[K];
-          for (int i = 0; i < K; ++i) {
-            const int row = S::block_rows[b0 + i];
-            v[i] = bc[row];
-            for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
-              const int c = S::jac_cols[e];
-              if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
-            }
-          }
-          _lu_solve<K>(a, piv, v);
-          // A non-finite right-hand side or entry outside the block shows only here.
-          if (!(ok = _all_finite<K>(v))) {
-            r = _fail(r, 3, k);
-            return;
-          }
-          for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
-        }
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
       });
     }
     return r;
+  }
+
+  // Phi_q X = B: x and b hold m columns (column j at x + j * nq, b + j * nq; x must not
+  // overlap b). Blocks in solve order; row r of block k subtracts its entries in earlier
+  // blocks' coordinates, which are solved by then. A non-finite right-hand side or entry
+  // outside the block shows only in the block's solution, which is checked.
+  template <class S, class T, class R>
+  static BlockReport<R> _block_forward(const T* jac, const T* b, T* x, int m,
+                                       const BasicBlockOptions<R>& o) noexcept {
+    return _each_factored_block<S, false>(jac, o, [&](auto size, int k, const T* a,
+                                                      const int* piv) {
+      constexpr int K = decltype(size)::value;
+      const int b0 = S::block_begin[k];
+      for (int col = 0; col < m; ++col) {
+        const T* bc = b + col * S::nq;
+        T* xc = x + col * S::nq;
+        T v[K];
+        for (int i = 0; i < K; ++i) {
+          const int row = S::block_rows[b0 + i];
+          v[i] = bc[row];
+          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+            const int c = S::jac_cols[e];
+            if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
+          }
+        }
+        _lu_solve<K>(a, piv, v);
+        if (!_all_finite<K>(v)) return false;
+        for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
+      }
+      return true;
+    });
   }
 
   // Phi_q^T Y = B: y (by row) and b (by coordinate) hold m columns as in _block_forward; b is
@@ -113,37 +125,28 @@ struct BlockLinearKernel : LuKernel {
   template <class S, class T, class R>
   static BlockReport<R> _block_transposed(const T* jac, T* b, T* y, int m,
                                           const BasicBlockOptions<R>& o) noexcept {
-    BlockReport<R> r;
-    bool ok = true;
-    for (int k = S::num_blocks - 1; ok && k >= 0; --k) {
+    return _each_factored_block<S, true>(jac, o, [&](auto size, int k, const T* a,
+                                                     const int* piv) {
+      constexpr int K = decltype(size)::value;
       const int b0 = S::block_begin[k];
-      _with_block_size<S>(S::block_begin[k + 1] - b0, [&](auto size) {
-        constexpr int K = decltype(size)::value;
-        T a[K * K];
-        int piv[K];
-        if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        for (int col = 0; col < m; ++col) {
-          T* bc = b + col * S::nq;
-          T* yc = y + col * S::nq;
-          T v[K];
-          for (int j = 0; j < K; ++j) v[j] = bc[S::block_cols[b0 + j]];
-          _lu_solve_transposed<K>(a, piv, v);
-          if (!(ok = _all_finite<K>(v))) {
-            r = _fail(r, 3, k);
-            return;
-          }
-          for (int i = 0; i < K; ++i) {
-            const int row = S::block_rows[b0 + i];
-            yc[row] = v[i];
-            for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
-              const int c = S::jac_cols[e];
-              if (S::coordinate_block[c] != k) bc[c] -= jac[e] * v[i];
-            }
+      for (int col = 0; col < m; ++col) {
+        T* bc = b + col * S::nq;
+        T* yc = y + col * S::nq;
+        T v[K];
+        for (int j = 0; j < K; ++j) v[j] = bc[S::block_cols[b0 + j]];
+        _lu_solve_transposed<K>(a, piv, v);
+        if (!_all_finite<K>(v)) return false;
+        for (int i = 0; i < K; ++i) {
+          const int row = S::block_rows[b0 + i];
+          yc[row] = v[i];
+          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+            const int c = S::jac_cols[e];
+            if (S::coordinate_block[c] != k) bc[c] -= jac[e] * v[i];
           }
         }
-      });
-    }
-    return r;
+      }
+      return true;
+    });
   }
   // kinegen-kernel-end block_linear
 };
