@@ -519,3 +519,46 @@ TEST_CASE("forces: the press example's motor work over a cycle is the forming wo
   CHECK(w_forming == Approx(95).epsilon(0.01));
   CHECK(w_motor == Approx(w_forming).epsilon(1e-6));
 }
+
+TEST_CASE("forces: power balance over a turn of the balanced four-bar example", "[forces]") {
+  // examples/forces/four_bar_balanced.yaml, every row of a turn: the motor's power (effort
+  // times crank rate) plus gravity's and the spring-damper's equals the rate of the kinetic
+  // energy, each written out here from the file's data and the rows' kinematics.
+  const auto model = kc::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
+                                                  "/examples/forces/four_bar_balanced.yaml");
+  const auto forces = kc::forces_for_analysis(*model);
+  const double a = 0.1, b = 0.35, c = 0.25, k = 400, damping = 0.5, length0 = 0.15, g = 9.81;
+  const double mass[3] = {0.4, 1.2, 0.9}, inertia[3] = {0.0004, 0.012, 0.005};
+  const Eigen::Vector2d com[3] = {{a / 2, 0}, {b / 2, 0.02}, {c / 2, 0}};
+  const Eigen::Vector2d anchor(0.3, 0.4), on_rocker(c / 2, 0);
+  kc::ForceSolver solver(*model, forces);
+  double largest = 0, worst = 0;
+  kc::run_analysis(*model, {0, 1, 360}, [&](const kc::StateRow& row) {
+    std::vector<double> columns;
+    REQUIRE(solver.solve(row.t, row.q, row.qd, row.qdd, columns));
+    double kinetic_rate = 0, gravity = 0;
+    for (int body = 0; body < 3; ++body) {
+      const double phi = row.q[3 * body + 2], w = row.qd[3 * body + 2],
+                   al = row.qdd[3 * body + 2];
+      const Eigen::Vector2d s = rot(phi, com[body]), perp(-s[1], s[0]);
+      const Eigen::Vector2d v = row.qd.segment<2>(3 * body) + w * perp;
+      const Eigen::Vector2d acc = row.qdd.segment<2>(3 * body) + al * perp - w * w * s;
+      kinetic_rate += mass[body] * v.dot(acc) + inertia[body] * w * al;
+      gravity += -mass[body] * g * v[1];
+    }
+    // The spring from the ground anchor to the rocker's middle: tension k (L - L0) + c dL/dt
+    // pulls the ends together, so its power is -tension dL/dt.
+    const double phi = row.q[8], w = row.qd[8];
+    const Eigen::Vector2d s = rot(phi, on_rocker), perp(-s[1], s[0]);
+    const Eigen::Vector2d d = row.q.segment<2>(6) + s - anchor;
+    const Eigen::Vector2d v = row.qd.segment<2>(6) + w * perp;
+    const double length = d.norm(), length_rate = d.dot(v) / length;
+    const double spring = -(k * (length - length0) + damping * length_rate) * length_rate;
+    const double motor = columns[0] * row.qd[2];
+    largest = std::max({largest, std::abs(kinetic_rate), std::abs(gravity), std::abs(spring),
+                        std::abs(motor)});
+    worst = std::max(worst, std::abs(motor + gravity + spring - kinetic_rate));
+  });
+  INFO("largest power " << largest << " W, worst imbalance " << worst << " W");
+  CHECK(worst <= 1e-10 * largest);
+}
