@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "four_bar_balanced.hpp"
+#include "press.hpp"
 #include "slider_mass.hpp"
 
 namespace {
@@ -102,6 +103,8 @@ int main() {
               "solve_forces", "columns", "all", "f/step");
   run<kinegen::models::four_bar_balanced, double>("four_bar_balanced", 1.0);
   run<kinegen::models::four_bar_balanced, float>("four_bar_balanced", 1.0);
+  run<kinegen::models::press, double>("press", 1.0);
+  run<kinegen::models::press, float>("press", 1.0);
   run<kinegen::models::slider_mass, double>("slider_mass", 2 * M_PI / 3.0);
   run<kinegen::models::slider_mass, float>("slider_mass", 2 * M_PI / 3.0);
   return 0;
