@@ -15,6 +15,7 @@
 #include <complex>
 #include <cstring>
 #include <filesystem>
+#include <kinegen/solver.hpp>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -311,4 +312,29 @@ TEST_CASE("--fold-params headers have no sensitivities", "[sensitivity][generate
   static_assert(four_bar_folded::num_params == four_bar::num_params);
   static_assert(four_bar::has_sensitivity && four_bar::num_params == 7);
   SUCCEED();
+}
+
+TEST_CASE("Solver::sensitivity is the generated solve_sensitivity", "[sensitivity][generated]") {
+  using M = four_bar;
+  M::Params p;
+  p.b = 3.4;  // the solver's own params, not the defaults
+  kinegen::Solver<M> solver(p);
+  static_assert(kinegen::Solver<M>::kSensitivity &&
+                !kinegen::Solver<four_bar_folded>::kSensitivity);
+  auto q = solver.initial_estimate();
+  REQUIRE(solver.position(q, 0.3));
+  kinegen::Solver<M>::SensitivityMatrix dq_dp;
+  REQUIRE(solver.sensitivity(q, 0.3, dq_dp));
+  std::array<double, M::nq * M::num_params> direct;
+  REQUIRE(M::solve_sensitivity(q.data(), 0.3, p, direct.data(), M::BlockOptions{}).status == 0);
+  for (int k = 0; k < M::nq * M::num_params; ++k) CHECK(dq_dp.data()[k] == direct[k]);
+  // At the toggle of the dead-centre test: kSingular, and no stale values.
+  M::Params toggle;
+  toggle.c = 1.5;
+  kinegen::Solver<M> at_toggle(toggle);
+  kinegen::Solver<M>::Vector qt;
+  qt << 0, 0, 0, 1, 0, 0, 3, 0, 0;
+  const auto r = at_toggle.sensitivity(qt, 0.0, dq_dp);
+  CHECK(r.status == kinegen::Status::kSingular);
+  CHECK(std::isnan(dq_dp(0, 0)));
 }
