@@ -16,11 +16,11 @@
 #include <string>
 #include <vector>
 
+#include "four_bar.hpp"
 #include "kinegen/codegen/analysis.hpp"
 #include "kinegen/codegen/evaluator.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/sensitivity.hpp"
-#include "four_bar.hpp"
 #include "offset_slider_crank.hpp"
 #include "quick_return.hpp"
 #include "slider_crank.hpp"
@@ -121,7 +121,8 @@ int main() {
     std::printf("%-20s %6d %10.0f %10.0f %12.0f | %12.0f %14.0f\n", name, np, plain, with,
                 (with - plain) / np, phi_p_ns, solve_ns);
   }
-  std::printf("\ngenerated headers (solve_step along the turn; solve_sensitivity at its positions)\n");
+  std::printf(
+      "\ngenerated headers (solve_step along the turn; solve_sensitivity at its positions)\n");
   std::printf("%-20s %6s %10s %10s %12s\n", "model", "params", "step ns", "sens ns", "ns/param");
   generated<kinegen::models::slider_crank>("slider_crank");
   generated<kinegen::models::offset_slider_crank>("offset_slider_crank");

@@ -1076,8 +1076,8 @@ struct offset_slider_crank {
   static constexpr int sensitivity_work_size = jac_nnz + nc * num_params;
 
   // Sensitivities of a solved position to the parameters: dq_dp[k * nq + i] = dq_i/dp_k
-  // (nq x num_params, column-major) solves Phi_q dq/dp = -Phi_p at q, t, p, where q is a
-  // converged solve_position (it is not re-checked). Phi_q is factored block by block,
+  // (nq x num_params, column-major) solves Phi_q dq/dp = -Phi_p at q, t, p, where q
+  // is a converged solve_position (not re-checked). Phi_q is factored block by block,
   // once for all parameters (kinegen/kernels/block_linear.hpp); a singular or
   // ill-conditioned block (rcond at most options.min_rcond) fails with status 2 and its
   // index, a non-finite value with status 3, and dq_dp is then incomplete.
