@@ -42,7 +42,7 @@ namespace fs = std::filesystem;
 using namespace kinegen::models;
 using Complex = std::complex<double>;
 
-// Bounds, with the largest errors measured when they were set (g++ 14, x86-64): closed forms
+// Bounds, with the largest errors measured when they were set (g++ 12, x86-64): closed forms
 // 2.2e-16 and the in-process solve 7.4e-16, both rounding (kappa eps); central differences
 // with h = 1e-3 max(1, |p|) and one Richardson step (truncation ~ h^4, rounding ~ kappa eps /
 // h) 5.5e-11; float 7.4e-8 absolute.
