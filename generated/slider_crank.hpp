@@ -137,6 +137,7 @@ struct slider_crank {
   static constexpr std::array<int, nq> coordinate_block = {0, 1, 2, 5, 3, 4};
   static constexpr std::array<int, nq> coordinate_slot = {0, 1, 2, 5, 3, 4};
   static constexpr std::array<int, nc + 1> jac_row_begin = {0, 1, 2, 6, 10, 11, 12};
+  using _model = slider_crank;
 
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
   // The real type of a scalar: T itself, or the value_type of std::complex<T>.
@@ -1003,7 +1004,7 @@ struct slider_crank {
     phi_q(q, t, p, jac);
     phi_p(q, t, p, rhs);
     for (int k = 0; k < nc * num_params; ++k) rhs[k] = -rhs[k];
-    return _block_forward<slider_crank>(jac, rhs, dq_dp, num_params, _options_as<R>(options));
+    return _block_forward<_model>(jac, rhs, dq_dp, num_params, _options_as<R>(options));
   }
   // The same with the work space on the stack: sizeof(T) * sensitivity_work_size bytes,
   // plus one block's matrix (max_block_size^2 T's) in the kernel.

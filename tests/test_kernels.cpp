@@ -359,7 +359,7 @@ TEST_CASE("generated headers carry the kernel text unchanged", "[kernels]") {
   CHECK(read(root / "generated/four_bar.hpp").find("kinegen kernel lu") != std::string::npos);
   std::string slider = read(root / "generated/slider_crank.hpp");
   CHECK(slider.find("kinegen kernel lu") != std::string::npos);
-  CHECK(slider.find("_block_forward<slider_crank>(") != std::string::npos);
+  CHECK(slider.find("_block_forward<_model>(") != std::string::npos);
   for (const char* name : kernels) {  // the code outside the kernels
     const std::string begin = std::string("// ---- kinegen kernel ") + name + " (";
     const std::string end = std::string("// ---- end of kinegen kernel ") + name + "\n";

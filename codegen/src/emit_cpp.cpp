@@ -600,7 +600,7 @@ bool linear_blocks_supported(const Structure& st) {
 }
 
 // The structure tables the block_linear kernel reads (kernels/block_linear.hpp).
-void emit_structure_tables(std::ostringstream& os, const Structure& st,
+void emit_structure_tables(std::ostringstream& os, const std::string& name, const Structure& st,
                            const ModelPrograms& programs) {
   std::vector<std::string> begin{"0"}, rows, cols, block(programs.nq), slot(programs.nq);
   for (std::size_t k = 0; k < st.order.blocks.size(); ++k) {
@@ -632,7 +632,10 @@ void emit_structure_tables(std::ostringstream& os, const Structure& st,
      << "  static constexpr std::array<int, nq> coordinate_block = {" << join(block) << "};\n"
      << "  static constexpr std::array<int, nq> coordinate_slot = {" << join(slot) << "};\n"
      << "  static constexpr std::array<int, nc + 1> jac_row_begin = {" << join(row_begin)
-     << "};\n\n";
+     << "};\n"
+     // The kernel's S, named so that a function parameter named like the model (q, options)
+     // cannot hide it; no model's name starts with '_'.
+     << "  using _model = " << name << ";\n\n";
 }
 
 // ---- Parameter sensitivities (spec 6.6): Phi_p and dq/dp = -Phi_q^-1 Phi_p through the
@@ -649,7 +652,7 @@ std::vector<int> constraint_groups(const SymbolicModel& model) {
 
 // num_params, has_sensitivity, phi_p and solve_sensitivity. With --fold-params the code does
 // not read Params, so there is nothing to differentiate: only the flags, false.
-void emit_sensitivity(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
+void emit_sensitivity(std::ostringstream& os, const SymbolTable& symbols,
                       const SymbolicModel& model, const EmitOptions& options) {
   const int np = symbols.num_params();
   os << "\n  // Parameter sensitivities (spec 6.6). num_params: the members of Params, in order\n"
@@ -699,8 +702,7 @@ void emit_sensitivity(std::ostringstream& os, const Mechanism& m, const SymbolTa
      << "    phi_q(q, t, p, jac);\n"
      << "    phi_p(q, t, p, rhs);\n"
      << "    for (int k = 0; k < nc * num_params; ++k) rhs[k] = -rhs[k];\n"
-     << "    return _block_forward<" << m.name
-     << ">(jac, rhs, dq_dp, num_params, _options_as<R>(options));\n"
+     << "    return _block_forward<_model>(jac, rhs, dq_dp, num_params, _options_as<R>(options));\n"
      << "  }\n"
      << "  // The same with the work space on the stack: sizeof(T) * sensitivity_work_size bytes,\n"
      << "  // plus one block's matrix (max_block_size^2 T's) in the kernel.\n"
@@ -2032,11 +2034,11 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     // sensitivities and kinetostatics append their functions here.
     std::ostringstream linear;
     if (linear_blocks_supported(st)) {
-      emit_sensitivity(linear, m, symbols, model, options);
+      emit_sensitivity(linear, symbols, model, options);
       // (force functions)
     }
     if (!linear.str().empty()) {
-      emit_structure_tables(os, st, programs);
+      emit_structure_tables(os, m.name, st, programs);
       code << linear.str();
     }
     emit_kernels(os, code.str());
