@@ -4,6 +4,9 @@
 //  2. The parts, timed alone at a solved position: evaluating Phi_p (all parameters at once),
 //     and one solve with an existing LU of Phi_q per parameter (what the analysis does through
 //     the velocity's factorization), against the 3601-row step.
+//  3. The generated headers (embedded use): ns per solve_step along a 3600-step crank turn
+//     (from the previous step's q) against ns per solve_sensitivity at the same solved
+//     positions (phi_q, phi_p and the block solve for all parameters), and that per parameter.
 // Prints numbers; not a test. Run: build/bench/bench_sensitivity
 #include <Eigen/Dense>
 #include <algorithm>
@@ -13,10 +16,14 @@
 #include <string>
 #include <vector>
 
+#include "four_bar.hpp"
 #include "kinegen/codegen/analysis.hpp"
 #include "kinegen/codegen/evaluator.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/sensitivity.hpp"
+#include "offset_slider_crank.hpp"
+#include "quick_return.hpp"
+#include "slider_crank.hpp"
 
 namespace cg = kinegen::codegen;
 
@@ -38,6 +45,35 @@ double ns_per_row(const cg::CompiledModel& model, const cg::SensitivityModel* se
       model, {0, 2 * std::acos(-1.0), kSteps}, [&](const cg::StateRow& row) { sink += row.q[0]; },
       options);
   return ns_since(start) / (kSteps + 1);
+}
+
+template <class M>
+void generated(const char* name) {
+  const typename M::Params p{};
+  const typename M::BlockOptions o{};
+  const double dt = 2 * std::acos(-1.0) / kSteps;
+  std::vector<double> qs((kSteps + 1) * M::nq), dq(M::nq * M::num_params);
+  double q[M::nq], qd[M::nq], qdd[M::nq];
+  std::copy(M::q0.begin(), M::q0.end(), q);
+  double step = 1e300, sens = 1e300;
+  for (int r = 0; r < 15; ++r) {
+    std::copy(M::q0.begin(), M::q0.end(), q);
+    auto start = Clock::now();
+    for (int k = 0; k <= kSteps; ++k) {
+      const auto report = M::solve_step(q, k * dt, p, qd, qdd, o);
+      sink += report.status + qdd[0];
+      std::copy(q, q + M::nq, qs.begin() + k * M::nq);
+    }
+    step = std::min(step, ns_since(start) / (kSteps + 1));
+    start = Clock::now();
+    for (int k = 0; k <= kSteps; ++k) {
+      const auto report = M::solve_sensitivity(qs.data() + k * M::nq, k * dt, p, dq.data(), o);
+      sink += report.status + dq[0];
+    }
+    sens = std::min(sens, ns_since(start) / (kSteps + 1));
+  }
+  std::printf("%-20s %6d %10.0f %10.0f %12.1f\n", name, M::num_params, step, sens,
+              sens / M::num_params);
 }
 
 }  // namespace
@@ -85,5 +121,12 @@ int main() {
     std::printf("%-20s %6d %10.0f %10.0f %12.0f | %12.0f %14.0f\n", name, np, plain, with,
                 (with - plain) / np, phi_p_ns, solve_ns);
   }
+  std::printf(
+      "\ngenerated headers (solve_step along the turn; solve_sensitivity at its positions)\n");
+  std::printf("%-20s %6s %10s %10s %12s\n", "model", "params", "step ns", "sens ns", "ns/param");
+  generated<kinegen::models::slider_crank>("slider_crank");
+  generated<kinegen::models::offset_slider_crank>("offset_slider_crank");
+  generated<kinegen::models::four_bar>("four_bar");
+  generated<kinegen::models::quick_return>("quick_return");
   if (sink == 12345.678) std::puts("");  // keeps the work
 }

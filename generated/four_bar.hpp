@@ -152,6 +152,17 @@ struct four_bar {
   // coordinate whose sin or cos the model uses).
   static constexpr int trig_cache_size = 9;
 
+  // The block structure as tables, for the linear solves with Phi_q after a position
+  // solve (kinegen/kernels/block_linear.hpp): each block's rows and coordinates in solve
+  // order, each coordinate's block and place, each row's first Phi_q entry.
+  static constexpr std::array<int, num_blocks + 1> block_begin = {0, 1, 2, 3, 4, 5, 6, 7, 9};
+  static constexpr std::array<int, nc> block_rows = {0, 1, 8, 2, 3, 6, 7, 4, 5};
+  static constexpr std::array<int, nq> block_cols = {0, 1, 2, 3, 4, 6, 7, 5, 8};
+  static constexpr std::array<int, nq> coordinate_block = {0, 1, 2, 3, 4, 7, 5, 6, 7};
+  static constexpr std::array<int, nq> coordinate_slot = {0, 1, 2, 3, 4, 7, 5, 6, 8};
+  static constexpr std::array<int, nc + 1> jac_row_begin = {0, 1, 2, 5, 8, 12, 16, 17, 18, 19};
+  using _model = four_bar;
+
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
   // The real type of a scalar: T itself, or the value_type of std::complex<T>.
   template <class T, class = void>
@@ -563,6 +574,153 @@ struct four_bar {
   }
   // ---- end of kinegen kernel newton
 
+  // ---- kinegen kernel block_linear (kinegen/kernels/block_linear.hpp)
+  // S is the model; it gives the structure tables: block_begin (num_blocks + 1 offsets into
+  // block_rows and block_cols, which list each block's rows and coordinates in solve order),
+  // coordinate_block and coordinate_slot (each coordinate's block and place in block_cols),
+  // jac_row_begin (each row's first entry of jac_rows / jac_cols, which are sorted by row),
+  // and coordinate_scales. jac holds Phi_q at those entries. Each block is factored once for
+  // all m right-hand sides; a singular, ill-conditioned (rcond below options.min_rcond) or
+  // non-finite block fails with status 2 or 3 and its index, and the report's rcond is the
+  // smallest of any block.
+
+  // Calls f(std::integral_constant<int, K>) for K == n, 1 <= n <= S::max_block_size, so that
+  // each block size gets the fixed-size LU.
+  template <class S, int K = 1, class F>
+  static void _with_block_size(int n, F&& f) noexcept {
+    if constexpr (K <= S::max_block_size) {
+      if (n == K) {
+        f(std::integral_constant<int, K>{});
+      } else {
+        _with_block_size<S, K + 1>(n, f);
+      }
+    }
+  }
+
+  // Gathers block k (K x K, row-major: its rows by its coordinates) from jac and factors it.
+  // False when it is singular, ill-conditioned or not finite (r records why).
+  template <class S, int K, class T, class R>
+  static bool _block_factor(int k, const T* jac, T* a, int* piv, BlockReport<R>& r,
+                            const R& min_rcond) noexcept {
+    const int b0 = S::block_begin[k];
+    for (int i = 0; i < K * K; ++i) a[i] = T(0);
+    for (int i = 0; i < K; ++i) {
+      const int row = S::block_rows[b0 + i];
+      for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+        const int c = S::jac_cols[e];
+        if (S::coordinate_block[c] == k) a[i * K + (S::coordinate_slot[c] - b0)] = jac[e];
+      }
+    }
+    // Rows are equilibrated by their largest scaled entry in all of Phi_q's row, not only in
+    // the block: a block entry tiny next to the rest of its row (a dead centre in a 1 x 1
+    // block) is a nearly singular Phi_q, which the block on its own would not show.
+    R d[K], row_max[K];
+    for (int j = 0; j < K; ++j) d[j] = R(S::coordinate_scales[S::block_cols[b0 + j]]);
+    for (int i = 0; i < K; ++i) {
+      const int row = S::block_rows[b0 + i];
+      row_max[i] = R(0);
+      for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e)
+        row_max[i] =
+            std::max(row_max[i], _mag(jac[e]) * R(S::coordinate_scales[S::jac_cols[e]]));
+    }
+    const R ratio = _lu_factor<K>(a, piv);
+    if (!(ratio == ratio)) {
+      r = _fail(r, 3, k);
+      return false;
+    }
+    const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
+    r.rcond = std::min(r.rcond, rcond);
+    if (!(rcond > min_rcond)) {
+      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      return false;
+    }
+    return true;
+  }
+
+  // Calls solve(size, k, a, piv) for each block k, in solve order or (kReverse) backwards,
+  // with a and piv its factors and size its std::integral_constant size; stops at the first
+  // block that fails to factor or whose solve returns false (a non-finite solution: status 3).
+  template <class S, bool kReverse, class T, class R, class F>
+  static BlockReport<R> _each_factored_block(const T* jac, const BasicBlockOptions<R>& o,
+                                             F&& solve) noexcept {
+    BlockReport<R> r;
+    bool ok = true;
+    for (int n = 0; ok && n < S::num_blocks; ++n) {
+      const int k = kReverse ? S::num_blocks - 1 - n : n;
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        constexpr int K = decltype(size)::value;
+        T a[K * K];
+        int piv[K];
+        if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+      });
+    }
+    return r;
+  }
+
+  // Phi_q X = B: x and b hold m columns (column j at x + j * nq, b + j * nq; x must not
+  // overlap b). Blocks in solve order; row r of block k subtracts its entries in earlier
+  // blocks' coordinates, which are solved by then. A non-finite right-hand side or entry
+  // outside the block shows only in the block's solution, which is checked.
+  template <class S, class T, class R>
+  static BlockReport<R> _block_forward(const T* jac, const T* b, T* x, int m,
+                                       const BasicBlockOptions<R>& o) noexcept {
+    return _each_factored_block<S, false>(jac, o, [&](auto size, int k, const T* a,
+                                                      const int* piv) {
+      constexpr int K = decltype(size)::value;
+      const int b0 = S::block_begin[k];
+      for (int col = 0; col < m; ++col) {
+        const T* bc = b + col * S::nq;
+        T* xc = x + col * S::nq;
+        T v[K];
+        for (int i = 0; i < K; ++i) {
+          const int row = S::block_rows[b0 + i];
+          v[i] = bc[row];
+          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+            const int c = S::jac_cols[e];
+            if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
+          }
+        }
+        _lu_solve<K>(a, piv, v);
+        if (!_all_finite<K>(v)) return false;
+        for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
+      }
+      return true;
+    });
+  }
+
+  // Phi_q^T Y = B: y (by row) and b (by coordinate) hold m columns as in _block_forward; b is
+  // used as work space and left changed. Blocks in reverse order: block k's coordinates'
+  // equations involve only its own and later blocks' rows, and once its rows' y are known
+  // they are subtracted from the equations of earlier blocks' coordinates.
+  template <class S, class T, class R>
+  static BlockReport<R> _block_transposed(const T* jac, T* b, T* y, int m,
+                                          const BasicBlockOptions<R>& o) noexcept {
+    return _each_factored_block<S, true>(jac, o, [&](auto size, int k, const T* a,
+                                                     const int* piv) {
+      constexpr int K = decltype(size)::value;
+      const int b0 = S::block_begin[k];
+      for (int col = 0; col < m; ++col) {
+        T* bc = b + col * S::nq;
+        T* yc = y + col * S::nq;
+        T v[K];
+        for (int j = 0; j < K; ++j) v[j] = bc[S::block_cols[b0 + j]];
+        _lu_solve_transposed<K>(a, piv, v);
+        if (!_all_finite<K>(v)) return false;
+        for (int i = 0; i < K; ++i) {
+          const int row = S::block_rows[b0 + i];
+          yc[row] = v[i];
+          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+            const int c = S::jac_cols[e];
+            if (S::coordinate_block[c] != k) bc[c] -= jac[e] * v[i];
+          }
+        }
+      }
+      return true;
+    });
+  }
+  // ---- end of kinegen kernel block_linear
+
   // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then cache.data().
   template <class T>
   using TrigCache = BasicTrigCache<T, trig_cache_size>;
@@ -963,6 +1121,130 @@ struct four_bar {
     }
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
+  }
+
+  // Parameter sensitivities (spec 6.6). num_params: the members of Params, in order
+  // (parameter k is the k-th member).
+  static constexpr int num_params = 7;
+  static constexpr bool has_sensitivity = true;
+
+  // Phi_p(q, t): out[k * nc + r] = dPhi_r/dp_k (nc x num_params, column-major).
+ private:
+  // Repeated constraints (24): alike up to the coordinates they read (_phi_p_roll0_i,
+  // ascending) and where their outputs go (_phi_p_roll0_o).
+  static constexpr int _phi_p_roll0_i[24][1] = {
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+  };
+  static constexpr int _phi_p_roll0_o[24][2] = {
+      {0, 1},
+      {4, 5},
+      {6, 7},
+      {9, 10},
+      {11, 12},
+      {15, 16},
+      {18, 19},
+      {20, 21},
+      {24, 25},
+      {27, 28},
+      {29, 30},
+      {31, 32},
+      {36, 37},
+      {38, 39},
+      {40, 41},
+      {42, 43},
+      {45, 46},
+      {47, 48},
+      {49, 50},
+      {51, 52},
+      {54, 55},
+      {56, 57},
+      {58, 59},
+      {60, 61},
+  };
+  template <class T>
+  static void _phi_p_roll0([[maybe_unused]] const T* q,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,
+      [[maybe_unused]] const int* _i, const int* _o) noexcept {
+    out[_o[0]] = T(0);
+    out[_o[1]] = T(0);
+  }
+
+ public:
+  template <class T>
+  static void phi_p([[maybe_unused]] const T* q,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+    // out[nc * num_params]; 11 operations
+    using std::cos, std::sin;
+    out[2] = -cos(q[2]);
+    out[3] = -sin(q[2]);
+    out[8] = T(0);
+    out[13] = -cos(q[5]);
+    out[14] = -sin(q[5]);
+    out[17] = T(0);
+    out[22] = cos(q[8]);
+    out[23] = sin(q[8]);
+    out[26] = T(0);
+    out[33] = T(-1);
+    out[34] = T(0);
+    out[35] = T(0);
+    out[44] = T(0);
+    out[53] = T(0);
+    out[62] = -t;
+    for (int _m = 0; _m < 24; ++_m)
+      _phi_p_roll0(q, t, p, out, _phi_p_roll0_i[_m], _phi_p_roll0_o[_m]);
+  }
+
+  // The work space of solve_sensitivity, in T's: Phi_q's entries, then -Phi_p.
+  static constexpr int sensitivity_work_size = jac_nnz + nc * num_params;
+
+  // Sensitivities of a solved position to the parameters: dq_dp[k * nq + i] = dq_i/dp_k
+  // (nq x num_params, column-major) solves Phi_q dq/dp = -Phi_p at q, t, p, where q
+  // is a converged solve_position (not re-checked). Phi_q is factored block by block,
+  // once for all parameters (kinegen/kernels/block_linear.hpp); a singular or
+  // ill-conditioned block (rcond at most options.min_rcond) fails with status 2 and its
+  // index, a non-finite value with status 3, and dq_dp is then incomplete.
+  // work: sensitivity_work_size values owned by the caller.
+  template <class T, class U>
+  static BlockReport<_real<T>> solve_sensitivity(const T* q, T t, const Params& p,
+      T* dq_dp, const BasicBlockOptions<U>& options, T* work) noexcept {
+    using R = _real<T>;
+    T* const jac = work;
+    T* const rhs = work + jac_nnz;
+    phi_q(q, t, p, jac);
+    phi_p(q, t, p, rhs);
+    for (int k = 0; k < nc * num_params; ++k) rhs[k] = -rhs[k];
+    return _block_forward<_model>(jac, rhs, dq_dp, num_params, _options_as<R>(options));
+  }
+  // The same with the work space on the stack: sizeof(T) * sensitivity_work_size bytes,
+  // plus one block's matrix (max_block_size^2 T's) in the kernel.
+  template <class T, class U>
+  static BlockReport<_real<T>> solve_sensitivity(const T* q, T t, const Params& p,
+      T* dq_dp, const BasicBlockOptions<U>& options) noexcept {
+    T work[sensitivity_work_size];
+    return solve_sensitivity(q, t, p, dq_dp, options, work);
   }
 };
 

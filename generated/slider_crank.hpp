@@ -128,6 +128,17 @@ struct slider_crank {
   // coordinate whose sin or cos the model uses).
   static constexpr int trig_cache_size = 6;
 
+  // The block structure as tables, for the linear solves with Phi_q after a position
+  // solve (kinegen/kernels/block_linear.hpp): each block's rows and coordinates in solve
+  // order, each coordinate's block and place, each row's first Phi_q entry.
+  static constexpr std::array<int, num_blocks + 1> block_begin = {0, 1, 2, 3, 4, 5, 6};
+  static constexpr std::array<int, nc> block_rows = {0, 1, 5, 4, 3, 2};
+  static constexpr std::array<int, nq> block_cols = {0, 1, 2, 4, 5, 3};
+  static constexpr std::array<int, nq> coordinate_block = {0, 1, 2, 5, 3, 4};
+  static constexpr std::array<int, nq> coordinate_slot = {0, 1, 2, 5, 3, 4};
+  static constexpr std::array<int, nc + 1> jac_row_begin = {0, 1, 2, 6, 10, 11, 12};
+  using _model = slider_crank;
+
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
   // The real type of a scalar: T itself, or the value_type of std::complex<T>.
   template <class T, class = void>
@@ -232,6 +243,154 @@ struct slider_crank {
     return r;
   }
   // ---- end of kinegen kernel report
+
+  // ---- kinegen kernel lu (kinegen/kernels/lu.hpp)
+  // In-place LU with partial pivoting; returns smallest / largest |pivot| (0 when singular,
+  // NaN when a value is not finite). The diagonal keeps the pivots' reciprocals, so that
+  // _lu_solve multiplies: a division costs several multiplications' time, and a step solves
+  // with each factorization more than once.
+  template <int K, class T>
+  static _real<T> _lu_factor(T* a, int* piv) noexcept {
+    using R = _real<T>;
+    if constexpr (K == 2) {
+      // The loop below for K = 2, written out: small enough to be inlined (a loop of two
+      // bodies is the most common block).
+      const bool swap = _mag(a[2]) > _mag(a[0]);
+      piv[0] = swap ? 1 : 0;
+      piv[1] = 1;
+      if (swap) {
+        std::swap(a[0], a[2]);
+        std::swap(a[1], a[3]);
+      }
+      const R p0 = _mag(a[0]);
+      if (!(p0 > 0)) return p0;  // 0, or NaN
+      const T i0 = T(1) / a[0];
+      const T f = a[2] * i0;
+      a[2] = f;
+      a[3] -= f * a[1];
+      const R p1 = _mag(a[3]);
+      if (!(p1 > 0)) return p1;
+      const T i1 = T(1) / a[3];
+      a[0] = i0;
+      a[3] = i1;
+      return p0 < p1 ? p0 * _mag(i1) : p1 * _mag(i0);  // the ratio without a third division
+    }
+    R largest = 0, smallest = 0;
+    for (int k = 0; k < K; ++k) {
+      int m = k;
+      R best = _mag(a[k * K + k]);
+      for (int i = k + 1; i < K; ++i) {
+        const R v = _mag(a[i * K + k]);
+        if (v > best) {
+          best = v;
+          m = i;
+        }
+      }
+      if (!(best == best)) return best;
+      piv[k] = m;
+      if (m != k)
+        for (int j = 0; j < K; ++j) std::swap(a[k * K + j], a[m * K + j]);
+      if (best == 0) return 0;
+      largest = k == 0 ? best : std::max(largest, best);
+      smallest = k == 0 ? best : std::min(smallest, best);
+      const T inv = T(1) / a[k * K + k];
+      a[k * K + k] = inv;
+      for (int i = k + 1; i < K; ++i) {
+        const T f = a[i * K + k] * inv;
+        a[i * K + k] = f;
+        for (int j = k + 1; j < K; ++j) a[i * K + j] -= f * a[k * K + j];
+      }
+    }
+    return smallest / largest;
+  }
+  template <int K, class T>
+  static void _lu_solve(const T* a, const int* piv, T* b) noexcept {
+    if constexpr (K == 1) {  // no exchange; the loops below would index past b
+      b[0] *= a[0];
+      return;
+    }
+    if constexpr (K == 2) {  // the loops below, written out (the same operations)
+      if (piv[0] != 0) std::swap(b[0], b[1]);
+      b[1] = (b[1] - a[2] * b[0]) * a[3];
+      b[0] = (b[0] - a[1] * b[1]) * a[0];
+      return;
+    }
+    // _lu_factor swaps whole rows (multipliers included), so b takes every swap first.
+    for (int k = 0; k < K; ++k)
+      if (piv[k] != k) std::swap(b[k], b[piv[k]]);
+    for (int k = 0; k < K; ++k)
+      for (int i = k + 1; i < K; ++i) b[i] -= a[i * K + k] * b[k];
+    for (int k = K - 1; k >= 0; --k) {
+      for (int j = k + 1; j < K; ++j) b[k] -= a[k * K + j] * b[j];
+      b[k] *= a[k * K + k];  // the pivot's reciprocal
+    }
+  }
+  // Solves A^T y = b with A's factors (P A = L U, so A^T = U^T L^T P): U^T w = b forward, then
+  // L^T v = w backward, then the row exchanges undone in reverse order. For Phi_q^T lambda = Q
+  // with the factorization the forward solves use.
+  template <int K, class T>
+  static void _lu_solve_transposed(const T* a, const int* piv, T* b) noexcept {
+    if constexpr (K == 1) {  // no exchange; the loops below would index past b
+      b[0] *= a[0];
+      return;
+    }
+    for (int k = 0; k < K; ++k) {
+      for (int j = 0; j < k; ++j) b[k] -= a[j * K + k] * b[j];
+      b[k] *= a[k * K + k];  // the pivot's reciprocal
+    }
+    for (int k = K - 1; k >= 0; --k)
+      for (int i = k + 1; i < K; ++i) b[k] -= a[i * K + k] * b[i];
+    for (int k = K - 1; k >= 0; --k)
+      if (piv[k] != k) std::swap(b[k], b[piv[k]]);
+  }
+  // Sign of the determinant of the factored matrix: the pivots' signs, and one per row exchange.
+  template <int K, class T>
+  static int _lu_det_sign(const T* a, const int* piv) noexcept {
+    int sign = 1;
+    for (int k = 0; k < K; ++k) {
+      if (piv[k] != k) sign = -sign;
+      if (_re(a[k * K + k]) < 0) sign = -sign;
+    }
+    return sign;
+  }
+  // Largest |a_ij| d_j of each row i of a K x K matrix (before _lu_factor): the row scales of
+  // the equilibrated matrix diag(1 / row_max) a diag(d), d the columns' scales.
+  template <int K, class T>
+  static void _row_max(const T* a, const _real<T>* d, _real<T>* row_max) noexcept {
+    for (int i = 0; i < K; ++i) {
+      row_max[i] = 0;
+      for (int j = 0; j < K; ++j) row_max[i] = std::max(row_max[i], _mag(a[i * K + j]) * d[j]);
+    }
+  }
+  // 1 / |A^-1|_inf of the equilibrated A = diag(1 / row_max) J diag(d), from J's factors
+  // (A^-1 = diag(1 / d) J^-1 diag(row_max), column by column). |A|_inf is between 1 and K, so
+  // this is the reciprocal condition number in the infinity norm within a factor K.
+  template <int K, class T>
+  static _real<T> _lu_rcond(const T* a, const int* piv, const _real<T>* row_max,
+                            const _real<T>* d) noexcept {
+    using R = _real<T>;
+    R sums[K] = {};
+    if constexpr (K == 2) {
+      // The loop below for K = 2, written out from the factors: J^-1 = U^-1 L^-1 P, with
+      // a = {1 / u00, u01, l10, 1 / u11}, P the row exchange.
+      const T m01 = -a[1] * a[0] * a[3];
+      const T m[4] = {a[0] - m01 * a[2], m01, -a[2] * a[3], a[3]};
+      const int c0 = piv[0], c1 = 1 - piv[0];  // the columns of m that are J^-1's 0 and 1
+      sums[0] = _mag(m[c0]) * row_max[0] + _mag(m[c1]) * row_max[1];
+      sums[1] = _mag(m[2 + c0]) * row_max[0] + _mag(m[2 + c1]) * row_max[1];
+    } else {
+      for (int j = 0; j < K; ++j) {
+        T x[K] = {};
+        x[j] = T(1);
+        _lu_solve<K>(a, piv, x);
+        for (int i = 0; i < K; ++i) sums[i] += _mag(x[i]) * row_max[j];
+      }
+    }
+    R norm = 0;
+    for (int i = 0; i < K; ++i) norm = std::max(norm, sums[i] / d[i]);
+    return norm > 0 ? R(1) / norm : R(0);
+  }
+  // ---- end of kinegen kernel lu
 
   // ---- kinegen kernel rotation (kinegen/kernels/rotation.hpp)
   // Rotations of sin and cos by a small angle d, so that a Newton update or the step from a
@@ -390,6 +549,153 @@ struct slider_crank {
     return false;
   }
   // ---- end of kinegen kernel newton
+
+  // ---- kinegen kernel block_linear (kinegen/kernels/block_linear.hpp)
+  // S is the model; it gives the structure tables: block_begin (num_blocks + 1 offsets into
+  // block_rows and block_cols, which list each block's rows and coordinates in solve order),
+  // coordinate_block and coordinate_slot (each coordinate's block and place in block_cols),
+  // jac_row_begin (each row's first entry of jac_rows / jac_cols, which are sorted by row),
+  // and coordinate_scales. jac holds Phi_q at those entries. Each block is factored once for
+  // all m right-hand sides; a singular, ill-conditioned (rcond below options.min_rcond) or
+  // non-finite block fails with status 2 or 3 and its index, and the report's rcond is the
+  // smallest of any block.
+
+  // Calls f(std::integral_constant<int, K>) for K == n, 1 <= n <= S::max_block_size, so that
+  // each block size gets the fixed-size LU.
+  template <class S, int K = 1, class F>
+  static void _with_block_size(int n, F&& f) noexcept {
+    if constexpr (K <= S::max_block_size) {
+      if (n == K) {
+        f(std::integral_constant<int, K>{});
+      } else {
+        _with_block_size<S, K + 1>(n, f);
+      }
+    }
+  }
+
+  // Gathers block k (K x K, row-major: its rows by its coordinates) from jac and factors it.
+  // False when it is singular, ill-conditioned or not finite (r records why).
+  template <class S, int K, class T, class R>
+  static bool _block_factor(int k, const T* jac, T* a, int* piv, BlockReport<R>& r,
+                            const R& min_rcond) noexcept {
+    const int b0 = S::block_begin[k];
+    for (int i = 0; i < K * K; ++i) a[i] = T(0);
+    for (int i = 0; i < K; ++i) {
+      const int row = S::block_rows[b0 + i];
+      for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+        const int c = S::jac_cols[e];
+        if (S::coordinate_block[c] == k) a[i * K + (S::coordinate_slot[c] - b0)] = jac[e];
+      }
+    }
+    // Rows are equilibrated by their largest scaled entry in all of Phi_q's row, not only in
+    // the block: a block entry tiny next to the rest of its row (a dead centre in a 1 x 1
+    // block) is a nearly singular Phi_q, which the block on its own would not show.
+    R d[K], row_max[K];
+    for (int j = 0; j < K; ++j) d[j] = R(S::coordinate_scales[S::block_cols[b0 + j]]);
+    for (int i = 0; i < K; ++i) {
+      const int row = S::block_rows[b0 + i];
+      row_max[i] = R(0);
+      for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e)
+        row_max[i] =
+            std::max(row_max[i], _mag(jac[e]) * R(S::coordinate_scales[S::jac_cols[e]]));
+    }
+    const R ratio = _lu_factor<K>(a, piv);
+    if (!(ratio == ratio)) {
+      r = _fail(r, 3, k);
+      return false;
+    }
+    const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
+    r.rcond = std::min(r.rcond, rcond);
+    if (!(rcond > min_rcond)) {
+      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      return false;
+    }
+    return true;
+  }
+
+  // Calls solve(size, k, a, piv) for each block k, in solve order or (kReverse) backwards,
+  // with a and piv its factors and size its std::integral_constant size; stops at the first
+  // block that fails to factor or whose solve returns false (a non-finite solution: status 3).
+  template <class S, bool kReverse, class T, class R, class F>
+  static BlockReport<R> _each_factored_block(const T* jac, const BasicBlockOptions<R>& o,
+                                             F&& solve) noexcept {
+    BlockReport<R> r;
+    bool ok = true;
+    for (int n = 0; ok && n < S::num_blocks; ++n) {
+      const int k = kReverse ? S::num_blocks - 1 - n : n;
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        constexpr int K = decltype(size)::value;
+        T a[K * K];
+        int piv[K];
+        if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+      });
+    }
+    return r;
+  }
+
+  // Phi_q X = B: x and b hold m columns (column j at x + j * nq, b + j * nq; x must not
+  // overlap b). Blocks in solve order; row r of block k subtracts its entries in earlier
+  // blocks' coordinates, which are solved by then. A non-finite right-hand side or entry
+  // outside the block shows only in the block's solution, which is checked.
+  template <class S, class T, class R>
+  static BlockReport<R> _block_forward(const T* jac, const T* b, T* x, int m,
+                                       const BasicBlockOptions<R>& o) noexcept {
+    return _each_factored_block<S, false>(jac, o, [&](auto size, int k, const T* a,
+                                                      const int* piv) {
+      constexpr int K = decltype(size)::value;
+      const int b0 = S::block_begin[k];
+      for (int col = 0; col < m; ++col) {
+        const T* bc = b + col * S::nq;
+        T* xc = x + col * S::nq;
+        T v[K];
+        for (int i = 0; i < K; ++i) {
+          const int row = S::block_rows[b0 + i];
+          v[i] = bc[row];
+          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+            const int c = S::jac_cols[e];
+            if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
+          }
+        }
+        _lu_solve<K>(a, piv, v);
+        if (!_all_finite<K>(v)) return false;
+        for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
+      }
+      return true;
+    });
+  }
+
+  // Phi_q^T Y = B: y (by row) and b (by coordinate) hold m columns as in _block_forward; b is
+  // used as work space and left changed. Blocks in reverse order: block k's coordinates'
+  // equations involve only its own and later blocks' rows, and once its rows' y are known
+  // they are subtracted from the equations of earlier blocks' coordinates.
+  template <class S, class T, class R>
+  static BlockReport<R> _block_transposed(const T* jac, T* b, T* y, int m,
+                                          const BasicBlockOptions<R>& o) noexcept {
+    return _each_factored_block<S, true>(jac, o, [&](auto size, int k, const T* a,
+                                                     const int* piv) {
+      constexpr int K = decltype(size)::value;
+      const int b0 = S::block_begin[k];
+      for (int col = 0; col < m; ++col) {
+        T* bc = b + col * S::nq;
+        T* yc = y + col * S::nq;
+        T v[K];
+        for (int j = 0; j < K; ++j) v[j] = bc[S::block_cols[b0 + j]];
+        _lu_solve_transposed<K>(a, piv, v);
+        if (!_all_finite<K>(v)) return false;
+        for (int i = 0; i < K; ++i) {
+          const int row = S::block_rows[b0 + i];
+          yc[row] = v[i];
+          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+            const int c = S::jac_cols[e];
+            if (S::coordinate_block[c] != k) bc[c] -= jac[e] * v[i];
+          }
+        }
+      }
+      return true;
+    });
+  }
+  // ---- end of kinegen kernel block_linear
 
   // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then cache.data().
   template <class T>
@@ -664,6 +970,61 @@ struct slider_crank {
     qdd[3] = (_t3*_cos2 + _t2*T(p.l)*_sin5 - qdd[0] - (-_sin2)*qdd[2] - (_cos5*T(p.l))*qdd[5]) / T(-1);
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
+  }
+
+  // Parameter sensitivities (spec 6.6). num_params: the members of Params, in order
+  // (parameter k is the k-th member).
+  static constexpr int num_params = 2;
+  static constexpr bool has_sensitivity = true;
+
+  // Phi_p(q, t): out[k * nc + r] = dPhi_r/dp_k (nc x num_params, column-major).
+  template <class T>
+  static void phi_p([[maybe_unused]] const T* q,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+    // out[nc * num_params]; 4 operations
+    using std::cos, std::sin;
+    out[0] = T(0);
+    out[1] = T(0);
+    out[2] = sin(q[5]);
+    out[3] = -cos(q[5]);
+    out[4] = T(0);
+    out[5] = T(0);
+    out[6] = T(0);
+    out[7] = T(0);
+    out[8] = T(0);
+    out[9] = T(0);
+    out[10] = T(0);
+    out[11] = -t;
+  }
+
+  // The work space of solve_sensitivity, in T's: Phi_q's entries, then -Phi_p.
+  static constexpr int sensitivity_work_size = jac_nnz + nc * num_params;
+
+  // Sensitivities of a solved position to the parameters: dq_dp[k * nq + i] = dq_i/dp_k
+  // (nq x num_params, column-major) solves Phi_q dq/dp = -Phi_p at q, t, p, where q
+  // is a converged solve_position (not re-checked). Phi_q is factored block by block,
+  // once for all parameters (kinegen/kernels/block_linear.hpp); a singular or
+  // ill-conditioned block (rcond at most options.min_rcond) fails with status 2 and its
+  // index, a non-finite value with status 3, and dq_dp is then incomplete.
+  // work: sensitivity_work_size values owned by the caller.
+  template <class T, class U>
+  static BlockReport<_real<T>> solve_sensitivity(const T* q, T t, const Params& p,
+      T* dq_dp, const BasicBlockOptions<U>& options, T* work) noexcept {
+    using R = _real<T>;
+    T* const jac = work;
+    T* const rhs = work + jac_nnz;
+    phi_q(q, t, p, jac);
+    phi_p(q, t, p, rhs);
+    for (int k = 0; k < nc * num_params; ++k) rhs[k] = -rhs[k];
+    return _block_forward<_model>(jac, rhs, dq_dp, num_params, _options_as<R>(options));
+  }
+  // The same with the work space on the stack: sizeof(T) * sensitivity_work_size bytes,
+  // plus one block's matrix (max_block_size^2 T's) in the kernel.
+  template <class T, class U>
+  static BlockReport<_real<T>> solve_sensitivity(const T* q, T t, const Params& p,
+      T* dq_dp, const BasicBlockOptions<U>& options) noexcept {
+    T work[sensitivity_work_size];
+    return solve_sensitivity(q, t, p, dq_dp, options, work);
   }
 };
 

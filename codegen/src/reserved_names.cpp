@@ -31,6 +31,11 @@ const std::vector<std::string> kHeaderMembers = {
     "num_newton_coordinates", "newton_coordinates", "trig_cache_size", "BlockOptions",
     "BlockReport", "kRotateLimit", "solve_position", "solve_velocity", "solve_acceleration",
     "solve_velocity_acceleration", "solve_step",
+    // the structure tables of the linear block solves (emit_structure_tables)
+    "block_begin", "block_rows", "block_cols", "coordinate_block", "coordinate_slot",
+    "jac_row_begin",
+    // parameter sensitivities (emit_sensitivity)
+    "num_params", "has_sensitivity", "phi_p", "sensitivity_work_size", "solve_sensitivity",
     // the kernels (runtime/include/kinegen/kernels/) pasted into the struct
     "BasicBlockOptions", "BasicTrigCache", "TrigCache", "kRoundingUlps",
     // namespaces and the runtime's Solver, which a struct of that name would hide

@@ -1,5 +1,6 @@
 // Solver<Model> allocates nothing after construction: the global operator new is replaced by
-// a counting one, and a full analysis loop must leave the count unchanged.
+// a counting one, and a full analysis loop (with the generated solve_sensitivity) must leave
+// the count unchanged.
 #define CATCH_CONFIG_MAIN
 #include <catch2/catch.hpp>
 
@@ -42,6 +43,12 @@ TEMPLATE_TEST_CASE("Solver allocates nothing after construction", "[runtime][all
     if (!solver.position(q, t)) break;
     if (!solver.velocity(q, t, qd)) break;
     if (!solver.acceleration(q, qd, t, qdd)) break;
+    // The generated sensitivity solve (its work space on the stack).
+    double dq_dp[TestType::nq * TestType::num_params];
+    if (TestType::solve_sensitivity(q.data(), t, typename TestType::Params{}, dq_dp,
+                                    typename TestType::BlockOptions{})
+            .status != 0)
+      break;
     ++solved;
   }
   const long after = g_allocations.load();

@@ -69,6 +69,18 @@ struct OptionsHaveResidualTolerance : std::false_type {};
 template <class O>
 struct OptionsHaveResidualTolerance<O, std::void_t<decltype(std::declval<O&>().residual_tolerance)>>
     : std::true_type {};
+// Whether the header has parameter sensitivities (phi_p, solve_sensitivity), and how many
+// parameters its Params has (0 when it does not say).
+template <class Model, class = void>
+struct HasSensitivity : std::false_type {};
+template <class Model>
+struct HasSensitivity<Model, std::void_t<decltype(Model::has_sensitivity)>>
+    : std::bool_constant<Model::has_sensitivity> {};
+template <class Model, class = void>
+struct NumParams : std::integral_constant<int, 0> {};
+template <class Model>
+struct NumParams<Model, std::void_t<decltype(Model::num_params)>>
+    : std::integral_constant<int, Model::num_params> {};
 template <class Model, class = void>
 struct NumBlocks : std::integral_constant<int, 0> {};
 template <class Model>
@@ -187,6 +199,21 @@ class Solver {
     } else {
       return dense_.acceleration(q, qd, t, qdd);
     }
+  }
+
+  // dq/dp, column k the sensitivity of q to parameter k (Params order).
+  using SensitivityMatrix = Eigen::Matrix<Scalar, Model::nq, detail::NumParams<Model>::value>;
+  static constexpr bool kSensitivity = detail::HasSensitivity<Model>::value;
+
+  // Parameter sensitivities at a solved q (headers with has_sensitivity): the generated
+  // solve_sensitivity, one factorization per block for all parameters, with this solver's
+  // params and min_rcond. A singular block fails with Status::kSingular and dq_dp is NaN.
+  template <bool S = kSensitivity, std::enable_if_t<S, int> = 0>
+  Result sensitivity(const Vector& q, Scalar t, SensitivityMatrix& dq_dp) {
+    const Result r = detail::to_result<Model>(Model::solve_sensitivity(
+        q.data(), t, dense_.system().params(), dq_dp.data(), block_options()));
+    if (!r) dq_dp.setConstant(kNaN);
+    return r;
   }
 
   // One full step at time t: q is predicted from the last step (TaylorPredictor, none on the

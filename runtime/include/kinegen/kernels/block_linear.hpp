@@ -49,9 +49,18 @@ struct BlockLinearKernel : LuKernel {
         if (S::coordinate_block[c] == k) a[i * K + (S::coordinate_slot[c] - b0)] = jac[e];
       }
     }
+    // Rows are equilibrated by their largest scaled entry in all of Phi_q's row, not only in
+    // the block: a block entry tiny next to the rest of its row (a dead centre in a 1 x 1
+    // block) is a nearly singular Phi_q, which the block on its own would not show.
     R d[K], row_max[K];
     for (int j = 0; j < K; ++j) d[j] = R(S::coordinate_scales[S::block_cols[b0 + j]]);
-    _row_max<K>(a, d, row_max);
+    for (int i = 0; i < K; ++i) {
+      const int row = S::block_rows[b0 + i];
+      row_max[i] = R(0);
+      for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e)
+        row_max[i] =
+            std::max(row_max[i], _mag(jac[e]) * R(S::coordinate_scales[S::jac_cols[e]]));
+    }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
       r = _fail(r, 3, k);
