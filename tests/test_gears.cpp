@@ -69,14 +69,15 @@ std::string source_dir() { return KINEGEN_SOURCE_DIR; }
 
 TEST_CASE("gears: an external pair on fixed centres over many turns", "[gears]") {
   // gear_pair.yaml: ri 0.03, rj 0.075, phi_pinion = 3 t + t^2 (130 rad, 20 turns, at t = 10).
-  const auto model = kc::CompiledModel::from_file(source_dir() + "/tests/mechanisms/gear_pair.yaml");
+  const auto model =
+      kc::CompiledModel::from_file(source_dir() + "/tests/mechanisms/gear_pair.yaml");
   const Run run = analyze(*model, {0, 10, 2000});
   CHECK(run.warnings.empty());
   const double ratio = -0.03 / 0.075;
   Error e;
   for (const auto& r : run.rows) {
     const double t = r.t, phi = 3 * t + t * t, omega = 3 + 2 * t, alpha = 2;
-    e.add(e.q, r.q[0], phi);
+    e.add(e.q, r.q[2], phi);
     e.add(e.q, r.q[3], 0.105);
     e.add(e.q, r.q[4], 0);
     e.add(e.q, r.q[5], ratio * phi);
@@ -93,7 +94,7 @@ TEST_CASE("gears: an external pair on fixed centres over many turns", "[gears]")
 TEST_CASE("gears: a planetary carrier over 39 turns follows Willis' equation", "[gears]") {
   // Sun fixed (ground, r_s 0.05), planet r_p 0.02 on a carrier arm a = 0.07 driven at
   // theta = 2 pi t + 0.3 t^2: the line of centres passes +-pi every turn.
-  const std::string yaml = R"(name: carrier
+  const std::string yaml = R"Y(name: carrier
 bodies:
   - {name: carrier, q0: [0, 0, 0]}
   - {name: planet, q0: [0.07, 0, 0]}
@@ -103,7 +104,7 @@ joints:
   - {type: gear, name: mesh, i: ground, j: planet, ri: 0.05, rj: 0.02}
 drivers:
   - {type: absolute_angle, body: carrier, f: "2*pi*t + 0.3*t^2"}
-)";
+)Y";
   const Run run = analyze(yaml, {0, 20, 2000});
   CHECK(run.warnings.empty());
   const double rs = 0.05, rp = 0.02, a = 0.07;
@@ -123,20 +124,23 @@ drivers:
     e.add(e.qdd, r.qdd[5], (1 + rs / rp) * al);
   }
   const double turns = run.rows.back().q[2] / (2 * kPi);
-  INFO("carrier turns " << turns << "; Willis residual " << willis << "; relative errors q "
-                        << e.q << ", qd " << e.qd << ", qdd " << e.qdd);
+  INFO("carrier turns " << turns << "; Willis residual " << willis << "; relative errors q " << e.q
+                        << ", qd " << e.qd << ", qdd " << e.qdd);
   CHECK(turns > 39);
   CHECK(willis <= 64 * kEps);
   CHECK(e.q <= 64 * kEps);
-  CHECK(e.qd <= 64 * kEps);
-  CHECK(e.qdd <= 64 * kEps);
+  // The planet's angle reaches 860 rad, resolved to eps * 860 ~ 2e-13: sin and cos of it, and
+  // so the velocities and accelerations, carry that much rounding (the closed form's too).
+  const double resolution = kEps * std::abs(run.rows.back().q[5]);
+  CHECK(e.qd <= 8 * resolution);
+  CHECK(e.qdd <= 8 * resolution);
 }
 
 TEST_CASE("gears: an internal pair with ring and carrier driven follows Willis' equation",
           "[gears]") {
   // Ring r_r 0.1 turning at 0.7 rad/s, carrier at 2 t + 0.25 t^2, planet r_p 0.03 at a = 0.07
   // from the centre: (omega_p - omega_c) / (omega_r - omega_c) = r_r / r_p (internal mesh).
-  const std::string yaml = R"(name: ring
+  const std::string yaml = R"Y(name: ring
 bodies:
   - {name: ring, q0: [0, 0, 0]}
   - {name: carrier, q0: [0, 0, 0]}
@@ -150,7 +154,7 @@ joints:
 drivers:
   - {type: absolute_angle, body: ring, f: "0.7*t"}
   - {type: absolute_angle, body: carrier, f: "2*t + 0.25*t^2"}
-)";
+)Y";
   const Run run = analyze(yaml, {0, 15, 1500});
   CHECK(run.warnings.empty());
   const double rr = 0.1, rp = 0.03;
@@ -168,8 +172,10 @@ drivers:
                         << "; relative errors q " << e.q << ", qd " << e.qd << ", qdd " << e.qdd);
   CHECK(willis <= 64 * kEps * rr / rp);
   CHECK(e.q <= 64 * kEps);
-  CHECK(e.qd <= 64 * kEps);
-  CHECK(e.qdd <= 64 * kEps);
+  // As above: the planet's angle (-166 rad at the end) resolved to eps * |phi|.
+  const double resolution = kEps * std::abs(run.rows.back().q[8]);
+  CHECK(e.qd <= 8 * resolution);
+  CHECK(e.qdd <= 8 * resolution);
 }
 
 TEST_CASE("gears: the planetary example (ring fixed, sun driven) against Willis' equation",
@@ -197,7 +203,7 @@ TEST_CASE("gears: the planetary example (ring fixed, sun driven) against Willis'
 TEST_CASE("gears: a driven rack turns its pinion by x / rj", "[gears]") {
   // The pinion turns on a fixed axis at [0, rj]; the rack (held at angle 0, its pitch line at
   // distance rj by the mesh) is driven along x: x = rj phi.
-  const std::string yaml = R"(name: rack
+  const std::string yaml = R"Y(name: rack
 bodies:
   - {name: rack, q0: [0, 0, 0]}
   - {name: pinion, q0: [0, 0.04, 0]}
@@ -207,7 +213,7 @@ joints:
   - {type: rack_pinion, i: rack, vi: [1, 0], j: pinion, rj: 0.04}
 drivers:
   - {type: absolute_x, body: rack, f: "0.2*sin(t) + 0.05*t"}
-)";
+)Y";
   const Run run = analyze(yaml, {0, 10, 500});
   const double rj = 0.04;
   Error e;
@@ -229,14 +235,14 @@ drivers:
 TEST_CASE("gears: a pinion rolling on a fixed tilted rack advances -rj phi", "[gears]") {
   // Pitch line through [0.1, 0.2] along vi = [3, 4] (u = [0.6, 0.8], not given as a unit
   // vector); the centre sits rj to its left and advances s = -rj phi along u.
-  const std::string yaml = R"(name: rolling
+  const std::string yaml = R"Y(name: rolling
 bodies:
   - {name: pinion, q0: [0.076, 0.218, 0]}
 joints:
   - {type: rack_pinion, i: ground, si: [0.1, 0.2], vi: [3, 4], j: pinion, rj: 0.03}
 drivers:
   - {type: absolute_angle, body: pinion, f: "1.5*t + sin(t)"}
-)";
+)Y";
   const Run run = analyze(yaml, {0, 20, 1000});
   const double rj = 0.03, ux = 0.6, uy = 0.8;
   Error e;
@@ -259,7 +265,7 @@ drivers:
 TEST_CASE("gears: a welded body moves as part of the other", "[gears]") {
   // b is welded to a at a's [0.4, 0] and b's [-0.1, 0.05], turned by 0.5; a turns about the
   // origin by theta = 0.8 t + 0.3 sin 2t. Then r_b = A(th) [0.4, 0] - A(th + 0.5) [-0.1, 0.05].
-  const std::string yaml = R"(name: weld
+  const std::string yaml = R"Y(name: weld
 bodies:
   - {name: a, q0: [0, 0, 0]}
   - {name: b, q0: [0.5, 0, 0.5]}
@@ -268,7 +274,7 @@ joints:
   - {type: fixed, i: a, j: b, si: [0.4, 0], sj: [-0.1, 0.05], angle: 0.5}
 drivers:
   - {type: absolute_angle, body: a, f: "0.8*t + 0.3*sin(2*t)"}
-)";
+)Y";
   const Run run = analyze(yaml, {0, 10, 400});
   Error e;
   for (const auto& r : run.rows) {
@@ -323,7 +329,7 @@ double generated_against_analyze(const std::string& file, const kc::TimeGrid& gr
   const auto model = kc::CompiledModel::from_file(file);
   const Run run = analyze(*model, grid);
   typename M::Params p{};
-  double q[M::nq], qd[M::nq], qdd[M::nq];
+  double q[M::nq], qd[M::nq] = {}, qdd[M::nq] = {};
   for (int k = 0; k < M::nq; ++k) q[k] = M::q0[k];
   double worst = 0;
   for (const auto& r : run.rows) {
@@ -358,7 +364,8 @@ TEST_CASE("gears: the mesh reaction and the motor torque of a gear pair with ine
   // supplies J_p alpha_p + (ri/rj)^2 J_w alpha_p.
   using M = km::gear_pair;
   const double ri = 0.03, rj = 0.075, jp = 0.001, jw = 0.02, ap = 2, aw = -(ri / rj) * ap;
-  const auto model = kc::CompiledModel::from_file(source_dir() + "/tests/mechanisms/gear_pair.yaml");
+  const auto model =
+      kc::CompiledModel::from_file(source_dir() + "/tests/mechanisms/gear_pair.yaml");
   const kc::ForceModel forces = kc::forces_for_analysis(*model);
   kc::ForceSolver solver(*model, forces);
   const auto names = kc::force_columns(model->mechanism());
@@ -380,23 +387,24 @@ TEST_CASE("gears: the mesh reaction and the motor torque of a gear pair with ine
     const int at[] = {effort, fx, fy, tz, bearing};
     for (int k = 0; k < 5; ++k) worst = std::max(worst, std::abs(cols[at[k]] - truth[k]));
     double lambda[M::nc], gcols[M::num_force_columns];
-    REQUIRE(M::solve_forces(r.q.data(), r.qd.data(), r.qdd.data(), r.t, p, lambda,
-                            M::BlockOptions{})
-                .status == 0);
+    REQUIRE(
+        M::solve_forces(r.q.data(), r.qd.data(), r.qdd.data(), r.t, p, lambda, M::BlockOptions{})
+            .status == 0);
     M::force_columns(r.q.data(), r.t, p, lambda, gcols);
     for (int c = 0; c < M::num_force_columns; ++c)
       generated = std::max(generated, std::abs(gcols[c] - cols[c]));
   }
   INFO("largest error against the closed form " << worst << ", generated against analyze "
-                                                 << generated << " (forces ~ 0.2)");
-  CHECK(worst <= 1e-15);
-  CHECK(generated <= 1e-15);
+                                                << generated << " (forces ~ 0.2)");
+  const double scale = jw * std::abs(aw) / rj;  // the largest column, 0.21
+  CHECK(worst <= 32 * kEps * scale);
+  CHECK(generated <= 32 * kEps * scale);
 }
 
 namespace {
 
 // A gear pair, each key on its own line so a case can name the line it breaks.
-const std::string kPair = R"(name: pair
+const std::string kPair = R"Y(name: pair
 bodies:
   - name: a
     q0: [0, 0, 0]
@@ -420,7 +428,7 @@ drivers:
   - type: absolute_angle
     body: a
     f: t
-)";
+)Y";
 
 std::string replaced(std::string text, const std::string& from, const std::string& to) {
   const auto at = text.find(from);
@@ -450,9 +458,9 @@ kinegen::test::CommandResult analyze_file(const fs::path& mech, const fs::path& 
 
 TEST_CASE("gears: hostile keys give one error line with the YAML line, exit 2, no output",
           "[gears][hostile]") {
-  const std::string internal = replaced(replaced(kPair, "si: [0.3, 0]", "si: [0.1, 0]"),
-                                        "rj: 0.2", "rj: 0.2\n    internal: true");
-  const std::string rack = R"(name: rack
+  const std::string internal = replaced(replaced(kPair, "si: [0.3, 0]", "si: [0.1, 0]"), "rj: 0.2",
+                                        "rj: 0.2\n    internal: true");
+  const std::string rack = R"Y(name: rack
 bodies:
   - name: p
     q0: [0, 0.1, 0]
@@ -466,7 +474,7 @@ drivers:
   - type: absolute_angle
     body: p
     f: t
-)";
+)Y";
   struct Case {
     const char* name;
     std::string text;
@@ -476,8 +484,7 @@ drivers:
   const std::vector<Case> cases = {
       {"negative_ri", replaced(kPair, "ri: 0.1", "ri: -0.1"), "ri: -0.1", "must be > 0"},
       {"zero_rj", replaced(kPair, "rj: 0.2", "rj: 0"), "rj: 0", "must be > 0"},
-      {"internal_small_ring", replaced(internal, "rj: 0.2", "rj: 0.1"), "rj: 0.1",
-       "needs rj > ri"},
+      {"internal_small_ring", replaced(internal, "rj: 0.2", "rj: 0.1"), "rj: 0.1", "needs rj > ri"},
       {"missing_rj", replaced(kPair, "    rj: 0.2\n", ""), "type: gear", "missing key 'rj'"},
       {"unknown_key", replaced(kPair, "rj: 0.2", "rj: 0.2\n    radius: 1"), "radius: 1",
        "unknown key 'radius'"},
@@ -515,16 +522,15 @@ drivers:
   }
 }
 
-TEST_CASE("gears: a centre distance off the pitch radii is one warning at assembly",
-          "[gears]") {
+TEST_CASE("gears: a centre distance off the pitch radii is one warning at assembly", "[gears]") {
   struct Case {
     const char* name;
     std::string text;
     const char* message;  // a phrase of the warning; nullptr: none
   };
   // The ring b about [0.1, 0] (rj - ri = 0.1 from a's centre, along psi = 0 with c = 0).
-  const std::string internal = replaced(replaced(kPair, "si: [0.3, 0]", "si: [0.1, 0]"),
-                                        "rj: 0.2", "rj: 0.2\n    internal: true");
+  const std::string internal = replaced(replaced(kPair, "si: [0.3, 0]", "si: [0.1, 0]"), "rj: 0.2",
+                                        "rj: 0.2\n    internal: true");
   const std::vector<Case> cases = {
       {"external_ok", kPair, nullptr},
       {"external_off", replaced(kPair, "si: [0.3, 0]", "si: [0.31, 0]"),

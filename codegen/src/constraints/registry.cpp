@@ -5,8 +5,7 @@
 namespace kinegen::codegen {
 
 extern const ConstraintKind kRevolute, kTranslational, kDistance, kRevoluteTranslational,
-    kAbsoluteX, kAbsoluteY, kAbsoluteAngle, kRelativeAngle, kExpression, kFixed, kGear,
-    kRackPinion;
+    kAbsoluteX, kAbsoluteY, kAbsoluteAngle, kRelativeAngle, kExpression, kFixed, kGear, kRackPinion;
 
 const std::vector<const ConstraintKind*>& constraint_kinds() {
   static const std::vector<const ConstraintKind*> kKinds = {
