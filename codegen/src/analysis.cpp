@@ -11,8 +11,8 @@
 #include <sstream>
 
 #include "kinegen/codegen/constraints.hpp"
-#include "kinegen/codegen/kinematics.hpp"
 #include "kinegen/codegen/forces.hpp"
+#include "kinegen/codegen/kinematics.hpp"
 #include "kinegen/codegen/sensitivity.hpp"
 
 namespace kinegen::codegen {
@@ -224,8 +224,7 @@ void check_assembly(const CompiledModel& model, const Eigen::VectorXd& q,
   const std::string& file = model.mechanism().source;
   for (const Constraint* c : model.mechanism().constraints()) {
     if (!c->kind->assembly_warning) continue;
-    const DrawContext context{*c,
-                              [&](const Expr& e) { return model.geometry_number(e, c->item); }};
+    const DrawContext context{*c, [&](const Expr& e) { return model.geometry_number(e, c->item); }};
     const std::string message = c->kind->assembly_warning(context, q);
     if (message.empty()) continue;
     const std::string line = c->loc.line > 0 ? ":" + std::to_string(c->loc.line) : "";

@@ -331,8 +331,8 @@ class Loader {
           }
           break;
         case KeyKind::kFlag:
-          con.flags[key] = node ? flag_of(node, item + " " + key)
-                                : std::string(k.default_value) == "true";
+          con.flags[key] =
+              node ? flag_of(node, item + " " + key) : std::string(k.default_value) == "true";
           break;
         case KeyKind::kCurve:
           throw std::logic_error(item + ": curve keys are not supported yet");

@@ -103,8 +103,8 @@ Eigen::VectorXd CompiledModel::q0() const {
 }
 
 double CompiledModel::geometry_number(const Expr& e, const std::string& item) const {
-  return to_double(
-      substitute_params(symbols_->parse(e, Scope::kGeometry, item), *symbols_, symbolic_.param_values));
+  return to_double(substitute_params(symbols_->parse(e, Scope::kGeometry, item), *symbols_,
+                                     symbolic_.param_values));
 }
 
 std::string CompiledModel::row_label(int row) const {
