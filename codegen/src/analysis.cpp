@@ -10,8 +10,9 @@
 #include <memory>
 #include <sstream>
 
-#include "kinegen/codegen/kinematics.hpp"
+#include "kinegen/codegen/constraints.hpp"
 #include "kinegen/codegen/forces.hpp"
+#include "kinegen/codegen/kinematics.hpp"
 #include "kinegen/codegen/sensitivity.hpp"
 
 namespace kinegen::codegen {
@@ -215,6 +216,22 @@ void check_redundancy(const CompiledModel& model, const Eigen::VectorXd& q, doub
                  "); solving the consistent system by least squares");
 }
 
+// At the assembled configuration: each kind's own check of it (a gear pair's centre distance
+// against its pitch radii), one warning per constraint that fails it.
+void check_assembly(const CompiledModel& model, const Eigen::VectorXd& q,
+                    const AnalysisOptions& options) {
+  if (!options.warn) return;
+  const std::string& file = model.mechanism().source;
+  for (const Constraint* c : model.mechanism().constraints()) {
+    if (!c->kind->assembly_warning) continue;
+    const DrawContext context{*c, [&](const Expr& e) { return model.geometry_number(e, c->item); }};
+    const std::string message = c->kind->assembly_warning(context, q);
+    if (message.empty()) continue;
+    const std::string line = c->loc.line > 0 ? ":" + std::to_string(c->loc.line) : "";
+    options.warn(file + line + ": " + c->item + ": " + message);
+  }
+}
+
 // Newton's first steps can move an angle by many turns (a driver at t = 2 pi 1e6 moves its
 // crank by 1e6 turns in one step, and the coupler's angle follows by some arbitrary amount).
 // Where an angle enters only through sin and cos, whole turns are not seen by Phi: bring each
@@ -349,6 +366,7 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     if (k == 0) {
       keep_turns_of_estimates(solver, model, row.q, t);
       check_redundancy(model, row.q, t, options);
+      check_assembly(model, row.q, options);
     }
     if (auto r = solver.velocity(row.q, t, row.qd); !r) {
       fail("velocity", t, r);

@@ -28,6 +28,7 @@ constexpr const char* kPinStroke = "#222222";
 constexpr const char* kSliderFill = "#9ecae1";
 constexpr const char* kPointColour = "#d62728";
 constexpr const char* kPathColour = "#ff7f0e";
+constexpr const char* kGearColour = "#2ca02c";
 
 Vector2d rotate(double phi, const Vector2d& s) {
   const double c = std::cos(phi), sn = std::sin(phi);
@@ -92,9 +93,7 @@ class Picture {
 
  private:
   double number(const Expr& e, const std::string& item) const {
-    const auto& s = model_.symbols();
-    return to_double(
-        substitute_params(s.parse(e, Scope::kGeometry, item), s, model_.symbolic().param_values));
+    return model_.geometry_number(e, item);
   }
 
   void solve() {
@@ -162,6 +161,9 @@ class Picture {
     for (const Vector2d& g : sketch.ground_pivots) add_unique(ground_pivots_, g, tol);
     for (const Sketch::Slider& sl : sketch.sliders) sliders_.push_back({sl, 0, 0});
     struts_ = sketch.struts;
+    pitch_circles_ = sketch.pitch_circles;
+    for (const Sketch::Slider& l : sketch.pitch_lines) pitch_lines_.push_back({l, 0, 0});
+    welds_ = sketch.welds;
     for (std::size_t p = 0; p < m.points.size(); ++p) {
       named_.push_back({m.points[p].body, model_.point_offsets()[p]});
       attach(m.points[p].body, model_.point_offsets()[p]);
@@ -208,24 +210,39 @@ class Picture {
   // Extents of everything drawn, over every frame; the world-to-pixel map from them.
   void fit() {
     const double slack = 0.1 * model_.symbolic().length_scale;
-    for (auto& sl : sliders_) {
+    const auto travel = [&](Slider& sl, double margin) {
       sl.travel_min = 1e300;
       sl.travel_max = -1e300;
       for (const auto& q : q_) {
         const double u =
             (local(q, sl.guide, world(q, sl.point.body, sl.point.s)) - sl.origin).dot(sl.dir);
-        sl.travel_min = std::min(sl.travel_min, u - slack);
-        sl.travel_max = std::max(sl.travel_max, u + slack);
+        sl.travel_min = std::min(sl.travel_min, u - margin);
+        sl.travel_max = std::max(sl.travel_max, u + margin);
       }
+    };
+    for (auto& sl : sliders_) travel(sl, slack);
+    // A rack's pitch line reaches past the pinion's pitch circle on either side.
+    for (auto& l : pitch_lines_) {
+      double radius = 0;
+      for (const auto& c : pitch_circles_)
+        if (c.centre.body == l.point.body && (c.centre.s - l.point.s).norm() == 0)
+          radius = std::max(radius, c.radius);
+      travel(l, slack + 1.5 * radius);
     }
     Eigen::AlignedBox2d box;
     for (const auto& q : q_) {
       for (int b = 0; b < static_cast<int>(body_points_.size()); ++b)
         for (const auto& s : body_points_[b]) box.extend(world(q, b, s));
       for (const auto& n : named_) box.extend(world(q, n.body, n.s));
-      for (const auto& sl : sliders_) {
-        box.extend(world(q, sl.guide, sl.origin + sl.travel_min * sl.dir));
-        box.extend(world(q, sl.guide, sl.origin + sl.travel_max * sl.dir));
+      for (const auto* lines : {&sliders_, &pitch_lines_})
+        for (const auto& sl : *lines) {
+          box.extend(world(q, sl.guide, sl.origin + sl.travel_min * sl.dir));
+          box.extend(world(q, sl.guide, sl.origin + sl.travel_max * sl.dir));
+        }
+      for (const auto& c : pitch_circles_) {
+        const Vector2d centre = world(q, c.centre.body, c.centre.s);
+        box.extend(centre - Vector2d(c.radius, c.radius));
+        box.extend(centre + Vector2d(c.radius, c.radius));
       }
     }
     for (const auto& g : ground_pivots_) box.extend(g);
@@ -391,6 +408,37 @@ class Picture {
               {{"points", [&, shape](int f) { return points_at(f, shape); }}});
     }
 
+    // Pitch circles of gears and pinions, each with a radius along its body's x axis that
+    // shows its rotation; the racks' pitch lines (dash-dot, as in a drawing).
+    for (const auto& pc : pitch_circles_) {
+      auto at = [&, pc](int f) { return px(world(q_[f], pc.centre.body, pc.centre.s)); };
+      const std::string r = num(pc.radius * scale_);
+      element(os, "circle",
+              "r=\"" + r + "\" fill=\"none\" stroke=\"" + std::string(kGearColour) +
+                  "\" stroke-width=\"2\"",
+              {{"cx", [&, at](int f) { return num(at(f)[0]); }},
+               {"cy", [&, at](int f) { return num(at(f)[1]); }}});
+      auto mark = [&, pc](int f) {
+        const double phi = pc.centre.body == kGround ? 0.0 : q_[f][3 * pc.centre.body + 2];
+        const Vector2d c = world(q_[f], pc.centre.body, pc.centre.s);
+        return std::vector<Vector2d>{c, c + rotate(phi, Vector2d(pc.radius, 0))};
+      };
+      element(os, "polyline",
+              "fill=\"none\" stroke=\"" + std::string(kGearColour) +
+                  "\" stroke-width=\"2\" stroke-linecap=\"round\"",
+              {{"points", [&, mark](int f) { return points_at(f, mark); }}});
+    }
+    for (const auto& l : pitch_lines_) {
+      auto ends = [&, l](int f) {
+        return std::vector<Vector2d>{world(q_[f], l.guide, l.origin + l.travel_min * l.dir),
+                                     world(q_[f], l.guide, l.origin + l.travel_max * l.dir)};
+      };
+      element(os, "polyline",
+              "fill=\"none\" stroke=\"" + std::string(kGearColour) +
+                  "\" stroke-width=\"2\" stroke-dasharray=\"12 4 2 4\"",
+              {{"points", [&, ends](int f) { return points_at(f, ends); }}});
+    }
+
     // Slider blocks, along their guide.
     for (const auto& sl : sliders_) {
       auto block = [&, sl](int f) {
@@ -413,6 +461,20 @@ class Picture {
           "r=\"5\" fill=\"#ffffff\" stroke=\"" + std::string(kPinStroke) + "\" stroke-width=\"2\"",
           {{"cx", [&, at](int f) { return num(at(f)[0]); }},
            {"cy", [&, at](int f) { return num(at(f)[1]); }}});
+    }
+
+    // Welds of fixed joints: a filled square where the bodies are joined.
+    for (const auto& w : welds_) {
+      auto square = [&, w](int f) {
+        const Vector2d c = world(q_[f], w.body, w.s);
+        const double h = 5 / scale_;
+        return std::vector<Vector2d>{c + Vector2d(-h, -h), c + Vector2d(h, -h), c + Vector2d(h, h),
+                                     c + Vector2d(-h, h)};
+      };
+      element(os, "polygon",
+              "fill=\"" + std::string(kPinStroke) + "\" stroke=\"" + kPinStroke +
+                  "\" stroke-width=\"1\"",
+              {{"points", [&, square](int f) { return points_at(f, square); }}});
     }
 
     // Reaction forces: an arrow from each joint's point, to one scale for the whole picture.
@@ -482,6 +544,9 @@ class Picture {
   std::vector<Vector2d> ground_pivots_;
   std::vector<Slider> sliders_;
   std::vector<std::pair<Attach, Attach>> struts_;
+  std::vector<Sketch::Circle> pitch_circles_;
+  std::vector<Slider> pitch_lines_;  // travel: of the pinion's centre along the line
+  std::vector<Attach> welds_;
   // With options_.forces.
   struct Reaction {
     Attach at;

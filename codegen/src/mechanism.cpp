@@ -163,6 +163,14 @@ class Loader {
     return Expr{text, loc_of(node)};
   }
 
+  // YAML's true/false (and its other spellings: True, FALSE, yes, no, on, off).
+  bool flag_of(const YAML::Node& node, const std::string& item) {
+    bool value = false;
+    if (!node.IsScalar() || !YAML::convert<bool>::decode(node, value))
+      fail(item, loc_of(node), "expected true or false");
+    return value;
+  }
+
   Vec2 vec2_of(const YAML::Node& node, const std::string& item) {
     if (!node.IsSequence() || node.size() != 2)
       fail(item, loc_of(node), "expected a vector of 2 numbers, e.g. [0, 0]");
@@ -313,6 +321,10 @@ class Loader {
           } else {
             fail(item, loc_of(node), key + " must be a non-empty list of expression strings");
           }
+          break;
+        case KeyKind::kFlag:
+          con.flags[key] =
+              node ? flag_of(node, item + " " + key) : std::string(k.default_value) == "true";
           break;
         case KeyKind::kCurve:
           throw std::logic_error(item + ": curve keys are not supported yet");

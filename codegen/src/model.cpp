@@ -102,6 +102,11 @@ Eigen::VectorXd CompiledModel::q0() const {
   return q;
 }
 
+double CompiledModel::geometry_number(const Expr& e, const std::string& item) const {
+  return to_double(substitute_params(symbols_->parse(e, Scope::kGeometry, item), *symbols_,
+                                     symbolic_.param_values));
+}
+
 std::string CompiledModel::row_label(int row) const {
   const RowOrigin& o = symbolic_.rows[row];
   std::string label = o.constraint->item;

@@ -775,6 +775,21 @@ ex EquationContext::value() const {
   return v;
 }
 
+ex EquationContext::scalar(const std::string& key) const {
+  return geometry(c_.scalars.at(key), c_.item + " " + key);
+}
+
+double EquationContext::number(const ex& e) const {
+  return to_double(substitute_params(e, s_, values_));
+}
+
+void EquationContext::fail(const std::string& key, const std::string& message) const {
+  SourceLoc loc = c_.loc;
+  if (const auto it = c_.scalars.find(key); it != c_.scalars.end()) loc = it->second.loc;
+  if (const auto it = c_.vectors.find(key); it != c_.vectors.end()) loc = it->second.x.loc;
+  throw InputError(m_.source, c_.item, loc, message);
+}
+
 std::vector<ex> EquationContext::equations() const {
   std::vector<ex> rows;
   const Scope scope = c_.is_driver ? Scope::kDriver : Scope::kJoint;

@@ -5,13 +5,13 @@
 namespace kinegen::codegen {
 
 extern const ConstraintKind kRevolute, kTranslational, kDistance, kRevoluteTranslational,
-    kAbsoluteX, kAbsoluteY, kAbsoluteAngle, kRelativeAngle, kExpression;
+    kAbsoluteX, kAbsoluteY, kAbsoluteAngle, kRelativeAngle, kExpression, kFixed, kGear, kRackPinion;
 
 const std::vector<const ConstraintKind*>& constraint_kinds() {
   static const std::vector<const ConstraintKind*> kKinds = {
       &kRevolute,   &kTranslational, &kDistance,      &kRevoluteTranslational,
       &kAbsoluteX,  &kAbsoluteY,     &kAbsoluteAngle, &kRelativeAngle,
-      &kExpression,
+      &kExpression, &kFixed,         &kGear,          &kRackPinion,
   };
   return kKinds;
 }

@@ -30,6 +30,7 @@ enum class KeyKind {
   kValue,         // the joint's constant (Constraint::value); a driver reads `f`, f(t), instead
   kScalar,        // another constant expression: Constraint::scalars
   kEquations,     // one expression string or a list of them, each = 0: Constraint::equations
+  kFlag,          // true or false (default_value "false" or "true"): Constraint::flags
   kCurve,  // planned: [x(u), y(u)], a curve local to a body in one of the kind's coordinates u
            // (CoordinateSpec); the loader refuses it until the stages support coordinates
 };
@@ -71,6 +72,15 @@ class EquationContext {
   GiNaC::ex perpendicular(const Vec& d) const;
   // The value: a joint's constant (checked finite) or a driver's f(t) (checked defined).
   GiNaC::ex value() const;
+  // A kScalar key in the parameters, checked finite.
+  GiNaC::ex scalar(const std::string& key) const;
+  // A kFlag key.
+  bool flag(const std::string& key) const { return c_.flags.at(key); }
+  // The value of a geometry expression (one from vector() or scalar()) at the parameters'
+  // values, for checks such as a radius > 0.
+  double number(const GiNaC::ex& e) const;
+  // An InputError at key `key` of the constraint (its line), for such checks.
+  [[noreturn]] void fail(const std::string& key, const std::string& message) const;
   // The rows of an `equations` key: in the coordinates (and t for a driver), checked defined.
   std::vector<GiNaC::ex> equations() const;
 
@@ -105,6 +115,17 @@ struct Sketch {
   std::vector<Eigen::Vector2d> ground_pivots;
   std::vector<Slider> sliders;
   std::vector<std::pair<Attach, Attach>> struts;  // distance constraints
+  // A pitch circle of a gear or pinion about `centre`, with a radius mark along the body's
+  // local x axis (so its rotation shows).
+  struct Circle {
+    Attach centre;
+    double radius = 0;
+  };
+  std::vector<Circle> pitch_circles;
+  // A rack's pitch line: the line through `origin` along `dir` in `guide`, drawn over the
+  // travel of `point` (the pinion's centre) along it, like a slider's guide.
+  std::vector<Slider> pitch_lines;
+  std::vector<Attach> welds;  // fixed joints: the bodies are joined at the point
 };
 
 // The numeric view of one constraint, for its drawing (parameters substituted).
@@ -117,6 +138,7 @@ struct DrawContext {
     return {number(v.x), number(v.y)};
   }
   double value() const { return number(constraint.value); }
+  double scalar(const std::string& key) const { return number(constraint.scalars.at(key)); }
 };
 
 // Planned (the next issue adds gear, rack_pinion, point_follower and cam_follower): a scalar
@@ -143,6 +165,10 @@ struct ConstraintKind {
   // How a message names row `component` (0-based) when the type has more than one row
   // ("x-component" in "joints[1] (revolute) x-component").
   std::string (*row_name)(const Constraint& c, int component) = nullptr;
+  // At assembly (the first solved position of an analysis, coordinates q): a `warning:`
+  // message about this constraint (without its file, line and item, which the analysis adds),
+  // or "" (a gear's centre distance off its pitch radii).
+  std::string (*assembly_warning)(const DrawContext& context, const Eigen::VectorXd& q) = nullptr;
   // Kinetostatics (forces.hpp): the keys of the points where the reaction acts on body i and
   // on body j (nullptr: the body's origin).
   const char* reaction_i = nullptr;

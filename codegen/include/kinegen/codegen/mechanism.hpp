@@ -61,6 +61,7 @@ struct Constraint {
   int j = kGround;   // body j
   std::map<std::string, Vec2> vectors;  // local vectors by key: si, sj, s, vi
   std::map<std::string, Expr> scalars;  // other constants by key
+  std::map<std::string, bool> flags;    // true/false keys (a gear's `internal`)
   Expr value;        // value / length / angle of a joint, or f(t) of a driver
   std::vector<Expr> equations;  // expression constraints: each string = 0
 

@@ -57,6 +57,10 @@ class CompiledModel {
   // Local offsets of the named points, evaluated.
   const std::vector<Eigen::Vector2d>& point_offsets() const { return point_s_; }
 
+  // The value of a geometry expression of the file (parameters and constants) with the
+  // parameters' values; `item` names it in an error.
+  double geometry_number(const Expr& e, const std::string& item) const;
+
   // A label for the constraint behind row r, with the row's name when it has several
   // ("joints[1] (revolute) x-component (line 12)"; the names are the kind's row_name).
   std::string row_label(int row) const;
