@@ -148,9 +148,10 @@ TEST_CASE("the 40-digit reference gives the outputs to rounding", "[outputs]") {
             : compare_analysis(*model, slider_crank_truth, true);
     std::printf("%s: reference outputs vs closed form: value %.2e, v %.2e, a %.2e\n",
                 fs::path(file).stem().c_str(), w.value, w.rate, w.accel);
-    // The closed forms' own double rounding (acos, atan2 and the chains above) is the limit.
+    // The closed forms' own double rounding (acos, atan2 and the chains above) is the limit:
+    // the four-bar's w2, w3 come from quotients of sines (1.5e-14 measured, in mu_deg.v).
     CHECK(w.value < 1e-14);
-    CHECK(w.rate < 1e-14);
+    CHECK(w.rate < 5e-14);
     CHECK(w.accel < 1e-14);
   }
 }
