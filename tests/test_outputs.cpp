@@ -33,7 +33,8 @@ using Triple = std::array<double, 3>;
 namespace {
 
 const double kPi = std::acos(-1.0);
-const std::string kFourBar = std::string(KINEGEN_SOURCE_DIR) + "/tests/mechanisms/four_bar_outputs.yaml";
+const std::string kFourBar =
+    std::string(KINEGEN_SOURCE_DIR) + "/tests/mechanisms/four_bar_outputs.yaml";
 const std::string kSliderCrank =
     std::string(KINEGEN_SOURCE_DIR) + "/tests/mechanisms/slider_crank_outputs.yaml";
 
@@ -120,9 +121,12 @@ std::vector<std::string> split(const std::string& line, char sep) {
 
 TEST_CASE("four-bar outputs (transmission angle, |O2 B|) match the closed form", "[outputs]") {
   const auto model = kc::CompiledModel::from_file(kFourBar);
-  const Worst w = compare_analysis(*model, [](double t) { return four_bar_truth(t); }, false);
-  std::printf("four_bar outputs vs closed form (relative to 1 + |truth|): value %.2e, v %.2e, "
-              "a %.2e\n", w.value, w.rate, w.accel);
+  const Worst w = compare_analysis(
+      *model, [](double t) { return four_bar_truth(t); }, false);
+  std::printf(
+      "four_bar outputs vs closed form (relative to 1 + |truth|): value %.2e, v %.2e, "
+      "a %.2e\n",
+      w.value, w.rate, w.accel);
   CHECK(w.value < 1e-13);
   CHECK(w.rate < 1e-12);
   CHECK(w.accel < 1e-11);
@@ -142,10 +146,9 @@ TEST_CASE("slider-crank outputs (stroke, cylinder via definitions, t terms) matc
 TEST_CASE("the 40-digit reference gives the outputs to rounding", "[outputs]") {
   for (const std::string& file : {kFourBar, kSliderCrank}) {
     const auto model = kc::CompiledModel::from_file(file);
-    const Worst w =
-        file == kFourBar
-            ? compare_analysis(*model, [](double t) { return four_bar_truth(t); }, true)
-            : compare_analysis(*model, slider_crank_truth, true);
+    const Worst w = file == kFourBar ? compare_analysis(
+                                           *model, [](double t) { return four_bar_truth(t); }, true)
+                                     : compare_analysis(*model, slider_crank_truth, true);
     std::printf("%s: reference outputs vs closed form: value %.2e, v %.2e, a %.2e\n",
                 fs::path(file).stem().c_str(), w.value, w.rate, w.accel);
     // The closed forms' own double rounding (acos, atan2 and the chains above) is the limit:
@@ -173,8 +176,9 @@ TEST_CASE("analyze puts NAME, NAME.v, NAME.a after the points, also with --refer
   std::getline(a, ha);
   std::getline(b, hb);
   CHECK(ha == hb);
-  const std::string tail = "slider.ay,stroke,stroke.v,stroke.a,cylinder,cylinder.v,cylinder.a,timed,"
-                           "timed.v,timed.a";
+  const std::string tail =
+      "slider.ay,stroke,stroke.v,stroke.a,cylinder,cylinder.v,cylinder.a,timed,"
+      "timed.v,timed.a";
   CHECK(ha.size() >= tail.size());
   CHECK(ha.compare(ha.size() - tail.size(), tail.size(), tail) == 0);
   const auto names = split(ha, ',');
@@ -222,7 +226,8 @@ TEST_CASE("eval's JSON has the outputs' values", "[outputs]") {
   for (std::size_t o = 0; o < truth.size(); ++o)
     CHECK(std::abs(std::stod(values[o]) - truth[o][0]) <= 1e-14 * (1 + std::abs(truth[o][0])));
   // Without outputs the JSON is unchanged.
-  const auto v1 = run_kinegen({"eval", std::string(KINEGEN_SOURCE_DIR) + "/examples/four_bar.yaml"});
+  const auto v1 =
+      run_kinegen({"eval", std::string(KINEGEN_SOURCE_DIR) + "/examples/four_bar.yaml"});
   CHECK(v1.out.find("outputs") == std::string::npos);
 }
 
@@ -294,8 +299,7 @@ TEST_CASE("the generated outputs function agrees with analyze and with the compl
   }
 }
 
-TEST_CASE("sensitivities include the outputs: d(O)/d(p) against central differences",
-          "[outputs]") {
+TEST_CASE("sensitivities include the outputs: d(O)/d(p) against central differences", "[outputs]") {
   const auto model = kc::CompiledModel::from_file(kFourBar);
   const std::vector<std::string> names = {"c", "a"};
   const kc::SensitivityModel sens = kc::build_sensitivity(*model, names);
@@ -374,11 +378,11 @@ outputs:
       std::ofstream(mech) << base << c.outputs;
       const fs::path csv = dir / "m.csv", gen = dir / "gen";
       fs::create_directories(gen);
-      for (const auto& args : std::vector<std::vector<std::string>>{
-               {"analyze", mech.string(), "--t0", "0", "--t1", "1", "--steps", "2", "-o",
-                csv.string()},
-               {"generate", mech.string(), "-o", gen.string()},
-               {"eval", mech.string()}}) {
+      for (const auto& args :
+           std::vector<std::vector<std::string>>{{"analyze", mech.string(), "--t0", "0", "--t1",
+                                                  "1", "--steps", "2", "-o", csv.string()},
+                                                 {"generate", mech.string(), "-o", gen.string()},
+                                                 {"eval", mech.string()}}) {
         const auto r = run_kinegen(args);
         INFO(args[0] << " stderr: " << r.err);
         CHECK(r.exit_code == 2);

@@ -502,7 +502,8 @@ std::string csv_row(const StateRow& row) {
   for (int k = 0; k < row.dq_dp.cols(); ++k) {
     for (int i = 0; i < row.dq_dp.rows(); ++i) s += "," + format_number(row.dq_dp(i, k));
     for (int i = 0; i < row.dpoints_dp.rows(); ++i) s += "," + format_number(row.dpoints_dp(i, k));
-    for (int i = 0; i < row.doutputs_dp.rows(); ++i) s += "," + format_number(row.doutputs_dp(i, k));
+    for (int i = 0; i < row.doutputs_dp.rows(); ++i)
+      s += "," + format_number(row.doutputs_dp(i, k));
   }
   return s + "\n";
 }

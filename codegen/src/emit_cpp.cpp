@@ -2001,11 +2001,11 @@ void emit_outputs(std::ostringstream& os, const Mechanism& m, const SymbolTable&
   os << ".\n  static constexpr int num_outputs = " << n << ";\n";
   os << "  // Output values O(q, t)\n";
   emit_function(os, "output_values", "num_outputs", programs.outputs, symbols, false, max_ops);
-  os << "\n  // Output rates O_q qd + O_t, then the accelerations at qdd = 0, then O_q (row-major)\n";
-  emit_function(os, "output_rates", "num_outputs * (2 + nq)", programs.output_rates, symbols,
-                true, max_ops);
-  os << "\n  // Value, velocity and acceleration of each output at a solved q, qd, qdd (exact time\n"
-     << "  // derivatives along the motion).\n"
+  os << "\n  // Rates O_q qd + O_t, then accelerations at qdd = 0, then O_q (row-major)\n";
+  emit_function(os, "output_rates", "num_outputs * (2 + nq)", programs.output_rates, symbols, true,
+                max_ops);
+  os << "\n  // Value, velocity and acceleration of each output at a solved q, qd, qdd\n"
+     << "  // (exact time derivatives along the motion).\n"
      << "  template <class T>\n"
      << "  static void outputs(const T* q, const T* qd, const T* qdd, T t, const Params& p, "
         "T* value,\n"

@@ -286,8 +286,8 @@ int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
   }
   kc::OutputFile out("-");
   out.stream() << "{\"phi\": " << json_array(phi) << ", \"phi_q\": [" << rows
-               << "], \"nu\": " << json_array(nu) << ", \"gamma\": " << json_array(gamma)
-               << outputs << "}\n";
+               << "], \"nu\": " << json_array(nu) << ", \"gamma\": " << json_array(gamma) << outputs
+               << "}\n";
   out.commit();
   return 0;
 }

@@ -91,8 +91,8 @@ void point_sensitivities(const CompiledModel& model, const SensitivityModel& sen
   }
 }
 
-void output_sensitivities(const CompiledModel& model, const SensitivityModel& sensitivity,
-                          double t, const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
+void output_sensitivities(const CompiledModel& model, const SensitivityModel& sensitivity, double t,
+                          const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
                           Eigen::MatrixXd& doutputs) {
   const int n = model.programs().num_outputs, nq = model.nq();
   const int np = static_cast<int>(sensitivity.params.size());

@@ -51,8 +51,8 @@ void point_sensitivities(const CompiledModel& model, const SensitivityModel& sen
 
 // The outputs' total derivatives dO/dp = O_q dq/dp + dO/dp|explicit at q, t: doutputs
 // (outputs x np).
-void output_sensitivities(const CompiledModel& model, const SensitivityModel& sensitivity,
-                          double t, const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
+void output_sensitivities(const CompiledModel& model, const SensitivityModel& sensitivity, double t,
+                          const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
                           Eigen::MatrixXd& doutputs);
 
 // The CSV column names the sensitivities add, in order: for each parameter, for each body
