@@ -299,6 +299,7 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
   row.q = model.q0();
   row.qd = Eigen::VectorXd::Zero(model.nq());
   row.qdd = Eigen::VectorXd::Zero(model.nq());
+  OutputEvaluator outputs(model);
   bool first_solve = true;  // the first position solve starts from the file's q0
   const auto fail = [&](const char* stage, double t, Result r) {
     // Newton that ends near a singular Phi_q (as at a toggle, where it converges only
@@ -406,7 +407,11 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
       row.points.push_back(point_state(row.q.segment<3>(b), row.qd.segment<3>(b),
                                        row.qdd.segment<3>(b), model.point_offsets()[p]));
     }
-    if (sensitivity) point_sensitivities(model, *sensitivity, row.q, row.dq_dp, row.dpoints_dp);
+    outputs.evaluate(t, row.q, row.qd, row.qdd, row.outputs);
+    if (sensitivity) {
+      point_sensitivities(model, *sensitivity, row.q, row.dq_dp, row.dpoints_dp);
+      output_sensitivities(model, *sensitivity, t, row.q, row.dq_dp, row.doutputs_dp);
+    }
     if (force_solver) {
       if (!force_solver->solve(t, row.q, row.qd, row.qdd, row.forces))
         throw AnalysisError(file + ": force analysis failed at " + format_time(t) +
@@ -450,6 +455,30 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
   }
 }
 
+OutputEvaluator::OutputEvaluator(const CompiledModel& model)
+    : nq_(model.nq()),
+      n_(model.programs().num_outputs),
+      params_(model.params()),
+      values_(n_),
+      rates_(static_cast<std::size_t>(n_) * (2 + nq_)),
+      value_program_(model.programs().outputs),
+      rate_program_(model.programs().output_rates) {}
+
+void OutputEvaluator::evaluate(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                               const Eigen::VectorXd& qdd,
+                               std::vector<std::array<double, 3>>& out) {
+  out.resize(n_);
+  if (n_ == 0) return;
+  value_program_.run(q.data(), nullptr, t, params_.data(), values_.data());
+  rate_program_.run(q.data(), qd.data(), t, params_.data(), rates_.data());
+  for (int o = 0; o < n_; ++o) {
+    double a = rates_[n_ + o];
+    const double* grad = &rates_[2 * n_ + static_cast<std::size_t>(o) * nq_];
+    for (int k = 0; k < nq_; ++k) a += grad[k] * qdd[k];
+    out[o] = {values_[o], rates_[o], a};
+  }
+}
+
 std::string csv_header(const Mechanism& m) {
   std::string h = "t";
   for (const auto& b : m.bodies)
@@ -457,6 +486,7 @@ std::string csv_header(const Mechanism& m) {
       h += "," + b.name + "." + c;
   for (const auto& p : m.points)
     for (const char* c : {"x", "y", "vx", "vy", "ax", "ay"}) h += "," + p.name + "." + c;
+  for (const auto& o : m.outputs) h += "," + o.name + "," + o.name + ".v," + o.name + ".a";
   return h + "\n";
 }
 
@@ -483,11 +513,15 @@ std::string csv_row(const StateRow& row) {
   for (const auto& p : row.points)
     for (const Eigen::Vector2d* v : {&p.r, &p.v, &p.a})
       s += "," + format_number((*v)[0]) + "," + format_number((*v)[1]);
+  for (const auto& o : row.outputs)
+    for (double v : o) s += "," + format_number(v);
   for (double f : row.forces) s += "," + format_number(f);
-  // Sensitivities: per parameter, the bodies' x, y, phi, then the points' x, y (spec 6.6).
+  // Sensitivities: per parameter, the bodies' x, y, phi, the points' x, y, the outputs (6.6).
   for (int k = 0; k < row.dq_dp.cols(); ++k) {
     for (int i = 0; i < row.dq_dp.rows(); ++i) s += "," + format_number(row.dq_dp(i, k));
     for (int i = 0; i < row.dpoints_dp.rows(); ++i) s += "," + format_number(row.dpoints_dp(i, k));
+    for (int i = 0; i < row.doutputs_dp.rows(); ++i)
+      s += "," + format_number(row.doutputs_dp(i, k));
   }
   return s + "\n";
 }

@@ -2071,6 +2071,37 @@ void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
 
 }  // namespace
 
+// The mechanism's outputs (format 6.4): values, rates, and accelerations as O_q qdd plus the
+// rest, from the programs the analysis runs. Nothing for a file without outputs.
+void emit_outputs(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
+                  const ModelPrograms& programs, int max_ops) {
+  const int n = programs.num_outputs;
+  os << "\n  // Outputs (in this order):";
+  for (int o = 0; o < n; ++o) os << (o ? "," : "") << " " << m.outputs[o].name;
+  os << ".\n  static constexpr int num_outputs = " << n << ";\n";
+  os << "  // Output values O(q, t)\n";
+  emit_function(os, "output_values", "num_outputs", programs.outputs, symbols, false, max_ops);
+  os << "\n  // Rates O_q qd + O_t, then accelerations at qdd = 0, then O_q (row-major)\n";
+  emit_function(os, "output_rates", "num_outputs * (2 + nq)", programs.output_rates, symbols, true,
+                max_ops);
+  os << "\n  // Value, velocity and acceleration of each output at a solved q, qd, qdd\n"
+     << "  // (exact time derivatives along the motion).\n"
+     << "  template <class T>\n"
+     << "  static void outputs(const T* q, const T* qd, const T* qdd, T t, const Params& p, "
+        "T* value,\n"
+     << "                      T* velocity, T* acceleration) noexcept {\n"
+     << "    std::array<T, num_outputs * (2 + nq)> r;\n"
+     << "    output_values(q, t, p, value);\n"
+     << "    output_rates(q, qd, t, p, r.data());\n"
+     << "    for (int o = 0; o < num_outputs; ++o) {\n"
+     << "      velocity[o] = r[o];\n"
+     << "      T a = r[num_outputs + o];\n"
+     << "      for (int k = 0; k < nq; ++k) a += r[2 * num_outputs + o * nq + k] * qdd[k];\n"
+     << "      acceleration[o] = a;\n"
+     << "    }\n"
+     << "  }\n";
+}
+
 std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
                         const ModelPrograms& programs) {
   return emit_header(m, symbols, model, programs, EmitOptions{});
@@ -2181,6 +2212,8 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     emit_function_rolled_if(os, "gamma", "nc", programs.gamma, model.gamma, row_group, symbols,
                             true, max_ops, roll_min);
   }
+
+  if (programs.num_outputs > 0) emit_outputs(os, m, symbols, programs, max_ops);
 
   os << "\n  // Which outputs were generated (kinegen generate --outputs).\n";
   os << "  static constexpr bool has_velocity = " << (velocity ? "true" : "false") << ";\n";

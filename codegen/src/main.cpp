@@ -276,9 +276,18 @@ int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
   eval.gamma(q.data(), qd.data(), t, gamma.data());
   std::string rows;
   for (int r = 0; r < nc; ++r) rows += (r ? ", " : "") + json_array(jac.row(r).transpose());
+  // Outputs' values (format 6.4); a file without outputs keeps its v1 JSON.
+  std::string outputs;
+  if (model->programs().num_outputs > 0) {
+    Eigen::VectorXd values(model->programs().num_outputs);
+    kc::ProgramEvaluator<double> program(model->programs().outputs);
+    program.run(q.data(), nullptr, t, model->params().data(), values.data());
+    outputs = ", \"outputs\": " + json_array(values);
+  }
   kc::OutputFile out("-");
   out.stream() << "{\"phi\": " << json_array(phi) << ", \"phi_q\": [" << rows
-               << "], \"nu\": " << json_array(nu) << ", \"gamma\": " << json_array(gamma) << "}\n";
+               << "], \"nu\": " << json_array(nu) << ", \"gamma\": " << json_array(gamma) << outputs
+               << "}\n";
   out.commit();
   return 0;
 }

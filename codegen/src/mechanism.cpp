@@ -74,8 +74,8 @@ class Loader {
     if (!root.IsDefined() || root.IsNull()) fail("file", {}, "the file is empty");
     if (!root.IsMap()) fail("file", loc_of(root), "the top level must be a mapping of keys");
     check_keys(root, "file", {"name"},
-               {"parameters", "definitions", "bodies", "joints", "drivers", "points", "gravity",
-                "forces"});
+               {"parameters", "definitions", "bodies", "joints", "drivers", "points", "outputs",
+                "gravity", "forces"});
     Mechanism m;
     m.source = source_;
     m.name = name_of(root["name"], "name");
@@ -88,6 +88,7 @@ class Loader {
     read_constraints(root["joints"], "joints", false, m);
     read_constraints(root["drivers"], "drivers", true, m);
     if (root["points"]) read_points(root["points"], m);
+    if (root["outputs"]) read_outputs(root["outputs"], m);
     if (root["gravity"]) {
       m.forces.gravity = vec2_of(root["gravity"], "gravity");
       m.forces.gravity_loc = loc_of(root["gravity"]);
@@ -189,6 +190,18 @@ class Loader {
       const std::string item = section + "." + name;
       if (!seen.insert(name).second) fail(item, loc_of(it->first), "duplicate name");
       out.push_back({name, expr_of(it->second, item), loc_of(it->first)});
+    }
+  }
+
+  void read_outputs(const YAML::Node& node, Mechanism& m) {
+    if (node.IsNull()) return;
+    if (!node.IsMap()) fail("outputs", loc_of(node), "expected a mapping name: expression");
+    std::set<std::string> seen;
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      const std::string name = name_of(it->first, "outputs");
+      const std::string item = "outputs." + name;
+      if (!seen.insert(name).second) fail(item, loc_of(it->first), "duplicate output");
+      m.outputs.push_back({name, expr_of(it->second, item), loc_of(it->first)});
     }
   }
 
@@ -442,6 +455,15 @@ class Loader {
       if (m.find_body(p.name))
         fail("point '" + p.name + "'", p.loc, "the name clashes with a body (CSV columns would repeat)");
     }
+    // Outputs name CSV columns and header entries, and sit beside the names expressions use.
+    std::set<std::string> definition_names;
+    for (const auto& d : m.definitions) definition_names.insert(d.name);
+    for (const auto& o : m.outputs)
+      if (taken.count(o.name) || m.find_body(o.name) || parameter_names.count(o.name) ||
+          definition_names.count(o.name) || points.count(o.name))
+        fail("outputs." + o.name, o.loc,
+             "the name clashes with a body, a point, a parameter, a definition or a coordinate "
+             "name (x_<body>, y_<body>, phi_<body>)");
     std::set<std::string> names;
     for (const auto* c : m.constraints())
       if (!c->name.empty() && !names.insert(c->name).second)

@@ -78,6 +78,9 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
     for (auto& e : symbolic_.phi_q) fold(e.value);
     for (auto& e : symbolic_.nu) fold(e);
     for (auto& e : symbolic_.gamma) fold(e);
+    for (auto* list : {&symbolic_.output_values, &symbolic_.output_rates, &symbolic_.output_a0,
+                       &symbolic_.output_q})
+      for (auto& e : *list) fold(e);
     stage.done("");
   }
   {

@@ -385,7 +385,17 @@ ModelPrograms lower_model(const SymbolicModel& model, const SymbolTable& symbols
   p.phi_q = lower(jac, symbols);
   p.nu = lower(model.nu, symbols);
   p.gamma = lower(model.gamma, symbols);
+  p.num_outputs = static_cast<int>(model.output_values.size());
+  p.outputs = lower(model.output_values, symbols);
+  p.output_rates = lower(output_rate_expressions(model), symbols);
   return p;
+}
+
+std::vector<ex> output_rate_expressions(const SymbolicModel& model) {
+  std::vector<ex> all = model.output_rates;
+  all.insert(all.end(), model.output_a0.begin(), model.output_a0.end());
+  all.insert(all.end(), model.output_q.begin(), model.output_q.end());
+  return all;
 }
 
 }  // namespace kinegen::codegen

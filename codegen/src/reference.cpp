@@ -397,6 +397,8 @@ StateRow to_state_row(const ReferenceRow& row) {
     ps.a = {p[4].to_double(), p[5].to_double()};
     s.points.push_back(ps);
   }
+  for (const auto& o : row.outputs)
+    s.outputs.push_back({o[0].to_double(), o[1].to_double(), o[2].to_double()});
   return s;
 }
 
@@ -437,6 +439,15 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
           GiNaC::evalf(substitute_params(e, model.symbols(), sym.param_values))));
     };
     offsets.push_back({value(x), value(y)});
+  }
+
+  // Outputs: values, then rates, a0 and O_q (output_rate_expressions), in one tape.
+  const int num_outputs = static_cast<int>(sym.output_values.size());
+  int output_tape = -1;
+  if (num_outputs > 0) {
+    std::vector<ex> all = sym.output_values;
+    for (const ex& e : output_rate_expressions(sym)) all.push_back(e);
+    output_tape = eval.add_outputs(all);
   }
 
   const auto jacobian = [&](const Vector& q, const numeric& t) {
@@ -506,6 +517,15 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
       const numeric c = GiNaC::cos(row.q[b + 2]), s = GiNaC::sin(row.q[b + 2]);
       row.points.push_back(
           point_kinematics(&row.q[b], &row.qd[b], &row.qdd[b], c, s, offsets[p][0], offsets[p][1]));
+    }
+    row.outputs.clear();
+    if (output_tape >= 0) {
+      const Vector v = eval.evaluate(output_tape, row.q, row.qd, t);
+      for (int o = 0; o < num_outputs; ++o) {
+        numeric a = v[2 * num_outputs + o];
+        for (int k = 0; k < nq; ++k) a = a + v[3 * num_outputs + o * nq + k] * row.qdd[k];
+        row.outputs.push_back({v[o], v[num_outputs + o], a});
+      }
     }
     sink(row);
   }

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "kinegen/codegen/evaluator.hpp"
+
 namespace kinegen::codegen {
 
 std::vector<GiNaC::ex> derive_phi_p(const SymbolicModel& model, const SymbolTable& symbols,
@@ -61,6 +63,12 @@ SensitivityModel build_sensitivity(const CompiledModel& model,
                       to_double(substitute_params(y.diff(symbols.param(p)), symbols, values)));
     s.point_ds.push_back(std::move(ds));
   }
+  const SymbolicModel& sym = model.symbolic();
+  std::vector<GiNaC::ex> output_p;
+  for (int p : s.params)
+    for (const auto& o : sym.output_values) output_p.push_back(o.diff(symbols.param(p)));
+  output_p.insert(output_p.end(), sym.output_q.begin(), sym.output_q.end());
+  s.output_p = lower(output_p, symbols);
   return s;
 }
 
@@ -83,6 +91,24 @@ void point_sensitivities(const CompiledModel& model, const SensitivityModel& sen
   }
 }
 
+void output_sensitivities(const CompiledModel& model, const SensitivityModel& sensitivity, double t,
+                          const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
+                          Eigen::MatrixXd& doutputs) {
+  const int n = model.programs().num_outputs, nq = model.nq();
+  const int np = static_cast<int>(sensitivity.params.size());
+  doutputs.resize(n, np);
+  if (n == 0) return;
+  // Runs per row; outputs are few, so the work space is small next to the solve.
+  std::vector<double> values(static_cast<std::size_t>(n) * (np + nq));
+  ProgramEvaluator<double>(sensitivity.output_p)
+      .run(q.data(), nullptr, t, model.params().data(), values.data());
+  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>
+      o_q(values.data() + static_cast<std::size_t>(n) * np, n, nq);
+  for (int k = 0; k < np; ++k)
+    for (int o = 0; o < n; ++o)
+      doutputs(o, k) = values[k * n + o] + o_q.row(o).dot(dq_dp.col(k)) + 0.0;  // -0 prints as 0
+}
+
 std::vector<std::string> sensitivity_columns(const Mechanism& m,
                                              const std::vector<std::string>& names) {
   std::vector<std::string> columns;
@@ -92,6 +118,7 @@ std::vector<std::string> sensitivity_columns(const Mechanism& m,
       for (const char* c : {".x", ".y", ".phi"}) add(b.name + c);
     for (const auto& pt : m.points)
       for (const char* c : {".x", ".y"}) add(pt.name + c);
+    for (const auto& o : m.outputs) add(o.name);
   }
   return columns;
 }

@@ -918,6 +918,23 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
   }
   for (const auto& p : m.points)
     model.point_s.push_back(builder.vec(p.s, "point '" + p.name + "' s"));
+  for (const auto& o : m.outputs) {
+    const ex value = s.parse(o.value, Scope::kDriver, "outputs." + o.name);
+    const std::vector<int> coords = coordinates_in(value, s);
+    std::vector<ex> grad(s.nq(), ex(0));
+    ex rate = value.diff(s.t());
+    for (int k : coords) {
+      grad[k] = value.diff(s.q(k));
+      rate += grad[k] * s.qd(k);
+    }
+    // The rate reads only the coordinates the value does, and qd.
+    ex a0 = rate.diff(s.t());
+    for (int k : coords) a0 += rate.diff(s.q(k)) * s.qd(k);
+    model.output_values.push_back(value);
+    model.output_rates.push_back(rate);
+    model.output_a0.push_back(a0);
+    model.output_q.insert(model.output_q.end(), grad.begin(), grad.end());
+  }
 
   // Tolerance scales: a body's x and y scale with the geometry of its own joints and drivers
   // (the local vectors on it, a distance joint's length), so a 1e-6 follower next to a 1e6 arm

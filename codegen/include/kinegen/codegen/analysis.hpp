@@ -28,9 +28,12 @@ struct StateRow {
   double t = 0;
   Eigen::VectorXd q, qd, qdd;
   std::vector<PointState> points;
+  // The outputs (format 6.4): value, velocity, acceleration, in file order.
+  std::vector<std::array<double, 3>> outputs;
   // With AnalysisOptions::sensitivity: dq/dp (nq x np) and the points' dC/dp (2 per point,
   // x then y, x np); empty otherwise.
   Eigen::MatrixXd dq_dp, dpoints_dp;
+  Eigen::MatrixXd doutputs_dp;  // outputs x np
   // With AnalysisOptions::forces: the force columns (forces.hpp, force_columns order).
   std::vector<double> forces;
 };
@@ -97,6 +100,20 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
 // Position, velocity and acceleration of a point at local offset s on a body.
 PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,
                        const Eigen::Vector3d& qdd, const Eigen::Vector2d& s);
+
+// Evaluates the outputs' values and exact time derivatives at a solved state:
+// v = O_q qd + O_t, a = O_q qdd + (the rest of d/dt v). Allocates on construction only.
+class OutputEvaluator {
+ public:
+  explicit OutputEvaluator(const CompiledModel& model);
+  void evaluate(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                const Eigen::VectorXd& qdd, std::vector<std::array<double, 3>>& out);
+
+ private:
+  int nq_, n_;
+  std::vector<double> params_, values_, rates_;
+  ProgramEvaluator<double> value_program_, rate_program_;
+};
 
 std::string csv_header(const Mechanism& mechanism);
 // With the sensitivity columns of these parameters after all others (spec 6.6).

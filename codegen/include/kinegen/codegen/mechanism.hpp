@@ -37,6 +37,14 @@ struct Definition {
   SourceLoc loc;
 };
 
+// A reported scalar (format 6.4): coordinates, t, parameters and definitions; its CSV columns
+// are NAME, NAME.v and NAME.a.
+struct Output {
+  std::string name;
+  Expr value;
+  SourceLoc loc;
+};
+
 struct Body {
   std::string name;
   std::array<Expr, 3> q0;  // x, y, phi
@@ -117,6 +125,7 @@ struct Mechanism {
   std::vector<Constraint> joints;
   std::vector<Constraint> drivers;
   std::vector<Point> points;
+  std::vector<Output> outputs;
   ForceSpec forces;  // masses, gravity and loads (`analyze --forces`)
 
   int nq() const { return 3 * static_cast<int>(bodies.size()); }

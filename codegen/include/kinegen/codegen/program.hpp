@@ -75,7 +75,14 @@ struct ModelPrograms {
   int nq = 0, nc = 0;
   std::vector<int> jac_rows, jac_cols;
   Program phi, phi_q, nu, gamma;
+  // Outputs (format 6.4): their values (q, t); output_rates: the rates, then the
+  // accelerations at qdd = 0, then O_q (outputs x nq, row-major), all in q, qd, t.
+  int num_outputs = 0;
+  Program outputs, output_rates;
 };
+
+// The concatenation output_rates lowers: rates, a0, O_q (SymbolicModel's output fields).
+std::vector<GiNaC::ex> output_rate_expressions(const SymbolicModel& model);
 
 ModelPrograms lower_model(const SymbolicModel& model, const SymbolTable& symbols, int nq);
 

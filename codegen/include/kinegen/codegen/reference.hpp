@@ -68,6 +68,7 @@ struct ReferenceRow {
   GiNaC::numeric t;
   std::vector<GiNaC::numeric> q, qd, qdd;
   std::vector<std::array<GiNaC::numeric, 6>> points;  // x, y, vx, vy, ax, ay per named point
+  std::vector<std::array<GiNaC::numeric, 3>> outputs;  // value, v, a per output
   int newton_iterations = 0;                          // at this time step
 };
 

@@ -26,6 +26,8 @@ struct SensitivityModel {
   Program phi_p;                   // nc * np outputs, as derive_phi_p orders them
   // d s'/dp of each named point's local offset, evaluated: point_ds[k][point].
   std::vector<std::vector<Eigen::Vector2d>> point_ds;
+  // The outputs' explicit dO/dp (np x outputs, parameter-major), then O_q (outputs x nq).
+  Program output_p;
 };
 
 // The index of the parameter `name`; a UsageError starting with `option` (the command-line
@@ -47,9 +49,15 @@ void point_sensitivities(const CompiledModel& model, const SensitivityModel& sen
                          const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
                          Eigen::MatrixXd& dpoints);
 
+// The outputs' total derivatives dO/dp = O_q dq/dp + dO/dp|explicit at q, t: doutputs
+// (outputs x np).
+void output_sensitivities(const CompiledModel& model, const SensitivityModel& sensitivity, double t,
+                          const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
+                          Eigen::MatrixXd& doutputs);
+
 // The CSV column names the sensitivities add, in order: for each parameter, for each body
 // `d(B.x)/d(p)`, `d(B.y)/d(p)`, `d(B.phi)/d(p)`, then for each point `d(P.x)/d(p)`,
-// `d(P.y)/d(p)`.
+// `d(P.y)/d(p)`, then for each output `d(O)/d(p)`.
 std::vector<std::string> sensitivity_columns(const Mechanism& mechanism,
                                              const std::vector<std::string>& names);
 

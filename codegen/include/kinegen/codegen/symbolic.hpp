@@ -105,6 +105,10 @@ struct SymbolicModel {
   std::vector<GiNaC::ex> gamma;          // nc
   std::vector<GiNaC::ex> q0;             // nq, in the parameters
   std::vector<std::pair<GiNaC::ex, GiNaC::ex>> point_s;  // local offsets, in the parameters
+  // Outputs (format 6.4), one entry each: the value O(q, t), its rate O_q qd + O_t, the part
+  // of its acceleration without qdd (d/dt of the rate at qdd = 0), and O_q (dense, row-major
+  // outputs x nq), so that the acceleration is output_q qdd + output_a0.
+  std::vector<GiNaC::ex> output_values, output_rates, output_a0, output_q;
   std::vector<GiNaC::numeric> param_values;  // defaults (after overrides), exact
   // What each coordinate measures (nq; bodies give length, length, angle; the extra
   // coordinates of spec 6.1 give their own kind) and the size its tolerances scale with: a
