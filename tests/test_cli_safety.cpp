@@ -423,6 +423,11 @@ TEST_CASE(
                (fs::path(KINEGEN_SOURCE_DIR) / "tests/mechanisms/fourbar_chain_3.yaml").string(),
                "-o", dir.string(), "-q", "--roll-min", "2", "--max-function-ops", "8"})
               .exit_code == 0);
+  // Headers with the kinetostatics and the outputs, whose members the examples lack.
+  for (const char* mech : {"examples/forces/press.yaml", "tests/mechanisms/four_bar_outputs.yaml"})
+    REQUIRE(run_kinegen({"generate", (fs::path(KINEGEN_SOURCE_DIR) / mech).string(), "-o",
+                         dir.string(), "-q"})
+                .exit_code == 0);
   for (const auto& e : fs::directory_iterator(dir)) headers.push_back(e.path());
   const std::regex decl(
       R"(^  (?:static |template <[^>]*> static |struct |using |enum (?:class )?)(?:[\w:<>, ]*?[\s*&])?([A-Za-z]\w*)\s*(?:[({=;\[]|$))");

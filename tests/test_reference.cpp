@@ -212,10 +212,9 @@ template <class Model>
 void check_example(const std::string& name) {
   const auto model = load(name);
   // A full crank turn: every example drives its crank at omega = 1.
-  const auto& params = model->mechanism().parameters;
   bool omega_one = false;
-  for (std::size_t k = 0; k < params.size(); ++k)
-    omega_one = omega_one || (params[k].name == "omega" && model->params()[k] == 1.0);
+  for (const auto& [name, value] : model->parameter_table())
+    omega_one = omega_one || (name == "omega" && value == 1.0);
   REQUIRE(omega_one);
   const auto ref = reference_run(*model, kSteps, kTurn);
   REQUIRE(ref.size() == kSteps + 1u);

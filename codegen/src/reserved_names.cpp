@@ -36,6 +36,9 @@ const std::vector<std::string> kHeaderMembers = {
     "jac_row_begin",
     // parameter sensitivities (emit_sensitivity)
     "num_params", "has_sensitivity", "phi_p", "sensitivity_work_size", "solve_sensitivity",
+    // kinetostatics (emit_forces) and outputs (emit_outputs)
+    "has_forces", "num_force_columns", "force_column_names", "applied_force", "generalized_force",
+    "solve_forces", "force_columns", "num_outputs", "output_values", "output_rates", "outputs",
     // the kernels (runtime/include/kinegen/kernels/) pasted into the struct
     "BasicBlockOptions", "BasicTrigCache", "TrigCache", "kRoundingUlps",
     // namespaces and the runtime's Solver, which a struct of that name would hide
