@@ -49,3 +49,6 @@ scripts/plot_analysis.sh "$dir/press.csv" --columns motor.effort --ylabel "motor
 "$kinegen" animate examples/forces/press.yaml --t0 0 --t1 1 --steps 120 --forces --width 480 \
   -o "$out/press_forces.svg"
 rm -rf "$dir"
+# The planetary train: one turn of the carrier (4 s), the planet's tooth tracing its hypocycloid.
+"$kinegen" animate examples/gears/planetary.yaml --t0 0 --t1 4 --steps 240 --width 480 \
+  -o "$out/planetary.svg"
