@@ -127,8 +127,10 @@ class Picture {
   // their column in the force columns: after the drivers' efforts, three per joint.
   void collect_reactions() {
     const Mechanism& m = model_.mechanism();
-    int column = 0;
-    for (const Constraint& d : m.drivers) column += is_distance(d) ? 1 : d.equation_count();
+    // The drivers' efforts come first: whatever force_columns does not give the joints.
+    int reacting = 0;
+    for (const Constraint& c : m.joints) reacting += !is_expression(c);
+    int column = static_cast<int>(force_columns(m).size()) - 3 * reacting;
     for (std::size_t j = 0; j < m.joints.size(); ++j) {
       const Constraint& c = m.joints[j];
       if (is_expression(c)) continue;
