@@ -10,6 +10,7 @@
 #include <set>
 #include <sstream>
 
+#include "kinegen/codegen/block_program.hpp"
 #include "kinegen/codegen/embedded_kernels.hpp"
 #include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/reserved_names.hpp"
@@ -740,18 +741,6 @@ std::string block_comment(const Block& b, const char* kind) {
          (*kind ? std::string(" (") + kind + ")" : "");
 }
 
-// Level of each node: the last block whose coordinates it reads (-1: none).
-std::vector<int> node_levels(const Program& prog, const BltOrder& order) {
-  std::vector<int> level(prog.nodes.size(), -1);
-  for (std::size_t k = 0; k < prog.nodes.size(); ++k) {
-    const Node& n = prog.nodes[k];
-    if (n.kind == OpKind::kInput && n.input.kind == InputKind::kQ)
-      level[k] = order.col_block[n.input.index];
-    for (int a : n.args) level[k] = std::max(level[k], level[a]);
-  }
-  return level;
-}
-
 // Position, velocity and acceleration block by block. One program holds every expression the
 // block functions need, so each function shares terms (sin and cos of an angle are computed
 // once per function) and the full-step function shares them between the phases. Terms are
@@ -761,94 +750,19 @@ class BlockEmitter {
   BlockEmitter(const SymbolicModel& model, const SymbolTable& symbols, const Structure& st,
                int max_ops, int roll_min = 0)
       : symbols_(symbols), st_(st), kinds_(model.coordinate_kinds) {
-    std::map<std::pair<int, int>, GiNaC::ex> jac;
-    for (const auto& e : model.phi_q) jac[{e.row, e.col}] = e.value;
-    std::vector<GiNaC::ex> outs;
-    const auto add = [&](const GiNaC::ex& e) {
-      outs.push_back(e);
-      return static_cast<int>(outs.size()) - 1;
-    };
-    const auto jac_at = [&](int r, int c) {
-      const auto it = jac.find({r, c});
-      return it == jac.end() ? GiNaC::ex(0) : it->second;
-    };
-    for (const auto& plan : st.plans) {
-      pos_first_.push_back(static_cast<int>(outs.size()));
-      const Block& b = plan.block;
-      switch (plan.kind) {
-        case BlockKind::kExplicit: add(-plan.rest / plan.coefficient); break;
-        case BlockKind::kExplicitGuarded:
-          add(plan.coefficient);
-          add(plan.rest);
-          break;
-        case BlockKind::kNewton:
-          if (plan.torn()) {
-            // Assigned values, residuals, then the block's Phi_q entries (for the sensitivities
-            // of the assigned coordinates to the tears and the tears' Jacobian).
-            for (const GiNaC::ex& v : plan.assigned_value) add(v);
-            for (int r : plan.residuals) add(model.phi[r]);
-            std::map<std::pair<int, int>, int> entries;
-            for (int r : b.rows)
-              for (int c : b.cols)
-                if (jac.count({r, c})) entries[{r, c}] = add(jac_at(r, c));
-            pos_tjac_.push_back(std::move(entries));
-            break;
-          }
-          for (int r : b.rows) add(model.phi[r]);
-          for (int r : b.rows)
-            for (int c : b.cols) add(jac_at(r, c));
-          break;
-      }
-      if (!plan.torn()) pos_tjac_.emplace_back();
-    }
-    pos_end_ = static_cast<int>(outs.size());
-    std::vector<std::vector<const JacobianEntry*>> row_entries(model.phi.size());
-    for (const auto& e : model.phi_q) row_entries[e.row].push_back(&e);
-    for (std::size_t bi = 0; bi < st.plans.size(); ++bi) {
-      const Block& b = st.plans[bi].block;
-      BlockOuts bo;
-      const bool torn = st.plans[bi].torn();
-      for (int r : b.rows) {
-        for (int c : b.cols) {
-          if (!torn)
-            bo.jbb.push_back(add(jac_at(r, c)));
-          else if (jac.count({r, c}))
-            bo.tjac[{r, c}] = add(jac_at(r, c));
-        }
-        std::vector<std::pair<int, int>> coupling;
-        for (const JacobianEntry* e : row_entries[r])
-          if (st.order.col_block[e->col] < static_cast<int>(bi))
-            coupling.push_back({e->col, add(e->value)});
-        bo.coupling.push_back(coupling);
-        bo.nu.push_back(add(model.nu[r]));
-        bo.gamma.push_back(add(model.gamma[r]));
-      }
-      blocks_.push_back(bo);
-    }
-    prog_ = lower(outs, symbols);
-    level_ = node_levels(prog_, st.order);
-    // sin and cos nodes of each coordinate, for the rotation update in Newton loops.
-    const int nq = static_cast<int>(st.order.col_block.size());
-    sin_of_.assign(nq, -1);
-    cos_of_.assign(nq, -1);
-    for (std::size_t k = 0; k < prog_.nodes.size(); ++k) {
-      const Node& n = prog_.nodes[k];
-      if (n.kind != OpKind::kSin && n.kind != OpKind::kCos) continue;
-      const Node& a = prog_.nodes[n.args[0]];
-      if (a.kind != OpKind::kInput || a.input.kind != InputKind::kQ) continue;
-      (n.kind == OpKind::kSin ? sin_of_ : cos_of_)[a.input.index] = static_cast<int>(k);
-    }
-    trig_slot_.assign(nq, -1);
-    for (int c = 0; c < nq; ++c)
-      if (sin_of_[c] >= 0 || cos_of_[c] >= 0) trig_slot_[c] = trig_slots_++;
-    // Nodes the position outputs read.
-    in_position_.assign(prog_.nodes.size(), 0);
-    for (int o = 0; o < pos_end_; ++o)
-      if (out(o) != Program::kZero) in_position_[out(o)] = 1;
-    for (int k = static_cast<int>(prog_.nodes.size()) - 1; k >= 0; --k)
-      if (in_position_[k])
-        for (int a : prog_.nodes[k].args) in_position_[a] = 1;
-    outs_ = std::move(outs);
+    BlockProgram bp = build_block_program(model, symbols, st);
+    pos_first_ = std::move(bp.position_first);
+    pos_end_ = bp.position_end;
+    pos_tjac_ = std::move(bp.torn_jacobian);
+    blocks_ = std::move(bp.rates);
+    prog_ = std::move(bp.program);
+    level_ = std::move(bp.level);
+    sin_of_ = std::move(bp.sin_of);
+    cos_of_ = std::move(bp.cos_of);
+    trig_slot_ = std::move(bp.trig_slot);
+    trig_slots_ = bp.trig_slots;
+    in_position_ = std::move(bp.in_position);
+    outs_ = std::move(bp.exprs);
     roll_of_.assign(st.plans.size(), -1);
     roll_member_.assign(st.plans.size(), -1);
     if (roll_min > 0) find_rolls(model, roll_min);
@@ -983,12 +897,7 @@ class BlockEmitter {
   }
 
  private:
-  struct BlockOuts {
-    std::vector<int> jbb;                                     // output ids, row-major k x k
-    std::map<std::pair<int, int>, int> tjac;                  // torn blocks: (row, col) -> id
-    std::vector<std::vector<std::pair<int, int>>> coupling;  // per row: (col, output id)
-    std::vector<int> nu, gamma;                               // per row
-  };
+  using BlockOuts = BlockRates;
   static constexpr const char* kIn = "    ";
   // The public functions take options of any real type; the blocks compute in T's.
   static constexpr const char* kOptions =
