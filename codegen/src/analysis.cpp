@@ -10,6 +10,7 @@
 #include <memory>
 #include <sstream>
 
+#include "kinegen/codegen/block_interpreter.hpp"
 #include "kinegen/codegen/constraints.hpp"
 #include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/kinematics.hpp"
@@ -287,14 +288,37 @@ void solve_sensitivities(S& solver, const SensitivityModel& sensitivity,
 }
 
 // The time loop, on either solver (dense or sparse Phi_q).
+// The block step as the runtime's Solver reports it (kinegen/block_solver.hpp, to_result).
+Result block_result(const BlockInterpreter::Report& report, int nq) {
+  Result r;
+  r.status = static_cast<Status>(report.status);
+  r.iterations = report.iterations;
+  r.step = report.step;
+  r.block = report.block;
+  r.rank = nq;
+  r.residual = report.residual;
+  r.condition = report.rcond > 0 ? 1 / report.rcond : std::numeric_limits<double>::infinity();
+  if (r.status == Status::kSingular) {
+    r.pivot_ratio = 0;
+    r.rank = nq - 1;
+    r.condition = std::numeric_limits<double>::infinity();
+  }
+  return r;
+}
+
+// The time loop, on either solver (dense or sparse Phi_q). With `blocks`, q, qd and qdd come
+// from the block program, as a generated kinegen::Solver computes them; the dense or sparse
+// solver then only serves the sensitivities and the first solve's turn check.
 template <class S>
 void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
-             const std::function<void(const StateRow&)>& sink, const AnalysisOptions& options) {
+             const std::function<void(const StateRow&)>& sink, const AnalysisOptions& options,
+             BlockInterpreter* blocks) {
   const std::string& file = model.mechanism().source;
   const auto& scales = model.symbolic().coordinate_scales;
   const auto inv_scale = [&](int k) { return 1 / scales[k]; };
   std::vector<int> all_coordinates(model.nq());
   for (int k = 0; k < model.nq(); ++k) all_coordinates[k] = k;
+  const std::vector<int>& predicted = blocks ? blocks->newton_coordinates() : all_coordinates;
   StateRow row;
   row.q = model.q0();
   row.qd = Eigen::VectorXd::Zero(model.nq());
@@ -319,7 +343,12 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
                  format_estimate(r.condition) + " at the last iterate)";
     }
     if (r.status == Status::kSingular) {
-      message += singular_diagnosis(model, solver, r);
+      if (!blocks)
+        message += singular_diagnosis(model, solver, r);
+      else if (model.nq() <= kMaxDiagnosedNq)
+        message += singular_rows(model, jacobian_at(model, row.q, t));
+      if (r.block >= 0 && blocks)
+        message += "; block " + std::to_string(r.block) + " of the block solver";
       if (std::string(stage) == "position")
         message += "; a toggle or dead-centre position (a driver past what the mechanism can "
                    "reach), or constraints that leave a motion undriven";
@@ -342,6 +371,7 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
   std::unique_ptr<ForceSolver> force_solver;
   if (options.forces) force_solver = std::make_unique<ForceSolver>(model, *options.forces);
   bool force_warned = false;
+  const BlockInterpreter::Options block_options{};  // kinegen::Solver's defaults in double
   StateRow previous;
   Eigen::VectorXd qdd_before;  // the acceleration one step before `previous` (the jerk)
   double h_before = 0;
@@ -352,37 +382,70 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
       // The runtime's predictor from the last solved state keeps Newton on its branch.
       const double h = t - row.t;
       const TaylorPredictor<double> predict(h, h_before, k > 1);
-      for (int c = 0; c < row.q.size(); ++c)
+      // The block path predicts what Solver::step predicts, the coordinates Newton iterates:
+      // the others are assigned, and their start value sets how their sin and cos rotate.
+      for (int c : predicted)
         row.q[c] = predict(row.q[c], row.qd[c], row.qdd[c], k > 1 ? qdd_before[c] : 0.0);
     }
     row.t = t;
-    if (auto r = solver.position(row.q, t); !r) {
-      // A coarse step can predict a point from which Newton cannot find its way; start once
-      // more from the last solution before giving up (the jump check below still applies).
-      if (k == 0) fail("position", t, r);
-      row.q = previous.q;
-      if (auto r2 = solver.position(row.q, t); !r2) fail("position", t, r2);
+    if (blocks) {
+      // Solver::step's solve: the first one iterates to convergence whatever the options.
+      BlockInterpreter::Options o = block_options;
+      if (k == 0) o.fixed_iterations = 0;
+      const auto solve = [&] {
+        return block_result(blocks->solve_step(row.q.data(), t, row.qd.data(), row.qdd.data(), o),
+                            model.nq());
+      };
+      if (auto r = solve(); !r) {
+        if (k == 0 || blocks->failed_phase() != BlockInterpreter::Phase::kPosition)
+          fail(BlockInterpreter::to_string(blocks->failed_phase()), t, r);
+        row.q = previous.q;
+        if (auto r2 = solve(); !r2) fail(BlockInterpreter::to_string(blocks->failed_phase()), t, r2);
+      } else if (r.condition > options.max_condition) {
+        r.status = Status::kSingular;
+        fail("position", t, r);
+      }
+      first_solve = false;
+      if (k == 0) {
+        // As on the dense path, but a changed estimate is solved again from scratch.
+        const Eigen::VectorXd before = row.q;
+        keep_turns_of_estimates(solver, model, row.q, t);
+        if (row.q != before) {
+          blocks->reset();
+          if (auto r = solve(); !r) fail(BlockInterpreter::to_string(blocks->failed_phase()), t, r);
+        }
+        check_redundancy(model, row.q, t, options);
+        check_assembly(model, row.q, options);
+      }
+    } else {
+      if (auto r = solver.position(row.q, t); !r) {
+        // A coarse step can predict a point from which Newton cannot find its way; start once
+        // more from the last solution before giving up (the jump check below still applies).
+        if (k == 0) fail("position", t, r);
+        row.q = previous.q;
+        if (auto r2 = solver.position(row.q, t); !r2) fail("position", t, r2);
+      }
+      first_solve = false;
+      if (k == 0) {
+        keep_turns_of_estimates(solver, model, row.q, t);
+        check_redundancy(model, row.q, t, options);
+        check_assembly(model, row.q, options);
+      }
+      if (auto r = solver.velocity(row.q, t, row.qd); !r) {
+        fail("velocity", t, r);
+      } else if (r.condition > options.max_condition) {
+        // Newton converges (slowly) onto a toggle point, where Phi_q is singular only in the
+        // limit: velocities there are meaningless, so it counts as singular.
+        r.status = Status::kSingular;
+        fail("position", t, r);
+      }
+      if (auto r = solver.acceleration(row.q, row.qd, t, row.qdd); !r) fail("acceleration", t, r);
     }
-    first_solve = false;
-    if (k == 0) {
-      keep_turns_of_estimates(solver, model, row.q, t);
-      check_redundancy(model, row.q, t, options);
-      check_assembly(model, row.q, options);
-    }
-    if (auto r = solver.velocity(row.q, t, row.qd); !r) {
-      fail("velocity", t, r);
-    } else if (r.condition > options.max_condition) {
-      // Newton converges (slowly) onto a toggle point, where Phi_q is singular only in the
-      // limit: velocities there are meaningless, so it counts as singular.
-      r.status = Status::kSingular;
-      fail("position", t, r);
-    }
-    if (auto r = solver.acceleration(row.q, row.qd, t, row.qdd); !r) fail("acceleration", t, r);
     if (sensitivity) solve_sensitivities(solver, *sensitivity, *phi_p_eval, model, t, row, fail);
     if (k > 0 && options.check_jumps) {
       // The runtime's test (kinegen/motion.hpp), the one Solver::step applies.
       const MotionCheck motion = check_motion(
-          all_coordinates, t - previous.t, previous.q, previous.qd, previous.qdd, row.q, row.qd,
+          predicted, t - previous.t, previous.q, previous.qd, previous.qdd, row.q, row.qd,
           row.qdd, inv_scale, options.jump_fraction, std::numeric_limits<double>::epsilon());
       if (motion.jumped())
         throw AnalysisError(
@@ -392,14 +455,14 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
             format_number(motion.miss) +
             "): Newton left the assembly branch it started on, or the step is too coarse to tell; "
             "use smaller steps (--steps)");
-      const int sign = solver.jacobian_sign();
+      const int sign = blocks ? 0 : solver.jacobian_sign();
       if (previous_sign != 0 && sign != 0 && sign != previous_sign)
         throw AnalysisError(file + ": position analysis failed at " + format_time(t) +
                             ": det(Phi_q) changed sign since " + format_time(previous.t) +
                             ": the solution crossed a singular configuration or jumped to "
                             "another assembly branch; use smaller steps (--steps)");
     }
-    previous_sign = solver.jacobian_sign();
+    if (!blocks) previous_sign = solver.jacobian_sign();
     row.points.clear();
     const auto& points = model.mechanism().points;
     for (std::size_t p = 0; p < points.size(); ++p) {
@@ -446,12 +509,16 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
                   const std::function<void(const StateRow&)>& sink,
                   const AnalysisOptions& options) {
   require_driven(model);
+  std::unique_ptr<BlockInterpreter> blocks;
+  if (options.block_solver && model.nq() == model.nc() &&
+      BlockInterpreter::supported(model.structure()))
+    blocks = std::make_unique<BlockInterpreter>(model);
   if (model.nq() == model.nc() && model.nq() > options.sparse_above_nq) {
     LargeSolver solver{RhsSystem(model)};
-    analyze(solver, model, grid, sink, options);
+    analyze(solver, model, grid, sink, options, blocks.get());
   } else {
     Solver solver{RhsSystem(model)};
-    analyze(solver, model, grid, sink, options);
+    analyze(solver, model, grid, sink, options, blocks.get());
   }
 }
 

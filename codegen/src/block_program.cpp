@@ -2,6 +2,24 @@
 
 namespace kinegen::codegen {
 
+std::map<int, std::vector<char>> tear_dependency(
+    const BlockPlan& plan, const std::map<std::pair<int, int>, int>& entries) {
+  const std::size_t m = plan.tears.size();
+  std::map<int, std::vector<char>> dep;
+  for (std::size_t j = 0; j < m; ++j) {
+    dep[plan.tears[j]].assign(m, 0);
+    dep[plan.tears[j]][j] = 1;
+  }
+  for (const auto& [r, c] : plan.assigned) {
+    std::vector<char> d(m, 0);
+    for (const auto& [rc, o] : entries)
+      if (rc.first == r && rc.second != c)
+        for (std::size_t j = 0; j < m; ++j) d[j] |= dep.at(rc.second)[j];
+    dep[c] = d;
+  }
+  return dep;
+}
+
 BlockProgram build_block_program(const SymbolicModel& model, const SymbolTable& symbols,
                                  const Structure& st) {
   BlockProgram bp;

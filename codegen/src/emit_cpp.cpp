@@ -1517,23 +1517,8 @@ class BlockEmitter {
     return one ? body : body + " / " + pr.atom_text(out(output));
   }
 
-  // Which tears each of a torn block's coordinates depends on (dependency[col][j]).
   std::map<int, std::vector<char>> tear_dependency(std::size_t bi) const {
-    const BlockPlan& plan = st_.plans[bi];
-    const std::size_t m = plan.tears.size();
-    std::map<int, std::vector<char>> dep;
-    for (std::size_t j = 0; j < m; ++j) {
-      dep[plan.tears[j]].assign(m, 0);
-      dep[plan.tears[j]][j] = 1;
-    }
-    for (const auto& [r, c] : plan.assigned) {
-      std::vector<char> d(m, 0);
-      for (const auto& [rc, o] : pos_tjac_[bi])
-        if (rc.first == r && rc.second != c)
-          for (std::size_t j = 0; j < m; ++j) d[j] |= dep.at(rc.second)[j];
-      dep[c] = d;
-    }
-    return dep;
+    return codegen::tear_dependency(st_.plans[bi], pos_tjac_[bi]);
   }
 
   // Sensitivities of the assigned coordinates to the tears (dq[c]/dq[tear j], from the

@@ -110,6 +110,14 @@ double CompiledModel::geometry_number(const Expr& e, const std::string& item) co
                                      symbolic_.param_values));
 }
 
+const Structure& CompiledModel::structure() const {
+  if (!structure_)
+    structure_ = std::make_unique<Structure>(programs_.nq == programs_.nc
+                                                 ? analyze_structure(symbolic_, *symbols_)
+                                                 : Structure{});
+  return *structure_;
+}
+
 std::string CompiledModel::row_label(int row) const {
   const RowOrigin& o = symbolic_.rows[row];
   std::string label = o.constraint->item;

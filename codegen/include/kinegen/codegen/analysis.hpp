@@ -64,6 +64,11 @@ struct AnalysisOptions {
   // output is unchanged. Measured: the sparse path is faster from nq ~ 30, 2.5x at nq = 51
   // (docs/sparse_analysis.md). 0 sends every square model to the sparse path.
   int sparse_above_nq = 48;
+  // Square models whose structure the block program covers (BlockInterpreter::supported) are
+  // solved block by block, as generated code solves them, so that analyze and a generated
+  // kinegen::Solver give the same numbers; false: the dense or sparse Newton on all of Phi_q
+  // (an independent cross-check; redundant models always take it).
+  bool block_solver = true;
   // Adds dq/dp and the points' dC/dp to every row (sensitivity.hpp), solved with the
   // factorization of Phi_q that the velocities use. Not owned; must outlive the call.
   const SensitivityModel* sensitivity = nullptr;

@@ -53,6 +53,11 @@ struct BlockProgram {
   }
 };
 
+// Which tears each of a torn block's coordinates depends on (dependency[col][j]), from the
+// block's non-zero Phi_q entries (BlockProgram::torn_jacobian).
+std::map<int, std::vector<char>> tear_dependency(
+    const BlockPlan& plan, const std::map<std::pair<int, int>, int>& entries);
+
 BlockProgram build_block_program(const SymbolicModel& model, const SymbolTable& symbols,
                                  const Structure& st);
 

@@ -22,57 +22,63 @@ class ProgramEvaluator {
   // Inputs by kind; `qd` may be null when the program does not read it. Writes one value per
   // program output. Allocates nothing.
   void run(const T* q, const T* qd, T t, const T* params, T* out) {
-    using std::pow;
     const auto& nodes = program_->nodes;
-    for (std::size_t k = 0; k < nodes.size(); ++k) {
-      const Node& n = nodes[k];
-      const auto arg = [&](int a) { return values_[n.args[a]]; };
-      T v{};
-      switch (n.kind) {
-        case OpKind::kConst:
-          v = T(n.value);
-          break;
-        case OpKind::kInput:
-          switch (n.input.kind) {
-            case InputKind::kQ: v = q[n.input.index]; break;
-            case InputKind::kQd: v = qd[n.input.index]; break;
-            case InputKind::kT: v = t; break;
-            case InputKind::kParam: v = params[n.input.index]; break;
-          }
-          break;
-        case OpKind::kAdd:
-          v = arg(0);
-          for (std::size_t a = 1; a < n.args.size(); ++a) v += values_[n.args[a]];
-          break;
-        case OpKind::kMul: {
-          bool have = false;
-          for (int a : n.args) {
-            if (is_divisor(nodes[a])) continue;
-            v = have ? v * values_[a] : values_[a];
-            have = true;
-          }
-          if (!have) v = T(1);
-          for (int a : n.args)
-            if (is_divisor(nodes[a])) v = v / power(values_[nodes[a].args[0]], -nodes[a].exponent);
-          break;
-        }
-        case OpKind::kPowInt:
-          v = n.exponent > 0 ? power(arg(0), n.exponent) : T(1) / power(arg(0), -n.exponent);
-          break;
-        case OpKind::kPow: v = pow(arg(0), arg(1)); break;
-        case OpKind::kMotionLaw:
-          v = kernels::motion_law(n.law, n.order, arg(0));
-          break;
-        default:  // sqrt, sin, ... (functions.hpp)
-          v = apply_function(n.kind, arg(0));
-          break;
-      }
-      values_[k] = v;
-    }
+    for (std::size_t k = 0; k < nodes.size(); ++k)
+      values_[k] = node_value(nodes, k, values_.data(), q, qd, t, params);
     for (std::size_t o = 0; o < program_->outputs.size(); ++o) {
       const int id = program_->outputs[o];
       out[o] = id == Program::kZero ? T(0) : values_[id];
     }
+  }
+
+  // Node k of `nodes` from the values of the nodes before it, as the emitted C++ computes it:
+  // the one evaluation of a node that run() and the in-process block solver share.
+  static T node_value(const std::vector<Node>& nodes, std::size_t k, const T* values, const T* q,
+                      const T* qd, T t, const T* params) {
+    using std::pow;
+    const Node& n = nodes[k];
+    const auto arg = [&](int a) { return values[n.args[a]]; };
+    T v{};
+    switch (n.kind) {
+      case OpKind::kConst:
+        v = T(n.value);
+        break;
+      case OpKind::kInput:
+        switch (n.input.kind) {
+          case InputKind::kQ: v = q[n.input.index]; break;
+          case InputKind::kQd: v = qd[n.input.index]; break;
+          case InputKind::kT: v = t; break;
+          case InputKind::kParam: v = params[n.input.index]; break;
+        }
+        break;
+      case OpKind::kAdd:
+        v = arg(0);
+        for (std::size_t a = 1; a < n.args.size(); ++a) v += values[n.args[a]];
+        break;
+      case OpKind::kMul: {
+        bool have = false;
+        for (int a : n.args) {
+          if (is_divisor(nodes[a])) continue;
+          v = have ? v * values[a] : values[a];
+          have = true;
+        }
+        if (!have) v = T(1);
+        for (int a : n.args)
+          if (is_divisor(nodes[a])) v = v / power(values[nodes[a].args[0]], -nodes[a].exponent);
+        break;
+      }
+      case OpKind::kPowInt:
+        v = n.exponent > 0 ? power(arg(0), n.exponent) : T(1) / power(arg(0), -n.exponent);
+        break;
+      case OpKind::kPow: v = pow(arg(0), arg(1)); break;
+      case OpKind::kMotionLaw:
+        v = kernels::motion_law(n.law, n.order, arg(0));
+        break;
+      default:  // sqrt, sin, ... (functions.hpp)
+        v = apply_function(n.kind, arg(0));
+        break;
+    }
+    return v;
   }
 
  private:

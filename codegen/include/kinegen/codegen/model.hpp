@@ -11,6 +11,7 @@
 #include "kinegen/codegen/mechanism.hpp"
 #include "kinegen/codegen/program.hpp"
 #include "kinegen/codegen/progress.hpp"
+#include "kinegen/codegen/structure.hpp"
 #include "kinegen/codegen/symbolic.hpp"
 
 namespace kinegen::codegen {
@@ -65,6 +66,9 @@ class CompiledModel {
   // ("joints[1] (revolute) x-component (line 12)"; the names are the kind's row_name).
   std::string row_label(int row) const;
 
+  // The block-lower-triangular structure of Phi (structure.hpp), computed on first use.
+  const Structure& structure() const;
+
  private:
   explicit CompiledModel(Mechanism mechanism) : mechanism_(std::move(mechanism)) {}
   void build(const std::vector<ParamOverride>& overrides, const BuildOptions& options);
@@ -77,6 +81,7 @@ class CompiledModel {
   std::vector<ParamOverride> overrides_;
   BuildOptions options_;
   std::vector<Eigen::Vector2d> point_s_;
+  mutable std::unique_ptr<Structure> structure_;
 };
 
 // Evaluates a compiled model's programs on scalar type T (dense Phi_q).
