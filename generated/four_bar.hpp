@@ -527,6 +527,20 @@ struct four_bar {
     }
     return v[m] / scale[m];
   }
+  // A block's condition within all of Phi_q: its rows equilibrated over their entries in
+  // earlier blocks' columns too (coupled_max[i] >= row_max[i]: the largest scaled entry of the
+  // whole row, row_max[i] that of the block's own). A row whose own entries are small beside
+  // its couplings leaves the block nearly singular in the full matrix although the block alone
+  // looks well conditioned (a 1 x 1 block always does); rcond times the smallest
+  // row_max / coupled_max bounds the block's reciprocal condition there from below, within a
+  // factor K.
+  template <int K, class R>
+  static R _coupled_rcond(const R& rcond, const R* row_max, const R* coupled_max) noexcept {
+    R f = R(1);
+    for (int i = 0; i < K; ++i)
+      if (coupled_max[i] > row_max[i]) f = std::min(f, row_max[i] / coupled_max[i]);
+    return rcond * f;
+  }
   // A Newton block's end, after its last iteration: converged says whether the step criterion
   // held; residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum of its
   // scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
@@ -811,6 +825,8 @@ struct four_bar {
     const T _t6 = _cos8*T(p.c);
     const R _rr7[2] = {_mag(_t5 - q[3] + _t6 + q[6]), _mag(-T(p.b)*_sin5 - q[4] + T(p.c)*_sin8 + q[7])};
     const R _res7 = _scaled_max<2>(_rr7, _rmax7);
+    const R _cm7[2] = {std::max(std::max(_rmax7[0], _mag(T(-1)) * R(coordinate_scales[3])), _mag(T(1)) * R(coordinate_scales[6])), std::max(std::max(_rmax7[1], _mag(T(-1)) * R(coordinate_scales[4])), _mag(T(1)) * R(coordinate_scales[7]))};
+    _rc7 = _coupled_rcond<2>(_rc7, _rmax7, _cm7);
     if (!_newton_end(report, 7, _n7, _conv7, o, _st7, _res7, _qs7, _rc7, _sg7, block_signs))
       return report;
     if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
@@ -1071,6 +1087,8 @@ struct four_bar {
     const T _t6 = _cos8*T(p.c);
     const R _rr7[2] = {_mag(_t5 - q[3] + _t6 + q[6]), _mag(-T(p.b)*_sin5 - q[4] + T(p.c)*_sin8 + q[7])};
     const R _res7 = _scaled_max<2>(_rr7, _rmax7);
+    const R _cm7[2] = {std::max(std::max(_rmax7[0], _mag(T(-1)) * R(coordinate_scales[3])), _mag(T(1)) * R(coordinate_scales[6])), std::max(std::max(_rmax7[1], _mag(T(-1)) * R(coordinate_scales[4])), _mag(T(1)) * R(coordinate_scales[7]))};
+    _rc7 = _coupled_rcond<2>(_rc7, _rmax7, _cm7);
     if (!_newton_end(report, 7, _n7, _conv7, o, _st7, _res7, _qs7, _rc7, _sg7, block_signs))
       return report;
     if (!_all_finite<nq>(q)) return _fail(report, 3, -1);

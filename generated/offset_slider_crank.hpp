@@ -521,6 +521,20 @@ struct offset_slider_crank {
     }
     return v[m] / scale[m];
   }
+  // A block's condition within all of Phi_q: its rows equilibrated over their entries in
+  // earlier blocks' columns too (coupled_max[i] >= row_max[i]: the largest scaled entry of the
+  // whole row, row_max[i] that of the block's own). A row whose own entries are small beside
+  // its couplings leaves the block nearly singular in the full matrix although the block alone
+  // looks well conditioned (a 1 x 1 block always does); rcond times the smallest
+  // row_max / coupled_max bounds the block's reciprocal condition there from below, within a
+  // factor K.
+  template <int K, class R>
+  static R _coupled_rcond(const R& rcond, const R* row_max, const R* coupled_max) noexcept {
+    R f = R(1);
+    for (int i = 0; i < K; ++i)
+      if (coupled_max[i] > row_max[i]) f = std::min(f, row_max[i] / coupled_max[i]);
+    return rcond * f;
+  }
   // A Newton block's end, after its last iteration: converged says whether the step criterion
   // held; residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum of its
   // scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
@@ -786,6 +800,8 @@ struct offset_slider_crank {
     }
     const R _rr6[1] = {_mag(-T(p.l)*_sin5 - q[4] + q[7])};
     const R _res6 = _scaled_max<1>(_rr6, _rmax6);
+    const R _cm6[1] = {std::max(std::max(_rmax6[0], _mag(T(-1)) * R(coordinate_scales[4])), _mag(T(1)) * R(coordinate_scales[7]))};
+    _rc6 = _coupled_rcond<1>(_rc6, _rmax6, _cm6);
     if (!_newton_end(report, 6, _n6, _conv6, o, _st6, _res6, _qs6, _rc6, _sg6, block_signs))
       return report;
     // Block 7: rows 4 -> q[6] (explicit)
@@ -992,6 +1008,8 @@ struct offset_slider_crank {
     }
     const R _rr6[1] = {_mag(-T(p.l)*_sin5 - q[4] + q[7])};
     const R _res6 = _scaled_max<1>(_rr6, _rmax6);
+    const R _cm6[1] = {std::max(std::max(_rmax6[0], _mag(T(-1)) * R(coordinate_scales[4])), _mag(T(1)) * R(coordinate_scales[7]))};
+    _rc6 = _coupled_rcond<1>(_rc6, _rmax6, _cm6);
     if (!_newton_end(report, 6, _n6, _conv6, o, _st6, _res6, _qs6, _rc6, _sg6, block_signs))
       return report;
     // Block 7: rows 4 -> q[6] (explicit)

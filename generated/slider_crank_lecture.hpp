@@ -501,6 +501,20 @@ struct slider_crank_lecture {
     }
     return v[m] / scale[m];
   }
+  // A block's condition within all of Phi_q: its rows equilibrated over their entries in
+  // earlier blocks' columns too (coupled_max[i] >= row_max[i]: the largest scaled entry of the
+  // whole row, row_max[i] that of the block's own). A row whose own entries are small beside
+  // its couplings leaves the block nearly singular in the full matrix although the block alone
+  // looks well conditioned (a 1 x 1 block always does); rcond times the smallest
+  // row_max / coupled_max bounds the block's reciprocal condition there from below, within a
+  // factor K.
+  template <int K, class R>
+  static R _coupled_rcond(const R& rcond, const R* row_max, const R* coupled_max) noexcept {
+    R f = R(1);
+    for (int i = 0; i < K; ++i)
+      if (coupled_max[i] > row_max[i]) f = std::min(f, row_max[i] / coupled_max[i]);
+    return rcond * f;
+  }
   // A Newton block's end, after its last iteration: converged says whether the step criterion
   // held; residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum of its
   // scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
@@ -761,6 +775,8 @@ struct slider_crank_lecture {
     }
     const R _rr4[1] = {_mag(-_cos5*T(p.l) - q[4] + q[1] + _sin2)};
     const R _res4 = _scaled_max<1>(_rr4, _rmax4);
+    const R _cm4[1] = {std::max(std::max(std::max(_rmax4[0], _mag(T(1)) * R(coordinate_scales[1])), _mag(_cos2)), _mag(T(-1)) * R(coordinate_scales[4]))};
+    _rc4 = _coupled_rcond<1>(_rc4, _rmax4, _cm4);
     if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _res4, _qs4, _rc4, _sg4, block_signs))
       return report;
     // Block 5: rows 2 -> q[3] (explicit)
@@ -937,6 +953,8 @@ struct slider_crank_lecture {
     }
     const R _rr4[1] = {_mag(-_cos5*T(p.l) - q[4] + q[1] + _sin2)};
     const R _res4 = _scaled_max<1>(_rr4, _rmax4);
+    const R _cm4[1] = {std::max(std::max(std::max(_rmax4[0], _mag(T(1)) * R(coordinate_scales[1])), _mag(_cos2)), _mag(T(-1)) * R(coordinate_scales[4]))};
+    _rc4 = _coupled_rcond<1>(_rc4, _rmax4, _cm4);
     if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _res4, _qs4, _rc4, _sg4, block_signs))
       return report;
     // Block 5: rows 2 -> q[3] (explicit)

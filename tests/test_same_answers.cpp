@@ -5,6 +5,8 @@
 // ProgramEvaluator::node_value and the kernels compiled here, so any difference in an operation's
 // order or a kernel's use shows up as a differing bit.
 #include <catch2/catch.hpp>
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <kinegen/block_solver.hpp>
 #include <string>
@@ -78,6 +80,26 @@ void check_same(const std::string& path, const TimeGrid& grid, int* blocks_out =
   INFO("first difference: " << first);
   CHECK(differ == 0);
   CHECK(compared == 3 * Model::nq * (grid.steps + 1));
+  // The dense Newton on all of Phi_q, an independent algorithm, agrees to rounding.
+  kinegen::codegen::AnalysisOptions dense;
+  dense.block_solver = false;
+  std::vector<StateRow> dense_rows;
+  kinegen::codegen::run_analysis(*model, grid,
+                                 [&](const StateRow& r) { dense_rows.push_back(r); }, dense);
+  REQUIRE(dense_rows.size() == rows.size());
+  double worst = 0;
+  for (std::size_t k = 0; k < rows.size(); ++k)
+    for (const auto* pair : {&rows[k].q, &rows[k].qd, &rows[k].qdd}) {
+      const Eigen::VectorXd& block_values = *pair;
+      const Eigen::VectorXd& dense_values = pair == &rows[k].q    ? dense_rows[k].q
+                                            : pair == &rows[k].qd ? dense_rows[k].qd
+                                                                  : dense_rows[k].qdd;
+      for (int c = 0; c < block_values.size(); ++c)
+        worst = std::max(worst, std::abs(block_values[c] - dense_values[c]) /
+                                    std::max(1.0, std::abs(dense_values[c])));
+    }
+  INFO("block vs dense: " << worst);
+  CHECK(worst < 1e-9);
   if (blocks_out) *blocks_out = static_cast<int>(model->structure().plans.size());
 }
 

@@ -237,6 +237,7 @@ TEST_CASE("the sparse path gives the dense path's sensitivities", "[sensitivity]
   const auto sens = cg::build_sensitivity(*model, all_parameters(*model));
   std::vector<cg::StateRow> dense, sparse;
   cg::AnalysisOptions options;
+  options.block_solver = false;  // the dense and the sparse path
   options.sensitivity = &sens;
   cg::run_analysis(
       *model, {0, 6, 24}, [&](const cg::StateRow& r) { dense.push_back(r); }, options);

@@ -439,6 +439,30 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
       double rr[M];
       for (int i = 0; i < M; ++i) rr[i] = std::abs(r.out(first_residual + i));
       const double residual = K::_scaled_max<M>(rr, rmax);
+      // The condition within all of Phi_q (newton_finish, _coupled_rcond).
+      const BlockRates& bo = bp_.rates[bi];
+      const std::vector<int>& own = plan.torn() ? plan.residuals : b.rows;
+      bool coupled = false;
+      double cm[M];
+      for (int i = 0; i < M; ++i) {
+        const auto& coupling =
+            bo.coupling[std::lower_bound(b.rows.begin(), b.rows.end(), own[i]) - b.rows.begin()];
+        cm[i] = rmax[i];
+        const auto scaled_entry = [&](int col, int o) {
+          return length(col) ? std::abs(r.out(o)) * scales[col] : std::abs(r.out(o));
+        };
+        for (const auto& [rc, o] : bp_.torn_jacobian[bi]) {
+          if (rc.first != own[i] || !r.node_of(o)) continue;
+          cm[i] = std::max(cm[i], scaled_entry(rc.second, o));
+          coupled = true;
+        }
+        for (const auto& [col, o] : coupling) {
+          if (!r.node_of(o)) continue;
+          cm[i] = std::max(cm[i], scaled_entry(col, o));
+          coupled = true;
+        }
+      }
+      if (coupled) rc = K::_coupled_rcond<M>(rc, rmax, cm);
       return K::_newton_end(report, block, n_end, conv, o, step_end, residual, qs_end, rc, sign,
                             signs_.data());
     });

@@ -1367,6 +1367,41 @@ class BlockEmitter {
     os << kIn << "const R _rr" << b << "[" << rows.size() << "] = {" << join(r) << "};\n"
        << kIn << "const R _res" << b << " = _scaled_max<" << rows.size() << ">(_rr" << b << ", _rmax"
        << b << ");\n";
+    // The condition within all of Phi_q: each row's largest scaled entry, couplings to earlier
+    // blocks included (_coupled_rcond), at the final q.
+    const BlockPlan& plan = st_.plans[bi];
+    const std::vector<int>& own = plan.torn() ? plan.residuals : plan.block.rows;
+    std::vector<std::string> cm;
+    bool coupled = false;
+    for (std::size_t i = 0; i < own.size(); ++i) {
+      const auto& block_rows = plan.block.rows;
+      const auto& coupling =
+          blocks_[bi].coupling[std::lower_bound(block_rows.begin(), block_rows.end(), own[i]) -
+                               block_rows.begin()];
+      std::string m = "_rmax" + b + "[" + idx(static_cast<int>(i)) + "]";
+      // A torn block's rows are scaled by their Schur complement, which vanishes where the
+      // block is singular: measure them against their own Phi_q entries too.
+      for (const auto& [rc, o] : pos_tjac_[bi]) {
+        if (rc.first != own[i] || out(o) == Program::kZero) continue;
+        pr.ensure(out(o), os, kIn);
+        m = "std::max(" + m + ", _mag(" + pr.text(out(o)) + ")" +
+            (length_coordinate(rc.second) ? " * R(" + ref("coordinate_scales", rc.second) + ")" : "") +
+            ")";
+        coupled = true;
+      }
+      for (const auto& [c, o] : coupling) {
+        if (out(o) == Program::kZero) continue;
+        pr.ensure(out(o), os, kIn);
+        m = "std::max(" + m + ", _mag(" + pr.text(out(o)) + ")" +
+            (length_coordinate(c) ? " * R(" + ref("coordinate_scales", c) + ")" : "") + ")";
+        coupled = true;
+      }
+      cm.push_back(m);
+    }
+    if (coupled)
+      os << kIn << "const R _cm" << b << "[" << own.size() << "] = {" << join(cm) << "};\n"
+         << kIn << "_rc" << b << " = _coupled_rcond<" << own.size() << ">(_rc" << b << ", _rmax" << b
+         << ", _cm" << b << ");\n";
     os << kIn << "if (!_newton_end(report, " << block_id(bi) << ", _n" << b << ", _conv" << b
        << ", o, " << step << ", _res" << b << ", _qs" << b << ", _rc" << b << ", _sg" << b
        << ", block_signs))\n"

@@ -156,7 +156,7 @@ int run_animate(const Common& c, kc::AnimateOptions options, const std::string& 
 
 int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output,
                 int reference_digits, bool strict, const std::string& sensitivity_list,
-                bool with_forces) {
+                bool with_forces, const std::string& solver) {
   auto model = load(c);
   kc::require_driven(*model);
   check_grid(t0, t1, steps);
@@ -206,6 +206,7 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
     } else {
       kc::AnalysisOptions options;
       options.strict = strict;
+      options.block_solver = solver != "dense";
       if (!sensitivity_list.empty()) options.sensitivity = &sensitivity;
       options.forces = forces.get();
       options.warn = [](const std::string& w) { std::cerr << "warning: " << one_line(w) << "\n"; };
@@ -403,6 +404,13 @@ int main(int argc, char** argv) {
                    "Add d(C)/d(p) columns for these parameters (comma-separated), after all "
                    "others")
       ->type_name("P1,P2,...");
+  std::string solver = "block";
+  analyze
+      ->add_option("--solver", solver,
+                   "block (default): block by block, as generated code solves, with the same "
+                   "numbers; dense: Newton on all of Phi_q (sparse LU above 48 coordinates), "
+                   "an independent cross-check. Redundant models always take the dense path")
+      ->check(CLI::IsMember({"block", "dense"}));
   bool with_forces = false;
   analyze->add_flag("--forces", with_forces,
                     "Add the drivers' efforts and the joints' reactions (masses, gravity and "
@@ -492,7 +500,7 @@ int main(int argc, char** argv) {
                           name_space);
     if (*animate) return run_animate(common, animate_options, svg_file);
     if (*analyze) return run_analyze(common, t0, t1, steps, csv, reference_digits, strict,
-                                       sensitivity_list, with_forces);
+                                       sensitivity_list, with_forces, solver);
     if (*eval) return run_eval(common, t, q_arg, qd_arg);
     if (*tolerance) return run_tolerance(common, tol_options, tol_items, tol_csv);
     if (*check) return run_check(common, check_options, structure);

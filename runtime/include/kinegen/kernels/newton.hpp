@@ -36,6 +36,20 @@ struct NewtonKernel : ReportKernel {
     }
     return v[m] / scale[m];
   }
+  // A block's condition within all of Phi_q: its rows equilibrated over their entries in
+  // earlier blocks' columns too (coupled_max[i] >= row_max[i]: the largest scaled entry of the
+  // whole row, row_max[i] that of the block's own). A row whose own entries are small beside
+  // its couplings leaves the block nearly singular in the full matrix although the block alone
+  // looks well conditioned (a 1 x 1 block always does); rcond times the smallest
+  // row_max / coupled_max bounds the block's reciprocal condition there from below, within a
+  // factor K.
+  template <int K, class R>
+  static R _coupled_rcond(const R& rcond, const R* row_max, const R* coupled_max) noexcept {
+    R f = R(1);
+    for (int i = 0; i < K; ++i)
+      if (coupled_max[i] > row_max[i]) f = std::min(f, row_max[i] / coupled_max[i]);
+    return rcond * f;
+  }
   // A Newton block's end, after its last iteration: converged says whether the step criterion
   // held; residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum of its
   // scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
