@@ -9,8 +9,10 @@
 //                block, no convergence test: the real-time setting)
 //   dense        kinegen::DenseSolver<Model>: dense Newton with the generated analytic Phi_q
 //                and one LU of the whole matrix (the previous default path)
-//   in-process   BasicSolver<ProgramSystem>: the straight-line program interpreted (what
-//                `kinegen analyze` runs)
+//   in-process   BlockInterpreter::solve_step: the block program interpreted (what `kinegen
+//                analyze` runs, with the generated solve_step's bits), from the previous solution
+//   in-proc dense BasicSolver<ProgramSystem>: the dense Newton on the interpreted programs
+//                (`kinegen analyze --solver dense`)
 //   generic      a hand-written joint-library solver (bench/generic_solver.hpp from the
 //                work-precision benchmark), when that header is present
 //
@@ -26,6 +28,7 @@
 #include <string>
 
 #include "four_bar.hpp"
+#include "kinegen/codegen/block_interpreter.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "offset_slider_crank.hpp"
 #include "quick_return.hpp"
@@ -72,6 +75,19 @@ double calls_ns(SolverT& solver, const Vector& q0) {
       solver.velocity(q, t, qd);
       solver.acceleration(q, qd, t, qdd);
     }
+    return true;
+  });
+  g_checksum += q.sum() + qdd.sum();
+  return ns;
+}
+
+// The in-process block program's full step, Newton from the previous solution.
+double interpreter_ns(kinegen::codegen::BlockInterpreter& blocks, const Eigen::VectorXd& q0) {
+  Eigen::VectorXd q = q0, qd = Eigen::VectorXd::Zero(q0.size()), qdd = qd;
+  const kinegen::codegen::BlockInterpreter::Options o;
+  const double ns = best_ns([&](int k0) {
+    for (int k = k0; k < k0 + kChunk; ++k)
+      if (blocks.solve_step(q.data(), k * kDt, qd.data(), qdd.data(), o).status != 0) return false;
     return true;
   });
   g_checksum += q.sum() + qdd.sum();
@@ -135,7 +151,9 @@ void run(const char* name) {
   kinegen::BasicSolver<kinegen::codegen::ProgramSystem> inprocess{
       kinegen::codegen::ProgramSystem(*model)};
   const Eigen::VectorXd q0_dynamic = model->q0();
-  const double t_inprocess = calls_ns(inprocess, q0_dynamic);
+  const double t_inprocess_dense = calls_ns(inprocess, q0_dynamic);
+  kinegen::codegen::BlockInterpreter blocks(*model);
+  const double t_inprocess = interpreter_ns(blocks, q0_dynamic);
   double t_generic = NAN;
 #ifdef KINEGEN_BENCH_GENERIC
   std::string why;
@@ -148,9 +166,10 @@ void run(const char* name) {
   const double diff = max_difference<Model>({});
   const double diff_fixed = max_difference<Model>(fixed);
   std::printf(
-      "%-20s %3d %2d/%-2d %9.0f %7.0f %7.0f %7.0f %10.0f %8.0f %7.1fx %7.1fx %7.1fx %9.1e %9.1e\n",
+      "%-20s %3d %2d/%-2d %9.0f %7.0f %7.0f %7.0f %10.0f %10.0f %8.0f %7.1fx %7.1fx %7.1fx %9.1e "
+      "%9.1e\n",
       name, Model::nq, Model::num_blocks - Model::num_explicit_blocks, Model::num_blocks, t_step,
-      t_calls, t_fixed, t_dense, t_inprocess, t_generic, t_dense / t_step, t_inprocess / t_step,
+      t_calls, t_fixed, t_dense, t_inprocess, t_inprocess_dense, t_generic, t_dense / t_step, t_inprocess / t_step,
       t_generic / t_step, diff, diff_fixed);
 }
 
@@ -164,8 +183,9 @@ int main() {
 #ifndef KINEGEN_BENCH_GENERIC
   std::printf("(generic joint-library solver not built: bench/generic_solver.hpp is absent)\n");
 #endif
-  std::printf("%-20s %3s %5s %9s %7s %7s %7s %10s %8s %8s %8s %8s %9s %9s\n", "model", "nq", "newt",
-              "block+pred", "block", "fixed-1", "dense", "in-process", "generic", "dense/",
+  std::printf("%-20s %3s %5s %9s %7s %7s %7s %10s %10s %8s %8s %8s %8s %9s %9s\n", "model", "nq",
+              "newt", "block+pred", "block", "fixed-1", "dense", "in-process", "in-p dense",
+              "generic", "dense/",
               "inproc/", "generic/", "max diff", "diff fix1");
   run<kinegen::models::slider_crank>("slider_crank");
   run<kinegen::models::offset_slider_crank>("offset_slider_crank");

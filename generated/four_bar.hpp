@@ -777,7 +777,7 @@ struct four_bar {
     _trig(_sin5, _cos5, q[5], trig, 1);
     T _sin8, _cos8;
     _trig(_sin8, _cos8, q[8], trig, 2);
-    R _rmax7[2], _qs7 = 0, _rc7 = 1;
+    R _rmax7[2] = {}, _qs7 = 0, _rc7 = 1;
     [[maybe_unused]] const R _cs7[2] = {R(1), R(1)};
     int _n7 = 0, _sg7 = 1;
     bool _conv7 = false;
@@ -1039,7 +1039,7 @@ struct four_bar {
     _trig(_sin5, _cos5, q[5], trig, 1);
     T _sin8, _cos8;
     _trig(_sin8, _cos8, q[8], trig, 2);
-    R _rmax7[2], _qs7 = 0, _rc7 = 1;
+    R _rmax7[2] = {}, _qs7 = 0, _rc7 = 1;
     [[maybe_unused]] const R _cs7[2] = {R(1), R(1)};
     int _n7 = 0, _sg7 = 1;
     bool _conv7 = false;

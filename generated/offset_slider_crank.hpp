@@ -767,7 +767,7 @@ struct offset_slider_crank {
     // Block 6: rows 5 -> q[5] (newton)
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
-    R _rmax6[1], _qs6 = 0, _rc6 = 1;
+    R _rmax6[1] = {}, _qs6 = 0, _rc6 = 1;
     [[maybe_unused]] const R _cs6[1] = {R(1)};
     int _n6 = 0, _sg6 = 1;
     bool _conv6 = false;
@@ -975,7 +975,7 @@ struct offset_slider_crank {
     // Block 6: rows 5 -> q[5] (newton)
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
-    R _rmax6[1], _qs6 = 0, _rc6 = 1;
+    R _rmax6[1] = {}, _qs6 = 0, _rc6 = 1;
     [[maybe_unused]] const R _cs6[1] = {R(1)};
     int _n6 = 0, _sg6 = 1;
     bool _conv6 = false;

@@ -777,7 +777,7 @@ struct quick_return {
     const T _t2 = -q[6] + q[3];
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
-    R _rmax7[1], _qs7 = 0, _rc7 = 1;
+    R _rmax7[1] = {}, _qs7 = 0, _rc7 = 1;
     [[maybe_unused]] const R _cs7[1] = {R(1)};
     int _n7 = 0, _sg7 = 1;
     bool _conv7 = false;
@@ -995,7 +995,7 @@ struct quick_return {
     const T _t2 = -q[6] + q[3];
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
-    R _rmax7[1], _qs7 = 0, _rc7 = 1;
+    R _rmax7[1] = {}, _qs7 = 0, _rc7 = 1;
     [[maybe_unused]] const R _cs7[1] = {R(1)};
     int _n7 = 0, _sg7 = 1;
     bool _conv7 = false;

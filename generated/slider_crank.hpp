@@ -744,7 +744,7 @@ struct slider_crank {
     // Block 4: rows 3 -> q[5] (newton)
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
-    R _rmax4[1], _qs4 = 0, _rc4 = 1;
+    R _rmax4[1] = {}, _qs4 = 0, _rc4 = 1;
     [[maybe_unused]] const R _cs4[1] = {R(1)};
     int _n4 = 0, _sg4 = 1;
     bool _conv4 = false;
@@ -922,7 +922,7 @@ struct slider_crank {
     // Block 4: rows 3 -> q[5] (newton)
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
-    R _rmax4[1], _qs4 = 0, _rc4 = 1;
+    R _rmax4[1] = {}, _qs4 = 0, _rc4 = 1;
     [[maybe_unused]] const R _cs4[1] = {R(1)};
     int _n4 = 0, _sg4 = 1;
     bool _conv4 = false;

@@ -1312,7 +1312,7 @@ class BlockEmitter {
     std::vector<std::string> d;
     for (int c : cols)
       d.push_back(length_coordinate(c) ? "R(" + ref("coordinate_scales", c) + ")" : "R(1)");
-    os << kIn << "R _rmax" << b << "[" << k << "], _qs" << b << " = 0, _rc" << b << " = 1;\n"
+    os << kIn << "R _rmax" << b << "[" << k << "] = {}, _qs" << b << " = 0, _rc" << b << " = 1;\n"
        << kIn << "[[maybe_unused]] const R _cs" << b << "[" << k << "] = {" << join(d) << "};\n"
        << kIn << "int _n" << b << " = 0, _sg" << b << " = 1;\n"
        << kIn << "bool _conv" << b << " = false;\n";
