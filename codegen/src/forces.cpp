@@ -183,6 +183,15 @@ ForceModel derive_forces(const Mechanism& m, const SymbolTable& s, const Symboli
   return f;
 }
 
+bool has_force_input(const ForceSpec& spec) {
+  const auto given = [](const Expr& e) { return e.text != "0"; };
+  if (!spec.loads.empty() || given(spec.gravity.x) || given(spec.gravity.y)) return true;
+  for (const BodyMass& b : spec.bodies)
+    for (const Expr* e : {&b.mass, &b.inertia, &b.com.x, &b.com.y})
+      if (given(*e)) return true;
+  return false;
+}
+
 ForceModel forces_for_analysis(const CompiledModel& model, double t0) {
   if (model.nc() != model.nq()) {
     // Name the redundant equations where the analysis would assemble (at t0): solve that one

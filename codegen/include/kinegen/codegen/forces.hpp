@@ -126,6 +126,10 @@ inline ForceModel derive_forces(const CompiledModel& model) {
   return derive_forces(model, model.mechanism().forces);
 }
 
+// Whether the file gives anything derive_forces reads beyond the defaults (a mass, inertia
+// or centre of mass other than "0", gravity, a load): without, there is nothing to check.
+bool has_force_input(const ForceSpec& spec);
+
 // What `analyze --forces` needs, checked first: UsageError for a redundant model (more
 // equations than coordinates), whose reactions are not unique, naming the equations that are
 // redundant where it assembles at t0; derive_forces' InputErrors.
