@@ -319,6 +319,10 @@ drivers:
              Catch::Contains("forces[0] (force) line 9") && Catch::Contains("unknown body 'rod'"));
   CHECK_THAT(load_error(kBase + "forces:\n  - {type: force, body: crank, f: [\"xd_crank\", 0]}\n"),
              Catch::Contains("forces[0] (force) f line 9"));
+  CHECK_THAT(
+      load_error(kBase + "forces:\n  - {type: torque, body: crank, value: \"phi_crank_dot\"}\n"),
+      Catch::Contains("forces[0] (torque) line 9") &&
+          Catch::Contains("uses the velocity 'phi_crank_dot'") && Catch::Contains("damper types"));
   CHECK_THAT(load_error(kBase + "forces:\n  - {type: spring_damper, i: ground, j: crank, "
                                 "stiffness: \"1/0\", length0: 1}\n"),
              Catch::Contains("forces[0] (spring_damper)") && Catch::Contains("stiffness line 9"));
