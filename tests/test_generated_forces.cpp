@@ -10,6 +10,7 @@
 #include <complex>
 #include <limits>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "crank_gravity.hpp"
@@ -19,6 +20,8 @@
 #include "kinegen/codegen/forces.hpp"
 #include "slider_driven.hpp"
 #include "slider_mass.hpp"
+#include "slider_mass_position.hpp"
+#include "slider_mass_velocity.hpp"
 
 namespace {
 
@@ -269,4 +272,27 @@ TEST_CASE("generated forces with --fold-params equal the run-time Params header"
   }
   INFO("largest difference folded / Params, relative to the row's largest force: " << worst);
   CHECK(worst <= 16 * kEps);
+}
+
+namespace {
+template <class M, class = void>
+struct HasForces : std::false_type {};
+template <class M>
+struct HasForces<M, std::void_t<decltype(M::has_forces)>> : std::true_type {};
+template <class M, class = void>
+struct HasAcceleration : std::false_type {};
+template <class M>
+struct HasAcceleration<M, std::void_t<decltype(&M::template solve_acceleration<double, double>)>>
+    : std::true_type {};
+}  // namespace
+
+TEST_CASE("generate --outputs position or velocity: no force functions, which need qdd",
+          "[forces][generated]") {
+  // The same mechanism with a mass: the full header has them, the partial ones do not.
+  CHECK(HasForces<km::slider_mass>::value);
+  CHECK(HasAcceleration<km::slider_mass>::value);
+  CHECK_FALSE(HasForces<km::slider_mass_position>::value);
+  CHECK_FALSE(HasForces<km::slider_mass_velocity>::value);
+  CHECK_FALSE(HasAcceleration<km::slider_mass_velocity>::value);
+  CHECK(km::slider_mass_position::nq == km::slider_mass::nq);
 }
