@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <vector>
 
+#include "best_of_chunks.hpp"
 #include "four_bar_balanced.hpp"
 #include "press.hpp"
 #include "slider_mass.hpp"
@@ -26,16 +27,10 @@ constexpr int kChunks = 72;
 constexpr int kTurn = 3600;  // steps per turn (0.1 degree); kChunk * kChunks covers 20 turns
 volatile double g_checksum = 0;
 
+// Best time per call over the chunks (best_of_chunks.hpp).
 template <class Chunk>
 double best_ns(Chunk&& chunk) {
-  double best = 1e300;
-  for (int c = 0; c < kChunks; ++c) {
-    const auto start = std::chrono::steady_clock::now();
-    if (!chunk(c * kChunk)) return NAN;
-    const auto stop = std::chrono::steady_clock::now();
-    best = std::min(best, std::chrono::duration<double, std::nano>(stop - start).count() / kChunk);
-  }
-  return best;
+  return kinegen::bench::best_ns(kChunks, kChunk, chunk);
 }
 
 template <class M, class T>

@@ -27,6 +27,7 @@
 #include <kinegen/solver.hpp>
 #include <string>
 
+#include "best_of_chunks.hpp"
 #include "four_bar.hpp"
 #include "kinegen/codegen/block_interpreter.hpp"
 #include "kinegen/codegen/model.hpp"
@@ -50,18 +51,10 @@ constexpr double kDt = 2 * M_PI / 3600;  // 0.1 degree of crank per step
 
 double g_checksum = 0;
 
-// Best time per step over the chunks; `chunk(k0)` does steps k0 .. k0 + kChunk - 1 and returns
-// false on a failure.
+// Best time per step over the chunks (best_of_chunks.hpp).
 template <class Chunk>
 double best_ns(Chunk&& chunk) {
-  double best = 1e300;
-  for (int c = 0; c < kChunks; ++c) {
-    const auto start = std::chrono::steady_clock::now();
-    if (!chunk(c * kChunk)) return NAN;
-    const auto stop = std::chrono::steady_clock::now();
-    best = std::min(best, std::chrono::duration<double, std::nano>(stop - start).count() / kChunk);
-  }
-  return best;
+  return kinegen::bench::best_ns(kChunks, kChunk, chunk);
 }
 
 // position / velocity / acceleration calls, Newton from the previous solution.

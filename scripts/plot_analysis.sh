@@ -71,6 +71,26 @@ done
 tmp="$out.tmp-plot-$$"
 trap 'rm -f "$tmp"' EXIT
 
+# The lines both kinds of plot start with, for terminal $1 (into the temporary file).
+preamble() {
+  cat <<GNUPLOT
+set terminal $1
+set output '$tmp'
+set datafile separator ','
+set termoption noenhanced
+set autoscale xfix
+set key outside right top
+set grid
+GNUPLOT
+}
+
+# The picture is written whole, then renamed into place.
+finish() {
+  mv "$tmp" "$out"
+  trap - EXIT
+  echo "wrote $out" >&2
+}
+
 if [[ -n $columns ]]; then
   # The named columns, found by name in each file's own header.
   clause=""
@@ -89,33 +109,22 @@ if [[ -n $columns ]]; then
       clause+="${clause:+, }'$f' using 1:$found with lines lw 1.5 title '$title'"
     done
   done
-  gnuplot <<GNUPLOT
-set terminal ${terminal/900,900/900,450}
-set output '$tmp'
-set datafile separator ','
-set termoption noenhanced
-set autoscale xfix
-set key outside right top
-set grid
+  {
+    preamble "${terminal/900,900/900,450}"
+    cat <<GNUPLOT
 set title '$(basename "$csv")'
 set xlabel 't'
 set ylabel '$ylabel'
 plot $clause
 GNUPLOT
-  mv "$tmp" "$out"
-  trap - EXIT
-  echo "wrote $out" >&2
+  } | gnuplot
+  finish
   exit 0
 fi
 
-gnuplot <<GNUPLOT
-set terminal $terminal
-set output '$tmp'
-set datafile separator ','
-set termoption noenhanced
-set autoscale xfix
-set key outside right top
-set grid
+{
+  preamble "$terminal"
+  cat <<GNUPLOT
 set multiplot layout 3,1 title '$(basename "$csv")'
 set ylabel 'position (x, y; phi in rad)'
 plot $(plot_clause "x y phi")
@@ -126,6 +135,5 @@ set xlabel 't'
 plot $(plot_clause "ax ay alpha")
 unset multiplot
 GNUPLOT
-mv "$tmp" "$out"   # written whole, then renamed into place
-trap - EXIT
-echo "wrote $out" >&2
+} | gnuplot
+finish

@@ -319,6 +319,10 @@ drivers:
              Catch::Contains("forces[0] (force) line 9") && Catch::Contains("unknown body 'rod'"));
   CHECK_THAT(load_error(kBase + "forces:\n  - {type: force, body: crank, f: [\"xd_crank\", 0]}\n"),
              Catch::Contains("forces[0] (force) f line 9"));
+  CHECK_THAT(
+      load_error(kBase + "forces:\n  - {type: torque, body: crank, value: \"phi_crank_dot\"}\n"),
+      Catch::Contains("forces[0] (torque) line 9") &&
+          Catch::Contains("uses the velocity 'phi_crank_dot'") && Catch::Contains("damper types"));
   CHECK_THAT(load_error(kBase + "forces:\n  - {type: spring_damper, i: ground, j: crank, "
                                 "stiffness: \"1/0\", length0: 1}\n"),
              Catch::Contains("forces[0] (spring_damper)") && Catch::Contains("stiffness line 9"));
@@ -398,6 +402,51 @@ TEST_CASE("analyze --forces from the command line", "[forces][cli]") {
   r = kinegen::test::run_command({exe, "analyze", (dir / "plain.yaml").string(), "--t0", "0",
                                   "--t1", "1", "--steps", "2", "--forces"});
   CHECK(r.exit_code == 0);
+}
+
+TEST_CASE("bad masses and loads are input errors for every command, not only with --forces",
+          "[forces][cli]") {
+  namespace fs = std::filesystem;
+  const std::string exe = KINEGEN_EXE;
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "forces_every_command";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  // Each file is kBase and one bad line after it; the message names the item.
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"forces:\n  - {type: force, body: crank, f: [\"nosuch\", 0]}\n", "unknown symbol 'nosuch'"},
+      {"forces:\n  - {type: torque, body: crank, value: \"xd_crank\"}\n", "forces[0] (torque)"},
+      {"forces:\n  - {type: spring_damper, i: ground, j: crank, stiffness: \"1/0\", "
+       "length0: 1}\n",
+       "stiffness"},
+      {"gravity: [0, \"g\"]\n", "gravity"},
+  };
+  const std::string out = (dir / "out").string();
+  for (std::size_t k = 0; k < cases.size(); ++k) {
+    const std::string file = (dir / ("bad" + std::to_string(k) + ".yaml")).string();
+    std::ofstream(file) << kBase << cases[k].first;
+    const std::vector<std::vector<std::string>> commands = {
+        {exe, "analyze", file, "--t0", "0", "--t1", "1", "--steps", "2", "-o", out},
+        {exe, "generate", file, "-o", out},
+        {exe, "generate", file, "-o", out, "--outputs", "position"},
+        {exe, "check", file},
+        {exe, "eval", file},
+        {exe, "animate", file, "--t0", "0", "--t1", "1", "--steps", "2", "-o", out},
+    };
+    for (const auto& command : commands) {
+      std::string line;
+      for (std::size_t a = 1; a < command.size(); ++a) line += command[a] + " ";
+      INFO(cases[k].first << line);
+      const auto r = kinegen::test::run_command(command);
+      CHECK(r.exit_code == 2);
+      CHECK_THAT(r.err,
+                 Catch::StartsWith("error: " + file + ":") && Catch::Contains(cases[k].second));
+      CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+      CHECK_FALSE(fs::exists(out));
+    }
+  }
+  // The line is the load's own (kBase has 7 lines, then `forces:`).
+  const auto r = kinegen::test::run_command({exe, "check", (dir / "bad0.yaml").string()});
+  CHECK_THAT(r.err, Catch::Contains(".yaml:9:"));
 }
 
 TEST_CASE("forces near a toggle: a warning as the condition grows, then the singular error",

@@ -10,6 +10,7 @@
 #include <complex>
 #include <limits>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "crank_gravity.hpp"
@@ -19,6 +20,8 @@
 #include "kinegen/codegen/forces.hpp"
 #include "slider_driven.hpp"
 #include "slider_mass.hpp"
+#include "slider_mass_position.hpp"
+#include "slider_mass_velocity.hpp"
 
 namespace {
 
@@ -269,4 +272,75 @@ TEST_CASE("generated forces with --fold-params equal the run-time Params header"
   }
   INFO("largest difference folded / Params, relative to the row's largest force: " << worst);
   CHECK(worst <= 16 * kEps);
+}
+
+namespace {
+template <class M, class = void>
+struct HasForces : std::false_type {};
+template <class M>
+struct HasForces<M, std::void_t<decltype(M::has_forces)>> : std::true_type {};
+template <class M, class = void>
+struct HasAcceleration : std::false_type {};
+template <class M>
+struct HasAcceleration<M, std::void_t<decltype(&M::template solve_acceleration<double, double>)>>
+    : std::true_type {};
+}  // namespace
+
+TEST_CASE("generate --outputs position or velocity: no force functions, which need qdd",
+          "[forces][generated]") {
+  // The same mechanism with a mass: the full header has them, the partial ones do not.
+  CHECK(HasForces<km::slider_mass>::value);
+  CHECK(HasAcceleration<km::slider_mass>::value);
+  CHECK_FALSE(HasForces<km::slider_mass_position>::value);
+  CHECK_FALSE(HasForces<km::slider_mass_velocity>::value);
+  CHECK_FALSE(HasAcceleration<km::slider_mass_velocity>::value);
+  CHECK(km::slider_mass_position::nq == km::slider_mass::nq);
+}
+
+TEST_CASE(
+    "near a toggle the in-process and the generated force solves call the same positions "
+    "singular",
+    "[forces][generated]") {
+  // The slider-driven slider-crank at crank angle theta, assembled in closed form; theta -> 0
+  // is the toggle (crank and rod in line). The scaled condition grows like 1 / theta.
+  using M = km::slider_driven;
+  const M::Params p{};
+  const auto model = kc::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
+                                                  "/tests/mechanisms/slider_driven.yaml");
+  const auto forces = kc::derive_forces(*model);
+  kc::ForceSolver solver(*model, forces);
+  const double zero[M::nq] = {};
+  int both_fail = 0, both_pass = 0;
+  for (int k = 1; k <= 15; ++k) {
+    const double theta = std::pow(10.0, -k);
+    const double phi = -std::asin(p.r * std::sin(theta) / p.l);
+    const double q[M::nq] = {0,
+                             0,
+                             theta,
+                             p.r * std::cos(theta),
+                             p.r * std::sin(theta),
+                             phi,
+                             p.r * std::cos(theta) + p.l * std::cos(phi),
+                             0,
+                             0};
+    double lambda[M::nc];
+    const auto report = M::solve_forces(q, zero, zero, 0.0, p, lambda, M::BlockOptions{});
+    std::vector<double> columns;
+    const bool in_process =
+        solver.solve(0.0, Eigen::Map<const Eigen::VectorXd>(q, M::nq), Eigen::VectorXd::Zero(M::nq),
+                     Eigen::VectorXd::Zero(M::nq), columns);
+    INFO("theta " << theta << ": generated rcond " << report.rcond << " status " << report.status
+                  << ", in-process condition " << solver.condition());
+    // The two estimates differ (per block, whole matrix) by a small factor; away from the
+    // limit by more than that, the verdicts agree.
+    const double rcond = 1 / solver.condition(), limit = kc::force_min_rcond<double>();
+    if (rcond > 0.1 * limit && rcond < 10 * limit) continue;
+    CHECK(in_process == (report.status == 0));
+    both_fail += !in_process && report.status != 0;
+    both_pass += in_process && report.status == 0;
+  }
+  // Both sides of the limit were seen, including positions between the old in-process limit
+  // (eps) and min_rcond.
+  CHECK(both_pass >= 5);
+  CHECK(both_fail >= 2);
 }

@@ -360,8 +360,12 @@ outputs:
     const char* message;
   };
   const std::vector<Case> cases = {
-      {"velocity", "  ok: \"x_crank\"\n  w: \"phi_crank_dot\"\n", "outputs.w", 21, "phi_crank_dot"},
-      {"unknown", "  u: \"2*nothing\"\n", "outputs.u", 20, "nothing"},
+      // A velocity and an unknown name each get their own message.
+      {"velocity", "  ok: \"x_crank\"\n  w: \"phi_crank_dot\"\n", "outputs.w", 21,
+       "uses the velocity 'phi_crank_dot': outputs are functions of the coordinates"},
+      {"velocity_in_sum", "  w: \"1 + 2*x_crank_dot\"\n", "outputs.w", 20,
+       "uses the velocity 'x_crank_dot'"},
+      {"unknown", "  u: \"2*nothing\"\n", "outputs.u", 20, "unknown symbol 'nothing'"},
       {"clash_body", "  crank: \"phi_crank\"\n", "outputs.crank", 20, "clashes"},
       {"clash_point", "  tip: \"phi_crank\"\n", "outputs.tip", 20, "clashes"},
       {"clash_parameter", "  l: \"phi_crank\"\n", "outputs.l", 20, "clashes"},

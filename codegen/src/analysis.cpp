@@ -478,8 +478,11 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     if (force_solver) {
       if (!force_solver->solve(t, row.q, row.qd, row.qdd, row.forces))
         throw AnalysisError(file + ": force analysis failed at " + format_time(t) +
-                            ": Phi_q is singular, so no finite efforts hold the motion (a toggle "
-                            "or dead-centre position)");
+                            ": Phi_q is singular (scaled condition estimate " +
+                            format_estimate(force_solver->condition()) + ", the limit " +
+                            format_estimate(1 / force_min_rcond<double>()) +
+                            "), so no finite efforts hold the motion (a toggle or dead-centre "
+                            "position)");
       if (!force_warned && force_solver->condition() > options.force_warning && options.warn) {
         options.warn(file + ": at " + format_time(t) + " the scaled condition estimate of Phi_q is " +
                      format_estimate(force_solver->condition()) + " (above " +

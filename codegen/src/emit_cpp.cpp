@@ -2193,7 +2193,8 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     std::ostringstream linear;
     if (linear_blocks_supported(st)) {
       emit_sensitivity(linear, symbols, model, options);
-      emit_forces(linear, m, symbols, model, programs, options);
+      // The force functions take qdd, which only a header with the accelerations gives.
+      if (acceleration) emit_forces(linear, m, symbols, model, programs, options);
     }
     // The tables only where a function reads them (folded headers say has_sensitivity = false).
     const std::string linear_code = linear.str();

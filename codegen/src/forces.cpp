@@ -183,6 +183,15 @@ ForceModel derive_forces(const Mechanism& m, const SymbolTable& s, const Symboli
   return f;
 }
 
+bool has_force_input(const ForceSpec& spec) {
+  const auto given = [](const Expr& e) { return e.text != "0"; };
+  if (!spec.loads.empty() || given(spec.gravity.x) || given(spec.gravity.y)) return true;
+  for (const BodyMass& b : spec.bodies)
+    for (const Expr* e : {&b.mass, &b.inertia, &b.com.x, &b.com.y})
+      if (given(*e)) return true;
+  return false;
+}
+
 ForceModel forces_for_analysis(const CompiledModel& model, double t0) {
   if (model.nc() != model.nq()) {
     // Name the redundant equations where the analysis would assemble (at t0): solve that one
@@ -236,7 +245,7 @@ std::vector<std::string> force_columns(const Mechanism& m) {
 bool is_distance(const Constraint& c) { return c.kind->squared_distance; }
 bool is_expression(const Constraint& c) { return !c.kind->reaction; }
 
-ForceSolver::ForceSolver(const CompiledModel& model, const ForceModel& forces)
+ForceSolver::ForceSolver(const CompiledModel& model, const ForceModel& forces, double min_rcond)
     : model_(&model),
       forces_(&forces),
       eval_(model),
@@ -246,7 +255,8 @@ ForceSolver::ForceSolver(const CompiledModel& model, const ForceModel& forces)
       q_total_(model.nq()),
       lambda_(model.nc()),
       jac_row_major_(model.nc() * model.nq()),
-      lambda_values_(model.nc()) {}
+      lambda_values_(model.nc()),
+      min_rcond_(min_rcond) {}
 
 Eigen::VectorXd ForceSolver::reaction_of(int c) const {
   const int r0 = forces_->row_begin[c], n = forces_->row_begin[c + 1] - r0;
@@ -274,7 +284,7 @@ bool ForceSolver::solve(double t, const Eigen::VectorXd& q, const Eigen::VectorX
   condition_ = rcond > 0 ? 1 / rcond : std::numeric_limits<double>::infinity();
   lambda_ = lu.solve(rhs);
   for (int r = 0; r < lambda_.size(); ++r) lambda_[r] *= row_scale[r];
-  if (!(rcond > std::numeric_limits<double>::epsilon()) || !lambda_.allFinite()) {
+  if (!(rcond > min_rcond_) || !lambda_.allFinite()) {
     columns.assign(force_columns(m).size(), std::numeric_limits<double>::quiet_NaN());
     return false;
   }

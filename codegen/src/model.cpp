@@ -3,6 +3,7 @@
 #include <sstream>
 
 #include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/forces.hpp"
 
 namespace kinegen::codegen {
 
@@ -68,6 +69,13 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
                                               std::to_string(mechanism_.nc()) + " equations)");
     symbolic_ = derive(mechanism_, *symbols_, overrides);
     stage.done("Phi_q: " + std::to_string(symbolic_.phi_q.size()) + " structural non-zeros");
+  }
+  // The masses, gravity and loads are input like the rest: checked whenever the model is
+  // compiled, so a bad load is an error for every command, not only with --forces.
+  if (has_force_input(mechanism_.forces)) {
+    ProgressStage stage(options.progress, "checking masses, gravity and loads");
+    (void)derive_forces(mechanism_, *symbols_, symbolic_, mechanism_.forces);
+    stage.done(std::to_string(mechanism_.forces.loads.size()) + " loads");
   }
   if (options.fold_params) {
     // Exact values, so constant subtrees still fold to one correctly rounded literal.

@@ -273,13 +273,12 @@ class Lowerer {
     auto [k, negated] = factor_key(factor);
     if (GiNaC::is_a<GiNaC::add>(factor) && negated) return {k, lower(-factor), true};
     if (is_flipped_power(factor)) {
+      // The held power of the flipped base, through the memo: GiNaC gives an even power's base
+      // the sign its hash order picks, so one process holds u^2 and another (-u)^2, and each
+      // must be one shared node wherever it occurs (a fresh node per occurrence left the
+      // sharing, and so the header, to the hash order).
       const ex base = -factor.op(0);
-      const GiNaC::numeric n = GiNaC::ex_to<GiNaC::numeric>(factor.op(1));
-      Node p;
-      p.kind = OpKind::kPowInt;
-      p.args = {lower(base)};
-      p.exponent = n.to_int();
-      return {k, fold_or_add(std::move(p), GiNaC::pow(base, n)), negated};
+      return {k, lower(GiNaC::power(base, factor.op(1)).hold()), negated};
     }
     return {k, lower(factor), false};
   }

@@ -406,6 +406,16 @@ const char* scope_hint(Scope scope) {
   return "";
 }
 
+// Why a velocity may not be used, for the item that uses one (its name says what it is).
+std::string velocity_hint(const std::string& item) {
+  if (item.rfind("outputs.", 0) == 0)
+    return "outputs are functions of the coordinates, t and the parameters; an output's rate "
+           "is its NAME.v column";
+  if (item.rfind("forces[", 0) == 0)
+    return "loads may not use velocities; velocity-dependent loads come from the damper types";
+  return "expressions may not use velocities; they follow from the positions";
+}
+
 }  // namespace
 
 SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& overridden)
@@ -424,6 +434,9 @@ SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& ove
   }
   roles_.emplace(t_, Input{InputKind::kT, 0});
   for (int k = 0; k < nq(); ++k) names_[coord_names_[k]] = q_[k];
+  // Velocities are known by name only to be refused with a message of their own (scope_allows
+  // admits them nowhere), not as an unknown symbol.
+  for (int k = 0; k < nq(); ++k) names_[coord_names_[k] + "_dot"] = qd_[k];
   // Parameters in file order, each seeing only the earlier ones: a value that reads another
   // parameter makes a derived one (unless --param overrides it, which drops the formula).
   params_.reserve(m.parameters.size());
@@ -512,10 +525,14 @@ ex SymbolTable::parse(const Expr& expr, Scope scope, const std::string& item) co
   for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it) {
     if (GiNaC::is_a<GiNaC::symbol>(*it)) {
       const Input role = classify(*it);
+      const std::string name = GiNaC::ex_to<GiNaC::symbol>(*it).get_name();
+      if (role.kind == InputKind::kQd)
+        throw InputError(
+            source_, item, expr.loc,
+            "'" + expr.text + "' uses the velocity '" + name + "': " + velocity_hint(item));
       if (!scope_allows(scope, role.kind))
         throw InputError(source_, item, expr.loc,
-                         "'" + expr.text + "' uses '" + GiNaC::ex_to<GiNaC::symbol>(*it).get_name() +
-                             "': " + scope_hint(scope));
+                         "'" + expr.text + "' uses '" + name + "': " + scope_hint(scope));
     } else if (GiNaC::is_a<GiNaC::numeric>(*it) && !GiNaC::ex_to<GiNaC::numeric>(*it).is_real()) {
       throw InputError(source_, item, expr.loc, "'" + expr.text + "' is not real");
     } else if (GiNaC::is_a<GiNaC::constant>(*it) && !it->is_equal(GiNaC::Pi)) {

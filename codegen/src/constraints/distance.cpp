@@ -1,6 +1,6 @@
 // distance: points si of body i and sj of body j stay `length` apart (a driver: f(t) apart),
 // |d_ij|^2 - length^2 = 0.
-#include "kinegen/codegen/constraints.hpp"
+#include "common.hpp"
 
 namespace kinegen::codegen {
 
@@ -13,30 +13,21 @@ std::vector<GiNaC::ex> equations(const EquationContext& c) {
 
 // A strut between the two points.
 void draw(const DrawContext& c, Sketch& sketch) {
-  const Constraint& k = c.constraint;
-  const Eigen::Vector2d si = c.vector("si"), sj = c.vector("sj");
-  sketch.landmarks.push_back({k.i, si});
-  sketch.landmarks.push_back({k.j, sj});
-  sketch.struts.push_back({{k.i, si}, {k.j, sj}});
+  const TwoPoints p = draw_two_points(c, sketch);
+  sketch.struts.push_back({p.i, p.j});
 }
 
 }  // namespace
 
-extern const ConstraintKind kDistance{
+extern const ConstraintKind kDistance = two_point_joint({
     .name = "distance",
     .joint = true,
     .driver = true,
-    .keys = {{"i", KeyKind::kBodyOrGround, true},
-             {"j", KeyKind::kBodyOrGround, true},
-             {"si", KeyKind::kOffset, false},
-             {"sj", KeyKind::kOffset, false},
-             {"length", KeyKind::kValue, true}},
+    .keys = {{"length", KeyKind::kValue, true}},
     .rows = 1,
     .equations = equations,
     .draw = draw,
-    .reaction_i = "si",
-    .reaction_j = "sj",
     .squared_distance = true,
-};
+});
 
 }  // namespace kinegen::codegen

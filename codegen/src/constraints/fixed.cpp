@@ -1,6 +1,6 @@
 // fixed: a weld. Point si of body i and point sj of body j coincide, d_ij = 0, and the
 // relative angle stays at `angle` (default 0): body j moves as part of body i.
-#include "kinegen/codegen/constraints.hpp"
+#include "common.hpp"
 
 namespace kinegen::codegen {
 
@@ -13,13 +13,9 @@ std::vector<GiNaC::ex> equations(const EquationContext& c) {
 
 // Both outlines reach the common point, which is marked as a weld.
 void draw(const DrawContext& c, Sketch& sketch) {
-  const Constraint& k = c.constraint;
-  const Eigen::Vector2d si = c.vector("si"), sj = c.vector("sj");
-  sketch.landmarks.push_back({k.i, si});
-  sketch.landmarks.push_back({k.j, sj});
-  sketch.welds.push_back({k.i, si});
-  if (k.i == kGround) sketch.ground_pivots.push_back(si);
-  if (k.j == kGround) sketch.ground_pivots.push_back(sj);
+  const TwoPoints p = draw_two_points(c, sketch);
+  sketch.welds.push_back(p.i);
+  draw_ground_pivots(p, sketch);
 }
 
 std::string row_name(const Constraint&, int component) {
@@ -28,21 +24,15 @@ std::string row_name(const Constraint&, int component) {
 
 }  // namespace
 
-extern const ConstraintKind kFixed{
+extern const ConstraintKind kFixed = two_point_joint({
     .name = "fixed",
     .joint = true,
     .driver = false,
-    .keys = {{"i", KeyKind::kBodyOrGround, true},
-             {"j", KeyKind::kBodyOrGround, true},
-             {"si", KeyKind::kOffset, false},
-             {"sj", KeyKind::kOffset, false},
-             {"angle", KeyKind::kValue, false}},
+    .keys = {{"angle", KeyKind::kValue, false}},
     .rows = 3,
     .equations = equations,
     .draw = draw,
     .row_name = row_name,
-    .reaction_i = "si",
-    .reaction_j = "sj",
-};
+});
 
 }  // namespace kinegen::codegen

@@ -12,7 +12,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "kinegen/codegen/constraints.hpp"
+#include "common.hpp"
 #include "kinegen/codegen/format.hpp"
 
 namespace kinegen::codegen {
@@ -43,12 +43,9 @@ std::vector<ex> equations(const EquationContext& c) {
 
 // The two pitch circles, each with a radius mark that turns with its body.
 void draw(const DrawContext& c, Sketch& sketch) {
-  const Constraint& k = c.constraint;
-  const Eigen::Vector2d si = c.vector("si"), sj = c.vector("sj");
-  sketch.landmarks.push_back({k.i, si});
-  sketch.landmarks.push_back({k.j, sj});
-  sketch.pitch_circles.push_back({{k.i, si}, c.scalar("ri")});
-  sketch.pitch_circles.push_back({{k.j, sj}, c.scalar("rj")});
+  const TwoPoints p = draw_two_points(c, sketch);
+  sketch.pitch_circles.push_back({p.i, c.scalar("ri")});
+  sketch.pitch_circles.push_back({p.j, c.scalar("rj")});
 }
 
 Eigen::Vector2d world_point(const Eigen::VectorXd& q, int body, const Eigen::Vector2d& s) {
@@ -91,15 +88,11 @@ std::string assembly_warning(const DrawContext& c, const Eigen::VectorXd& q) {
 
 }  // namespace
 
-extern const ConstraintKind kGear{
+extern const ConstraintKind kGear = two_point_joint({
     .name = "gear",
     .joint = true,
     .driver = false,
-    .keys = {{"i", KeyKind::kBodyOrGround, true},
-             {"j", KeyKind::kBodyOrGround, true},
-             {"si", KeyKind::kOffset, false},
-             {"sj", KeyKind::kOffset, false},
-             {"ri", KeyKind::kScalar, true},
+    .keys = {{"ri", KeyKind::kScalar, true},
              {"rj", KeyKind::kScalar, true},
              {"internal", KeyKind::kFlag, false, "false"},
              {"c", KeyKind::kScalar, false}},
@@ -107,8 +100,6 @@ extern const ConstraintKind kGear{
     .equations = equations,
     .draw = draw,
     .assembly_warning = assembly_warning,
-    .reaction_i = "si",
-    .reaction_j = "sj",
-};
+});
 
 }  // namespace kinegen::codegen

@@ -3,7 +3,7 @@
 // the line's point): u^perp . d - rj = 0 (the centre lies rj to the left of the line) and
 // u . d + rj (phi_j - phi_i) - c = 0 (no slip: the centre advances rj per radian the pinion
 // turns clockwise relative to the rack).
-#include "kinegen/codegen/constraints.hpp"
+#include "common.hpp"
 
 namespace kinegen::codegen {
 
@@ -25,14 +25,9 @@ std::vector<ex> equations(const EquationContext& c) {
 
 // The pinion's pitch circle and the rack's pitch line along the pinion's travel.
 void draw(const DrawContext& c, Sketch& sketch) {
-  const Constraint& k = c.constraint;
-  const Eigen::Vector2d si = c.vector("si"), sj = c.vector("sj");
-  Eigen::Vector2d vi = c.vector("vi");
-  if (vi.norm() > 0) vi.normalize();
-  sketch.landmarks.push_back({k.i, si});
-  sketch.landmarks.push_back({k.j, sj});
-  sketch.pitch_circles.push_back({{k.j, sj}, c.scalar("rj")});
-  sketch.pitch_lines.push_back({{k.j, sj}, k.i, si, vi});
+  const TwoPoints p = draw_two_points(c, sketch);
+  sketch.pitch_circles.push_back({p.j, c.scalar("rj")});
+  sketch.pitch_lines.push_back({p.j, p.i.body, p.i.s, unit_direction(c, "vi")});
 }
 
 std::string row_name(const Constraint&, int component) {
@@ -41,23 +36,17 @@ std::string row_name(const Constraint&, int component) {
 
 }  // namespace
 
-extern const ConstraintKind kRackPinion{
+extern const ConstraintKind kRackPinion = two_point_joint({
     .name = "rack_pinion",
     .joint = true,
     .driver = false,
-    .keys = {{"i", KeyKind::kBodyOrGround, true},
-             {"si", KeyKind::kOffset, false},
-             {"vi", KeyKind::kDirection, true},
-             {"j", KeyKind::kBodyOrGround, true},
-             {"sj", KeyKind::kOffset, false},
+    .keys = {{"vi", KeyKind::kDirection, true},
              {"rj", KeyKind::kScalar, true},
              {"c", KeyKind::kScalar, false}},
     .rows = 2,
     .equations = equations,
     .draw = draw,
     .row_name = row_name,
-    .reaction_i = "si",
-    .reaction_j = "sj",
-};
+});
 
 }  // namespace kinegen::codegen

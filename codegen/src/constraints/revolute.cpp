@@ -1,5 +1,5 @@
 // revolute: a pin. Point si of body i and point sj of body j coincide: d_ij = 0.
-#include "kinegen/codegen/constraints.hpp"
+#include "common.hpp"
 
 namespace kinegen::codegen {
 
@@ -11,13 +11,9 @@ std::vector<GiNaC::ex> equations(const EquationContext& c) {
 }
 
 void draw(const DrawContext& c, Sketch& sketch) {
-  const Constraint& k = c.constraint;
-  const Eigen::Vector2d si = c.vector("si"), sj = c.vector("sj");
-  sketch.landmarks.push_back({k.i, si});
-  sketch.landmarks.push_back({k.j, sj});
-  sketch.pins.push_back({k.i, si});
-  if (k.i == kGround) sketch.ground_pivots.push_back(si);
-  if (k.j == kGround) sketch.ground_pivots.push_back(sj);
+  const TwoPoints p = draw_two_points(c, sketch);
+  sketch.pins.push_back(p.i);
+  draw_ground_pivots(p, sketch);
 }
 
 std::string row_name(const Constraint&, int component) {
@@ -26,20 +22,15 @@ std::string row_name(const Constraint&, int component) {
 
 }  // namespace
 
-extern const ConstraintKind kRevolute{
+extern const ConstraintKind kRevolute = two_point_joint({
     .name = "revolute",
     .joint = true,
     .driver = false,
-    .keys = {{"i", KeyKind::kBodyOrGround, true},
-             {"j", KeyKind::kBodyOrGround, true},
-             {"si", KeyKind::kOffset, false},
-             {"sj", KeyKind::kOffset, false}},
+    .keys = {},  // i, j, si, sj only
     .rows = 2,
     .equations = equations,
     .draw = draw,
     .row_name = row_name,
-    .reaction_i = "si",
-    .reaction_j = "sj",
-};
+});
 
 }  // namespace kinegen::codegen

@@ -74,8 +74,9 @@ struct AnalysisOptions {
   const SensitivityModel* sensitivity = nullptr;
   // Adds the driver efforts and joint reactions to every row (forces.hpp): Phi_q^T lambda = Q
   // at the solved q, qd, qdd. Rows whose scaled condition estimate exceeds force_warning get
-  // one warning (efforts grow without bound towards a toggle); a singular Phi_q fails as in
-  // the position solve.
+  // one warning (efforts grow without bound towards a toggle: a stated level, not a limit of
+  // the arithmetic); a Phi_q singular by the rule of the generated solve_forces
+  // (force_min_rcond, forces.hpp) fails the analysis there.
   const ForceModel* forces = nullptr;
   double force_warning = 1e3;
 };

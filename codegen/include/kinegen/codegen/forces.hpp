@@ -21,6 +21,7 @@
 #include "kinegen/codegen/mechanism.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/program.hpp"
+#include "kinegen/kernels/report.hpp"
 
 namespace kinegen::codegen {
 
@@ -126,6 +127,10 @@ inline ForceModel derive_forces(const CompiledModel& model) {
   return derive_forces(model, model.mechanism().forces);
 }
 
+// Whether the file gives anything derive_forces reads beyond the defaults (a mass, inertia
+// or centre of mass other than "0", gravity, a load): without, there is nothing to check.
+bool has_force_input(const ForceSpec& spec);
+
 // What `analyze --forces` needs, checked first: UsageError for a redundant model (more
 // equations than coordinates), whose reactions are not unique, naming the equations that are
 // redundant where it assembles at t0; derive_forces' InputErrors.
@@ -135,13 +140,25 @@ ForceModel forces_for_analysis(const CompiledModel& model, double t0 = 0);
 // reaction (fx, fy, tz), in file order.
 std::vector<std::string> force_columns(const Mechanism& mechanism);
 
+// The singularity rule of the force solve, one for the in-process and the generated paths:
+// Phi_q^T counts as singular where the reciprocal of its scaled condition estimate is at most
+// the block kernels' min_rcond for the scalar (BasicBlockOptions: 2^-(3 digits / 4), double
+// 1.8e-12, float 3.8e-6). The generated solve_forces applies it to each block (status 2),
+// ForceSolver to the whole scaled Phi_q.
+template <class R>
+R force_min_rcond() {
+  return kernels::ReportKernel::BasicBlockOptions<R>{}.min_rcond;
+}
+
 // Solves Phi_q^T lambda = Q at one solved row and writes the force columns. Allocates its
 // work space on construction only.
 class ForceSolver {
  public:
-  ForceSolver(const CompiledModel& model, const ForceModel& forces);
+  ForceSolver(const CompiledModel& model, const ForceModel& forces,
+              double min_rcond = force_min_rcond<double>());
 
-  // Returns false when Phi_q^T is singular (then `columns` is NaN).
+  // Returns false when Phi_q^T is singular by force_min_rcond's rule, or lambda is not finite
+  // (then `columns` is NaN).
   bool solve(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
              const Eigen::VectorXd& qdd, std::vector<double>& columns);
 
@@ -163,6 +180,7 @@ class ForceSolver {
   Eigen::VectorXd q_total_, lambda_;
   std::vector<double> jac_row_major_, lambda_values_;
   double condition_ = 0;
+  double min_rcond_;
 };
 
 }  // namespace kinegen::codegen
