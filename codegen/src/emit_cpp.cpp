@@ -2140,8 +2140,11 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
      << "namespace " << options.name_space << " {\n\n";
 
   os << "// Coordinates:";
+  // A line per body, then one for the extra coordinates (format 6.1).
+  const int body_coordinates = 3 * static_cast<int>(m.bodies.size());
   for (int k = 0; k < programs.nq; ++k)
-    os << (k % 3 == 0 ? "\n//  " : ",") << " q[" << k << "] = " << symbols.coord_name(k);
+    os << ((k < body_coordinates ? k % 3 == 0 : k == body_coordinates) ? "\n//  " : ",") << " q["
+       << k << "] = " << symbols.coord_name(k);
   os << "\n// Constraint rows:\n";
   for (int r = 0; r < programs.nc; ++r) {
     const Constraint* c = model.rows[r].constraint;
