@@ -2004,8 +2004,21 @@ void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
             << "      const T fy = " << or_zero(reaction(jn, 3 * body + 1)) << ";\n"
             << "      out[" << col << "] = fx;\n      out[" << col + 1 << "] = fy;\n"
             << "      out[" << col + 2 << "] = " << (tz.empty() ? "-(" : tz + " - (") << ax
-            << " * fy - " << ay << " * fx);  // about the point\n    }\n";
-    col += 3;
+            << " * fy - " << ay << " * fx);  // about the point\n";
+    if (c.kind->normal_force) {
+      // J.fn as normal_force (forces.hpp): t = A_i curve_i'(a) = -d(contact rows)/da.
+      const int a = m.coordinate_index(c.coordinates.at("coordinate_i")), r0 = f.row_begin[jn];
+      const auto minus_jac = [&](int r) {
+        const auto it = entry.find({r, a});
+        return it == entry.end() ? std::string("T(0)") : "-jac[" + idx(it->second) + "]";
+      };
+      columns << "      using std::sqrt;\n"
+              << "      const T tx = " << minus_jac(r0) << ", ty = " << minus_jac(r0 + 1) << ";\n"
+              << "      out[" << col + 3 << "] = (" << (on_j ? "fx" : "-fx") << " * ty - "
+              << (on_j ? "fy" : "-fy") << " * tx) / sqrt(tx * tx + ty * ty);  // normal force\n";
+    }
+    columns << "    }\n";
+    col += 3 + static_cast<int>(c.kind->normal_force);
   }
   std::vector<GiNaC::ex> applied;
   for (const auto& e : f.applied) applied.push_back(fold(e));
