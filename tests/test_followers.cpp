@@ -21,6 +21,7 @@
 
 #include "cam_flat.hpp"
 #include "cam_roller.hpp"
+#include "disc_cam.hpp"
 #include "kinegen/codegen/analysis.hpp"
 #include "kinegen/codegen/check.hpp"
 #include "kinegen/codegen/forces.hpp"
@@ -179,10 +180,53 @@ TEST_CASE("followers: a pin in a turned parabolic slot follows the quadratic's r
   CHECK(generated <= 1e-12);
 }
 
+TEST_CASE("followers: the disc cam's follower reproduces its dwell-rise-dwell-return law",
+          "[followers]") {
+  // examples/cams/disc_cam.yaml: Rb 0.04, r 0.01, h 0.015, rise over [0, 2 pi/3], return over
+  // [pi, 5 pi/3], omega 1. The grid lands on each boundary of the law (every 60th step).
+  const double Rb = 0.04, r = 0.01, h = 0.015, b = 2 * kPi / 3, th2 = kPi;
+  // The cycloidal law and its derivatives, clamped, written out here.
+  const auto law = [](double x, int order) {
+    if (x <= 0 || x >= 1) return order == 0 && x >= 1 ? 1.0 : 0.0;
+    if (order == 0) return x - std::sin(2 * kPi * x) / (2 * kPi);
+    if (order == 1) return 1 - std::cos(2 * kPi * x);
+    return 2 * kPi * std::sin(2 * kPi * x);
+  };
+  const auto lift = [&](double th, int order) {
+    return h * (law(th / b, order) / std::pow(b, order) -
+                law((th - th2) / b, order) / std::pow(b, order));
+  };
+  const auto model = kc::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
+                                                  "/examples/cams/disc_cam.yaml");
+  const auto rows = analyze(*model, {0, 2 * kPi, 360});
+  REQUIRE(rows.size() == 361);
+  Error err;
+  double top = 0;
+  for (const auto& r0 : rows) {
+    const double th = r0.t;
+    Error::add(err.q, r0.q[4], Rb + r + lift(th, 0));
+    Error::add(err.qd, r0.qd[4], lift(th, 1));
+    Error::add(err.qdd, r0.qdd[4], lift(th, 2));
+    Error::add(err.q, r0.outputs[0][0], lift(th, 0));
+    top = std::max(top, r0.q[4]);
+  }
+  INFO("relative errors q " << err.q << ", qd " << err.qd << ", qdd " << err.qdd);
+  CHECK(top == Approx(Rb + r + h).epsilon(1e-15));
+  CHECK(err.q <= 64 * kEps);
+  CHECK(err.qd <= 64 * kEps);
+  CHECK(err.qdd <= 256 * kEps);
+  const double generated = generated_against_analyze<km::disc_cam>(rows);
+  INFO("generated against analyze " << generated);
+  CHECK(generated <= 1e-12);
+}
+
 TEST_CASE("followers: check accepts the curve joints with all three methods", "[followers]") {
-  for (const char* name : {"cam_flat", "cam_roller", "parabolic_slot"}) {
-    INFO(name);
-    const auto model = kc::CompiledModel::from_file(mechanism(name));
+  for (const std::string& file :
+       {mechanism("cam_flat"), mechanism("cam_roller"), mechanism("parabolic_slot"),
+        std::string(KINEGEN_SOURCE_DIR) + "/examples/cams/disc_cam.yaml",
+        std::string(KINEGEN_SOURCE_DIR) + "/examples/slot.yaml"}) {
+    INFO(file);
+    const auto model = kc::CompiledModel::from_file(file);
     kc::CheckOptions options;
     options.samples = 10;
     const auto rows = kc::check_derivatives(*model, options);
@@ -351,9 +395,12 @@ TEST_CASE("followers: hostile coordinates and curves give one error line, exit 2
        "kind must be length, angle or scalar"},
       {"duplicate_coordinate", replaced(kCam, "name: b\n", "name: a\n"), "name: a\n    q0: 0",
        "duplicate coordinate name"},
-      {"coordinate_named_like_a_body", replaced(kCam, "name: b\n", "name: cam\n"),
+      {"coordinate_named_like_a_body",
+       replaced(replaced(kCam, "name: b\n", "name: cam\n"), "coordinate_j: b", "coordinate_j: cam"),
        "name: cam\n    q0: 0\n", "clashes"},
-      {"coordinate_named_like_a_body_coordinate", replaced(kCam, "name: b\n", "name: x_cam\n"),
+      {"coordinate_named_like_a_body_coordinate",
+       replaced(replaced(kCam, "name: b\n", "name: x_cam\n"), "coordinate_j: b",
+                "coordinate_j: x_cam"),
        "name: x_cam", "clashes"},
       {"curve_uses_t", replaced(kCam, "\"0.05*sin(a)\"", "\"0.05*sin(a) + t\""),
        "curve_i: [", "uses t"},
@@ -362,7 +409,7 @@ TEST_CASE("followers: hostile coordinates and curves give one error line, exit 2
       {"curve_uses_a_body_coordinate", replaced(kCam, "curve_j: [\"b\"", "curve_j: [\"b + x_cam\""),
        "curve_j: [", "uses 'x_cam'"},
       {"curve_not_regular", replaced(kCam, "curve_j: [\"b\", \"0\"]", "curve_j: [\"b^2\", \"b^3\"]"),
-       "type: cam_follower", "not regular at b = 0"},
+       "curve_j: [", "not regular at b = 0"},
       {"same_coordinate_twice", replaced(kCam, "coordinate_j: b", "coordinate_j: a"),
        "type: cam_follower", "must be different coordinates"},
       {"curve_not_a_vector", replaced(kCam, "curve_j: [\"b\", \"0\"]", "curve_j: \"b\""),

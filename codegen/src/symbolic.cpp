@@ -812,7 +812,7 @@ ex EquationContext::coordinate(const std::string& key) const {
 
 EquationContext::Vec EquationContext::tangent(const Vec& curve,
                                               const std::string& coordinate_key) const {
-  const GiNaC::symbol& u = GiNaC::ex_to<GiNaC::symbol>(coordinate(coordinate_key));
+  const GiNaC::symbol& u = s_.q(m_.coordinate_index(c_.coordinates.at(coordinate_key)));
   return {curve.first.diff(u), curve.second.diff(u)};
 }
 
