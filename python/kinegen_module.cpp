@@ -144,7 +144,7 @@ class Mechanism {
         kc::run_analysis(
             *m, {t0, t1, steps},
             [&](const kc::StateRow& row) {
-              std::string line = kc::csv_row(row);
+              std::string line = kc::csv_row(row, static_cast<int>(m->mechanism().bodies.size()));
               line.pop_back();
               std::vector<double> values;
               for (const auto& item : split(line))

@@ -311,7 +311,7 @@ points:
       CHECK(row.dq_dp.isZero(0));
       CHECK(row.dpoints_dp.isZero(0));
       // The last five columns (crank x, y, phi; tip x, y) print as 0, not -0.
-      const std::string line = cg::csv_row(row);
+      const std::string line = cg::csv_row(row, 1);
       CHECK(line.substr(line.size() - 11) == ",0,0,0,0,0\n");
     }
   }

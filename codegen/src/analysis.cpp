@@ -554,6 +554,7 @@ std::string csv_header(const Mechanism& m) {
   for (const auto& b : m.bodies)
     for (const char* c : {"x", "y", "phi", "vx", "vy", "omega", "ax", "ay", "alpha"})
       h += "," + b.name + "." + c;
+  for (const auto& q : m.coordinates) h += "," + q.name + "," + q.name + ".v," + q.name + ".a";
   for (const auto& p : m.points)
     for (const char* c : {"x", "y", "vx", "vy", "ax", "ay"}) h += "," + p.name + "." + c;
   for (const auto& o : m.outputs) h += "," + o.name + "," + o.name + ".v," + o.name + ".a";
@@ -573,13 +574,16 @@ std::string csv_header(const Mechanism& m, const std::vector<std::string>& force
   return h + "\n";
 }
 
-std::string csv_row(const StateRow& row) {
+std::string csv_row(const StateRow& row, int num_bodies) {
   std::string s = format_number(row.t);
-  for (int b = 0; b < row.q.size() / 3; ++b) {
+  for (int b = 0; b < num_bodies; ++b) {
     for (int c = 0; c < 3; ++c) s += "," + format_number(row.q[3 * b + c]);
     for (int c = 0; c < 3; ++c) s += "," + format_number(row.qd[3 * b + c]);
     for (int c = 0; c < 3; ++c) s += "," + format_number(row.qdd[3 * b + c]);
   }
+  for (int k = 3 * num_bodies; k < row.q.size(); ++k)  // extra coordinates (format 6.1)
+    s += "," + format_number(row.q[k]) + "," + format_number(row.qd[k]) + "," +
+         format_number(row.qdd[k]);
   for (const auto& p : row.points)
     for (const Eigen::Vector2d* v : {&p.r, &p.v, &p.a})
       s += "," + format_number((*v)[0]) + "," + format_number((*v)[1]);

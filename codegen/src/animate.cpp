@@ -29,6 +29,7 @@ constexpr const char* kSliderFill = "#9ecae1";
 constexpr const char* kPointColour = "#d62728";
 constexpr const char* kPathColour = "#ff7f0e";
 constexpr const char* kGearColour = "#2ca02c";
+constexpr double kPi = 3.14159265358979323846;
 
 Vector2d rotate(double phi, const Vector2d& s) {
   const double c = std::cos(phi), sn = std::sin(phi);
@@ -129,15 +130,18 @@ class Picture {
     const Mechanism& m = model_.mechanism();
     // The drivers' efforts come first: whatever force_columns does not give the joints.
     int reacting = 0;
-    for (const Constraint& c : m.joints) reacting += !is_expression(c);
-    int column = static_cast<int>(force_columns(m).size()) - 3 * reacting;
+    const auto columns = [](const Constraint& c) {
+      return is_expression(c) ? 0 : 3 + static_cast<int>(c.kind->normal_force);  // fn
+    };
+    for (const Constraint& c : m.joints) reacting += columns(c);
+    int column = static_cast<int>(force_columns(m).size()) - reacting;
     for (std::size_t j = 0; j < m.joints.size(); ++j) {
       const Constraint& c = m.joints[j];
       if (is_expression(c)) continue;
       const bool on_j = c.j != kGround;
       const auto& s = on_j ? force_model_.numbers.sj[j] : force_model_.numbers.si[j];
       reactions_.push_back({{on_j ? c.j : c.i, Vector2d(s[0], s[1])}, column, c.item});
-      column += 3;
+      column += columns(c);
     }
     for (const auto& row : forces_)
       for (const auto& r : reactions_)
@@ -155,7 +159,9 @@ class Picture {
     Sketch sketch;
     for (const Constraint* c : m.constraints()) {
       if (!c->kind->draw) continue;
-      const DrawContext context{*c, [&](const Expr& e) { return number(e, c->item); }};
+      DrawContext context{*c, [&](const Expr& e) { return number(e, c->item); }};
+      context.curve_point = [&](const std::string& key, double u) { return curve_point(*c, key, u); };
+      context.curve_range = [&](int k) { return curve_range(k); };
       c->kind->draw(context, sketch);
     }
     for (const Attach& a : sketch.landmarks) attach(a.body, a.s);
@@ -166,10 +172,41 @@ class Picture {
     pitch_circles_ = sketch.pitch_circles;
     for (const Sketch::Slider& l : sketch.pitch_lines) pitch_lines_.push_back({l, 0, 0});
     welds_ = sketch.welds;
+    curves_ = sketch.curves;
     for (std::size_t p = 0; p < m.points.size(); ++p) {
       named_.push_back({m.points[p].body, model_.point_offsets()[p]});
       attach(m.points[p].body, model_.point_offsets()[p]);
     }
+  }
+
+  // A curve key of `c` at u (format 6.2): the curve reads only its own coordinate (checked
+  // when it was derived), so every extra coordinate is set to u.
+  Vector2d curve_point(const Constraint& c, const std::string& key, double u) const {
+    const SymbolTable& s = model_.symbols();
+    const Mechanism& m = model_.mechanism();
+    const Vec2& v = c.curves.at(key);
+    GiNaC::exmap at;
+    for (std::size_t k = 0; k < m.coordinates.size(); ++k)
+      at[s.q(m.coordinate_index(static_cast<int>(k)))] = u;
+    const auto value = [&](const Expr& e) {
+      const GiNaC::ex parsed = s.parse(e, Scope::kDriver, c.item + " " + key);
+      return to_double(substitute_params(parsed, s, model_.symbolic().param_values).subs(at));
+    };
+    return {value(v.x), value(v.y)};
+  }
+
+  // Where to draw a curve in extra coordinate k: over its travel in the analysis with a
+  // quarter of it as margin on either side; an angle (a cam's profile, a roller) a whole turn.
+  std::pair<double, double> curve_range(int k) const {
+    const int index = model_.mechanism().coordinate_index(k);
+    double lo = q_[0][index], hi = lo;
+    for (const auto& q : q_) lo = std::min(lo, q[index]), hi = std::max(hi, q[index]);
+    if (model_.mechanism().coordinates[k].kind == CoordinateKind::kAngle) {
+      const double mid = (lo + hi) / 2;
+      return {mid - kPi, mid + kPi};
+    }
+    const double margin = std::max(0.25 * (hi - lo), 0.05 * model_.symbolic().coordinate_scales[index]);
+    return {lo - margin, hi + margin};
   }
 
   // A point that keeps its place in a body's frame over the whole analysis belongs to that
@@ -246,6 +283,8 @@ class Picture {
         box.extend(centre - Vector2d(c.radius, c.radius));
         box.extend(centre + Vector2d(c.radius, c.radius));
       }
+      for (const auto& c : curves_)
+        for (const auto& p : c.points) box.extend(world(q, c.body, p));
     }
     for (const auto& g : ground_pivots_) box.extend(g);
     const Vector2d size = box.sizes().cwiseMax(1e-9 * model_.symbolic().length_scale);
@@ -441,6 +480,19 @@ class Picture {
               {{"points", [&, ends](int f) { return points_at(f, ends); }}});
     }
 
+    // Slot curves and cam profiles, sampled in their bodies' frames.
+    for (const auto& c : curves_) {
+      auto shape = [&, c](int f) {
+        std::vector<Vector2d> pts;
+        for (const auto& p : c.points) pts.push_back(world(q_[f], c.body, p));
+        return pts;
+      };
+      element(os, "polyline",
+              "fill=\"none\" stroke=\"" + std::string(kGearColour) +
+                  "\" stroke-width=\"2\" stroke-linejoin=\"round\"",
+              {{"points", [&, shape](int f) { return points_at(f, shape); }}});
+    }
+
     // Slider blocks, along their guide.
     for (const auto& sl : sliders_) {
       auto block = [&, sl](int f) {
@@ -549,6 +601,7 @@ class Picture {
   std::vector<Sketch::Circle> pitch_circles_;
   std::vector<Slider> pitch_lines_;  // travel: of the pinion's centre along the line
   std::vector<Attach> welds_;
+  std::vector<Sketch::Curve> curves_;
   // With options_.forces.
   struct Reaction {
     Attach at;

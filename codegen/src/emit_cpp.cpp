@@ -1933,8 +1933,21 @@ void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
             << "      const T fy = " << or_zero(reaction(jn, 3 * body + 1)) << ";\n"
             << "      out[" << col << "] = fx;\n      out[" << col + 1 << "] = fy;\n"
             << "      out[" << col + 2 << "] = " << (tz.empty() ? "-(" : tz + " - (") << ax
-            << " * fy - " << ay << " * fx);  // about the point\n    }\n";
-    col += 3;
+            << " * fy - " << ay << " * fx);  // about the point\n";
+    if (c.kind->normal_force) {
+      // J.fn as normal_force (forces.hpp): t = A_i curve_i'(a) = -d(contact rows)/da.
+      const int a = m.coordinate_index(c.coordinates.at("coordinate_i")), r0 = f.row_begin[jn];
+      const auto minus_jac = [&](int r) {
+        const auto it = entry.find({r, a});
+        return it == entry.end() ? std::string("T(0)") : "-jac[" + idx(it->second) + "]";
+      };
+      columns << "      using std::sqrt;\n"
+              << "      const T tx = " << minus_jac(r0) << ", ty = " << minus_jac(r0 + 1) << ";\n"
+              << "      out[" << col + 3 << "] = (" << (on_j ? "fx" : "-fx") << " * ty - "
+              << (on_j ? "fy" : "-fy") << " * tx) / sqrt(tx * tx + ty * ty);  // normal force\n";
+    }
+    columns << "    }\n";
+    col += 3 + static_cast<int>(c.kind->normal_force);
   }
   std::vector<GiNaC::ex> applied;
   for (const auto& e : f.applied) applied.push_back(fold(e));
@@ -2069,8 +2082,11 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
      << "namespace " << options.name_space << " {\n\n";
 
   os << "// Coordinates:";
+  // A line per body, then one for the extra coordinates (format 6.1).
+  const int body_coordinates = 3 * static_cast<int>(m.bodies.size());
   for (int k = 0; k < programs.nq; ++k)
-    os << (k % 3 == 0 ? "\n//  " : ",") << " q[" << k << "] = " << symbols.coord_name(k);
+    os << ((k < body_coordinates ? k % 3 == 0 : k == body_coordinates) ? "\n//  " : ",") << " q["
+       << k << "] = " << symbols.coord_name(k);
   os << "\n// Constraint rows:\n";
   for (int r = 0; r < programs.nc; ++r) {
     const Constraint* c = model.rows[r].constraint;

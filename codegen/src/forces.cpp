@@ -238,6 +238,7 @@ std::vector<std::string> force_columns(const Mechanism& m) {
     if (!c.kind->reaction) continue;
     const std::string base = label(c, "joint", static_cast<int>(j));
     for (const char* part : {".fx", ".fy", ".tz"}) names.push_back(base + part);
+    if (c.kind->normal_force) names.push_back(base + ".fn");
   }
   return names;
 }

@@ -188,7 +188,7 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   int rows = 0;
   try {
     const auto sink = [&](const kc::StateRow& row) {
-      out << kc::csv_row(row);
+      out << kc::csv_row(row, static_cast<int>(model->mechanism().bodies.size()));
       file.check();  // a full disk or a closed pipe ends the run now, not after it
       ++rows;
     };

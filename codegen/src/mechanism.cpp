@@ -74,8 +74,8 @@ class Loader {
     if (!root.IsDefined() || root.IsNull()) fail("file", {}, "the file is empty");
     if (!root.IsMap()) fail("file", loc_of(root), "the top level must be a mapping of keys");
     check_keys(root, "file", {"name"},
-               {"parameters", "definitions", "bodies", "joints", "drivers", "points", "outputs",
-                "gravity", "forces"});
+               {"parameters", "definitions", "bodies", "coordinates", "joints", "drivers", "points",
+                "outputs", "gravity", "forces"});
     Mechanism m;
     m.source = source_;
     m.name = name_of(root["name"], "name");
@@ -85,6 +85,7 @@ class Loader {
       read_named(root["definitions"], "definitions", "expression", m.definitions);
     if (!root["bodies"]) fail("file", loc_of(root), "missing key 'bodies' (the moving bodies)");
     read_bodies(root["bodies"], m);
+    if (root["coordinates"]) read_coordinates(root["coordinates"], m);
     read_constraints(root["joints"], "joints", false, m);
     read_constraints(root["drivers"], "drivers", true, m);
     if (root["points"]) read_points(root["points"], m);
@@ -232,6 +233,38 @@ class Loader {
     }
   }
 
+  // `coordinates:` (format 6.1): name, q0, kind (length, angle or scalar; default scalar).
+  void read_coordinates(const YAML::Node& node, Mechanism& m) {
+    if (node.IsNull()) return;
+    if (!node.IsSequence())
+      fail("coordinates", loc_of(node), "expected a list of coordinates (name, q0, kind)");
+    for (std::size_t k = 0; k < node.size(); ++k) {
+      const YAML::Node c = node[k];
+      std::string item = "coordinates[" + std::to_string(k) + "]";
+      if (!c.IsMap()) fail(item, loc_of(c), "expected a mapping with 'name' and 'q0'");
+      check_keys(c, item, {"name", "q0"}, {"kind"});
+      Coordinate q;
+      q.name = name_of(c["name"], item);
+      item = "coordinate '" + q.name + "'";
+      q.q0 = expr_of(c["q0"], item + " q0");
+      q.loc = loc_of(c);
+      if (const YAML::Node kind = c["kind"]) {
+        const std::string text = kind.IsScalar() ? kind.Scalar() : "";
+        if (text == "length")
+          q.kind = CoordinateKind::kLength;
+        else if (text == "angle")
+          q.kind = CoordinateKind::kAngle;
+        else if (text == "scalar")
+          q.kind = CoordinateKind::kScalar;
+        else
+          fail(item, loc_of(kind), "kind must be length, angle or scalar");
+      }
+      for (const Coordinate& other : m.coordinates)
+        if (other.name == q.name) fail(item, loc_of(c["name"]), "duplicate coordinate name");
+      m.coordinates.push_back(std::move(q));
+    }
+  }
+
   int body_ref(const YAML::Node& node, const Mechanism& m, const std::string& item,
                bool allow_ground) {
     if (!node.IsScalar()) fail(item, loc_of(node), "a body reference must be a name");
@@ -264,9 +297,6 @@ class Loader {
              "unknown " + std::string(driver ? "driver" : "joint") + " type '" + type_name +
                  "' (expected one of: " + allowed + ")");
       }
-      if (!kind->coordinates.empty())
-        throw std::logic_error(std::string("constraint type '") + kind->name +
-                               "' declares coordinates, which no stage supports yet");
       Constraint con;
       con.kind = kind;
       con.is_driver = driver;
@@ -340,7 +370,19 @@ class Loader {
               node ? flag_of(node, item + " " + key) : std::string(k.default_value) == "true";
           break;
         case KeyKind::kCurve:
-          throw std::logic_error(item + ": curve keys are not supported yet");
+          con.curves[key] = vec2_of(node, item + " " + key);
+          break;
+        case KeyKind::kCoordinate: {
+          if (!node.IsScalar()) fail(item, loc_of(node), key + " must be a coordinate's name");
+          const std::string name = node.Scalar();
+          const auto it = std::find_if(m.coordinates.begin(), m.coordinates.end(),
+                                       [&](const Coordinate& q) { return q.name == name; });
+          if (it == m.coordinates.end())
+            fail(item, loc_of(node),
+                 key + ": unknown coordinate '" + name + "' (declare it under coordinates:)");
+          con.coordinates[key] = static_cast<int>(it - m.coordinates.begin());
+          break;
+        }
         case KeyKind::kBody:
         case KeyKind::kBodyOrGround:
           break;
@@ -436,6 +478,19 @@ class Loader {
     std::set<std::string> taken;
     for (const auto& b : m.bodies)
       for (const char* prefix : {"x_", "y_", "phi_"}) taken.insert(prefix + b.name);
+    // Coordinates share the one namespace (format 6.1) with everything named below.
+    for (const auto& q : m.coordinates) {
+      const auto named = [&](const auto& list) {
+        return std::any_of(list.begin(), list.end(),
+                           [&](const auto& x) { return x.name == q.name; });
+      };
+      if (taken.count(q.name) || m.find_body(q.name) || named(m.parameters) ||
+          named(m.definitions) || named(m.points) || named(m.outputs))
+        fail("coordinate '" + q.name + "'", q.loc,
+             "the name clashes with a body, a parameter, a definition, a point, an output or a "
+             "coordinate name (x_<body>, y_<body>, phi_<body>)");
+    }
+    for (const auto& q : m.coordinates) taken.insert(q.name);
     for (const auto& p : m.parameters) {
       if (taken.count(p.name) || m.find_body(p.name))
         fail("parameters." + p.name, p.loc,

@@ -116,6 +116,7 @@ std::vector<std::string> sensitivity_columns(const Mechanism& m,
     const auto add = [&](const std::string& c) { columns.push_back("d(" + c + ")/d(" + p + ")"); };
     for (const auto& b : m.bodies)
       for (const char* c : {".x", ".y", ".phi"}) add(b.name + c);
+    for (const auto& q : m.coordinates) add(q.name);
     for (const auto& pt : m.points)
       for (const char* c : {".x", ".y"}) add(pt.name + c);
     for (const auto& o : m.outputs) add(o.name);

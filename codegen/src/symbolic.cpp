@@ -428,6 +428,11 @@ SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& ove
       qd_.emplace_back(name + "_dot");
     }
   }
+  for (const auto& c : m.coordinates) {
+    coord_names_.push_back(c.name);
+    q_.emplace_back(c.name);
+    qd_.emplace_back(c.name + "_dot");
+  }
   for (int k = 0; k < nq(); ++k) {
     roles_.emplace(q_[k], Input{InputKind::kQ, k});
     roles_.emplace(qd_[k], Input{InputKind::kQd, k});
@@ -818,6 +823,61 @@ std::vector<ex> EquationContext::equations() const {
   return rows;
 }
 
+ex EquationContext::coordinate(const std::string& key) const {
+  return s_.q(m_.coordinate_index(c_.coordinates.at(key)));
+}
+
+EquationContext::Vec EquationContext::tangent(const Vec& curve,
+                                              const std::string& coordinate_key) const {
+  const GiNaC::symbol& u = s_.q(m_.coordinate_index(c_.coordinates.at(coordinate_key)));
+  return {curve.first.diff(u), curve.second.diff(u)};
+}
+
+EquationContext::Vec EquationContext::curve(const std::string& key,
+                                            const std::string& coordinate_key) const {
+  const Vec2& v = c_.curves.at(key);
+  const Coordinate& q = m_.coordinates[c_.coordinates.at(coordinate_key)];
+  const ex u = coordinate(coordinate_key);
+  const std::string item = c_.item + " " + key;
+  Vec out;
+  for (auto [text, to] : {std::pair{&v.x, &out.first}, std::pair{&v.y, &out.second}}) {
+    *to = s_.parse(*text, Scope::kDriver, item);
+    for (auto it = to->preorder_begin(); it != to->preorder_end(); ++it) {
+      if (!GiNaC::is_a<GiNaC::symbol>(*it)) continue;
+      const Input in = s_.classify(*it);
+      const std::string name = GiNaC::ex_to<GiNaC::symbol>(*it).get_name();
+      if (in.kind == InputKind::kT)
+        throw InputError(m_.source, item, text->loc,
+                         "'" + text->text +
+                             "' uses t: a curve is fixed in its body; drive the "
+                             "motion with a driver");
+      if (in.kind == InputKind::kQ && !it->is_equal(u))
+        throw InputError(m_.source, item, text->loc,
+                         "'" + text->text + "' uses '" + name +
+                             "': a curve may use only its "
+                             "coordinate '" +
+                             q.name + "', the parameters and definitions");
+    }
+    check_defined(*to, *text, item);
+  }
+  // Regular where the mechanism assembles: at the coordinate's q0.
+  const Vec d = tangent(out, coordinate_key);
+  const ex u0 = geometry(q.q0, "coordinate '" + q.name + "' q0");
+  double speed = NAN;
+  try {
+    const GiNaC::exmap at{{u, u0}};
+    speed = std::hypot(number(d.first.subs(at)), number(d.second.subs(at)));
+  } catch (const std::exception&) {
+  }
+  if (!std::isfinite(speed) || speed == 0)
+    throw InputError(m_.source, c_.item, v.x.loc,
+                     key + " is not regular at " + q.name + " = " + q.q0.text +
+                         " (its q0): " + "d" + key + "/d" + q.name +
+                         (std::isfinite(speed) ? " = 0" : " is not finite") +
+                         ", so the joint's direction there is undefined");
+  return out;
+}
+
 namespace {
 
 // Where row `component` of a constraint is written: its equation, a driver's f, or the item.
@@ -933,6 +993,19 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
     const std::string item = "body '" + b.name + "' q0";
     for (int c = 0; c < 3; ++c) model.q0.push_back(builder.geometry(b.q0[c], item));
   }
+  for (const auto& c : m.coordinates)
+    model.q0.push_back(builder.geometry(c.q0, "coordinate '" + c.name + "' q0"));
+  // An extra coordinate that no equation reads would leave a zero column in Phi_q.
+  {
+    std::vector<bool> used(s.nq(), false);
+    for (const auto& e : model.phi_q) used[e.col] = true;
+    for (std::size_t k = 0; k < m.coordinates.size(); ++k)
+      if (!used[m.coordinate_index(static_cast<int>(k))])
+        throw InputError(m.source, "coordinate '" + m.coordinates[k].name + "'",
+                         m.coordinates[k].loc,
+                         "no joint or driver equation uses it, so the system would be singular "
+                         "(use it in an equation or a curve, or remove it)");
+  }
   for (const auto& p : m.points)
     model.point_s.push_back(builder.vec(p.s, "point '" + p.name + "' s"));
   for (const auto& o : m.outputs) {
@@ -996,6 +1069,10 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
       model.coordinate_kinds.push_back(kind);
       model.coordinate_scales.push_back(scale_of(kind, length));
     }
+  }
+  for (const auto& c : m.coordinates) {
+    model.coordinate_kinds.push_back(c.kind);
+    model.coordinate_scales.push_back(scale_of(c.kind, model.length_scale));
   }
   return model;
 }

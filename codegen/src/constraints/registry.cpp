@@ -5,13 +5,15 @@
 namespace kinegen::codegen {
 
 extern const ConstraintKind kRevolute, kTranslational, kDistance, kRevoluteTranslational,
-    kAbsoluteX, kAbsoluteY, kAbsoluteAngle, kRelativeAngle, kExpression, kFixed, kGear, kRackPinion;
+    kAbsoluteX, kAbsoluteY, kAbsoluteAngle, kRelativeAngle, kExpression, kFixed, kGear, kRackPinion,
+    kPointFollower, kCamFollower;
 
 const std::vector<const ConstraintKind*>& constraint_kinds() {
   static const std::vector<const ConstraintKind*> kKinds = {
       &kRevolute,   &kTranslational, &kDistance,      &kRevoluteTranslational,
       &kAbsoluteX,  &kAbsoluteY,     &kAbsoluteAngle, &kRelativeAngle,
       &kExpression, &kFixed,         &kGear,          &kRackPinion,
+      &kPointFollower, &kCamFollower,
   };
   return kKinds;
 }
@@ -28,6 +30,17 @@ std::vector<std::pair<int, const Vec2*>> offsets(const Constraint& c) {
     if (k.kind == KeyKind::kOffset)
       out.emplace_back(std::string(k.name) == "sj" ? c.j : c.i, &c.vector(k.name));
   return out;
+}
+
+Sketch::Curve DrawContext::sampled_curve(int body, const std::string& key,
+                                         const std::string& coordinate_key) const {
+  Sketch::Curve curve{body, {}};
+  if (!curve_point || !curve_range) return curve;
+  const auto [from, to] = curve_range(constraint.coordinates.at(coordinate_key));
+  constexpr int kSamples = 96;
+  for (int k = 0; k <= kSamples; ++k)
+    curve.points.push_back(curve_point(key, from + (to - from) * k / kSamples));
+  return curve;
 }
 
 Vec2 reaction_point(const Constraint& c, const char* key) {

@@ -128,6 +128,7 @@ std::string csv_header(const Mechanism& mechanism, const std::vector<std::string
 std::string csv_header(const Mechanism& mechanism, const std::vector<std::string>& forces,
                        const std::vector<std::string>& sensitivity);
 // Sensitivity columns follow when the row has them.
-std::string csv_row(const StateRow& row);
+// `num_bodies`: the mechanism's; the coordinates after the bodies' are its extra ones.
+std::string csv_row(const StateRow& row, int num_bodies);
 
 }  // namespace kinegen::codegen

@@ -31,8 +31,9 @@ enum class KeyKind {
   kScalar,        // another constant expression: Constraint::scalars
   kEquations,     // one expression string or a list of them, each = 0: Constraint::equations
   kFlag,          // true or false (default_value "false" or "true"): Constraint::flags
-  kCurve,  // planned: [x(u), y(u)], a curve local to a body in one of the kind's coordinates u
-           // (CoordinateSpec); the loader refuses it until the stages support coordinates
+  kCoordinate,    // the name of an extra coordinate (format 6.1): Constraint::coordinates
+  kCurve,         // [x(u), y(u)], a curve local to a body in one extra coordinate u (the kind's
+                  // kCoordinate key that EquationContext::curve is given): Constraint::curves
 };
 
 struct KeySpec {
@@ -83,6 +84,14 @@ class EquationContext {
   [[noreturn]] void fail(const std::string& key, const std::string& message) const;
   // The rows of an `equations` key: in the coordinates (and t for a driver), checked defined.
   std::vector<GiNaC::ex> equations() const;
+  // The symbol of the extra coordinate a kCoordinate key names.
+  GiNaC::ex coordinate(const std::string& key) const;
+  // A kCurve key as an expression of the coordinate `coordinate_key` names (and the
+  // parameters): refuses t, other coordinates, and a curve that is not regular (curve' = 0)
+  // at that coordinate's q0, where the mechanism assembles.
+  Vec curve(const std::string& key, const std::string& coordinate_key) const;
+  // d curve / du of such a curve.
+  Vec tangent(const Vec& curve, const std::string& coordinate_key) const;
 
  private:
   GiNaC::ex geometry(const Expr& e, const std::string& item) const;
@@ -126,6 +135,12 @@ struct Sketch {
   // travel of `point` (the pinion's centre) along it, like a slider's guide.
   std::vector<Slider> pitch_lines;
   std::vector<Attach> welds;  // fixed joints: the bodies are joined at the point
+  // Slot curves and cam profiles: polylines sampled in the body's frame.
+  struct Curve {
+    int body = kGround;
+    std::vector<Eigen::Vector2d> points;
+  };
+  std::vector<Curve> curves;
 };
 
 // The numeric view of one constraint, for its drawing (parameters substituted).
@@ -139,16 +154,15 @@ struct DrawContext {
   }
   double value() const { return number(constraint.value); }
   double scalar(const std::string& key) const { return number(constraint.scalars.at(key)); }
-};
+  // A kCurve key at the value u of its coordinate.
+  std::function<Eigen::Vector2d(const std::string& curve_key, double u)> curve_point = nullptr;
+  // The range to draw a curve over: its coordinate's travel over the analysis with a margin,
+  // a whole turn for an angle (a cam's profile, a roller).
+  std::function<std::pair<double, double>(int coordinate)> curve_range = nullptr;
 
-// Planned (the next issue adds gear, rack_pinion, point_follower and cam_follower): a scalar
-// coordinate that a type introduces besides the bodies' x, y, phi (a contact angle, a curve
-// parameter), named "<constraint name>_<suffix>", and curves as expressions of it (a key of
-// kind kCurve). Declared so the interface has its place; the loader refuses a kind that
-// declares one until the stages support them.
-struct CoordinateSpec {
-  const char* suffix;
-  bool is_angle;  // an angle (radians) rather than a length or a plain number
+  // The curve `key` (in coordinate key `coordinate_key`) of `body` as a polyline.
+  Sketch::Curve sampled_curve(int body, const std::string& key,
+                              const std::string& coordinate_key) const;
 };
 
 struct ConstraintKind {
@@ -178,7 +192,9 @@ struct ConstraintKind {
   bool reaction = true;
   // Phi is |d|^2 - f^2: a driver's effort is -2 lambda |d| rather than -lambda.
   bool squared_distance = false;
-  std::vector<CoordinateSpec> coordinates = {};  // planned; see CoordinateSpec
+  // A cam contact: adds the column J.fn, the force on j along the normal of curve_i (positive
+  // in compression, see forces.hpp).
+  bool normal_force = false;
 
   const KeySpec* key(const std::string& key_name) const {
     for (const auto& k : keys)

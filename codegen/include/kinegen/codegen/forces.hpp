@@ -65,6 +65,21 @@ void add_inertia_forces(const ForceData<T>& d, int bodies, const T* q, const T* 
   }
 }
 
+// A cam contact's J.fn (format 6.5): the force on body j along the unit normal of curve_i at
+// the contact, the tangent t = A_i curve_i'(a) turned by -90 degrees (outward for a profile
+// that runs counterclockwise), so positive in compression. t is -d(contact rows)/da, read off
+// Phi_q. (fx, fy): the joint's reported force, on j, or on i when `on_j` is false.
+template <class T>
+T normal_force(const Mechanism& m, const ForceModel& f, int joint, const T* jac, bool on_j,
+               const T& fx, const T& fy) {
+  using std::sqrt;
+  const int nq = m.nq(), r0 = f.row_begin[joint];
+  const int a = m.coordinate_index(m.joints[joint].coordinates.at("coordinate_i"));
+  const T tx = -jac[r0 * nq + a], ty = -jac[(r0 + 1) * nq + a];
+  const T fjx = on_j ? fx : -fx, fjy = on_j ? fy : -fy;
+  return (fjx * ty - fjy * tx) / sqrt(tx * tx + ty * ty);
+}
+
 // The columns of `analyze --forces` (force_columns order) from lambda, with Phi_q dense and
 // row-major (nc x nq) at the same q.
 template <class T>
@@ -113,6 +128,7 @@ void columns_from_lambda(const Mechanism& m, const ForceModel& f, const ForceDat
     out.push_back(fx);
     out.push_back(fy);
     out.push_back(reaction(j, 3 * body + 2) - (a[0] * fy - a[1] * fx));  // about the point
+    if (c.kind->normal_force) out.push_back(normal_force(m, f, j, jac.data(), on_j, fx, fy));
   }
 }
 

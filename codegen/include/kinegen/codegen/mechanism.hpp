@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "kinegen/codegen/diagnostics.hpp"
+#include "kinegen/motion.hpp"
 
 namespace kinegen::codegen {
 
@@ -51,6 +52,15 @@ struct Body {
   SourceLoc loc;
 };
 
+// An extra scalar unknown (format 6.1): a curve parameter, a contact angle. Follows the bodies'
+// coordinates in q, in file order; expressions use it by its name.
+struct Coordinate {
+  std::string name;
+  Expr q0;
+  CoordinateKind kind = CoordinateKind::kScalar;
+  SourceLoc loc;
+};
+
 // A registered joint or driver type (constraints.hpp): its keys, equations and drawing.
 struct ConstraintKind;
 
@@ -72,6 +82,8 @@ struct Constraint {
   std::map<std::string, bool> flags;    // true/false keys (a gear's `internal`)
   Expr value;        // value / length / angle of a joint, or f(t) of a driver
   std::vector<Expr> equations;  // expression constraints: each string = 0
+  std::map<std::string, Vec2> curves;      // kCurve keys: [x(u), y(u)] local to a body
+  std::map<std::string, int> coordinates;  // kCoordinate keys: index into Mechanism::coordinates
 
   const char* type_name() const;
   // Number of scalar equations this constraint contributes.
@@ -122,13 +134,18 @@ struct Mechanism {
   std::vector<Parameter> parameters;
   std::vector<Definition> definitions;
   std::vector<Body> bodies;
+  std::vector<Coordinate> coordinates;  // extra unknowns, after the bodies' in q
   std::vector<Constraint> joints;
   std::vector<Constraint> drivers;
   std::vector<Point> points;
   std::vector<Output> outputs;
   ForceSpec forces;  // masses, gravity and loads (`analyze --forces`)
 
-  int nq() const { return 3 * static_cast<int>(bodies.size()); }
+  int nq() const {
+    return 3 * static_cast<int>(bodies.size()) + static_cast<int>(coordinates.size());
+  }
+  // The index in q of extra coordinate k.
+  int coordinate_index(int k) const { return 3 * static_cast<int>(bodies.size()) + k; }
   int nc() const;
   // Joints then drivers, in file order: the order of the rows of Phi.
   std::vector<const Constraint*> constraints() const;
