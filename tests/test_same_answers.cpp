@@ -13,7 +13,10 @@
 #include <vector>
 
 #include "big_small.hpp"
+#include "cam_flat.hpp"
+#include "cam_roller.hpp"
 #include "closed_chain_4.hpp"
+#include "disc_cam.hpp"
 #include "crank_gravity.hpp"
 #include "drag_link.hpp"
 #include "far_point.hpp"
@@ -25,6 +28,7 @@
 #include "kinegen/codegen/block_interpreter.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "offset_slider_crank.hpp"
+#include "parabolic_slot.hpp"
 #include "planetary.hpp"
 #include "press.hpp"
 #include "quick_return.hpp"
@@ -32,6 +36,7 @@
 #include "slider_crank.hpp"
 #include "slider_crank_lecture.hpp"
 #include "slider_driven.hpp"
+#include "slot.hpp"
 #include "stephenson3.hpp"
 
 namespace {
@@ -118,6 +123,8 @@ TEST_CASE("analyze and the generated Solver give the same bits on every example 
   check_same<kinegen::models::four_bar_balanced>("examples/forces/four_bar_balanced.yaml", turn);
   check_same<kinegen::models::press>("examples/forces/press.yaml", turn);
   check_same<kinegen::models::planetary>("examples/gears/planetary.yaml", turn);
+  check_same<kinegen::models::disc_cam>("examples/cams/disc_cam.yaml", turn);
+  check_same<kinegen::models::slot>("examples/slots/slot.yaml", turn);
 }
 
 TEST_CASE("the same bits on torn, guarded and larger blocks", "[same_answers]") {
@@ -132,4 +139,8 @@ TEST_CASE("the same bits on torn, guarded and larger blocks", "[same_answers]") 
   check_same<kinegen::models::stephenson3>("tests/mechanisms/stephenson3.yaml", turn);
   check_same<kinegen::models::gear_pair>("tests/mechanisms/gear_pair.yaml", turn);
   check_same<kinegen::models::crank_gravity>("tests/mechanisms/crank_gravity.yaml", turn);
+  // Extra coordinates (format 6.1) and curve joints.
+  check_same<kinegen::models::cam_flat>("tests/mechanisms/cam_flat.yaml", turn);
+  check_same<kinegen::models::cam_roller>("tests/mechanisms/cam_roller.yaml", turn);
+  check_same<kinegen::models::parabolic_slot>("tests/mechanisms/parabolic_slot.yaml", {0, 1, 100});
 }
