@@ -15,6 +15,7 @@
 #include "kinegen/codegen/reserved_names.hpp"
 #include "kinegen/codegen/sensitivity.hpp"
 #include "kinegen/codegen/structure.hpp"
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 
@@ -48,6 +49,10 @@ std::string safe_comment_text(const std::string& s) {
                : '?';
   return out;
 }
+
+// A table's function as FunctionPrinter writes it, `_tbl@ID@` (ID its registry number), until
+// with_expression_kernels numbers the tables of the header from 0.
+std::string table_token(int id) { return "_tbl@" + std::to_string(id) + "@"; }
 
 class FunctionPrinter {
  public:
@@ -243,6 +248,15 @@ class FunctionPrinter {
       case OpKind::kLog: return call("log");
       case OpKind::kMotionLaw:  // the motion_law kernel (kernels/motion_law.hpp)
         return {"_motion_law(" + std::to_string(n.law) + ", " + std::to_string(n.order) + ", " +
+                    print(n.args[0]).text + ")",
+                kAtom};
+      case OpKind::kSelect:  // the piecewise kernel (kernels/piecewise.hpp)
+        return {"_select(" + print(n.args[0]).text + ", " + print(n.args[1]).text + ", " +
+                    print(n.args[2]).text + ")",
+                kAtom};
+      case OpKind::kFloor: return call("_floor_re");
+      case OpKind::kTable:  // renumbered per header by with_expression_kernels
+        return {table_token(n.table) + "(" + std::to_string(n.order) + ", " +
                     print(n.args[0]).text + ")",
                 kAtom};
     }
@@ -595,16 +609,60 @@ void emit_kernels(std::ostringstream& os, const std::string& code) {
   }
 }
 
-// The kernels that expressions call (the motion laws), pasted at `at` (before the first
-// function) once the whole header is written, so that every function that calls one counts.
-std::string with_expression_kernels(std::string header, std::size_t at) {
-  if (header.find("_motion_law(", at) == std::string::npos) return header;
-  for (const auto& k : embedded::kKernels) {
-    if (std::string(k.name) != "motion_law") continue;
-    header.insert(
-        at, std::string("  // ---- kinegen kernel motion_law (kinegen/kernels/motion_law.hpp)\n") +
-                k.text + "  // ---- end of kinegen kernel motion_law\n\n");
+// The knots of each table a header reads, as constant arrays, and its function `_tblK(order,
+// x)` over the spline kernel; the tokens renamed to `_tblK` in order of first use.
+std::string with_tables(std::string& header, std::size_t at) {
+  std::string data;
+  int next = 0;
+  for (std::size_t p = header.find("_tbl@", at); p != std::string::npos;
+       p = header.find("_tbl@", at)) {
+    const std::size_t end = header.find('@', p + 5);
+    const std::string token = header.substr(p, end + 1 - p);
+    const Spline& s = registered_table(std::stoi(token.substr(5)));
+    const std::string name = "_tbl" + std::to_string(next++);
+    for (std::size_t q = header.find(token); q != std::string::npos; q = header.find(token, q))
+      header.replace(q, token.size(), name);
+    const auto array = [&](const char* suffix, const std::vector<double>& v) {
+      std::string line = "  static constexpr double " + name + suffix + "[" +
+                         std::to_string(v.size()) + "] = {";
+      for (std::size_t k = 0; k < v.size(); ++k)
+        line += (k ? ", " : "") + format_double(v[k]);
+      return line + "};\n";
+    };
+    data += "  // Table " + std::to_string(next - 1) + (s.periodic ? " (periodic, period " +
+            format_double(s.period) + ")" : "") +
+            ": knots, values" + (s.periodic ? " less the trend" : "") +
+            " and the spline's second derivatives (not extrapolated: NaN outside)\n";
+    data += array("_t", s.t) + array("_y", s.y) + array("_m", s.m);
+    data += "  template <class T>\n  static T " + name + "(int order, const T& x) noexcept {\n" +
+            "    return _table(" + name + "_t, " + name + "_y, " + name + "_m, " +
+            std::to_string(s.t.size()) + ", " + format_double(s.periodic ? s.period : 0.0) +
+            ", " + format_double(s.rise) + ", order, x);\n  }\n\n";
   }
+  return data;
+}
+
+// The kernels that expressions call (motion laws, pieces, tables), pasted at `at` (before the
+// first function) once the whole header is written, so that every function that calls one
+// counts.
+std::string with_expression_kernels(std::string header, std::size_t at) {
+  const std::string tables = with_tables(header, at);
+  const bool uses[] = {header.find("_motion_law(", at) != std::string::npos,
+                       header.find("_select(", at) != std::string::npos ||
+                           header.find("_floor_re(", at) != std::string::npos,
+                       !tables.empty()};
+  const char* names[] = {"motion_law", "piecewise", "spline"};
+  std::string text;
+  for (int u = 0; u < 3; ++u) {
+    if (!uses[u]) continue;
+    for (const auto& k : embedded::kKernels) {
+      if (std::string(k.name) != names[u]) continue;
+      text += std::string("  // ---- kinegen kernel ") + names[u] + " (kinegen/kernels/" +
+              names[u] + ".hpp)\n" + k.text + "  // ---- end of kinegen kernel " + names[u] +
+              "\n\n";
+    }
+  }
+  header.insert(at, text + tables);
   return header;
 }
 

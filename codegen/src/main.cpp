@@ -92,7 +92,9 @@ struct Common {
 // Reads and compiles the mechanism, its stages shown as the log's progress lines.
 std::unique_ptr<kc::CompiledModel> load(const Common& c, kc::BuildOptions build = {}) {
   build.progress = kc::Log::global().progress_callbacks();
-  return kc::CompiledModel::from_file(c.file, parse_overrides(c.params), build);
+  auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params), build);
+  for (const auto& w : model->symbolic().warnings) kc::Log::global().warning(w);
+  return model;
 }
 
 void add_common(CLI::App* cmd, Common& c) {

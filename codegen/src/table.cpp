@@ -5,6 +5,12 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <algorithm>
+#include <limits>
+#include <cln/cln.h>
+#include <deque>
+#include <mutex>
+#include <stdexcept>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -63,7 +69,69 @@ std::vector<double> solve(const std::vector<Eigen::Triplet<double>>& entries,
   return std::vector<double>(m.data(), m.data() + m.size());
 }
 
+std::deque<Spline>& tables() {
+  static std::deque<Spline> all;
+  return all;
+}
+
 }  // namespace
+
+int register_table(const Spline& spline) {
+  static std::mutex mutex;
+  std::lock_guard<std::mutex> lock(mutex);
+  auto& all = tables();
+  for (std::size_t k = 0; k < all.size(); ++k) {
+    const Spline& s = all[k];
+    if (s.t == spline.t && s.y == spline.y && s.m == spline.m && s.periodic == spline.periodic &&
+        s.period == spline.period && s.rise == spline.rise)
+      return static_cast<int>(k);
+  }
+  if (all.size() >= 1000) throw std::length_error("more than 1000 tables in one process");
+  all.push_back(spline);
+  return static_cast<int>(all.size()) - 1;
+}
+
+const Spline& registered_table(int id) { return tables().at(static_cast<std::size_t>(id)); }
+
+GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::numeric& x) {
+  using GiNaC::numeric;
+  const auto exact = [](double v) {
+    return numeric(cln::rational(cln::the<cln::cl_R>(numeric(v).to_cl_N())));
+  };
+  numeric local = x.real();
+  numeric turns = 0;
+  if (s.periodic) {
+    const numeric p = exact(s.period);
+    turns = numeric(cln::floor1(cln::the<cln::cl_R>((local / p).to_cl_N())));
+    local = local - turns * p;
+  }
+  const double xd = local.to_double();
+  const int n = static_cast<int>(s.t.size());
+  const double slack = 8 * std::numeric_limits<double>::epsilon() *
+                       std::max(std::abs(s.t.front()), std::abs(s.t.back()));
+  if (!(xd >= s.t.front() - slack && xd <= s.t.back() + slack) || order < 0 || order > 2)
+    throw AnalysisError("t = " + std::to_string(x.real().to_double()) +
+                        " lies outside a table's range in the high-precision evaluation");
+  int lo = 0, hi = n - 1;
+  while (hi - lo > 1) {
+    const int mid = lo + (hi - lo) / 2;
+    (s.t[mid] <= xd ? lo : hi) = mid;
+  }
+  const numeric h = exact(s.t[lo + 1]) - exact(s.t[lo]);
+  const numeric a = (exact(s.t[lo + 1]) - local) / h, b = 1 - a;
+  const numeric yl = exact(s.y[lo]), yr = exact(s.y[lo + 1]);
+  const numeric ml = exact(s.m[lo]), mr = exact(s.m[lo + 1]);
+  numeric v;
+  if (order == 0)
+    v = a * yl + b * yr + ((a * a * a - a) * ml + (b * b * b - b) * mr) * h * h / 6;
+  else if (order == 1)
+    v = (yr - yl) / h + ((1 - 3 * a * a) * ml + (3 * b * b - 1) * mr) * h / 6;
+  else
+    v = a * ml + b * mr;
+  if (s.periodic && order == 0) v = v + exact(s.rise) * x.real() / exact(s.period);
+  if (s.periodic && order == 1) v = v + exact(s.rise) / exact(s.period);
+  return v;
+}
 
 bool Spline::eval(double x, double* f) const {
   const int n = static_cast<int>(t.size());

@@ -6,6 +6,8 @@
 // derivatives; for a periodic table also its period and rise). Throws InputError.
 #pragma once
 
+#include <ginac/ginac.h>
+
 #include <string>
 #include <vector>
 
@@ -22,6 +24,17 @@ struct Spline {
   // f[0..2] = value, first and second derivative at x; false outside a non-periodic table.
   bool eval(double x, double* f) const;
 };
+
+// The tables of every mechanism loaded in this process, by number (kinegen_table's id in
+// functions.hpp): registering the same spline twice gives the same number. Entries are never
+// removed or moved, so a reference stays valid. Thread-safe.
+int register_table(const Spline& spline);
+const Spline& registered_table(int id);
+
+// The order-th derivative (0..2) of a spline at x in CLN arithmetic (the reference), with the
+// knots taken exactly; x's precision is kept. Throws AnalysisError outside a table that does
+// not repeat.
+GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::numeric& x);
 
 // Limits that keep a hostile table from costing unbounded time or memory.
 inline constexpr std::size_t kMaxTableBytes = 8u << 20;
