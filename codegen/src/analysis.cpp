@@ -14,6 +14,7 @@
 #include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/kinematics.hpp"
 #include "kinegen/codegen/sensitivity.hpp"
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 
@@ -356,6 +357,9 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
         row.q[c] = predict(row.q[c], row.qd[c], row.qdd[c], k > 1 ? qdd_before[c] : 0.0);
     }
     row.t = t;
+    if (const std::string table = table_outside(model.mechanism(), t); !table.empty())
+      throw AnalysisError(file + ": position analysis failed at " + format_time(t) +
+                          ": t lies outside " + table);
     if (auto r = solver.position(row.q, t); !r) {
       // A coarse step can predict a point from which Newton cannot find its way; start once
       // more from the last solution before giving up (the jump check below still applies).

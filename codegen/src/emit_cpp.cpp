@@ -636,8 +636,9 @@ std::string with_tables(std::string& header, std::size_t at) {
     data += array("_t", s.t) + array("_y", s.y) + array("_m", s.m);
     data += "  template <class T>\n  static T " + name + "(int order, const T& x) noexcept {\n" +
             "    return _table(" + name + "_t, " + name + "_y, " + name + "_m, " +
-            std::to_string(s.t.size()) + ", " + format_double(s.periodic ? s.period : 0.0) +
-            ", " + format_double(s.rise) + ", order, x);\n  }\n\n";
+            std::to_string(s.t.size()) + ", double(" +
+            format_double(s.periodic ? s.period : 0.0) + "), double(" + format_double(s.rise) +
+            "), order, x);\n  }\n\n";
   }
   return data;
 }

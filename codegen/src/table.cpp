@@ -15,6 +15,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "kinegen/codegen/format.hpp"
+#include "kinegen/codegen/mechanism.hpp"
 #include "kinegen/kernels/spline.hpp"
 
 namespace kinegen::codegen {
@@ -133,6 +135,38 @@ GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::nu
   return v;
 }
 
+namespace {
+bool covers(const Spline& s, double t) {
+  const double slack = 8 * std::numeric_limits<double>::epsilon() *
+                       std::max(std::abs(s.t.front()), std::abs(s.t.back()));
+  return s.periodic || (t >= s.t.front() - slack && t <= s.t.back() + slack);
+}
+}  // namespace
+
+TableCoverage table_coverage(const Mechanism& m) {
+  TableCoverage c;
+  for (const Constraint& d : m.drivers) {
+    if (d.law.table_id < 0) continue;
+    const Spline& s = registered_table(d.law.table_id);
+    if (s.periodic) continue;
+    c.lo = std::max(c.lo, s.t.front());
+    c.hi = std::min(c.hi, s.t.back());
+  }
+  return c;
+}
+
+std::string table_outside(const Mechanism& m, double t) {
+  for (const Constraint& d : m.drivers) {
+    if (d.law.table_id < 0) continue;
+    const Spline& s = registered_table(d.law.table_id);
+    if (covers(s, t)) continue;
+    return d.item + " table '" + d.law.table + "' (its t runs from " +
+           format_number(s.t.front()) + " to " + format_number(s.t.back()) +
+           "; a table is never extrapolated: give it a period or more rows)";
+  }
+  return "";
+}
+
 bool Spline::eval(double x, double* f) const {
   const int n = static_cast<int>(t.size());
   return periodic ? kernels::spline_eval_periodic(t.data(), y.data(), m.data(), n, period, rise,
@@ -176,8 +210,8 @@ void read_table(const std::string& path, const TableSource& src, std::vector<dou
     if (!std::isfinite(a) || !std::isfinite(b))
       fail(src, "table " + where + " holds a value that is not finite");
     if (!t.empty() && !(a > t.back()))
-      fail(src, "table " + where + ": t must increase strictly (" + std::to_string(a) +
-                    " follows " + std::to_string(t.back()) + ")");
+      fail(src, "table " + where + ": t must increase strictly (" + format_number(a) +
+                    " follows " + format_number(t.back()) + ")");
     if (t.size() >= kMaxTableRows)
       fail(src, "table '" + path + "' has more than " + std::to_string(kMaxTableRows) + " rows");
     t.push_back(a);

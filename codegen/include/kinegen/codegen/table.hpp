@@ -8,6 +8,7 @@
 
 #include <ginac/ginac.h>
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,18 @@ const Spline& registered_table(int id);
 // knots taken exactly; x's precision is kept. Throws AnalysisError outside a table that does
 // not repeat.
 GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::numeric& x);
+
+struct Mechanism;
+// The times every table of `m`'s drivers covers (those without a period): [lo, hi], and the
+// first driver whose table does not hold t (nullptr when all do, or there is none). Tables are
+// never extrapolated (format 6.3); the analysis stops at such a t.
+struct TableCoverage {
+  double lo = -std::numeric_limits<double>::infinity();
+  double hi = std::numeric_limits<double>::infinity();
+};
+TableCoverage table_coverage(const Mechanism& m);
+// The driver (its item) whose table does not cover t, with the table's range, or "".
+std::string table_outside(const Mechanism& m, double t);
 
 // Limits that keep a hostile table from costing unbounded time or memory.
 inline constexpr std::size_t kMaxTableBytes = 8u << 20;
