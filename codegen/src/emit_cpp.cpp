@@ -50,6 +50,24 @@ std::string safe_comment_text(const std::string& s) {
   return out;
 }
 
+// The Params members of input driver k (format 6.3, `f: input`): its value, rate and
+// acceleration, NAME, NAME_v and NAME_a.
+std::string input_member(const Mechanism& m, int driver, int order) {
+  static const char* const kSuffix[] = {"", "_v", "_a"};
+  return m.drivers.at(static_cast<std::size_t>(driver)).name + kSuffix[order];
+}
+
+// The members FunctionPrinter wrote as `p.@inK.O@`, named.
+std::string with_input_members(std::string header, const Mechanism& m) {
+  for (std::size_t p = header.find("p.@in"); p != std::string::npos; p = header.find("p.@in", p)) {
+    const std::size_t dot = header.find('.', p + 5), end = header.find('@', p + 5);
+    const int driver = std::stoi(header.substr(p + 5, dot - p - 5));
+    const int order = std::stoi(header.substr(dot + 1, end - dot - 1));
+    header.replace(p + 2, end + 1 - (p + 2), input_member(m, driver, order));
+  }
+  return header;
+}
+
 // A table's function as FunctionPrinter writes it, `_tbl@ID@` (ID its registry number), until
 // with_expression_kernels numbers the tables of the header from 0.
 std::string table_token(int id) { return "_tbl@" + std::to_string(id) + "@"; }
@@ -255,6 +273,8 @@ class FunctionPrinter {
                     print(n.args[2]).text + ")",
                 kAtom};
       case OpKind::kFloor: return call("_floor_re");
+      case OpKind::kDriverInput:  // named by emit_header (input_members)
+        return {"T(p.@in" + std::to_string(n.table) + "." + std::to_string(n.order) + "@)", kAtom};
       case OpKind::kTable:  // renumbered per header by with_expression_kernels
         return {table_token(n.table) + "(" + std::to_string(n.order) + ", " +
                     print(n.args[0]).text + ")",
@@ -2243,6 +2263,14 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
   for (int k = 0; k < symbols.num_params(); ++k)
     os << "    double " << symbols.param_name(k) << " = "
        << format_double(model.param_values[k].to_double()) << ";\n";
+  for (std::size_t d = 0; d < m.drivers.size(); ++d) {
+    if (!m.drivers[d].law.input) continue;
+    const int k = static_cast<int>(d);
+    os << "    // Input driver " << m.drivers[d].name
+       << " (f: input): its value, rate and acceleration, set at run time\n"
+       << "    double " << input_member(m, k, 0) << " = 0, " << input_member(m, k, 1) << " = 0, "
+       << input_member(m, k, 2) << " = 0;\n";
+  }
   os << "  };\n\n";
 
   // Each output's constraint, for repeated constraints (roll_outputs).
@@ -2339,7 +2367,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     os << code.str();
   }
   os << "};\n\n}  // namespace " << options.name_space << "\n";
-  return with_expression_kernels(os.str(), expression_kernels_at);
+  return with_input_members(with_expression_kernels(os.str(), expression_kernels_at), m);
 }
 
 }  // namespace kinegen::codegen

@@ -87,11 +87,22 @@ Eigen::VectorXd vector_arg(const std::vector<double>& values, int n, const char*
 struct Common {
   std::string file;
   std::vector<std::string> params;
+  std::vector<std::string> inputs;  // NAME=FILE.csv
 };
 
 // Reads and compiles the mechanism, its stages shown as the log's progress lines.
-std::unique_ptr<kc::CompiledModel> load(const Common& c, kc::BuildOptions build = {}) {
+// generate keeps input drivers (its code reads them from Params); every other command needs
+// them as --input tables.
+std::unique_ptr<kc::CompiledModel> load(const Common& c, kc::BuildOptions build = {},
+                                        bool generating = false) {
   build.progress = kc::Log::global().progress_callbacks();
+  build.inputs_required = !generating;
+  for (const std::string& in : c.inputs) {
+    const auto eq = in.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == in.size())
+      throw kc::UsageError("--input expects NAME=FILE.csv, not '" + in + "'");
+    build.inputs.emplace_back(in.substr(0, eq), in.substr(eq + 1));
+  }
   auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params), build);
   for (const auto& w : model->symbolic().warnings) kc::Log::global().warning(w);
   return model;
@@ -101,6 +112,10 @@ void add_common(CLI::App* cmd, Common& c) {
   cmd->add_option("mechanism", c.file, "Mechanism file (YAML)")->required();
   cmd->add_option("--param", c.params, "Override a parameter: NAME=VALUE (repeatable)")
       ->type_name("NAME=VALUE");
+  cmd->add_option("--input", c.inputs,
+                  "An input driver's values (f: input): NAME=FILE.csv, columns t,value, "
+                  "interpolated as a table (repeatable)")
+      ->type_name("NAME=FILE");
 }
 
 int run_generate(const Common& c, const std::string& dir, const std::string& outputs,
@@ -111,7 +126,7 @@ int run_generate(const Common& c, const std::string& dir, const std::string& out
     throw kc::UsageError("--namespace: " + why);
   kc::BuildOptions build;
   build.fold_params = fold_params;
-  const auto model = load(c, build);
+  const auto model = load(c, build, true);
   kc::StageScope stage("emitting C++");
   kc::EmitOptions options;
   if (outputs == "position") options.outputs = kc::Outputs::kPosition;

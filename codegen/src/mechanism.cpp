@@ -391,6 +391,10 @@ class Loader {
     const YAML::Node f = c["f"];
     if (f.IsScalar() && f.Scalar() == "input") {
       if (law.period) fail(item, loc_of(c["period"]), "an input driver has no period");
+      if (con.name.empty())
+        fail(item, loc_of(f),
+             "an input driver needs a name: its run-time inputs are the generated Params' NAME, "
+             "NAME_v and NAME_a, and `analyze --input NAME=FILE.csv` gives them");
       law.input = true;
       con.value = Expr{"0", loc_of(f)};
       return;

@@ -9,6 +9,7 @@
 #include <limits>
 #include <cln/cln.h>
 #include <deque>
+#include <set>
 #include <mutex>
 #include <stdexcept>
 #include <filesystem>
@@ -165,6 +166,31 @@ std::string table_outside(const Mechanism& m, double t) {
            "; a table is never extrapolated: give it a period or more rows)";
   }
   return "";
+}
+
+void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::string>>& inputs,
+                  bool required) {
+  std::set<std::string> given;
+  for (const auto& [name, path] : inputs) {
+    if (!given.insert(name).second) throw UsageError("--input " + name + " is given twice");
+    Constraint* driver = nullptr;
+    for (Constraint& d : m.drivers)
+      if (d.name == name && d.law.input) driver = &d;
+    if (!driver)
+      throw UsageError("--input " + name + ": " + m.source + " has no input driver (f: input) named '" +
+                       name + "'");
+    const TableSource src{m.source, driver->item + " --input " + name, driver->value.loc, false};
+    std::vector<double> t, v;
+    read_table(fs::absolute(path).string(), src, t, v);
+    driver->law.input = false;
+    driver->law.table = path;
+    driver->law.table_id = register_table(fit_not_a_knot(t, v));
+  }
+  if (!required) return;
+  for (const Constraint& d : m.drivers)
+    if (d.law.input)
+      throw UsageError(d.item + " is an input driver (f: input): give its values with --input " +
+                       d.name + "=FILE.csv (columns t,value)");
 }
 
 bool Spline::eval(double x, double* f) const {

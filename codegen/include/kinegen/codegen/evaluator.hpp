@@ -6,6 +6,7 @@
 #include <cmath>
 #include <complex>
 #include <cstdlib>
+#include <limits>
 #include <vector>
 
 #include "kinegen/codegen/functions.hpp"
@@ -71,6 +72,10 @@ class ProgramEvaluator {
           break;
         case OpKind::kFloor:
           v = kernels::floor_re(arg(0));
+          break;
+        case OpKind::kDriverInput:
+          // Only generated code reads inputs (Params); `analyze --input` makes them tables.
+          v = T(std::numeric_limits<double>::quiet_NaN());
           break;
         case OpKind::kTable: {
           const Spline& s = registered_table(n.table);

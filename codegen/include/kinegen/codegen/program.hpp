@@ -32,6 +32,7 @@ enum class OpKind {
   kMotionLaw,  // d^order/dx^order of motion law `law` at args[0] (kernels/motion_law.hpp)
   kSelect,     // re(args[0]) < 0 ? args[1] : args[2] (a driver's pieces, kernels/piecewise.hpp)
   kFloor,      // floor(re(args[0])) (whole periods, kernels/piecewise.hpp)
+  kDriverInput,  // d^order/dt^order of input driver `table` (Params members, format 6.3)
   kTable,      // d^order/dx^order of table `table` (registered_table) at args[0] (kernels/spline.hpp)
 };
 
@@ -40,7 +41,7 @@ struct Node {
   std::vector<int> args;
   int exponent = 0;   // kPowInt
   int law = 0, order = 0;  // kMotionLaw; order also kTable
-  int table = -1;          // kTable: its number in table.hpp's registry
+  int table = -1;          // kTable: its number in table.hpp's registry; kDriverInput: driver
   double value = 0;   // kConst
   GiNaC::ex exact;    // kConst: the exact (or high-precision) value
   Input input{InputKind::kT, 0};  // kInput

@@ -49,6 +49,13 @@ TableCoverage table_coverage(const Mechanism& m);
 // The driver (its item) whose table does not cover t, with the table's range, or "".
 std::string table_outside(const Mechanism& m, double t);
 
+// Turns each named input driver (`f: input`) into a table driver read from its CSV file
+// (`analyze --input NAME=FILE.csv`; the path is the user's, relative to the working
+// directory, not confined). Throws UsageError for a name that is not an input driver, one
+// given twice, or (when `required`) an input driver left without a table.
+void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::string>>& inputs,
+                  bool required);
+
 // Limits that keep a hostile table from costing unbounded time or memory.
 inline constexpr std::size_t kMaxTableBytes = 8u << 20;
 inline constexpr std::size_t kMaxTableRows = 200000;
