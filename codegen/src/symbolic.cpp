@@ -1,5 +1,7 @@
 #include "kinegen/codegen/symbolic.hpp"
 
+#include <cln/cln.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -853,7 +855,21 @@ class DriverLawBuilder {
                         "the period's seam t = " + format_number(number(*period)),
                         law.period->loc});
     }
-    check_joints(joints, warnings);
+    // Where the law's magnitudes are sampled (the scale of its jumps): inside each piece.
+    std::vector<std::pair<ex, ex>> spans;  // a piece and a time inside it
+    {
+      const double first = n > 1 ? at[0] : 0, last = n > 1 ? at[n - 2] : 0;
+      const double length = period ? number(*period) / n
+                            : n > 2 ? (last - first) / (n - 2)
+                                    : std::max(1.0, std::abs(first));
+      for (std::size_t k = 0; k < n; ++k) {
+        const double lo = k == 0 ? (period ? 0.0 : first - length) : at[k - 1];
+        const double hi = k + 1 < n ? at[k] : (period ? number(*period) : last + length);
+        for (int i = 1; i <= 3; ++i)
+          spans.emplace_back(f[k], GiNaC::numeric(exact_double(lo + (hi - lo) * i / 4)));
+      }
+    }
+    check_joints(joints, spans, warnings);
     return value;
   }
 
@@ -865,23 +881,46 @@ class DriverLawBuilder {
     SourceLoc loc;           // the piece after it
   };
 
-  // f, f', f'' across each joint; a difference above 1e-9 of the largest magnitude of that
-  // derivative over all the joints counts (at 40 digits, so rounding never does).
-  void check_joints(const std::vector<Joint>& joints, std::vector<std::string>* warnings) const {
+  // f, f', f'' across each joint; a difference above 1e-9 of the law's largest magnitude of
+  // that derivative (over the joints and `samples`, times inside each piece) counts. At 40
+  // digits, so rounding never does.
+  // An exact rational of a double, for a sampling time.
+  static GiNaC::numeric exact_double(double v) {
+    return GiNaC::numeric(cln::rational(cln::the<cln::cl_R>(GiNaC::numeric(v).to_cl_N())));
+  }
+
+  void check_joints(const std::vector<Joint>& joints,
+                    const std::vector<std::pair<ex, ex>>& samples,
+                    std::vector<std::string>* warnings) const {
     if (joints.empty()) return;
     const ex t = s_.t();
     const DigitsGuard digits(kEvalDigits);
     double left[3][kMaxJoints], right[3][kMaxJoints];
     const std::size_t count = std::min(joints.size(), kMaxJoints);
     double scale[3] = {0, 0, 0};
+    // Each side is taken a hair inside its piece (1e-25 of the time's size, far below the
+    // 1e-9 that counts), so that a clamped law's corner at the boundary (harmonic'' at 0)
+    // is seen as its piece's one-sided limit, not as the clamped value.
+    const GiNaC::numeric hair = GiNaC::numeric(1, 10).power(25);
     for (std::size_t j = 0; j < count; ++j) {
       ex a = joints[j].before, b = joints[j].after;
+      const ex tb = joints[j].at_before, ta = joints[j].at_after;
+      const ex before = tb - hair * std::max(1.0, std::abs(number(tb)));
+      const ex after = ta + hair * std::max(1.0, std::abs(number(ta)));
       for (int o = 0; o < 3; ++o) {
-        left[o][j] = number(a.subs(t == joints[j].at_before));
-        right[o][j] = number(b.subs(t == joints[j].at_after));
+        left[o][j] = number(a.subs(t == before));
+        right[o][j] = number(b.subs(t == after));
         scale[o] = std::max({scale[o], std::abs(left[o][j]), std::abs(right[o][j])});
         a = a.diff(GiNaC::ex_to<GiNaC::symbol>(t));
         b = b.diff(GiNaC::ex_to<GiNaC::symbol>(t));
+      }
+    }
+    for (const auto& [piece, at] : samples) {
+      ex e = piece;
+      for (int o = 0; o < 3; ++o) {
+        const double v = std::abs(number(e.subs(t == at)));
+        if (std::isfinite(v)) scale[o] = std::max(scale[o], v);
+        e = e.diff(GiNaC::ex_to<GiNaC::symbol>(t));
       }
     }
     const char* what[3] = {"f", "f'", "f''"};
