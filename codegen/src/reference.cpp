@@ -106,6 +106,8 @@ class TapeBuilder {
     } else if (is_table(e, n.table, n.order)) {
       n.op = Op::kTable;
       n.args.push_back(compile(e.op(2), tape));
+    } else if (int driver = 0, order = 0; is_input(e, driver, order)) {
+      n.value = 0;  // an input driver without a table: 0, as the evaluator takes it
     } else if (is_select(e) || is_floor(e)) {
       n.op = is_select(e) ? Op::kSelect : Op::kFloor;
       for (std::size_t k = 0; k < e.nops(); ++k) n.args.push_back(compile(e.op(k), tape));

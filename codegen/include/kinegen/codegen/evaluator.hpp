@@ -74,8 +74,9 @@ class ProgramEvaluator {
           v = kernels::floor_re(arg(0));
           break;
         case OpKind::kDriverInput:
-          // Only generated code reads inputs (Params); `analyze --input` makes them tables.
-          v = T(std::numeric_limits<double>::quiet_NaN());
+          // An input driver not given as a table (`--input`): 0, as in a default Params of
+          // generated code (eval and check; analyze requires the table).
+          v = T(0);
           break;
         case OpKind::kTable: {
           const Spline& s = registered_table(n.table);
