@@ -57,9 +57,9 @@ double lift(double t) { return 0.2 + 0.5 * t - 0.1 * t * t + 0.03 * t * t * t; }
 double lift_v(double t) { return 0.5 - 0.2 * t + 0.09 * t * t; }
 double lift_a(double t) { return -0.2 + 0.18 * t; }
 
-// The shaft's law of pieces_drive.yaml (and the first test's slider) over one period (h = 0.5, T = 4), by the formulas of
-// the spec: dwell, cycloidal rise on [1, 2), dwell, 3-4-5 return on [3, 4); a time at a
-// boundary takes the later piece.
+// The shaft's law of pieces_drive.yaml (and the first test's slider) over one period (h = 0.5, T =
+// 4), by the formulas of the spec: dwell, cycloidal rise on [1, 2), dwell, 3-4-5 return on [3, 4);
+// a time at a boundary takes the later piece.
 void shaft_law(double t, double f[3]) {
   const double h = 0.5, T = 4;
   const double local = t - T * std::floor(t / T);
@@ -124,14 +124,14 @@ std::string slider(const std::string& law) {
 
 TEST_CASE("pieces: a periodic dwell-rise-dwell-return law against its formulas on its boundaries",
           "[pieces]") {
-  const auto model = kc::CompiledModel::from_mechanism(kc::parse_mechanism(
-      slider("    period: T\n"
-             "    f:\n"
-             "      - {until: 1, f: \"0\"}\n"
-             "      - {until: 2, f: \"0.5*cycloidal(t - 1)\"}\n"
-             "      - {until: 3, f: \"0.5\"}\n"
-             "      - {f: \"0.5 - 0.5*poly345(t - 3)\"}\n"),
-      "cam.yaml"));
+  const auto model = kc::CompiledModel::from_mechanism(
+      kc::parse_mechanism(slider("    period: T\n"
+                                 "    f:\n"
+                                 "      - {until: 1, f: \"0\"}\n"
+                                 "      - {until: 2, f: \"0.5*cycloidal(t - 1)\"}\n"
+                                 "      - {until: 3, f: \"0.5\"}\n"
+                                 "      - {f: \"0.5 - 0.5*poly345(t - 3)\"}\n"),
+                          "cam.yaml"));
   // 8 steps per second over three periods: every boundary (1, 2, 3 and the seams 4, 8) is a
   // grid time.
   const Run run = analyze(*model, {0, 12, 96});
@@ -163,8 +163,7 @@ TEST_CASE("pieces: a jump in f is an error, in f' or f'' a warning naming the bo
     const std::string what = e.what();
     CHECK(e.item() == "drivers[0] (absolute_x)");
     CHECK(e.loc().line == 19);
-    CHECK(what.find("f jumps at the boundary t = 1: 1 before it, 2 after it") !=
-          std::string::npos);
+    CHECK(what.find("f jumps at the boundary t = 1: 1 before it, 2 after it") != std::string::npos);
   }
   // Velocity jumps from 1 to 0 at t = 1 and acceleration (0 to 2) at t = 2.
   const std::string kinks = slider(
@@ -176,8 +175,7 @@ TEST_CASE("pieces: a jump in f is an error, in f' or f'' a warning naming the bo
   const auto& w = model->symbolic().warnings;
   REQUIRE(w.size() == 2);
   CHECK(w[0].find("f' jumps at the boundary t = 1: 1 before it, 0 after it") != std::string::npos);
-  CHECK(w[1].find("f'' jumps at the boundary t = 2: 0 before it, 2 after it") !=
-        std::string::npos);
+  CHECK(w[1].find("f'' jumps at the boundary t = 2: 0 before it, 2 after it") != std::string::npos);
   // The analysis runs through the kinks (the jump check accepts the one-sided motion there),
   // and each piece has its own derivatives, the later one at a boundary.
   const Run run = analyze(*model, {0, 3, 12});
@@ -276,8 +274,8 @@ TEST_CASE("inputs: the generated header fed the exact inputs agrees with analyze
     const auto report = M::solve_step(q, r.t, p, qd, qdd, M::BlockOptions{});
     REQUIRE(report.status == 0);
     for (int c = 0; c < M::nq; ++c)
-      worst = std::max({worst, std::abs(q[c] - r.q[c]), std::abs(qd[c] - r.qd[c]),
-                        std::abs(qdd[c] - r.qdd[c])});
+      worst = std::max(
+          {worst, std::abs(q[c] - r.q[c]), std::abs(qd[c] - r.qd[c]), std::abs(qdd[c] - r.qdd[c])});
     // The input slider follows the inputs exactly.
     CHECK(q[6] == p.stroke);
     CHECK(qd[6] == p.stroke_v);
@@ -295,8 +293,8 @@ TEST_CASE("tables: a run past the table's end fails there with exit 1, earlier r
           "[pieces][cli]") {
   const fs::path dir = scratch("past_end");
   const fs::path csv = dir / "out.csv";
-  const auto r = run_kinegen({"analyze", drive_file(), "--input", "stroke=" + lift_file(),
-                              "--t0", "0", "--t1", "4", "--steps", "8", "-o", csv.string()});
+  const auto r = run_kinegen({"analyze", drive_file(), "--input", "stroke=" + lift_file(), "--t0",
+                              "0", "--t1", "4", "--steps", "8", "-o", csv.string()});
   INFO(r.err);
   CHECK(r.exit_code == 1);
   CHECK(r.err.rfind("error: ", 0) == 0);
@@ -342,8 +340,9 @@ TEST_CASE("pieces and tables: every hostile input gives one error line, exit 2, 
       {"out_of_order",
        "    f:\n      - {until: 2, f: \"t\"}\n      - {until: 1, f: \"2\"}\n      - {f: \"2\"}\n",
        "", 19, "pieces out of order"},
-      {"until_outside_period", "    period: 2\n    f:\n      - {until: 3, f: \"t\"}\n      - {f: \"3\"}\n",
-       "", 19, "must lie inside (0, period)"},
+      {"until_outside_period",
+       "    period: 2\n    f:\n      - {until: 3, f: \"t\"}\n      - {f: \"3\"}\n", "", 19,
+       "must lie inside (0, period)"},
       {"last_piece_until", "    f:\n      - {until: 1, f: \"t\"}\n      - {until: 2, f: \"1\"}\n",
        "", 19, "unknown key 'until'"},
       {"f_and_table", "    f: t\n    table: data.csv\n", good, 18, "either f or table"},

@@ -272,7 +272,8 @@ class FunctionPrinter {
         return {"_select(" + print(n.args[0]).text + ", " + print(n.args[1]).text + ", " +
                     print(n.args[2]).text + ")",
                 kAtom};
-      case OpKind::kFloor: return call("_floor_re");
+      case OpKind::kFloor:
+        return call("_floor_re");
       case OpKind::kDriverInput:  // named by emit_header (input_members)
         return {"T(p.@in" + std::to_string(n.table) + "." + std::to_string(n.order) + "@)", kAtom};
       case OpKind::kTable:  // renumbered per header by with_expression_kernels
@@ -643,22 +644,20 @@ std::string with_tables(std::string& header, std::size_t at) {
     for (std::size_t q = header.find(token); q != std::string::npos; q = header.find(token, q))
       header.replace(q, token.size(), name);
     const auto array = [&](const char* suffix, const std::vector<double>& v) {
-      std::string line = "  static constexpr double " + name + suffix + "[" +
-                         std::to_string(v.size()) + "] = {";
-      for (std::size_t k = 0; k < v.size(); ++k)
-        line += (k ? ", " : "") + format_double(v[k]);
+      std::string line =
+          "  static constexpr double " + name + suffix + "[" + std::to_string(v.size()) + "] = {";
+      for (std::size_t k = 0; k < v.size(); ++k) line += (k ? ", " : "") + format_double(v[k]);
       return line + "};\n";
     };
-    data += "  // Table " + std::to_string(next - 1) + (s.periodic ? " (periodic, period " +
-            format_double(s.period) + ")" : "") +
+    data += "  // Table " + std::to_string(next - 1) +
+            (s.periodic ? " (periodic, period " + format_double(s.period) + ")" : "") +
             ": knots, values" + (s.periodic ? " less the trend" : "") +
             " and the spline's second derivatives (not extrapolated: NaN outside)\n";
     data += array("_t", s.t) + array("_y", s.y) + array("_m", s.m);
     data += "  template <class T>\n  static T " + name + "(int order, const T& x) noexcept {\n" +
             "    return _table(" + name + "_t, " + name + "_y, " + name + "_m, " +
-            std::to_string(s.t.size()) + ", double(" +
-            format_double(s.periodic ? s.period : 0.0) + "), double(" + format_double(s.rise) +
-            "), order, x);\n  }\n\n";
+            std::to_string(s.t.size()) + ", double(" + format_double(s.periodic ? s.period : 0.0) +
+            "), double(" + format_double(s.rise) + "), order, x);\n  }\n\n";
   }
   return data;
 }

@@ -1,13 +1,13 @@
 // The motion laws as one GiNaC function, kinegen_law(law, order, x) (functions.hpp).
 #include "kinegen/codegen/functions.hpp"
 
-#include "kinegen/codegen/table.hpp"
-
 #include <cln/cln.h>
 
 #include <limits>
 #include <stdexcept>
 #include <string>
+
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 
@@ -86,9 +86,7 @@ REGISTER_FUNCTION(kinegen_law, eval_func(law_eval)
 namespace {
 
 // Whether a numeric argument decides a choice: real (GiNaC's numbers from parameters are).
-bool decides(const ex& x) {
-  return GiNaC::is_a<numeric>(x) && GiNaC::ex_to<numeric>(x).is_real();
-}
+bool decides(const ex& x) { return GiNaC::is_a<numeric>(x) && GiNaC::ex_to<numeric>(x).is_real(); }
 
 ex select_eval(const ex& c, const ex& lo, const ex& hi) {
   if (decides(c)) return GiNaC::ex_to<numeric>(c).is_negative() ? lo : hi;
@@ -117,8 +115,7 @@ void select_print(const ex& c, const ex& lo, const ex& hi, const GiNaC::print_co
 ex floor_eval(const ex& x) {
   if (decides(x)) {
     const numeric v = GiNaC::ex_to<numeric>(x);
-    if (v.is_rational())
-      return numeric(cln::floor1(cln::the<cln::cl_RA>(v.to_cl_N())));
+    if (v.is_rational()) return numeric(cln::floor1(cln::the<cln::cl_RA>(v.to_cl_N())));
     return numeric(cln::floor1(cln::the<cln::cl_R>(v.to_cl_N())));
   }
   return kinegen_floor(x).hold();
@@ -143,9 +140,10 @@ ex table_eval(const ex& id, const ex& order, const ex& x) {
 ex table_evalf(const ex& id, const ex& order, const ex& x) {
   const ex v = x.evalf();
   if (!decides(v)) return kinegen_table(id, order, v).hold();
-  return table_eval(id, order, GiNaC::ex_to<numeric>(v).is_rational()
-                                   ? ex(numeric(GiNaC::ex_to<numeric>(v).to_double()))
-                                   : v);
+  return table_eval(id, order,
+                    GiNaC::ex_to<numeric>(v).is_rational()
+                        ? ex(numeric(GiNaC::ex_to<numeric>(v).to_double()))
+                        : v);
 }
 
 ex table_derivative(const ex& id, const ex& order, const ex& x, unsigned diff_param) {
@@ -178,9 +176,8 @@ REGISTER_FUNCTION(kinegen_select, eval_func(select_eval)
                                       .evalf_func(select_evalf)
                                       .expl_derivative_func(select_derivative)
                                       .print_func<GiNaC::print_context>(select_print))
-REGISTER_FUNCTION(kinegen_floor, eval_func(floor_eval)
-                                     .evalf_func(floor_evalf)
-                                     .derivative_func(floor_derivative))
+REGISTER_FUNCTION(kinegen_floor,
+                  eval_func(floor_eval).evalf_func(floor_evalf).derivative_func(floor_derivative))
 REGISTER_FUNCTION(kinegen_table, eval_func(table_eval)
                                      .evalf_func(table_evalf)
                                      .derivative_func(table_derivative)

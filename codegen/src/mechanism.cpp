@@ -383,8 +383,8 @@ class Loader {
       read_table(law.table, src, t, v);
       if (law.period && t.front() != 0)
         fail(item + " table", loc_of(table),
-             "a periodic table must start at t = 0 (its first t is " +
-                 format_number(t.front()) + ")");
+             "a periodic table must start at t = 0 (its first t is " + format_number(t.front()) +
+                 ")");
       law.table_id = register_table(law.period ? fit_periodic(t, v) : fit_not_a_knot(t, v));
       return;
     }

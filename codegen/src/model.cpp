@@ -1,10 +1,9 @@
 #include "kinegen/codegen/model.hpp"
 
-#include "kinegen/codegen/table.hpp"
-
 #include <sstream>
 
 #include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 

@@ -134,8 +134,7 @@ class Lowerer {
       n.kind = OpKind::kTable;
       n.args = {lower(e.op(2))};
     } else if (is_input(e, n.table, n.order)) {
-      if (n.order > 2)
-        throw std::logic_error("an input driver differentiated more than twice");
+      if (n.order > 2) throw std::logic_error("an input driver differentiated more than twice");
       n.kind = OpKind::kDriverInput;
     } else if (is_select(e)) {
       n.kind = OpKind::kSelect;

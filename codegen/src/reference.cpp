@@ -1,7 +1,5 @@
 #include "kinegen/codegen/reference.hpp"
 
-#include "kinegen/codegen/forces.hpp"
-
 #include <cln/cln.h>
 
 #include <cmath>
@@ -11,10 +9,11 @@
 #include <string>
 
 #include "kinegen/codegen/diagnostics.hpp"
+#include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/format.hpp"
 #include "kinegen/codegen/functions.hpp"
-#include "kinegen/codegen/table.hpp"
 #include "kinegen/codegen/kinematics.hpp"
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 
@@ -23,7 +22,19 @@ using GiNaC::numeric;
 
 namespace {
 
-enum class Op { kConst, kVar, kAdd, kMul, kPowInt, kPow, kFunction, kMotionLaw, kSelect, kFloor, kTable };
+enum class Op {
+  kConst,
+  kVar,
+  kAdd,
+  kMul,
+  kPowInt,
+  kPow,
+  kFunction,
+  kMotionLaw,
+  kSelect,
+  kFloor,
+  kTable
+};
 
 numeric require_real(const numeric& v, const char* what) {
   if (!v.is_real())

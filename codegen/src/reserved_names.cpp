@@ -192,8 +192,7 @@ void check_header_names(const Mechanism& m) {
         refuse(d.item, d.loc, "its Params member '" + member + "': " + why);
       for (const auto& p : m.parameters)
         if (p.name == member)
-          refuse(d.item, d.loc,
-                 "its Params member '" + member + "' is also a parameter's name");
+          refuse(d.item, d.loc, "its Params member '" + member + "' is also a parameter's name");
     }
   }
 }

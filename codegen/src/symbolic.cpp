@@ -805,8 +805,8 @@ class DriverLawBuilder {
     if (law.period) {
       period = geometry_value(m_, s_, values_, *law.period, c_.item + " period");
       if (!(number(*period) > 0))
-        fail(law.period->loc, "period must be greater than 0 (it is " +
-                                  format_number(number(*period)) + ")");
+        fail(law.period->loc,
+             "period must be greater than 0 (it is " + format_number(number(*period)) + ")");
     }
     if (law.table_id >= 0) {
       const Spline& spline = registered_table(law.table_id);
@@ -841,7 +841,8 @@ class DriverLawBuilder {
     // The law in x: t itself, or t wrapped into [0, T).
     const ex x = period ? t - *period * kinegen_floor(t / *period) : t;
     ex value = f[n - 1].subs(t == x);
-    for (std::size_t k = n - 1; k-- > 0;) value = kinegen_select(x - until[k], f[k].subs(t == x), value);
+    for (std::size_t k = n - 1; k-- > 0;)
+      value = kinegen_select(x - until[k], f[k].subs(t == x), value);
     std::vector<Joint> joints;
     for (std::size_t k = 0; k + 1 < n; ++k)
       joints.push_back({f[k], f[k + 1], until[k], until[k],
@@ -859,7 +860,7 @@ class DriverLawBuilder {
     std::vector<std::pair<ex, ex>> spans;  // a piece and a time inside it
     {
       const double first = n > 1 ? at[0] : 0, last = n > 1 ? at[n - 2] : 0;
-      const double length = period ? number(*period) / n
+      const double length = period  ? number(*period) / n
                             : n > 2 ? (last - first) / (n - 2)
                                     : std::max(1.0, std::abs(first));
       for (std::size_t k = 0; k < n; ++k) {
@@ -875,10 +876,10 @@ class DriverLawBuilder {
 
  private:
   struct Joint {
-    ex before, after;     // the pieces on either side (in t)
+    ex before, after;        // the pieces on either side (in t)
     ex at_before, at_after;  // where each is taken
     std::string name;
-    SourceLoc loc;           // the piece after it
+    SourceLoc loc;  // the piece after it
   };
 
   // f, f', f'' across each joint; a difference above 1e-9 of the law's largest magnitude of
@@ -889,8 +890,7 @@ class DriverLawBuilder {
     return GiNaC::numeric(cln::rational(cln::the<cln::cl_R>(GiNaC::numeric(v).to_cl_N())));
   }
 
-  void check_joints(const std::vector<Joint>& joints,
-                    const std::vector<std::pair<ex, ex>>& samples,
+  void check_joints(const std::vector<Joint>& joints, const std::vector<std::pair<ex, ex>>& samples,
                     std::vector<std::string>* warnings) const {
     if (joints.empty()) return;
     const ex t = s_.t();
@@ -929,8 +929,8 @@ class DriverLawBuilder {
         if (!(std::abs(left[o][j] - right[o][j]) > 1e-9 * scale[o]) &&
             std::isfinite(left[o][j] - right[o][j]))
           continue;
-        const std::string message = std::string(what[o]) + " jumps at " + joints[j].name +
-                                    ": " + format_number(left[o][j]) + " before it, " +
+        const std::string message = std::string(what[o]) + " jumps at " + joints[j].name + ": " +
+                                    format_number(left[o][j]) + " before it, " +
                                     format_number(right[o][j]) + " after it";
         if (o == 0) fail(joints[j].loc, message);
         if (warnings)

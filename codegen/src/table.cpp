@@ -1,20 +1,21 @@
 // Tables: a careful CSV reader and the two spline fits (see table.hpp).
 #include "kinegen/codegen/table.hpp"
 
+#include <cln/cln.h>
+
 #include <Eigen/SparseLU>
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <algorithm>
-#include <limits>
-#include <cln/cln.h>
 #include <deque>
-#include <set>
-#include <mutex>
-#include <stdexcept>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <mutex>
+#include <set>
 #include <sstream>
+#include <stdexcept>
 
 #include "kinegen/codegen/format.hpp"
 #include "kinegen/codegen/mechanism.hpp"
@@ -77,11 +78,15 @@ std::deque<Spline>& tables() {
   return all;
 }
 
+std::mutex& tables_mutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
 }  // namespace
 
 int register_table(const Spline& spline) {
-  static std::mutex mutex;
-  std::lock_guard<std::mutex> lock(mutex);
+  std::lock_guard<std::mutex> lock(tables_mutex());
   auto& all = tables();
   for (std::size_t k = 0; k < all.size(); ++k) {
     const Spline& s = all[k];
@@ -94,7 +99,11 @@ int register_table(const Spline& spline) {
   return static_cast<int>(all.size()) - 1;
 }
 
-const Spline& registered_table(int id) { return tables().at(static_cast<std::size_t>(id)); }
+const Spline& registered_table(int id) {
+  std::lock_guard<std::mutex> lock(tables_mutex());
+  return tables().at(
+      static_cast<std::size_t>(id));  // elements never move (a deque grown at its end)
+}
 
 GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::numeric& x) {
   using GiNaC::numeric;
@@ -161,8 +170,8 @@ std::string table_outside(const Mechanism& m, double t) {
     if (d.law.table_id < 0) continue;
     const Spline& s = registered_table(d.law.table_id);
     if (covers(s, t)) continue;
-    return d.item + " table '" + d.law.table + "' (its t runs from " +
-           format_number(s.t.front()) + " to " + format_number(s.t.back()) +
+    return d.item + " table '" + d.law.table + "' (its t runs from " + format_number(s.t.front()) +
+           " to " + format_number(s.t.back()) +
            "; a table is never extrapolated: give it a period or more rows)";
   }
   return "";
@@ -177,8 +186,8 @@ void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::st
     for (Constraint& d : m.drivers)
       if (d.name == name && d.law.input) driver = &d;
     if (!driver)
-      throw UsageError("--input " + name + ": " + m.source + " has no input driver (f: input) named '" +
-                       name + "'");
+      throw UsageError("--input " + name + ": " + m.source +
+                       " has no input driver (f: input) named '" + name + "'");
     const TableSource src{m.source, driver->item + " --input " + name, driver->value.loc, false};
     std::vector<double> t, v;
     read_table(fs::absolute(path).string(), src, t, v);
@@ -236,8 +245,8 @@ void read_table(const std::string& path, const TableSource& src, std::vector<dou
     if (!std::isfinite(a) || !std::isfinite(b))
       fail(src, "table " + where + " holds a value that is not finite");
     if (!t.empty() && !(a > t.back()))
-      fail(src, "table " + where + ": t must increase strictly (" + format_number(a) +
-                    " follows " + format_number(t.back()) + ")");
+      fail(src, "table " + where + ": t must increase strictly (" + format_number(a) + " follows " +
+                    format_number(t.back()) + ")");
     if (t.size() >= kMaxTableRows)
       fail(src, "table '" + path + "' has more than " + std::to_string(kMaxTableRows) + " rows");
     t.push_back(a);

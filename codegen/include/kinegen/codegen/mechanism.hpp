@@ -70,8 +70,8 @@ struct DriverLaw {
   std::optional<Expr> period;       // `period: T`
   std::string table;                // `table: FILE.csv` (as written)
   SourceLoc table_loc;
-  int table_id = -1;                // its fitted spline (table.hpp's registry)
-  bool input = false;               // `f: input`
+  int table_id = -1;   // its fitted spline (table.hpp's registry)
+  bool input = false;  // `f: input`
   bool plain() const { return pieces.empty() && table_id < 0 && !input; }
 };
 

@@ -29,11 +29,11 @@ enum class OpKind {
   kAtan,
   kExp,
   kLog,
-  kMotionLaw,  // d^order/dx^order of motion law `law` at args[0] (kernels/motion_law.hpp)
-  kSelect,     // re(args[0]) < 0 ? args[1] : args[2] (a driver's pieces, kernels/piecewise.hpp)
-  kFloor,      // floor(re(args[0])) (whole periods, kernels/piecewise.hpp)
+  kMotionLaw,    // d^order/dx^order of motion law `law` at args[0] (kernels/motion_law.hpp)
+  kSelect,       // re(args[0]) < 0 ? args[1] : args[2] (a driver's pieces, kernels/piecewise.hpp)
+  kFloor,        // floor(re(args[0])) (whole periods, kernels/piecewise.hpp)
   kDriverInput,  // d^order/dt^order of input driver `table` (Params members, format 6.3)
-  kTable,      // d^order/dx^order of table `table` (registered_table) at args[0] (kernels/spline.hpp)
+  kTable,  // d^order/dx^order of table `table` (registered_table) at args[0] (kernels/spline.hpp)
 };
 
 struct Node {

@@ -22,8 +22,7 @@ struct SplineKernel {
   // false (and leaves f alone) when x lies outside [t[0], t[n-1]] by more than a few ulps of
   // the table's span: a table is never extrapolated. n >= 2; t strictly increasing.
   template <class T, class K>
-  static bool _spline_eval(const K* t, const K* y, const K* m, int n, const T& x,
-                           T* f) noexcept {
+  static bool _spline_eval(const K* t, const K* y, const K* m, int n, const T& x, T* f) noexcept {
     using R = decltype(_spline_re(x));
     using std::abs;
     const R xr = _spline_re(x);
