@@ -368,7 +368,12 @@ TreeSize tree_size(const ex& e, const ex& x) {
     r.depends = r.depends || ops.back().depends;
   }
   if (!r.depends) return r;
-  if (GiNaC::is_a<GiNaC::add>(e)) {
+  if (is_select(e)) {
+    // A driver's pieces (format 6.3): select(c, lo', hi'), each piece differentiated alone.
+    r.derivative = 1 + ops[0].size + ops[1].derivative + ops[2].derivative;
+  } else if (is_floor(e)) {
+    r.derivative = 1;  // whole periods: 0
+  } else if (GiNaC::is_a<GiNaC::add>(e)) {
     for (const auto& o : ops) r.derivative += o.derivative;
   } else if (GiNaC::is_a<GiNaC::mul>(e)) {
     for (const auto& o : ops)
