@@ -379,3 +379,24 @@ TEST_CASE("pieces and tables: every hostile input gives one error line, exit 2, 
     }
   }
 }
+
+TEST_CASE("pieces: a driver of 1000 pieces loads and follows its formula", "[pieces]") {
+  // A staircase of 999 cycloidal rises: the derivatives of the nested choice grow linearly.
+  std::string law = "    f:\n";
+  for (int k = 0; k < 999; ++k)
+    law += "      - {until: " + std::to_string(k + 1) + ", f: \"" + std::to_string(k) +
+           " + cycloidal(t - " + std::to_string(k) + ")\"}\n";
+  law += "      - {f: \"999\"}\n";
+  const auto model = kc::CompiledModel::from_mechanism(kc::parse_mechanism(slider(law), "s.yaml"));
+  CHECK(model->symbolic().warnings.empty());
+  const Run run = analyze(*model, {0, 1000, 4000});
+  double worst = 0;
+  for (const auto& r : run.rows) {
+    const double k = std::min(std::floor(r.t), 999.0), x = r.t >= 999 ? 0 : r.t - k;
+    const double f = k + x - std::sin(2 * kPi * x) / (2 * kPi);
+    const double v = r.t >= 999 ? 0 : 1 - std::cos(2 * kPi * x);
+    worst = std::max({worst, std::abs(r.q[0] - f) / (1 + k), std::abs(r.qd[0] - v)});
+  }
+  INFO("largest difference " << worst);
+  CHECK(worst <= 1e-13);
+}
