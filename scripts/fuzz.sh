@@ -3,8 +3,8 @@
 # AddressSanitizer and UndefinedBehaviorSanitizer.
 #   scripts/fuzz.sh [SECONDS] [extra libFuzzer options...]   (default 600 s)
 # Builds with clang in build-fuzz/; the seed corpus is examples/*.yaml, examples/forces/*.yaml,
-# tests/mechanisms/*.yaml
-# and tests/stability/*.yaml; the growing corpus lives in build-fuzz/corpus, crashes in
+# tests/mechanisms/*.yaml, tests/stability/*.yaml and fuzz/seeds/*.yaml (format 6.3's driver
+# forms: pieces, period, table, input), with the format's words in fuzz/mechanism.dict; the growing corpus lives in build-fuzz/corpus, crashes in
 # build-fuzz/artifacts.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -19,8 +19,9 @@ cmake --build build-fuzz -j2 --target fuzz_mechanism
 mkdir -p build-fuzz/corpus build-fuzz/seeds build-fuzz/artifacts
 cp examples/*.yaml examples/forces/*.yaml tests/mechanisms/*.yaml build-fuzz/seeds/
 cp tests/stability/*.yaml build-fuzz/seeds/ 2>/dev/null || true
+cp fuzz/seeds/*.yaml build-fuzz/seeds/
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=0}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 build-fuzz/fuzz/fuzz_mechanism build-fuzz/corpus build-fuzz/seeds \
   -max_total_time="$seconds" -max_len=8192 -timeout=20 -rss_limit_mb=4096 \
-  -artifact_prefix=build-fuzz/artifacts/ -print_final_stats=1 "$@"
+  -artifact_prefix=build-fuzz/artifacts/ -dict=fuzz/mechanism.dict -print_final_stats=1 "$@"

@@ -15,6 +15,7 @@
 #include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/kinematics.hpp"
 #include "kinegen/codegen/sensitivity.hpp"
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 
@@ -388,6 +389,9 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
         row.q[c] = predict(row.q[c], row.qd[c], row.qdd[c], k > 1 ? qdd_before[c] : 0.0);
     }
     row.t = t;
+    if (const std::string table = table_outside(model.mechanism(), t); !table.empty())
+      throw AnalysisError(file + ": position analysis failed at " + format_time(t) +
+                          ": t lies outside " + table);
     if (blocks) {
       // Solver::step's solve: the first one iterates to convergence whatever the options.
       BlockInterpreter::Options o = block_options;

@@ -9,6 +9,7 @@
 
 #include "kinegen/codegen/diagnostics.hpp"
 #include "kinegen/codegen/reference.hpp"
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 
@@ -98,6 +99,8 @@ std::vector<CheckRow> check_derivatives(const CompiledModel& model, const CheckO
   const VectorXd q0 = model.q0();
   std::vector<Sample> samples;
   double growth = 1;
+  const TableCoverage coverage = table_coverage(model.mechanism());
+  constexpr double kInf = std::numeric_limits<double>::infinity();
   for (int s = 0; s < options.samples; ++s) {
     Sample x{VectorXd(nq), VectorXd(nq), 0};
     for (int k = 0; k < nq; ++k) {
@@ -107,6 +110,10 @@ std::vector<CheckRow> check_derivatives(const CompiledModel& model, const CheckO
       growth = std::max(growth, std::abs(x.q[k]) / size_of(k));
     }
     x.t = options.t + unit(rng);
+    // A table holds only its range (format 6.3): t inside it, clear of its ends for the
+    // central differences.
+    if (coverage.lo > -kInf || coverage.hi < kInf)
+      x.t = coverage.lo + (coverage.hi - coverage.lo) * (0.5 + 0.4 * unit(rng));
     growth = std::max(growth, std::abs(x.t));
     samples.push_back(x);
   }

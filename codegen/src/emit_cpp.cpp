@@ -16,6 +16,7 @@
 #include "kinegen/codegen/reserved_names.hpp"
 #include "kinegen/codegen/sensitivity.hpp"
 #include "kinegen/codegen/structure.hpp"
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 
@@ -49,6 +50,28 @@ std::string safe_comment_text(const std::string& s) {
                : '?';
   return out;
 }
+
+// The Params members of input driver k (format 6.3, `f: input`): its value, rate and
+// acceleration, NAME, NAME_v and NAME_a.
+std::string input_member(const Mechanism& m, int driver, int order) {
+  static const char* const kSuffix[] = {"", "_v", "_a"};
+  return m.drivers.at(static_cast<std::size_t>(driver)).name + kSuffix[order];
+}
+
+// The members FunctionPrinter wrote as `p.@inK.O@`, named.
+std::string with_input_members(std::string header, const Mechanism& m) {
+  for (std::size_t p = header.find("p.@in"); p != std::string::npos; p = header.find("p.@in", p)) {
+    const std::size_t dot = header.find('.', p + 5), end = header.find('@', p + 5);
+    const int driver = std::stoi(header.substr(p + 5, dot - p - 5));
+    const int order = std::stoi(header.substr(dot + 1, end - dot - 1));
+    header.replace(p + 2, end + 1 - (p + 2), input_member(m, driver, order));
+  }
+  return header;
+}
+
+// A table's function as FunctionPrinter writes it, `_tbl@ID@` (ID its registry number), until
+// with_expression_kernels numbers the tables of the header from 0.
+std::string table_token(int id) { return "_tbl@" + std::to_string(id) + "@"; }
 
 class FunctionPrinter {
  public:
@@ -244,6 +267,18 @@ class FunctionPrinter {
       case OpKind::kLog: return call("log");
       case OpKind::kMotionLaw:  // the motion_law kernel (kernels/motion_law.hpp)
         return {"_motion_law(" + std::to_string(n.law) + ", " + std::to_string(n.order) + ", " +
+                    print(n.args[0]).text + ")",
+                kAtom};
+      case OpKind::kSelect:  // the piecewise kernel (kernels/piecewise.hpp)
+        return {"_select(" + print(n.args[0]).text + ", " + print(n.args[1]).text + ", " +
+                    print(n.args[2]).text + ")",
+                kAtom};
+      case OpKind::kFloor:
+        return call("_floor_re");
+      case OpKind::kDriverInput:  // named by emit_header (input_members)
+        return {"T(p.@in" + std::to_string(n.table) + "." + std::to_string(n.order) + "@)", kAtom};
+      case OpKind::kTable:  // renumbered per header by with_expression_kernels
+        return {table_token(n.table) + "(" + std::to_string(n.order) + ", " +
                     print(n.args[0]).text + ")",
                 kAtom};
     }
@@ -596,16 +631,59 @@ void emit_kernels(std::ostringstream& os, const std::string& code) {
   }
 }
 
-// The kernels that expressions call (the motion laws), pasted at `at` (before the first
-// function) once the whole header is written, so that every function that calls one counts.
-std::string with_expression_kernels(std::string header, std::size_t at) {
-  if (header.find("_motion_law(", at) == std::string::npos) return header;
-  for (const auto& k : embedded::kKernels) {
-    if (std::string(k.name) != "motion_law") continue;
-    header.insert(
-        at, std::string("  // ---- kinegen kernel motion_law (kinegen/kernels/motion_law.hpp)\n") +
-                k.text + "  // ---- end of kinegen kernel motion_law\n\n");
+// The knots of each table a header reads, as constant arrays, and its function `_tblK(order,
+// x)` over the spline kernel; the tokens renamed to `_tblK` in order of first use.
+std::string with_tables(std::string& header, std::size_t at) {
+  std::string data;
+  int next = 0;
+  for (std::size_t p = header.find("_tbl@", at); p != std::string::npos;
+       p = header.find("_tbl@", at)) {
+    const std::size_t end = header.find('@', p + 5);
+    const std::string token = header.substr(p, end + 1 - p);
+    const Spline& s = registered_table(std::stoi(token.substr(5)));
+    const std::string name = "_tbl" + std::to_string(next++);
+    for (std::size_t q = header.find(token); q != std::string::npos; q = header.find(token, q))
+      header.replace(q, token.size(), name);
+    const auto array = [&](const char* suffix, const std::vector<double>& v) {
+      std::string line =
+          "  static constexpr double " + name + suffix + "[" + std::to_string(v.size()) + "] = {";
+      for (std::size_t k = 0; k < v.size(); ++k) line += (k ? ", " : "") + format_double(v[k]);
+      return line + "};\n";
+    };
+    data += "  // Table " + std::to_string(next - 1) +
+            (s.periodic ? " (periodic, period " + format_double(s.period) + ")" : "") +
+            ": knots, values" + (s.periodic ? " less the trend" : "") +
+            " and the spline's second derivatives (not extrapolated: NaN outside)\n";
+    data += array("_t", s.t) + array("_y", s.y) + array("_m", s.m);
+    data += "  template <class T>\n  static T " + name + "(int order, const T& x) noexcept {\n" +
+            "    return _table(" + name + "_t, " + name + "_y, " + name + "_m, " +
+            std::to_string(s.t.size()) + ", double(" + format_double(s.periodic ? s.period : 0.0) +
+            "), double(" + format_double(s.rise) + "), order, x);\n  }\n\n";
   }
+  return data;
+}
+
+// The kernels that expressions call (motion laws, pieces, tables), pasted at `at` (before the
+// first function) once the whole header is written, so that every function that calls one
+// counts.
+std::string with_expression_kernels(std::string header, std::size_t at) {
+  const std::string tables = with_tables(header, at);
+  const bool uses[] = {header.find("_motion_law(", at) != std::string::npos,
+                       header.find("_select(", at) != std::string::npos ||
+                           header.find("_floor_re(", at) != std::string::npos,
+                       !tables.empty()};
+  const char* names[] = {"motion_law", "piecewise", "spline"};
+  std::string text;
+  for (int u = 0; u < 3; ++u) {
+    if (!uses[u]) continue;
+    for (const auto& k : embedded::kKernels) {
+      if (std::string(k.name) != names[u]) continue;
+      text += std::string("  // ---- kinegen kernel ") + names[u] + " (kinegen/kernels/" +
+              names[u] + ".hpp)\n" + k.text + "  // ---- end of kinegen kernel " + names[u] +
+              "\n\n";
+    }
+  }
+  header.insert(at, text + tables);
   return header;
 }
 
@@ -2129,6 +2207,14 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
   for (int k = 0; k < symbols.num_params(); ++k)
     os << "    double " << symbols.param_name(k) << " = "
        << format_double(model.param_values[k].to_double()) << ";\n";
+  for (std::size_t d = 0; d < m.drivers.size(); ++d) {
+    if (!m.drivers[d].law.input) continue;
+    const int k = static_cast<int>(d);
+    os << "    // Input driver " << m.drivers[d].name
+       << " (f: input): its value, rate and acceleration, set at run time\n"
+       << "    double " << input_member(m, k, 0) << " = 0, " << input_member(m, k, 1) << " = 0, "
+       << input_member(m, k, 2) << " = 0;\n";
+  }
   os << "  };\n\n";
 
   // Each output's constraint, for repeated constraints (roll_outputs).
@@ -2226,7 +2312,7 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     os << code.str();
   }
   os << "};\n\n}  // namespace " << options.name_space << "\n";
-  return with_expression_kernels(os.str(), expression_kernels_at);
+  return with_input_members(with_expression_kernels(os.str(), expression_kernels_at), m);
 }
 
 }  // namespace kinegen::codegen

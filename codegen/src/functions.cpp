@@ -3,8 +3,11 @@
 
 #include <cln/cln.h>
 
+#include <limits>
 #include <stdexcept>
 #include <string>
+
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 
@@ -79,6 +82,139 @@ REGISTER_FUNCTION(kinegen_law, eval_func(law_eval)
                                    .derivative_func(law_derivative)
                                    .print_func<GiNaC::print_context>(law_print)
                                    .do_not_evalf_params())
+
+namespace {
+
+// Whether a numeric argument decides a choice: real (GiNaC's numbers from parameters are).
+bool decides(const ex& x) { return GiNaC::is_a<numeric>(x) && GiNaC::ex_to<numeric>(x).is_real(); }
+
+ex select_eval(const ex& c, const ex& lo, const ex& hi) {
+  if (decides(c)) return GiNaC::ex_to<numeric>(c).is_negative() ? lo : hi;
+  if (lo.is_equal(hi)) return lo;
+  return kinegen_select(c, lo, hi).hold();
+}
+
+ex select_evalf(const ex& c, const ex& lo, const ex& hi) {
+  return select_eval(c.evalf(), lo.evalf(), hi.evalf());
+}
+
+ex select_derivative(const ex& c, const ex& lo, const ex& hi, const GiNaC::symbol& s) {
+  return kinegen_select(c, lo.diff(s), hi.diff(s));
+}
+
+void select_print(const ex& c, const ex& lo, const ex& hi, const GiNaC::print_context& pc) {
+  pc.s << "select(";
+  c.print(pc);
+  pc.s << " < 0, ";
+  lo.print(pc);
+  pc.s << ", ";
+  hi.print(pc);
+  pc.s << ")";
+}
+
+ex floor_eval(const ex& x) {
+  if (decides(x)) {
+    const numeric v = GiNaC::ex_to<numeric>(x);
+    if (v.is_rational()) return numeric(cln::floor1(cln::the<cln::cl_RA>(v.to_cl_N())));
+    return numeric(cln::floor1(cln::the<cln::cl_R>(v.to_cl_N())));
+  }
+  return kinegen_floor(x).hold();
+}
+
+ex floor_evalf(const ex& x) { return floor_eval(x.evalf()); }
+
+ex floor_derivative(const ex&, unsigned) { return 0; }
+
+ex table_eval(const ex& id, const ex& order, const ex& x) {
+  if (decides(x) && !GiNaC::ex_to<numeric>(x).is_rational()) {
+    double f[3];
+    const Spline& s = registered_table(small_integer(id, "table"));
+    const int n = small_integer(order, "order");
+    if (n > 2 || !s.eval(GiNaC::ex_to<numeric>(x).to_double(), f))
+      return numeric(std::numeric_limits<double>::quiet_NaN());
+    return numeric(f[n]);
+  }
+  return kinegen_table(id, order, x).hold();
+}
+
+ex table_evalf(const ex& id, const ex& order, const ex& x) {
+  const ex v = x.evalf();
+  if (!decides(v)) return kinegen_table(id, order, v).hold();
+  return table_eval(id, order,
+                    GiNaC::ex_to<numeric>(v).is_rational()
+                        ? ex(numeric(GiNaC::ex_to<numeric>(v).to_double()))
+                        : v);
+}
+
+ex table_derivative(const ex& id, const ex& order, const ex& x, unsigned diff_param) {
+  if (diff_param != 2) return 0;
+  return kinegen_table(id, order + 1, x);
+}
+
+void table_print(const ex& id, const ex& order, const ex& x, const GiNaC::print_context& c) {
+  c.s << "table" << small_integer(id, "table")
+      << std::string(static_cast<std::size_t>(small_integer(order, "order")), '\'') << "(";
+  x.print(c);
+  c.s << ")";
+}
+
+ex input_derivative(const ex& driver, const ex& order, const ex& x, unsigned diff_param) {
+  if (diff_param != 2) return 0;
+  return kinegen_input(driver, order + 1, x);
+}
+
+void input_print(const ex& driver, const ex& order, const ex& x, const GiNaC::print_context& c) {
+  c.s << "input" << small_integer(driver, "driver")
+      << std::string(static_cast<std::size_t>(small_integer(order, "order")), '\'') << "(";
+  x.print(c);
+  c.s << ")";
+}
+
+}  // namespace
+
+REGISTER_FUNCTION(kinegen_select, eval_func(select_eval)
+                                      .evalf_func(select_evalf)
+                                      .expl_derivative_func(select_derivative)
+                                      .print_func<GiNaC::print_context>(select_print))
+REGISTER_FUNCTION(kinegen_floor,
+                  eval_func(floor_eval).evalf_func(floor_evalf).derivative_func(floor_derivative))
+REGISTER_FUNCTION(kinegen_table, eval_func(table_eval)
+                                     .evalf_func(table_evalf)
+                                     .derivative_func(table_derivative)
+                                     .print_func<GiNaC::print_context>(table_print)
+                                     .do_not_evalf_params())
+
+REGISTER_FUNCTION(kinegen_input, derivative_func(input_derivative)
+                                     .print_func<GiNaC::print_context>(input_print)
+                                     .do_not_evalf_params())
+
+bool is_input(const ex& e, int& driver, int& order) {
+  if (!GiNaC::is_a<GiNaC::function>(e) ||
+      GiNaC::ex_to<GiNaC::function>(e).get_serial() != kinegen_input_SERIAL::serial)
+    return false;
+  driver = small_integer(e.op(0), "driver");
+  order = small_integer(e.op(1), "order");
+  return true;
+}
+
+bool is_select(const ex& e) {
+  return GiNaC::is_a<GiNaC::function>(e) &&
+         GiNaC::ex_to<GiNaC::function>(e).get_serial() == kinegen_select_SERIAL::serial;
+}
+
+bool is_floor(const ex& e) {
+  return GiNaC::is_a<GiNaC::function>(e) &&
+         GiNaC::ex_to<GiNaC::function>(e).get_serial() == kinegen_floor_SERIAL::serial;
+}
+
+bool is_table(const ex& e, int& id, int& order) {
+  if (!GiNaC::is_a<GiNaC::function>(e) ||
+      GiNaC::ex_to<GiNaC::function>(e).get_serial() != kinegen_table_SERIAL::serial)
+    return false;
+  id = small_integer(e.op(0), "table");
+  order = small_integer(e.op(1), "order");
+  return true;
+}
 
 bool is_motion_law(const ex& e, int& law, int& order) {
   if (!GiNaC::is_a<GiNaC::function>(e) ||

@@ -87,18 +87,36 @@ Eigen::VectorXd vector_arg(const std::vector<double>& values, int n, const char*
 struct Common {
   std::string file;
   std::vector<std::string> params;
+  std::vector<std::string> inputs;  // NAME=FILE.csv
 };
 
 // Reads and compiles the mechanism, its stages shown as the log's progress lines.
-std::unique_ptr<kc::CompiledModel> load(const Common& c, kc::BuildOptions build = {}) {
+// Commands that run a motion (analyze, animate, tolerance) need every input driver as an
+// --input table; generate keeps them (its code reads them from Params), and eval and check
+// take them as 0, as a default Params does.
+std::unique_ptr<kc::CompiledModel> load(const Common& c, kc::BuildOptions build = {},
+                                        bool inputs_required = true) {
   build.progress = kc::Log::global().progress_callbacks();
-  return kc::CompiledModel::from_file(c.file, parse_overrides(c.params), build);
+  build.inputs_required = inputs_required;
+  for (const std::string& in : c.inputs) {
+    const auto eq = in.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == in.size())
+      throw kc::UsageError("--input expects NAME=FILE.csv, not '" + in + "'");
+    build.inputs.emplace_back(in.substr(0, eq), in.substr(eq + 1));
+  }
+  auto model = kc::CompiledModel::from_file(c.file, parse_overrides(c.params), build);
+  for (const auto& w : model->symbolic().warnings) kc::Log::global().warning(w);
+  return model;
 }
 
 void add_common(CLI::App* cmd, Common& c) {
   cmd->add_option("mechanism", c.file, "Mechanism file (YAML)")->required();
   cmd->add_option("--param", c.params, "Override a parameter: NAME=VALUE (repeatable)")
       ->type_name("NAME=VALUE");
+  cmd->add_option("--input", c.inputs,
+                  "An input driver's values (f: input): NAME=FILE.csv, columns t,value, "
+                  "interpolated as a table (repeatable)")
+      ->type_name("NAME=FILE");
 }
 
 int run_generate(const Common& c, const std::string& dir, const std::string& outputs,
@@ -109,7 +127,7 @@ int run_generate(const Common& c, const std::string& dir, const std::string& out
     throw kc::UsageError("--namespace: " + why);
   kc::BuildOptions build;
   build.fold_params = fold_params;
-  const auto model = load(c, build);
+  const auto model = load(c, build, false);
   kc::StageScope stage("emitting C++");
   kc::EmitOptions options;
   if (outputs == "position") options.outputs = kc::Outputs::kPosition;
@@ -263,7 +281,7 @@ int run_tolerance(const Common& c, kc::ToleranceOptions options,
 
 int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
              const std::vector<double>& qd_arg) {
-  const auto model = load(c);
+  const auto model = load(c, {}, false);
   const int nq = model->nq(), nc = model->nc();
   const Eigen::VectorXd q = q_arg.empty() ? model->q0() : vector_arg(q_arg, nq, "--q");
   const Eigen::VectorXd qd =
@@ -307,7 +325,7 @@ int run_check(const Common& c, const kc::CheckOptions& options, bool structure) 
   if (!(std::abs(options.turns) <= kMaxCheckTurns) || !(std::abs(options.t) <= kMaxCheckTurns))
     throw kc::UsageError("--turns and --t must be within +-" + kc::format_number(kMaxCheckTurns) +
                          ": beyond it the inputs' rounding makes the bounds meaningless");
-  const auto model = load(c);
+  const auto model = load(c, {}, false);
   if (options.samples < 1) throw kc::UsageError("--samples must be at least 1");
   kc::OutputFile file("-");
   std::ostream& out = file.stream();

@@ -13,7 +13,9 @@
 #include <unordered_set>
 
 #include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/format.hpp"
 #include "kinegen/codegen/functions.hpp"
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 
@@ -64,6 +66,7 @@ const std::unordered_set<std::string>& reserved_names() {
 
 constexpr std::size_t kMaxExpressionLength = 4096;
 constexpr int kMaxNesting = 64;
+constexpr std::size_t kMaxPieces = 1000;
 constexpr std::size_t kMaxFileSize = 1 << 20;
 
 class Loader {
@@ -323,10 +326,21 @@ class Loader {
                  const Mechanism& m, Constraint& con) {
     const bool driver = con.is_driver;
     std::vector<std::string> required, optional;
-    for (const KeySpec& k : kind.keys)
-      (k.required || (driver && k.kind == KeyKind::kValue) ? required : optional)
+    bool has_law = false;  // a driver with an f(t): pieces, period and table apply
+    for (const KeySpec& k : kind.keys) {
+      has_law = has_law || (driver && k.kind == KeyKind::kValue);
+      (k.required && !(driver && k.kind == KeyKind::kValue) ? required : optional)
           .push_back(key_name(k, driver));
+    }
+    if (has_law) {
+      optional.push_back("period");
+      optional.push_back("table");
+    }
     check_keys(c, item, required, optional);
+    if (has_law) {
+      if (c["f"] && c["table"]) fail(item, loc_of(c["table"]), "give either f or table, not both");
+      if (!c["f"] && !c["table"]) fail(item, loc_of(c), "missing key 'f' (or 'table')");
+    }
 
     const auto is_body = [](const KeySpec& k) {
       return k.kind == KeyKind::kBody || k.kind == KeyKind::kBodyOrGround;
@@ -349,7 +363,11 @@ class Loader {
           con.vectors[key] = node ? vec2_of(node, item + " " + key) : Vec2{fallback, fallback};
           break;
         case KeyKind::kValue:
-          con.value = node ? expr_of(node, item + " " + key) : fallback;
+          if (driver) {
+            read_law(c, item, con);
+          } else {
+            con.value = node ? expr_of(node, item + " " + key) : fallback;
+          }
           break;
         case KeyKind::kScalar:
           con.scalars[key] = node ? expr_of(node, item + " " + key) : fallback;
@@ -388,6 +406,65 @@ class Loader {
           break;
       }
     }
+  }
+
+  // A driver's law (format 6.3): f as one expression, as pieces or as `input`; or a table;
+  // and an optional period. The pieces' order and the period's sign need the parameters'
+  // values, so the symbolic stage checks them.
+  void read_law(const YAML::Node& c, const std::string& item, Constraint& con) {
+    DriverLaw& law = con.law;
+    if (c["period"]) law.period = expr_of(c["period"], item + " period");
+    if (const YAML::Node table = c["table"]) {
+      if (!table.IsScalar() || table.Scalar().empty())
+        fail(item, loc_of(table), "table must be the path of a CSV file");
+      law.table = table.Scalar();
+      law.table_loc = loc_of(table);
+      con.value = Expr{"0", loc_of(table)};
+      const TableSource src{source_, item + " table", loc_of(table), true};
+      std::vector<double> t, v;
+      read_table(law.table, src, t, v);
+      if (law.period && t.front() != 0)
+        fail(item + " table", loc_of(table),
+             "a periodic table must start at t = 0 (its first t is " + format_number(t.front()) +
+                 ")");
+      law.table_id = register_table(law.period ? fit_periodic(t, v) : fit_not_a_knot(t, v));
+      return;
+    }
+    const YAML::Node f = c["f"];
+    if (f.IsScalar() && f.Scalar() == "input") {
+      if (law.period) fail(item, loc_of(c["period"]), "an input driver has no period");
+      if (con.name.empty())
+        fail(item, loc_of(f),
+             "an input driver needs a name: its run-time inputs are the generated Params' NAME, "
+             "NAME_v and NAME_a, and `analyze --input NAME=FILE.csv` gives them");
+      law.input = true;
+      con.value = Expr{"0", loc_of(f)};
+      return;
+    }
+    if (!f.IsSequence()) {
+      if (law.period)
+        fail(item, loc_of(c["period"]),
+             "period applies to a driver in pieces or a table; a single expression f repeats "
+             "by itself if it should");
+      con.value = expr_of(f, item + " f");
+      return;
+    }
+    if (f.size() == 0) fail(item, loc_of(f), "f must have at least one piece");
+    if (f.size() > kMaxPieces)
+      fail(item, loc_of(f), "f has more than " + std::to_string(kMaxPieces) + " pieces");
+    for (std::size_t k = 0; k < f.size(); ++k) {
+      const YAML::Node p = f[k];
+      const std::string piece = item + " f[" + std::to_string(k) + "]";
+      if (!p.IsMap()) fail(piece, loc_of(p), "a piece is a map {until: T, f: E}");
+      const bool last = k + 1 == f.size();
+      if (last)
+        check_keys(p, piece, {"f"}, {});
+      else
+        check_keys(p, piece, {"until", "f"}, {});
+      law.pieces.push_back({last ? Expr{"", loc_of(p)} : expr_of(p["until"], piece + " until"),
+                            expr_of(p["f"], piece + " f"), loc_of(p)});
+    }
+    con.value = law.pieces.front().f;
   }
 
   // Applied loads (format 6.5). Defaults beyond the spec's: s, si, sj [0, 0]; damping 0;

@@ -4,6 +4,7 @@
 
 #include "kinegen/codegen/constraints.hpp"
 #include "kinegen/codegen/forces.hpp"
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 
@@ -15,6 +16,7 @@ std::unique_ptr<CompiledModel> CompiledModel::from_file(const std::string& path,
   stage.done(std::to_string(mechanism.bodies.size()) + " bodies, " +
              std::to_string(mechanism.nq()) + " coordinates, " + std::to_string(mechanism.nc()) +
              " equations");
+  apply_inputs(mechanism, options.inputs, options.inputs_required);
   return from_mechanism(std::move(mechanism), overrides, options);
 }
 

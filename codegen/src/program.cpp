@@ -130,6 +130,18 @@ class Lowerer {
     } else if (is_motion_law(e, n.law, n.order)) {
       n.kind = OpKind::kMotionLaw;
       n.args = {lower(e.op(2))};
+    } else if (is_table(e, n.table, n.order)) {
+      n.kind = OpKind::kTable;
+      n.args = {lower(e.op(2))};
+    } else if (is_input(e, n.table, n.order)) {
+      if (n.order > 2) throw std::logic_error("an input driver differentiated more than twice");
+      n.kind = OpKind::kDriverInput;
+    } else if (is_select(e)) {
+      n.kind = OpKind::kSelect;
+      n.args = {lower(e.op(0)), lower(e.op(1)), lower(e.op(2))};
+    } else if (is_floor(e)) {
+      n.kind = OpKind::kFloor;
+      n.args = {lower(e.op(0))};
     } else if (GiNaC::is_a<GiNaC::function>(e)) {
       const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
       const MathFunction* f = find_math_function(name);

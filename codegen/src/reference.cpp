@@ -1,7 +1,5 @@
 #include "kinegen/codegen/reference.hpp"
 
-#include "kinegen/codegen/forces.hpp"
-
 #include <cln/cln.h>
 
 #include <cmath>
@@ -11,9 +9,11 @@
 #include <string>
 
 #include "kinegen/codegen/diagnostics.hpp"
+#include "kinegen/codegen/forces.hpp"
 #include "kinegen/codegen/format.hpp"
 #include "kinegen/codegen/functions.hpp"
 #include "kinegen/codegen/kinematics.hpp"
+#include "kinegen/codegen/table.hpp"
 
 namespace kinegen::codegen {
 
@@ -22,7 +22,19 @@ using GiNaC::numeric;
 
 namespace {
 
-enum class Op { kConst, kVar, kAdd, kMul, kPowInt, kPow, kFunction, kMotionLaw };
+enum class Op {
+  kConst,
+  kVar,
+  kAdd,
+  kMul,
+  kPowInt,
+  kPow,
+  kFunction,
+  kMotionLaw,
+  kSelect,
+  kFloor,
+  kTable
+};
 
 numeric require_real(const numeric& v, const char* what) {
   if (!v.is_real())
@@ -48,7 +60,8 @@ struct HighPrecisionEvaluator::Tape {
     numeric value;      // kConst
     int var = 0;        // kVar: q[0..nq), qd[nq..2nq), t at 2nq
     const MathFunction* function = nullptr;  // kFunction
-    int law = 0, order = 0;                  // kMotionLaw
+    int law = 0, order = 0;                  // kMotionLaw; order also kTable
+    int table = -1;                          // kTable
   };
   std::vector<Node> nodes;
   std::vector<int> outputs;  // -1: identically zero
@@ -101,6 +114,14 @@ class TapeBuilder {
     } else if (is_motion_law(e, n.law, n.order)) {
       n.op = Op::kMotionLaw;
       n.args.push_back(compile(e.op(2), tape));
+    } else if (is_table(e, n.table, n.order)) {
+      n.op = Op::kTable;
+      n.args.push_back(compile(e.op(2), tape));
+    } else if (int driver = 0, order = 0; is_input(e, driver, order)) {
+      n.value = 0;  // an input driver without a table: 0, as the evaluator takes it
+    } else if (is_select(e) || is_floor(e)) {
+      n.op = is_select(e) ? Op::kSelect : Op::kFloor;
+      for (std::size_t k = 0; k < e.nops(); ++k) n.args.push_back(compile(e.op(k), tape));
     } else if (GiNaC::is_a<GiNaC::function>(e)) {
       n.function = find_math_function(GiNaC::ex_to<GiNaC::function>(e).get_name());
       if (!n.function || e.nops() != 1)
@@ -213,6 +234,15 @@ Vector run_tape(Tape& tape, const std::vector<numeric>& inputs) {
       }
       case Op::kMotionLaw:
         val[k] = motion_law_high_precision(n.law, n.order, arg(0));
+        break;
+      case Op::kSelect:
+        val[k] = arg(0).real().is_negative() ? arg(1) : arg(2);
+        break;
+      case Op::kFloor:
+        val[k] = numeric(cln::floor1(cln::the<cln::cl_R>(arg(0).real().to_cl_N())));
+        break;
+      case Op::kTable:
+        val[k] = spline_high_precision(registered_table(n.table), n.order, arg(0));
         break;
     }
   }

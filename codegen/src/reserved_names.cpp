@@ -183,6 +183,18 @@ void check_header_names(const Mechanism& m) {
   for (const auto& p : m.parameters)
     if (auto why = header_name_conflict(p.name, HeaderName::kParameter); !why.empty())
       refuse("parameters." + p.name, p.loc, why);
+  // An input driver's Params members (format 6.3): NAME, NAME_v, NAME_a.
+  for (const auto& d : m.drivers) {
+    if (!d.law.input) continue;
+    for (const char* suffix : {"", "_v", "_a"}) {
+      const std::string member = d.name + suffix;
+      if (auto why = header_name_conflict(member, HeaderName::kParameter); !why.empty())
+        refuse(d.item, d.loc, "its Params member '" + member + "': " + why);
+      for (const auto& p : m.parameters)
+        if (p.name == member)
+          refuse(d.item, d.loc, "its Params member '" + member + "' is also a parameter's name");
+    }
+  }
 }
 
 std::string namespace_conflict(const std::string& ns) {

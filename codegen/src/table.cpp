@@ -1,14 +1,24 @@
 // Tables: a careful CSV reader and the two spline fits (see table.hpp).
 #include "kinegen/codegen/table.hpp"
 
+#include <cln/cln.h>
+
 #include <Eigen/SparseLU>
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <deque>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <mutex>
+#include <set>
 #include <sstream>
+#include <stdexcept>
 
+#include "kinegen/codegen/format.hpp"
+#include "kinegen/codegen/mechanism.hpp"
 #include "kinegen/kernels/spline.hpp"
 
 namespace kinegen::codegen {
@@ -63,7 +73,134 @@ std::vector<double> solve(const std::vector<Eigen::Triplet<double>>& entries,
   return std::vector<double>(m.data(), m.data() + m.size());
 }
 
+std::deque<Spline>& tables() {
+  static std::deque<Spline> all;
+  return all;
+}
+
+std::mutex& tables_mutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
 }  // namespace
+
+int register_table(const Spline& spline) {
+  std::lock_guard<std::mutex> lock(tables_mutex());
+  auto& all = tables();
+  for (std::size_t k = 0; k < all.size(); ++k) {
+    const Spline& s = all[k];
+    if (s.t == spline.t && s.y == spline.y && s.m == spline.m && s.periodic == spline.periodic &&
+        s.period == spline.period && s.rise == spline.rise)
+      return static_cast<int>(k);
+  }
+  if (all.size() >= 1000) throw std::length_error("more than 1000 tables in one process");
+  all.push_back(spline);
+  return static_cast<int>(all.size()) - 1;
+}
+
+const Spline& registered_table(int id) {
+  std::lock_guard<std::mutex> lock(tables_mutex());
+  return tables().at(
+      static_cast<std::size_t>(id));  // elements never move (a deque grown at its end)
+}
+
+GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::numeric& x) {
+  using GiNaC::numeric;
+  const auto exact = [](double v) {
+    return numeric(cln::rational(cln::the<cln::cl_R>(numeric(v).to_cl_N())));
+  };
+  numeric local = x.real();
+  numeric turns = 0;
+  if (s.periodic) {
+    const numeric p = exact(s.period);
+    turns = numeric(cln::floor1(cln::the<cln::cl_R>((local / p).to_cl_N())));
+    local = local - turns * p;
+  }
+  const double xd = local.to_double();
+  const int n = static_cast<int>(s.t.size());
+  const double slack = 8 * std::numeric_limits<double>::epsilon() *
+                       std::max(std::abs(s.t.front()), std::abs(s.t.back()));
+  if (!(xd >= s.t.front() - slack && xd <= s.t.back() + slack) || order < 0 || order > 2)
+    throw AnalysisError("t = " + std::to_string(x.real().to_double()) +
+                        " lies outside a table's range in the high-precision evaluation");
+  int lo = 0, hi = n - 1;
+  while (hi - lo > 1) {
+    const int mid = lo + (hi - lo) / 2;
+    (s.t[mid] <= xd ? lo : hi) = mid;
+  }
+  const numeric h = exact(s.t[lo + 1]) - exact(s.t[lo]);
+  const numeric a = (exact(s.t[lo + 1]) - local) / h, b = 1 - a;
+  const numeric yl = exact(s.y[lo]), yr = exact(s.y[lo + 1]);
+  const numeric ml = exact(s.m[lo]), mr = exact(s.m[lo + 1]);
+  numeric v;
+  if (order == 0)
+    v = a * yl + b * yr + ((a * a * a - a) * ml + (b * b * b - b) * mr) * h * h / 6;
+  else if (order == 1)
+    v = (yr - yl) / h + ((1 - 3 * a * a) * ml + (3 * b * b - 1) * mr) * h / 6;
+  else
+    v = a * ml + b * mr;
+  if (s.periodic && order == 0) v = v + exact(s.rise) * x.real() / exact(s.period);
+  if (s.periodic && order == 1) v = v + exact(s.rise) / exact(s.period);
+  return v;
+}
+
+namespace {
+bool covers(const Spline& s, double t) {
+  const double slack = 8 * std::numeric_limits<double>::epsilon() *
+                       std::max(std::abs(s.t.front()), std::abs(s.t.back()));
+  return s.periodic || (t >= s.t.front() - slack && t <= s.t.back() + slack);
+}
+}  // namespace
+
+TableCoverage table_coverage(const Mechanism& m) {
+  TableCoverage c;
+  for (const Constraint& d : m.drivers) {
+    if (d.law.table_id < 0) continue;
+    const Spline& s = registered_table(d.law.table_id);
+    if (s.periodic) continue;
+    c.lo = std::max(c.lo, s.t.front());
+    c.hi = std::min(c.hi, s.t.back());
+  }
+  return c;
+}
+
+std::string table_outside(const Mechanism& m, double t) {
+  for (const Constraint& d : m.drivers) {
+    if (d.law.table_id < 0) continue;
+    const Spline& s = registered_table(d.law.table_id);
+    if (covers(s, t)) continue;
+    return d.item + " table '" + d.law.table + "' (its t runs from " + format_number(s.t.front()) +
+           " to " + format_number(s.t.back()) +
+           "; a table is never extrapolated: give it a period or more rows)";
+  }
+  return "";
+}
+
+void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::string>>& inputs,
+                  bool required) {
+  std::set<std::string> given;
+  for (const auto& [name, path] : inputs) {
+    if (!given.insert(name).second) throw UsageError("--input " + name + " is given twice");
+    Constraint* driver = nullptr;
+    for (Constraint& d : m.drivers)
+      if (d.name == name && d.law.input) driver = &d;
+    if (!driver)
+      throw UsageError("--input " + name + ": " + m.source +
+                       " has no input driver (f: input) named '" + name + "'");
+    const TableSource src{m.source, driver->item + " --input " + name, driver->value.loc, false};
+    std::vector<double> t, v;
+    read_table(fs::absolute(path).string(), src, t, v);
+    driver->law.input = false;
+    driver->law.table = path;
+    driver->law.table_id = register_table(fit_not_a_knot(t, v));
+  }
+  if (!required) return;
+  for (const Constraint& d : m.drivers)
+    if (d.law.input)
+      throw UsageError(d.item + " is an input driver (f: input): give its values with --input " +
+                       d.name + "=FILE.csv (columns t,value)");
+}
 
 bool Spline::eval(double x, double* f) const {
   const int n = static_cast<int>(t.size());
@@ -108,8 +245,8 @@ void read_table(const std::string& path, const TableSource& src, std::vector<dou
     if (!std::isfinite(a) || !std::isfinite(b))
       fail(src, "table " + where + " holds a value that is not finite");
     if (!t.empty() && !(a > t.back()))
-      fail(src, "table " + where + ": t must increase strictly (" + std::to_string(a) +
-                    " follows " + std::to_string(t.back()) + ")");
+      fail(src, "table " + where + ": t must increase strictly (" + format_number(a) + " follows " +
+                    format_number(t.back()) + ")");
     if (t.size() >= kMaxTableRows)
       fail(src, "table '" + path + "' has more than " + std::to_string(kMaxTableRows) + " rows");
     t.push_back(a);

@@ -6,10 +6,14 @@
 #include <cmath>
 #include <complex>
 #include <cstdlib>
+#include <limits>
 #include <vector>
 
 #include "kinegen/codegen/functions.hpp"
 #include "kinegen/codegen/program.hpp"
+#include "kinegen/codegen/table.hpp"
+#include "kinegen/kernels/piecewise.hpp"
+#include "kinegen/kernels/spline.hpp"
 
 namespace kinegen::codegen {
 
@@ -74,6 +78,24 @@ class ProgramEvaluator {
       case OpKind::kMotionLaw:
         v = kernels::motion_law(n.law, n.order, arg(0));
         break;
+      case OpKind::kSelect:
+        v = kernels::select_piece(arg(0), arg(1), arg(2));
+        break;
+      case OpKind::kFloor:
+        v = kernels::floor_re(arg(0));
+        break;
+      case OpKind::kDriverInput:
+        // An input driver not given as a table (`--input`): 0, as in a default Params of
+        // generated code (eval and check; analyze requires the table).
+        v = T(0);
+        break;
+      case OpKind::kTable: {
+        const Spline& s = registered_table(n.table);
+        v = kernels::SplineKernel::_table(s.t.data(), s.y.data(), s.m.data(),
+                                          static_cast<int>(s.t.size()),
+                                          s.periodic ? s.period : 0.0, s.rise, n.order, arg(0));
+        break;
+      }
       default:  // sqrt, sin, ... (functions.hpp)
         v = apply_function(n.kind, arg(0));
         break;

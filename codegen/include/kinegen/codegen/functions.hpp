@@ -89,6 +89,31 @@ GiNaC::numeric motion_law_high_precision(int law, int order, const GiNaC::numeri
 // The parser's readers of the laws' names, one argument each (symbolic.cpp).
 void add_motion_law_readers(GiNaC::prototype_table& table);
 
+// Drivers in pieces (format 6.3): kinegen_select(c, lo, hi) is lo while the real part of c is
+// below 0, else hi (c = t - until: a time at a boundary takes the later piece). Its derivative
+// in any symbol is kinegen_select(c, lo', hi'): each piece is differentiated on its own, and
+// the boundary's own jump is not (the continuity check warns of it). Prints as
+// `select(c < 0, lo, hi)`.
+DECLARE_FUNCTION_3P(kinegen_select)
+// Whole periods: floor of the real part of x, derivative 0 (`t - T floor(t/T)` wraps t into
+// [0, T) and keeps the complex step's imaginary part).
+DECLARE_FUNCTION_1P(kinegen_floor)
+// A table's spline (table.hpp's registry; id its number there): d^order/dx^order at x (order
+// 0..2), its derivative in x raising the order; the value at a real number is the spline's.
+DECLARE_FUNCTION_3P(kinegen_table)
+
+// A run-time input driver (format 6.3, `f: input`): d^order/dt^order of driver `driver`'s
+// commanded value at t; its derivative in t raises the order. Never evaluated here: generated
+// code reads it from Params, and `analyze --input` replaces the driver by a table.
+DECLARE_FUNCTION_3P(kinegen_input)
+
+bool is_select(const GiNaC::ex& e);
+// Whether `e` is a kinegen_input(driver, order, t); then driver and order are set.
+bool is_input(const GiNaC::ex& e, int& driver, int& order);
+bool is_floor(const GiNaC::ex& e);
+// Whether `e` is a kinegen_table(id, order, x); then id and order are set.
+bool is_table(const GiNaC::ex& e, int& id, int& order);
+
 // std::<name>(x) for a function's `op`, on any scalar type with std overloads (double, float,
 // std::complex); one case per row of kMathFunctions.
 template <class T>

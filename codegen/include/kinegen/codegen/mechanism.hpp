@@ -67,6 +67,24 @@ struct ConstraintKind;
 // A body reference: an index into Mechanism::bodies, or kGround.
 inline constexpr int kGround = -1;
 
+// A driver's law beyond one expression (format 6.3): pieces, a period, a table or a run-time
+// input. With none of them the law is Constraint::value.
+struct DriverPiece {
+  Expr until;  // empty text for the last piece
+  Expr f;
+  SourceLoc loc;
+};
+
+struct DriverLaw {
+  std::vector<DriverPiece> pieces;  // `f: [{until: T1, f: E1}, ..., {f: En}]`
+  std::optional<Expr> period;       // `period: T`
+  std::string table;                // `table: FILE.csv` (as written)
+  SourceLoc table_loc;
+  int table_id = -1;   // its fitted spline (table.hpp's registry)
+  bool input = false;  // `f: input`
+  bool plain() const { return pieces.empty() && table_id < 0 && !input; }
+};
+
 // One joint or driver: its kind and the values of its keys, with the defaults the format
 // promises filled in (s = [0, 0], angle = 0). Which keys there are is the kind's (KeySpec).
 struct Constraint {
@@ -81,6 +99,7 @@ struct Constraint {
   std::map<std::string, Expr> scalars;  // other constants by key
   std::map<std::string, bool> flags;    // true/false keys (a gear's `internal`)
   Expr value;        // value / length / angle of a joint, or f(t) of a driver
+  DriverLaw law;     // a driver's pieces, period, table or input (format 6.3)
   std::vector<Expr> equations;  // expression constraints: each string = 0
   std::map<std::string, Vec2> curves;      // kCurve keys: [x(u), y(u)] local to a body
   std::map<std::string, int> coordinates;  // kCoordinate keys: index into Mechanism::coordinates

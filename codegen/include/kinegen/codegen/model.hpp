@@ -23,6 +23,11 @@ struct BuildOptions {
   bool fold_params = false;
   // Where the stages (reading, deriving, folding, lowering) report their progress.
   Progress progress;
+  // Input drivers' tables (format 6.3, `analyze --input NAME=FILE.csv`): driver name, CSV
+  // path (relative to the working directory). With inputs_required, an input driver without
+  // one is a UsageError (every command but generate, whose code reads them from Params).
+  std::vector<std::pair<std::string, std::string>> inputs;
+  bool inputs_required = false;
 };
 
 // Owns the stages; not copyable because later stages point into earlier ones.

@@ -29,14 +29,19 @@ enum class OpKind {
   kAtan,
   kExp,
   kLog,
-  kMotionLaw,  // d^order/dx^order of motion law `law` at args[0] (kernels/motion_law.hpp)
+  kMotionLaw,    // d^order/dx^order of motion law `law` at args[0] (kernels/motion_law.hpp)
+  kSelect,       // re(args[0]) < 0 ? args[1] : args[2] (a driver's pieces, kernels/piecewise.hpp)
+  kFloor,        // floor(re(args[0])) (whole periods, kernels/piecewise.hpp)
+  kDriverInput,  // d^order/dt^order of input driver `table` (Params members, format 6.3)
+  kTable,  // d^order/dx^order of table `table` (registered_table) at args[0] (kernels/spline.hpp)
 };
 
 struct Node {
   OpKind kind = OpKind::kConst;
   std::vector<int> args;
   int exponent = 0;   // kPowInt
-  int law = 0, order = 0;  // kMotionLaw
+  int law = 0, order = 0;  // kMotionLaw; order also kTable
+  int table = -1;          // kTable: its number in table.hpp's registry; kDriverInput: driver
   double value = 0;   // kConst
   GiNaC::ex exact;    // kConst: the exact (or high-precision) value
   Input input{InputKind::kT, 0};  // kInput

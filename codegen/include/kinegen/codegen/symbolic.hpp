@@ -110,6 +110,8 @@ struct SymbolicModel {
   // outputs x nq), so that the acceleration is output_q qdd + output_a0.
   std::vector<GiNaC::ex> output_values, output_rates, output_a0, output_q;
   std::vector<GiNaC::numeric> param_values;  // defaults (after overrides), exact
+  // One line each (without "warning: "): a driver's boundary where f' or f'' jumps (6.3).
+  std::vector<std::string> warnings;
   // What each coordinate measures (nq; bodies give length, length, angle; the extra
   // coordinates of spec 6.1 give their own kind) and the size its tolerances scale with: a
   // body's x and y scale with the geometry of its own joints and drivers, angles with 1.

@@ -6,6 +6,9 @@
 // derivatives; for a periodic table also its period and rise). Throws InputError.
 #pragma once
 
+#include <ginac/ginac.h>
+
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -22,6 +25,36 @@ struct Spline {
   // f[0..2] = value, first and second derivative at x; false outside a non-periodic table.
   bool eval(double x, double* f) const;
 };
+
+// The tables of every mechanism loaded in this process, by number (kinegen_table's id in
+// functions.hpp): registering the same spline twice gives the same number. Entries are never
+// removed or moved, so a reference stays valid. Thread-safe.
+int register_table(const Spline& spline);
+const Spline& registered_table(int id);
+
+// The order-th derivative (0..2) of a spline at x in CLN arithmetic (the reference), with the
+// knots taken exactly; x's precision is kept. Throws AnalysisError outside a table that does
+// not repeat.
+GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::numeric& x);
+
+struct Mechanism;
+// The times every table of `m`'s drivers covers (those without a period): [lo, hi], and the
+// first driver whose table does not hold t (nullptr when all do, or there is none). Tables are
+// never extrapolated (format 6.3); the analysis stops at such a t.
+struct TableCoverage {
+  double lo = -std::numeric_limits<double>::infinity();
+  double hi = std::numeric_limits<double>::infinity();
+};
+TableCoverage table_coverage(const Mechanism& m);
+// The driver (its item) whose table does not cover t, with the table's range, or "".
+std::string table_outside(const Mechanism& m, double t);
+
+// Turns each named input driver (`f: input`) into a table driver read from its CSV file
+// (`analyze --input NAME=FILE.csv`; the path is the user's, relative to the working
+// directory, not confined). Throws UsageError for a name that is not an input driver, one
+// given twice, or (when `required`) an input driver left without a table.
+void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::string>>& inputs,
+                  bool required);
 
 // Limits that keep a hostile table from costing unbounded time or memory.
 inline constexpr std::size_t kMaxTableBytes = 8u << 20;
