@@ -19,6 +19,7 @@
 #include "disc_cam.hpp"
 #include "crank_gravity.hpp"
 #include "drag_link.hpp"
+#include "dwell_slider_crank.hpp"
 #include "far_point.hpp"
 #include "four_bar.hpp"
 #include "four_bar_balanced.hpp"
@@ -38,6 +39,7 @@
 #include "slider_driven.hpp"
 #include "slot.hpp"
 #include "stephenson3.hpp"
+#include "table_press.hpp"
 
 namespace {
 
@@ -125,6 +127,8 @@ TEST_CASE("analyze and the generated Solver give the same bits on every example 
   check_same<kinegen::models::planetary>("examples/gears/planetary.yaml", turn);
   check_same<kinegen::models::disc_cam>("examples/cams/disc_cam.yaml", turn);
   check_same<kinegen::models::slot>("examples/slots/slot.yaml", turn);
+  // A periodic measured table (spline kernel) over two periods.
+  check_same<kinegen::models::table_press>("examples/forces/table_press.yaml", {0, 2, 240});
 }
 
 TEST_CASE("the same bits on torn, guarded and larger blocks", "[same_answers]") {
@@ -139,6 +143,9 @@ TEST_CASE("the same bits on torn, guarded and larger blocks", "[same_answers]") 
   check_same<kinegen::models::stephenson3>("tests/mechanisms/stephenson3.yaml", turn);
   check_same<kinegen::models::gear_pair>("tests/mechanisms/gear_pair.yaml", turn);
   check_same<kinegen::models::crank_gravity>("tests/mechanisms/crank_gravity.yaml", turn);
+  // Motion laws with dwells (the clamped law kernel).
+  check_same<kinegen::models::dwell_slider_crank>("tests/mechanisms/dwell_slider_crank.yaml",
+                                                  {0, 5, 200});
   // Extra coordinates (format 6.1) and curve joints.
   check_same<kinegen::models::cam_flat>("tests/mechanisms/cam_flat.yaml", turn);
   check_same<kinegen::models::cam_roller>("tests/mechanisms/cam_roller.yaml", turn);
