@@ -47,6 +47,14 @@ bool all_finite(const double* v, int n) {
   return ok;
 }
 
+// The entries of `row` in a block's (row, col) -> output map, in the map's order.
+template <class F>
+void for_row(const std::map<std::pair<int, int>, int>& entries, int row, F&& f) {
+  for (auto e = entries.lower_bound({row, std::numeric_limits<int>::min()});
+       e != entries.end() && e->first.first == row; ++e)
+    f(e->first.second, e->second);
+}
+
 bool is_unit(const Node& n) { return n.kind == OpKind::kConst && (n.value == 1 || n.value == -1); }
 
 }  // namespace
@@ -73,6 +81,7 @@ struct BlockInterpreter::Run {
   std::vector<std::vector<double>> a;  // per block: its factored matrix (k x k) or divisor
   std::vector<std::vector<int>> piv;
   std::vector<char> divide;  // per 1 x 1 block: whether its rates are divided by a[b][0]
+  std::vector<std::map<int, std::vector<char>>> dependency;  // per torn block: tear_dependency
 
   explicit Run(const BlockInterpreter& interp)
       : it(interp),
@@ -97,6 +106,10 @@ struct BlockInterpreter::Run {
     a.resize(nb);
     piv.resize(nb);
     divide.assign(nb, 0);
+    dependency.resize(nb);
+    for (std::size_t b = 0; b < nb; ++b)
+      if (interp.st_.plans[b].torn())
+        dependency[b] = tear_dependency(interp.st_.plans[b], bp.torn_jacobian[b]);
   }
 
   void invalidate_level(std::size_t b) {
@@ -168,18 +181,18 @@ struct BlockInterpreter::Run {
                                  std::vector<std::vector<double>>& dd) {
     const BlockPlan& plan = it.st_.plans[bi];
     const std::size_t m = plan.tears.size();
-    const auto dep = tear_dependency(plan, it.bp_.torn_jacobian[bi]);
+    const auto& dep = dependency[bi];
     for (const auto& [rc, o] : entries) out(o);
     dd.assign(m, std::vector<double>(s.size(), 0.0));
     const auto row_sum = [&](int row, int skip, std::size_t j) {
       Sum sum;
-      for (const auto& [rc, o] : entries) {
-        if (rc.first != row || rc.second == skip || !dep.at(rc.second)[j]) continue;
-        if (rc.second == plan.tears[j])
+      for_row(entries, row, [&](int col, int o) {
+        if (col == skip || !dep.at(col)[j]) return;
+        if (col == plan.tears[j])
           add_product(sum, o, false, 0);
         else
-          add_product(sum, o, true, dd[j][rc.second]);
-      }
+          add_product(sum, o, true, dd[j][col]);
+      });
       return sum;
     };
     for (std::size_t j = 0; j < m; ++j)
@@ -245,9 +258,9 @@ struct BlockInterpreter::Run {
     // rhs - the row's non-tear block entries times x (but `skip`).
     const auto reduced = [&](int row, int skip) {
       Sum sum;
-      for (const auto& [rc, o] : bo.tjac)
-        if (rc.first == row && rc.second != skip && !is_tear(rc.second))
-          add_product(sum, o, true, x[rc.second]);
+      for_row(bo.tjac, row, [&](int col, int o) {
+        if (col != skip && !is_tear(col)) add_product(sum, o, true, x[col]);
+      });
       Sum t = rhs(row);
       if (sum.empty) return t;
       Sum result;
@@ -268,7 +281,7 @@ struct BlockInterpreter::Run {
       });
       for (int j = 0; j < m; ++j) x[plan.tears[j]] = g[j];
     }
-    const auto dep = tear_dependency(plan, it.bp_.torn_jacobian[bi]);
+    const auto& dep = dependency[bi];
     for (const auto& [row, col] : plan.assigned) {
       Sum sum;
       for (int j = 0; j < m; ++j)
@@ -451,11 +464,11 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
         const auto scaled_entry = [&](int col, int o) {
           return length(col) ? std::abs(r.out(o)) * scales[col] : std::abs(r.out(o));
         };
-        for (const auto& [rc, o] : bp_.torn_jacobian[bi]) {
-          if (rc.first != own[i] || !r.node_of(o)) continue;
-          cm[i] = std::max(cm[i], scaled_entry(rc.second, o));
+        for_row(bp_.torn_jacobian[bi], own[i], [&](int col, int o) {
+          if (!r.node_of(o)) return;
+          cm[i] = std::max(cm[i], scaled_entry(col, o));
           coupled = true;
-        }
+        });
         for (const auto& [col, o] : coupling) {
           if (!r.node_of(o)) continue;
           cm[i] = std::max(cm[i], scaled_entry(col, o));
