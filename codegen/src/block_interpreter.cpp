@@ -357,7 +357,6 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
     const BlockPlan& plan = st_.plans[bi];
     const Block& b = plan.block;
     const int f = bp_.position_first[bi];
-    const int k = static_cast<int>(b.rows.size());
     const int block = static_cast<int>(bi);
     if (plan.kind == BlockKind::kExplicit) {
       q[b.cols[0]] = r.out(f);
