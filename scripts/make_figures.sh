@@ -52,3 +52,6 @@ rm -rf "$dir"
 # The planetary train: one turn of the carrier (4 s), the planet's tooth tracing its hypocycloid.
 "$kinegen" animate examples/gears/planetary.yaml --t0 0 --t1 4 --steps 240 --width 480 \
   -o "$out/planetary.svg"
+# Rack-and-pinion steering over one cycle of the wheel, lock to lock.
+"$kinegen" animate examples/gears/steering.yaml --t0 0 --t1 6.283185307179586 --steps 120 \
+  --width 480 -o "$out/steering.svg"

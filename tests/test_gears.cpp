@@ -232,6 +232,64 @@ drivers:
   CHECK(e.qdd <= 16 * kEps);
 }
 
+namespace {
+
+// examples/gears/steering.yaml in closed form: the knuckle of side s (-1 left, +1 right) at
+// the rack's travel x. Its arm's end K + A(theta) S lies the tie rod's length from the rack's
+// end E: with D = K - E, |D + A S|^2 = rod^2 gives P cos(theta) + Q sin(theta) = k, solved on
+// the branch through theta = 0.
+double knuckle_angle(double x, int s) {
+  const double rj = 0.008, a = 0.35, w = 0.62, h = 0.10, arm = 0.13, lean = 0.25;
+  const double sx = s * arm * std::sin(lean), sy = arm * std::cos(lean);
+  const double rod = std::hypot(w + arm * std::sin(lean) - a, sy - h);
+  const double dx = s * w - (x + s * a), dy = -rj - h - (-rj);
+  const double p = dx * sx + dy * sy, q = dy * sx - dx * sy;
+  const double k = (rod * rod - dx * dx - dy * dy - sx * sx - sy * sy) / 2;
+  const double beta = std::atan2(q, p), alpha = std::acos(k / std::hypot(p, q));
+  const double t1 = beta + alpha, t2 = beta - alpha;
+  return std::abs(t1) < std::abs(t2) ? t1 : t2;
+}
+
+}  // namespace
+
+TEST_CASE("gears: rack-and-pinion steering against its closed form", "[gears]") {
+  // The rack follows x = rj phi of the wheel; each knuckle the closed form above. Rates from
+  // central differences of the closed form in t (steps 1e-5 and 1e-4).
+  const auto model =
+      kc::CompiledModel::from_file(source_dir() + "/examples/gears/steering.yaml");
+  const Run run = analyze(*model, {0, 6.283185307179586, 360});
+  REQUIRE(run.rows.size() == 361);
+  const auto rack_x = [](double t) { return 0.008 * 4.0 * std::sin(t); };
+  Error e, e_rack;
+  double ackermann = 0;  // the inner wheel turns more: max over rows of |inner| - |outer|
+  for (const auto& r : run.rows) {
+    const double t = r.t;
+    e_rack.add(e_rack.q, r.q[3], rack_x(t));
+    e_rack.add(e_rack.qd, r.qd[3], 0.032 * std::cos(t));
+    e_rack.add(e_rack.qdd, r.qdd[3], -0.032 * std::sin(t));
+    for (const int s : {-1, 1}) {
+      const int k = s < 0 ? 8 : 11;  // phi of knuckle_left, knuckle_right
+      const auto theta = [&](double tt) { return knuckle_angle(rack_x(tt), s); };
+      const double h1 = 1e-5, h2 = 1e-4;
+      e.add(e.q, r.q[k], theta(t));
+      e.add(e.qd, r.qd[k], (theta(t + h1) - theta(t - h1)) / (2 * h1));
+      e.add(e.qdd, r.qdd[k], (theta(t + h2) - 2 * theta(t) + theta(t - h2)) / (h2 * h2));
+    }
+    const bool right_turn = r.q[3] > 0;  // the rack moves right: the car turns right
+    const double inner = std::abs(r.q[right_turn ? 11 : 8]), outer = std::abs(r.q[right_turn ? 8 : 11]);
+    ackermann = std::max(ackermann, inner - outer);
+  }
+  INFO("rack " << e_rack.q << " " << e_rack.qd << " " << e_rack.qdd << "; knuckles " << e.q << " "
+               << e.qd << " " << e.qdd);
+  CHECK(e_rack.q <= 16 * kEps);
+  CHECK(e_rack.qd <= 16 * kEps);
+  CHECK(e_rack.qdd <= 16 * kEps);
+  CHECK(e.q <= 1e-14);
+  CHECK(e.qd <= 1e-9);
+  CHECK(e.qdd <= 1e-6);
+  CHECK(ackermann > 0.01);  // the inner wheel turns more (Ackermann), by over half a degree
+}
+
 TEST_CASE("gears: a pinion rolling on a fixed tilted rack advances -rj phi", "[gears]") {
   // Pitch line through [0.1, 0.2] along vi = [3, 4] (u = [0.6, 0.8], not given as a unit
   // vector); the centre sits rj to its left and advances s = -rj phi along u.
