@@ -38,6 +38,7 @@
 #include "slider_crank_lecture.hpp"
 #include "slider_driven.hpp"
 #include "slot.hpp"
+#include "steering.hpp"
 #include "stephenson3.hpp"
 #include "table_press.hpp"
 
@@ -125,6 +126,7 @@ TEST_CASE("analyze and the generated Solver give the same bits on every example 
   check_same<kinegen::models::four_bar_balanced>("examples/forces/four_bar_balanced.yaml", turn);
   check_same<kinegen::models::press>("examples/forces/press.yaml", turn);
   check_same<kinegen::models::planetary>("examples/gears/planetary.yaml", turn);
+  check_same<kinegen::models::steering>("examples/gears/steering.yaml", turn);
   check_same<kinegen::models::disc_cam>("examples/cams/disc_cam.yaml", turn);
   check_same<kinegen::models::slot>("examples/slots/slot.yaml", turn);
   // A periodic measured table (spline kernel) over two periods.
