@@ -545,6 +545,7 @@ TEST_CASE("forces: the press example's motor work over a cycle is the forming wo
   };
   const int steps = 7200;
   std::vector<double> motor, forming;
+  double worst_power = 0, largest_power = 0;
   kc::ForceSolver solver(*model, forces);
   kc::run_analysis(*model, {0, 1, steps}, [&](const kc::StateRow& row) {
     std::vector<double> columns;
@@ -554,7 +555,18 @@ TEST_CASE("forces: the press example's motor work over a cycle is the forming wo
     const double fx = -f * poly345((x - (r + l - contact)) / ramp) *
                       (1 - poly345((phi - 2 * pi) / window));
     forming.push_back(-fx * row.qd[6]);
+    // Row by row: motor power plus the force's equals dKE/dt, from the file's masses (crank
+    // J 0.02; rod m 1.2, J 0.004, com [0.1, 0]; ram m 6) and the rows' kinematics.
+    const kc::PointState rod = kc::point_state(row.q.segment<3>(3), row.qd.segment<3>(3),
+                                               row.qdd.segment<3>(3), {0.1, 0});
+    const double kinetic_rate = 0.02 * row.qd[2] * row.qdd[2] + 1.2 * rod.a.dot(rod.v) +
+                                0.004 * row.qd[5] * row.qdd[5] + 6 * row.qdd[6] * row.qd[6];
+    const double power = motor.back() + fx * row.qd[6];
+    worst_power = std::max(worst_power, std::abs(power - kinetic_rate));
+    largest_power = std::max(largest_power, std::abs(motor.back()) + std::abs(kinetic_rate));
   });
+  INFO("power balance: worst " << worst_power << " W of " << largest_power << " W");
+  CHECK(worst_power <= 1e-10 * largest_power);
   REQUIRE(motor.size() == steps + 1u);
   // Simpson's rule over the cycle.
   const auto integral = [&](const std::vector<double>& v) {
@@ -567,6 +579,55 @@ TEST_CASE("forces: the press example's motor work over a cycle is the forming wo
   // About F (contact - ramp / 2) = 95 J, less what the tool gives back as the window closes.
   CHECK(w_forming == Approx(95).epsilon(0.01));
   CHECK(w_motor == Approx(w_forming).epsilon(1e-6));
+}
+
+TEST_CASE("forces: power balance on the table-driven press over three cycles", "[forces][pieces]") {
+  // examples/forces/table_press.yaml over three cycles of its periodic motor table: on every
+  // row the motor's power plus the forming force's equals dKE/dt (masses as in press.yaml),
+  // and each cycle's motor work is its forming work.
+  const auto model = kc::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
+                                                  "/examples/forces/table_press.yaml");
+  const auto forces = kc::forces_for_analysis(*model);
+  const double r = 0.05, l = 0.2, f = 5000, contact = 0.02, ramp = 0.002, window = 0.05;
+  const auto poly345 = [](double x) {
+    x = std::clamp(x, 0.0, 1.0);
+    return x * x * x * (10 - 15 * x + 6 * x * x);
+  };
+  kc::ForceSolver solver(*model, forces);
+  double worst = 0, largest = 0;
+  std::vector<double> work(3, 0.0), forming(3, 0.0);
+  const int per_cycle = 2400;
+  double h = 1.0 / per_cycle;
+  kc::run_analysis(*model, {0, 3, 3 * per_cycle}, [&](const kc::StateRow& row) {
+    std::vector<double> columns;
+    REQUIRE(solver.solve(row.t, row.q, row.qd, row.qdd, columns));
+    const double fx = -f * poly345((row.q[6] - (r + l - contact)) / ramp) *
+                      (1 - poly345(std::sin(row.q[2]) / window));
+    const double motor = columns[0] * row.qd[2];
+    const kc::PointState rod = kc::point_state(row.q.segment<3>(3), row.qd.segment<3>(3),
+                                               row.qdd.segment<3>(3), {0.1, 0});
+    const double kinetic_rate = 0.02 * row.qd[2] * row.qdd[2] + 1.2 * rod.a.dot(rod.v) +
+                                0.004 * row.qd[5] * row.qdd[5] + 6 * row.qdd[6] * row.qd[6];
+    worst = std::max(worst, std::abs(motor + fx * row.qd[6] - kinetic_rate));
+    largest = std::max(largest, std::abs(motor) + std::abs(kinetic_rate));
+    // Trapezoidal sums per cycle (the ends count half).
+    const int k = static_cast<int>(std::lround(row.t / h));
+    const int cycle = std::min(2, k / per_cycle);
+    const double weight = (k % per_cycle == 0) ? 0.5 : 1.0;
+    work[cycle] += weight * motor * h;
+    forming[cycle] += weight * -fx * row.qd[6] * h;
+    if (k % per_cycle == 0 && k > 0 && k / per_cycle - 1 < 3 && k / per_cycle - 1 != cycle) {
+      work[k / per_cycle - 1] += 0.5 * motor * h;
+      forming[k / per_cycle - 1] += 0.5 * -fx * row.qd[6] * h;
+    }
+  });
+  INFO("power balance: worst " << worst << " W of " << largest << " W");
+  CHECK(worst <= 1e-10 * largest);
+  for (int c = 0; c < 3; ++c) {
+    INFO("cycle " << c << ": motor work " << work[c] << " J, forming work " << forming[c] << " J");
+    CHECK(forming[c] == Approx(95).epsilon(0.02));  // every cycle forms
+    CHECK(work[c] == Approx(forming[c]).epsilon(1e-3));
+  }
 }
 
 TEST_CASE("forces: power balance over a turn of the balanced four-bar example", "[forces]") {
