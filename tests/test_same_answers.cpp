@@ -153,3 +153,30 @@ TEST_CASE("the same bits on torn, guarded and larger blocks", "[same_answers]") 
   check_same<kinegen::models::cam_roller>("tests/mechanisms/cam_roller.yaml", turn);
   check_same<kinegen::models::parabolic_slot>("tests/mechanisms/parabolic_slot.yaml", {0, 1, 100});
 }
+
+TEST_CASE("a guarded block whose coefficient vanishes beside its couplings fails, on both paths",
+          "[same_answers][stability]") {
+  // guarded_slider.yaml: k x_slider - cos(phi_crank) = 0. With k = 1e-14 the coefficient is
+  // 1e-14 beside the row's coupling sin(phi_crank): Phi_q is singular in all but name, and
+  // x_slider = cos / k (1e14) is no answer. Not zero, so only the condition check sees it.
+  using Model = kinegen::models::guarded_slider;
+  Model::Params p;
+  p.k = 1e-14;
+  kinegen::Solver<Model> solver(p);
+  auto q = solver.initial_estimate();
+  decltype(q) qd = decltype(q)::Zero(), qdd = decltype(q)::Zero();
+  const auto r = solver.step(0.25, q, qd, qdd);
+  CHECK(r.status == kinegen::Status::kSingular);
+  CHECK(r.block >= 0);
+  p.k = 2;  // the file's value: solved
+  kinegen::Solver<Model> fine(p);
+  q = fine.initial_estimate();
+  CHECK(fine.step(0.25, q, qd, qdd));
+
+  const auto model = CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
+                                              "/tests/mechanisms/guarded_slider.yaml",
+                                              {{"k", "1e-14"}});
+  CHECK_THROWS_WITH(
+      kinegen::codegen::run_analysis(*model, {0, 1, 4}, [](const StateRow&) {}),
+      Catch::Contains("at t = 0.25") && Catch::Contains("singular"));
+}

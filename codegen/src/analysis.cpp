@@ -288,7 +288,6 @@ void solve_sensitivities(S& solver, const SensitivityModel& sensitivity,
   }
 }
 
-// The time loop, on either solver (dense or sparse Phi_q).
 // The block step as the runtime's Solver reports it (kinegen/block_solver.hpp, to_result).
 Result block_result(const BlockInterpreter::Report& report, int nq) {
   Result r;
@@ -372,7 +371,17 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
   std::unique_ptr<ForceSolver> force_solver;
   if (options.forces) force_solver = std::make_unique<ForceSolver>(model, *options.forces);
   bool force_warned = false;
-  const BlockInterpreter::Options block_options{};  // kinegen::Solver's defaults in double
+  // kinegen::Solver's defaults in double (default_options, as Solver::block_options copies them).
+  BlockInterpreter::Options block_options;
+  {
+    const SolverOptions s = default_options<double>();
+    block_options.tolerance = s.tolerance;
+    block_options.max_iterations = s.max_iterations;
+    block_options.fixed_iterations = s.fixed_iterations;
+    block_options.singular_pivot_ratio = s.singular_pivot_ratio;
+    block_options.min_rcond = s.min_rcond;
+    block_options.residual_tolerance = s.residual_tolerance;
+  }
   StateRow previous;
   Eigen::VectorXd qdd_before;  // the acceleration one step before `previous` (the jerk)
   double h_before = 0;
@@ -396,27 +405,33 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
       // Solver::step's solve: the first one iterates to convergence whatever the options.
       BlockInterpreter::Options o = block_options;
       if (k == 0) o.fixed_iterations = 0;
-      const auto solve = [&] {
-        return block_result(blocks->solve_step(row.q.data(), t, row.qd.data(), row.qdd.data(), o),
-                            model.nq());
+      // A solve that fails, or succeeds near a toggle (Newton converging onto it), ends the
+      // analysis; a failed position may be retried once from the last solution.
+      const auto solve = [&](bool may_retry) {
+        Result r = block_result(
+            blocks->solve_step(row.q.data(), t, row.qd.data(), row.qdd.data(), o), model.nq());
+        if (!r && may_retry && blocks->failed_phase() == BlockInterpreter::Phase::kPosition)
+          return false;
+        if (!r) fail(BlockInterpreter::to_string(blocks->failed_phase()), t, r);
+        if (r.condition > options.max_condition) {
+          r.status = Status::kSingular;
+          fail("position", t, r);
+        }
+        return true;
       };
-      if (auto r = solve(); !r) {
-        if (k == 0 || blocks->failed_phase() != BlockInterpreter::Phase::kPosition)
-          fail(BlockInterpreter::to_string(blocks->failed_phase()), t, r);
+      if (!solve(k > 0)) {
         row.q = previous.q;
-        if (auto r2 = solve(); !r2) fail(BlockInterpreter::to_string(blocks->failed_phase()), t, r2);
-      } else if (r.condition > options.max_condition) {
-        r.status = Status::kSingular;
-        fail("position", t, r);
+        solve(false);
       }
       first_solve = false;
       if (k == 0) {
-        // As on the dense path, but a changed estimate is solved again from scratch.
+        // As on the dense path, but a changed estimate is solved again from scratch (then
+        // analyze and a Solver started from the file's q0 differ by whole turns).
         const Eigen::VectorXd before = row.q;
         keep_turns_of_estimates(solver, model, row.q, t);
         if (row.q != before) {
           blocks->reset();
-          if (auto r = solve(); !r) fail(BlockInterpreter::to_string(blocks->failed_phase()), t, r);
+          solve(false);
         }
         check_redundancy(model, row.q, t, options);
         check_assembly(model, row.q, options);

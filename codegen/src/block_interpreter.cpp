@@ -369,6 +369,23 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
         return fail(std::abs(coefficient) == 0 ? 2 : 3, block);
       q[b.cols[0]] = -(r.out(f + 1)) / coefficient;
       bind_trig(b.cols[0]);
+      // guarded_condition: the coefficient against its row's couplings, at the solved q.
+      const BlockRates& bo = bp_.rates[bi];
+      const int col = b.cols[0];
+      const auto scaled_entry = [&](int c, int o) {
+        return length(c) ? std::abs(r.out(o)) * scales[c] : std::abs(r.out(o));
+      };
+      bool coupled = false;
+      for (const auto& [c, o] : bo.coupling[0]) coupled |= r.node_of(o) != nullptr;
+      if (coupled && r.node_of(bo.jbb[0])) {
+        const double own = scaled_entry(col, bo.jbb[0]);
+        double m = own;
+        for (const auto& [c, o] : bo.coupling[0])
+          if (r.node_of(o)) m = std::max(m, scaled_entry(c, o));
+        const double rc = own / m;
+        if (!(rc > o.min_rcond)) return fail(2, block);
+        report.rcond = std::min(report.rcond, rc);
+      }
       continue;
     }
     for (int col : b.cols)

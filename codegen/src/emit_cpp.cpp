@@ -1333,6 +1333,7 @@ class BlockEmitter {
            << in << "  " << ref("q", b.cols[0]) << " = -(" << pr.text(out(f + 1)) << ") / _c;\n"
            << in << "}\n";
         declare_trig(os, pr, b.cols[0], false);
+        guarded_condition(os, pr, bi);
         continue;
       }
       // Terms that do not read the block's own coordinates are computed once, before the loop
@@ -1377,6 +1378,35 @@ class BlockEmitter {
       for (int o = 0; o < k; ++o) rows.push_back(f + o);
       newton_finish(os, pr, bi, rows, "_st" + bs);
     }
+  }
+
+  // A guarded block's coefficient against its row's couplings to earlier blocks, at the solved
+  // q: the block's condition within all of Phi_q (a coefficient that is small beside them is a
+  // near-singular Phi_q although it is not zero). Recorded in the report's rcond.
+  void guarded_condition(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi) {
+    const BlockOuts& bo = blocks_[bi];
+    const int c = st_.plans[bi].block.cols[0];
+    const auto scaled = [&](int col, int o) {
+      return "_mag(" + pr.text(out(o)) + ")" +
+             (length_coordinate(col) ? " * R(" + ref("coordinate_scales", col) + ")" : "");
+    };
+    std::string m = "_own";
+    bool coupled = false;
+    for (const auto& [col, o] : bo.coupling[0]) {
+      if (out(o) == Program::kZero) continue;
+      pr.ensure(out(o), os, kIn);
+      m = "std::max(" + m + ", " + scaled(col, o) + ")";
+      coupled = true;
+    }
+    if (!coupled || out(bo.jbb[0]) == Program::kZero) return;
+    pr.ensure(out(bo.jbb[0]), os, kIn);
+    const std::string b = block_id(bi);
+    os << kIn << "{\n"
+       << kIn << "  const R _own = " << scaled(c, bo.jbb[0]) << ";\n"
+       << kIn << "  const R _rc = _own / " << m << ";\n"
+       << kIn << "  if (!(_rc > o.min_rcond)) return _fail(report, 2, " << b << ");\n"
+       << kIn << "  report.rcond = std::min(report.rcond, _rc);\n"
+       << kIn << "}\n";
   }
 
   // Newton blocks check what the dense path checks (kernels/newton.hpp): before the loop, the

@@ -1,7 +1,7 @@
 // The block program: what the block solver computes, as data, between the structure stage
 // (structure.hpp: the BLT blocks and each block's plan) and its two users. The C++ emitter
 // prints it (emit_cpp.cpp: solve_position, solve_step, ...); the in-process block solver
-// (block_solver.hpp) runs it, so `kinegen analyze` and generated code compute the same
+// (block_interpreter.hpp) runs it, so `kinegen analyze` and generated code compute the same
 // numbers. One lowered program holds every expression the block functions need (explicit
 // solutions, residuals, Jacobian entries, couplings to earlier blocks, nu, gamma), so terms
 // are shared between blocks and between the position and rate phases.
