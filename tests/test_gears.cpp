@@ -620,3 +620,37 @@ TEST_CASE("gears: a centre distance off the pitch radii is one warning at assemb
     }
   }
 }
+
+TEST_CASE("gears: power balance on the planetary train, steady and with a varying sun speed",
+          "[gears][forces]") {
+  // examples/gears/planetary.yaml (inertias on sun, carrier and planet, the planet's mass),
+  // as it is and with the sun driven at a varying speed: on every row the motor's power,
+  // effort times the sun's rate, equals dKE/dt written out from the file's masses and the
+  // rows' kinematics (no gravity, no loads; the meshes do no work).
+  std::ifstream in(source_dir() + "/examples/gears/planetary.yaml");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string drive = "f: \"omega*t\"";
+  REQUIRE(text.find(drive) != std::string::npos);
+  std::string varying = text;
+  varying.replace(varying.find(drive), drive.size(), "f: \"omega*t + 0.5*sin(3*t)\"");
+  for (const std::string& yaml : {text, varying}) {
+    const auto model =
+        kc::CompiledModel::from_mechanism(kc::parse_mechanism(yaml, "planetary.yaml"));
+    const auto forces = kc::forces_for_analysis(*model);
+    kc::ForceSolver solver(*model, forces);
+    double worst = 0, largest = 0;
+    kc::run_analysis(*model, {0, 2, 400}, [&](const kc::StateRow& r) {
+      std::vector<double> columns;
+      REQUIRE(solver.solve(r.t, r.q, r.qd, r.qdd, columns));
+      // sun J 2e-6 (q 0..2), carrier J 5e-6 (3..5), planet m 0.05, J 1e-5 (6..8), com at origin.
+      const double kinetic_rate = 2e-6 * r.qd[2] * r.qdd[2] + 5e-6 * r.qd[5] * r.qdd[5] +
+                                  0.05 * (r.qd[6] * r.qdd[6] + r.qd[7] * r.qdd[7]) +
+                                  1e-5 * r.qd[8] * r.qdd[8];
+      const double power = columns[0] * r.qd[2];
+      worst = std::max(worst, std::abs(power - kinetic_rate));
+      largest = std::max(largest, std::abs(power) + std::abs(kinetic_rate));
+    });
+    INFO("worst " << worst << " W of " << largest << " W");
+    CHECK(worst <= 1e-10 * std::max(largest, 1e-6));
+  }
+}
