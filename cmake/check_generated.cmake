@@ -4,7 +4,7 @@
 #   cmake -DKINEGEN=... -DEXAMPLES=... -DGENERATED=... -DSCRATCH=... -P check_generated.cmake
 file(REMOVE_RECURSE "${SCRATCH}")
 file(MAKE_DIRECTORY "${SCRATCH}")
-file(GLOB mechanisms "${EXAMPLES}/*.yaml")
+file(GLOB mechanisms "${EXAMPLES}/*.yaml" "${EXAMPLES}/*/*.yaml")
 set(stale "")
 foreach(mech IN LISTS mechanisms)
   execute_process(COMMAND "${KINEGEN}" generate "${mech}" -o "${SCRATCH}"

@@ -52,6 +52,14 @@ rm -rf "$dir"
 # The planetary train: one turn of the carrier (4 s), the planet's tooth tracing its hypocycloid.
 "$kinegen" animate examples/gears/planetary.yaml --t0 0 --t1 4 --steps 240 --width 480 \
   -o "$out/planetary.svg"
+# The disc cam and its roller follower over one turn; the pin in the parabolic slot; the press
+# on its measured motor table, with its reaction forces, over one cycle.
+"$kinegen" animate examples/cams/disc_cam.yaml --t0 0 --t1 6.283185307179586 --steps 120 \
+  --width 480 -o "$out/disc_cam.svg"
+"$kinegen" animate examples/slots/slot.yaml --t0 0 --t1 6.283185307179586 --steps 120 \
+  --width 480 -o "$out/slot.svg"
+"$kinegen" animate examples/forces/table_press.yaml --t0 0 --t1 1 --steps 120 --forces \
+  --width 480 -o "$out/table_press_forces.svg"
 # Rack-and-pinion steering over one cycle of the wheel, lock to lock.
 "$kinegen" animate examples/gears/steering.yaml --t0 0 --t1 6.283185307179586 --steps 120 \
   --width 480 -o "$out/steering.svg"
