@@ -2,7 +2,7 @@
 # Fuzzes the loader, the expression parser and the symbolic pipeline with libFuzzer, under
 # AddressSanitizer and UndefinedBehaviorSanitizer.
 #   scripts/fuzz.sh [SECONDS] [extra libFuzzer options...]   (default 600 s)
-# Builds with clang in build-fuzz/; the seed corpus is examples/*.yaml, examples/forces/*.yaml,
+# Builds with clang in build-fuzz/; the seed corpus is examples/*.yaml, examples/*/*.yaml,
 # tests/mechanisms/*.yaml, tests/stability/*.yaml and fuzz/seeds/*.yaml (format 6.3's driver
 # forms: pieces, period, table, input), with the format's words in fuzz/mechanism.dict; the growing corpus lives in build-fuzz/corpus, crashes in
 # build-fuzz/artifacts.
@@ -17,7 +17,7 @@ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=
   -DKINEGEN_BUILD_FUZZ=ON >/dev/null
 cmake --build build-fuzz -j2 --target fuzz_mechanism
 mkdir -p build-fuzz/corpus build-fuzz/seeds build-fuzz/artifacts
-cp examples/*.yaml examples/forces/*.yaml tests/mechanisms/*.yaml build-fuzz/seeds/
+cp examples/*.yaml examples/*/*.yaml tests/mechanisms/*.yaml build-fuzz/seeds/
 cp tests/stability/*.yaml build-fuzz/seeds/ 2>/dev/null || true
 cp fuzz/seeds/*.yaml build-fuzz/seeds/
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=0}"
