@@ -333,6 +333,10 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
   const auto scaled = [&](double x, int col) {
     return length(col) ? std::abs(x) * (1 / scales[col]) : std::abs(x);
   };
+  // |output o| as an entry of Phi_q's column col, scaled: `_mag(x) * R(coordinate_scales[c])`.
+  const auto scaled_entry = [&](int col, int o) {
+    return length(col) ? std::abs(r.out(o)) * scales[col] : std::abs(r.out(o));
+  };
   Report report;
   const auto fail = [&](int status, int block, int iterations = 0) {
     return K::_fail(report, status, block, iterations);
@@ -372,9 +376,6 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
       // guarded_condition: the coefficient against its row's couplings, at the solved q.
       const BlockRates& bo = bp_.rates[bi];
       const int col = b.cols[0];
-      const auto scaled_entry = [&](int c, int o) {
-        return length(c) ? std::abs(r.out(o)) * scales[c] : std::abs(r.out(o));
-      };
       bool coupled = false;
       for (const auto& [c, o] : bo.coupling[0]) coupled |= r.node_of(o) != nullptr;
       if (coupled && r.node_of(bo.jbb[0])) {
@@ -477,9 +478,6 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
         const auto& coupling =
             bo.coupling[std::lower_bound(b.rows.begin(), b.rows.end(), own[i]) - b.rows.begin()];
         cm[i] = rmax[i];
-        const auto scaled_entry = [&](int col, int o) {
-          return length(col) ? std::abs(r.out(o)) * scales[col] : std::abs(r.out(o));
-        };
         for_row(bp_.torn_jacobian[bi], own[i], [&](int col, int o) {
           if (!r.node_of(o)) return;
           cm[i] = std::max(cm[i], scaled_entry(col, o));
