@@ -1380,29 +1380,32 @@ class BlockEmitter {
     }
   }
 
+  // |output o| as an entry of Phi_q's column col, in the column's units (lengths times their
+  // coordinate scale), for the condition checks.
+  std::string scaled_entry(FunctionPrinter& pr, int col, int o) {
+    return "_mag(" + pr.text(out(o)) + ")" +
+           (length_coordinate(col) ? " * R(" + ref("coordinate_scales", col) + ")" : "");
+  }
+
   // A guarded block's coefficient against its row's couplings to earlier blocks, at the solved
   // q: the block's condition within all of Phi_q (a coefficient that is small beside them is a
   // near-singular Phi_q although it is not zero). Recorded in the report's rcond.
   void guarded_condition(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi) {
     const BlockOuts& bo = blocks_[bi];
     const int c = st_.plans[bi].block.cols[0];
-    const auto scaled = [&](int col, int o) {
-      return "_mag(" + pr.text(out(o)) + ")" +
-             (length_coordinate(col) ? " * R(" + ref("coordinate_scales", col) + ")" : "");
-    };
     std::string m = "_own";
     bool coupled = false;
     for (const auto& [col, o] : bo.coupling[0]) {
       if (out(o) == Program::kZero) continue;
       pr.ensure(out(o), os, kIn);
-      m = "std::max(" + m + ", " + scaled(col, o) + ")";
+      m = "std::max(" + m + ", " + scaled_entry(pr, col, o) + ")";
       coupled = true;
     }
     if (!coupled || out(bo.jbb[0]) == Program::kZero) return;
     pr.ensure(out(bo.jbb[0]), os, kIn);
     const std::string b = block_id(bi);
     os << kIn << "{\n"
-       << kIn << "  const R _own = " << scaled(c, bo.jbb[0]) << ";\n"
+       << kIn << "  const R _own = " << scaled_entry(pr, c, bo.jbb[0]) << ";\n"
        << kIn << "  const R _rc = _own / " << m << ";\n"
        << kIn << "  if (!(_rc > o.min_rcond)) return _fail(report, 2, " << b << ");\n"
        << kIn << "  report.rcond = std::min(report.rcond, _rc);\n"
@@ -1492,16 +1495,13 @@ class BlockEmitter {
       for (const auto& [rc, o] : pos_tjac_[bi]) {
         if (rc.first != own[i] || out(o) == Program::kZero) continue;
         pr.ensure(out(o), os, kIn);
-        m = "std::max(" + m + ", _mag(" + pr.text(out(o)) + ")" +
-            (length_coordinate(rc.second) ? " * R(" + ref("coordinate_scales", rc.second) + ")" : "") +
-            ")";
+        m = "std::max(" + m + ", " + scaled_entry(pr, rc.second, o) + ")";
         coupled = true;
       }
       for (const auto& [c, o] : coupling) {
         if (out(o) == Program::kZero) continue;
         pr.ensure(out(o), os, kIn);
-        m = "std::max(" + m + ", _mag(" + pr.text(out(o)) + ")" +
-            (length_coordinate(c) ? " * R(" + ref("coordinate_scales", c) + ")" : "") + ")";
+        m = "std::max(" + m + ", " + scaled_entry(pr, c, o) + ")";
         coupled = true;
       }
       cm.push_back(m);
