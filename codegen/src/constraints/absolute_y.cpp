@@ -1,5 +1,5 @@
 // absolute_y: the global y of point s of a body is `value` (a driver: f(t)).
-#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
 
 namespace kinegen::codegen {
 
