@@ -8,6 +8,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -47,6 +48,10 @@ std::unique_ptr<kc::CompiledModel> load(const Common& c, kc::BuildOptions build 
 
 // The positional mechanism file, --param and --input, which every subcommand takes.
 void add_common(CLI::App* cmd, Common& c);
+
+// A progress bar on a terminal (stderr), for long runs; empty when stderr is not a terminal
+// or progress is off.
+std::function<void(int, int)> terminal_progress(const std::string& what);
 
 // The subcommands, one file each.
 int run_generate(const Common& c, const std::string& dir, const std::string& outputs,

@@ -1,9 +1,12 @@
-// kinegen: generate | analyze | animate | tolerance | eval | check. Exit status: 0 success, 1
-// the analysis (or a check) failed, 2 invalid input or usage. Every error is one `error:` line
-// on stderr. This file: the options of every subcommand, the dispatch, the error handling, and
-// the helpers the subcommands share (cli.hpp); each subcommand's run_* is its own file.
+// kinegen: generate | analyze | eval | check. Exit status: 0 success, 1 the analysis (or a
+// check) failed, 2 invalid input or usage. Every error is one `error:` line on stderr.
+// This file: every subcommand's options (animate and tolerance too), the dispatch, the errors,
+// and the helpers the subcommands share (cli.hpp); each subcommand's run_* is its own file.
 #include <CLI/CLI.hpp>
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <limits>
 
@@ -72,6 +75,20 @@ void add_common(CLI::App* cmd, Common& c) {
                   "An input driver's values (f: input): NAME=FILE.csv, columns t,value, "
                   "interpolated as a table (repeatable)")
       ->type_name("NAME=FILE");
+}
+
+// A progress bar on a terminal (stderr), for long runs.
+std::function<void(int, int)> terminal_progress(const std::string& what) {
+  if (!kc::Log::global().progress() || ::isatty(STDERR_FILENO) != 1) return {};
+  return [what](int done, int total) {
+    constexpr int kWidth = 40;
+    const int filled = static_cast<int>(static_cast<long long>(kWidth) * done / total);
+    std::fprintf(stderr, "\r\033[Kkinegen: %s [%s%s] %d/%d", what.c_str(),
+                 std::string(filled, '#').c_str(), std::string(kWidth - filled, ' ').c_str(), done,
+                 total);
+    if (done == total) std::fputs("\r\033[K", stderr);
+    std::fflush(stderr);
+  };
 }
 
 }  // namespace kinegen::cli

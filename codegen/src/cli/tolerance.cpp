@@ -2,10 +2,6 @@
 // tolerances, optionally with a Monte Carlo check.
 #include "kinegen/codegen/analysis/tolerance.hpp"
 
-#include <unistd.h>
-
-#include <cstdio>
-#include <functional>
 #include <string>
 #include <vector>
 
@@ -14,24 +10,6 @@
 #include "kinegen/codegen/io/output_file.hpp"
 
 namespace kinegen::cli {
-
-namespace {
-
-// A progress bar on a terminal (stderr), for long runs.
-std::function<void(int, int)> terminal_progress(const std::string& what) {
-  if (!kc::Log::global().progress() || ::isatty(STDERR_FILENO) != 1) return {};
-  return [what](int done, int total) {
-    constexpr int kWidth = 40;
-    const int filled = static_cast<int>(static_cast<long long>(kWidth) * done / total);
-    std::fprintf(stderr, "\r\033[Kkinegen: %s [%s%s] %d/%d", what.c_str(),
-                 std::string(filled, '#').c_str(), std::string(kWidth - filled, ' ').c_str(), done,
-                 total);
-    if (done == total) std::fputs("\r\033[K", stderr);
-    std::fflush(stderr);
-  };
-}
-
-}  // namespace
 
 int run_tolerance(const Common& c, kc::ToleranceOptions options,
                   const std::vector<std::string>& tol, const std::string& output) {
