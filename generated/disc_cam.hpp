@@ -213,7 +213,7 @@ struct disc_cam {
   template <class T>
   static void gamma([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
-    // out[nc]; 72 operations
+    // out[nc]; 64 operations
     using std::cos, std::sin;
     // Intermediate terms (17)
     const T _t0 = T(1)/T(p.b1);
@@ -224,22 +224,22 @@ struct disc_cam {
     const T _t5 = cos(q[6]);
     const T _t6 = sin(q[2]);
     const T _t7 = -_t4*_t5*_t6;
-    const T _t8 = cos(q[2]);
-    const T _t9 = sin(q[6]);
-    const T _t10 = _t4*_t8*_t9;
-    const T _t11 = _t0*_motion_law(0, 1, _t1) - _t2*_motion_law(0, 1, _t3);
-    const T _t12 = _t7 + _t11*_t8*_t5*T(p.h) + _t11*T(p.h)*_t6*_t9 + _t10;
-    const T _t13 = _motion_law(0, 2, _t1)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t3)/(T(p.b2)*T(p.b2));
-    const T _t14 = -_t4*_t8*_t5;
-    const T _t15 = -_t4*_t6*_t9;
-    const T _t16 = _t14 - _t11*_t5*T(p.h)*_t6 + _t15 + _t11*_t8*T(p.h)*_t9;
+    const T _t8 = _t0*_motion_law(0, 1, _t1) - _t2*_motion_law(0, 1, _t3);
+    const T _t9 = cos(q[2]);
+    const T _t10 = sin(q[6]);
+    const T _t11 = _t4*_t9*_t10;
+    const T _t12 = _motion_law(0, 2, _t1)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t3)/(T(p.b2)*T(p.b2));
+    const T _t13 = qd[6]*qd[6];
+    const T _t14 = qd[2]*qd[2];
+    const T _t15 = -_t4*_t9*_t5;
+    const T _t16 = -_t4*_t6*_t10;
 
     out[0] = T(0);
     out[1] = T(0);
     out[2] = T(0);
     out[3] = T(0);
-    out[4] = ((_t7 - _t13*_t5*T(p.h)*_t6 + _t13*_t8*T(p.h)*_t9 + _t10 + T(2)*_t11*_t8*_t5*T(p.h) + T(2)*_t11*T(p.h)*_t6*_t9)*qd[6] - _t12*qd[2])*qd[6] - (_t12*qd[6] - (_t7 + _t10)*qd[2])*qd[2];
-    out[5] = (_t16*qd[2] - (-_t13*_t8*_t5*T(p.h) - _t13*T(p.h)*_t6*_t9 + _t14 + _t15 - T(2)*_t11*_t5*T(p.h)*_t6 + T(2)*_t11*_t8*T(p.h)*_t9)*qd[6])*qd[6] + (_t16*qd[6] + (_t4*_t8*_t5 + _t4*_t6*_t9)*qd[2])*qd[2];
+    out[4] = (_t7 - _t12*_t5*T(p.h)*_t6 + _t12*_t9*T(p.h)*_t10 + _t11 + T(2)*_t8*_t9*_t5*T(p.h) + T(2)*_t8*T(p.h)*_t6*_t10)*_t13 - T(2)*(_t7 + _t8*_t9*_t5*T(p.h) + _t8*T(p.h)*_t6*_t10 + _t11)*qd[2]*qd[6] + (_t7 + _t11)*_t14;
+    out[5] = (_t4*_t9*_t5 + _t4*_t6*_t10)*_t14 - (-_t12*_t9*_t5*T(p.h) - _t12*T(p.h)*_t6*_t10 + _t15 + _t16 - T(2)*_t8*_t5*T(p.h)*_t6 + T(2)*_t8*_t9*T(p.h)*_t10)*_t13 + T(2)*(_t15 - _t8*_t5*T(p.h)*_t6 + _t16 + _t8*_t9*T(p.h)*_t10)*qd[2]*qd[6];
     out[6] = T(0);
   }
 
@@ -1070,14 +1070,14 @@ struct disc_cam {
     qdd[2] = T(0);
     const T _t13 = -_t9*_t7*_t8;
     const T _t14 = _t9*_t5*_t6;
-    const T _t15 = _t13 + _t14;
-    const T _t16 = _t13 + _t4*_t5*_t7*T(p.h) + _t4*T(p.h)*_t8*_t6 + _t14;
-    const T _t17 = _motion_law(0, 2, _t3)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t1)/(T(p.b2)*T(p.b2));
-    const T _t18 = -_t9*_t5*_t7;
-    const T _t19 = -_t9*_t8*_t6;
-    qdd[6] = (((_t13 - _t17*_t7*T(p.h)*_t8 + _t17*_t5*T(p.h)*_t6 + _t14 + T(2)*_t4*_t5*_t7*T(p.h) + T(2)*_t4*T(p.h)*_t8*_t6)*qd[6] - _t16*qd[2])*qd[6] - (_t16*qd[6] - _t15*qd[2])*qd[2] + qdd[0] - (_t18 + _t19)*qdd[2] - qdd[3]) / _a5;
-    const T _t20 = _t18 - _t4*_t7*T(p.h)*_t8 + _t19 + _t4*_t5*T(p.h)*_t6;
-    qdd[4] = (_t20*qd[2] - (-_t17*_t5*_t7*T(p.h) - _t17*T(p.h)*_t8*_t6 + _t18 + _t19 - T(2)*_t4*_t7*T(p.h)*_t8 + T(2)*_t4*_t5*T(p.h)*_t6)*qd[6])*qd[6] + (_t20*qd[6] + (_t10 + _t11)*qd[2])*qd[2] + qdd[1] - _t15*qdd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qdd[6];
+    const T _t15 = _motion_law(0, 2, _t3)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t1)/(T(p.b2)*T(p.b2));
+    const T _t16 = qd[6]*qd[6];
+    const T _t17 = _t13 + _t14;
+    const T _t18 = qd[2]*qd[2];
+    const T _t19 = -_t9*_t5*_t7;
+    const T _t20 = -_t9*_t8*_t6;
+    qdd[6] = ((_t13 - _t15*_t7*T(p.h)*_t8 + _t15*_t5*T(p.h)*_t6 + _t14 + T(2)*_t4*_t5*_t7*T(p.h) + T(2)*_t4*T(p.h)*_t8*_t6)*_t16 - T(2)*(_t13 + _t4*_t5*_t7*T(p.h) + _t4*T(p.h)*_t8*_t6 + _t14)*qd[2]*qd[6] + _t17*_t18 + qdd[0] - (_t19 + _t20)*qdd[2] - qdd[3]) / _a5;
+    qdd[4] = (_t10 + _t11)*_t18 - (-_t15*_t5*_t7*T(p.h) - _t15*T(p.h)*_t8*_t6 + _t19 + _t20 - T(2)*_t4*_t7*T(p.h)*_t8 + T(2)*_t4*_t5*T(p.h)*_t6)*_t16 + T(2)*(_t19 - _t4*_t7*T(p.h)*_t8 + _t20 + _t4*_t5*T(p.h)*_t6)*qd[2]*qd[6] + qdd[1] - _t17*qdd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qdd[6];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }
@@ -1132,11 +1132,11 @@ struct disc_cam {
     qdd[3] = (T(0)) / T(-1);
     qdd[5] = T(0);
     qdd[2] = T(0);
-    const T _t18 = _t15 + _t4*_t5*_t7*T(p.h) + _t4*T(p.h)*_t8*_t6 + _t16;
-    const T _t19 = _motion_law(0, 2, _t3)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t1)/(T(p.b2)*T(p.b2));
-    qdd[6] = (((_t15 - _t19*_t7*T(p.h)*_t8 + _t19*_t5*T(p.h)*_t6 + _t16 + T(2)*_t4*_t5*_t7*T(p.h) + T(2)*_t4*T(p.h)*_t8*_t6)*qd[6] - _t18*qd[2])*qd[6] - (_t18*qd[6] - _t17*qd[2])*qd[2] + qdd[0] - (_t13 + _t14)*qdd[2] - qdd[3]) / _a5;
-    const T _t20 = _t13 - _t4*_t7*T(p.h)*_t8 + _t14 + _t4*_t5*T(p.h)*_t6;
-    qdd[4] = (_t20*qd[2] - (-_t19*_t5*_t7*T(p.h) - _t19*T(p.h)*_t8*_t6 + _t13 + _t14 - T(2)*_t4*_t7*T(p.h)*_t8 + T(2)*_t4*_t5*T(p.h)*_t6)*qd[6])*qd[6] + (_t20*qd[6] + (_t10 + _t11)*qd[2])*qd[2] + qdd[1] - _t17*qdd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qdd[6];
+    const T _t18 = _motion_law(0, 2, _t3)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t1)/(T(p.b2)*T(p.b2));
+    const T _t19 = qd[6]*qd[6];
+    const T _t20 = qd[2]*qd[2];
+    qdd[6] = ((_t15 - _t18*_t7*T(p.h)*_t8 + _t18*_t5*T(p.h)*_t6 + _t16 + T(2)*_t4*_t5*_t7*T(p.h) + T(2)*_t4*T(p.h)*_t8*_t6)*_t19 - T(2)*(_t15 + _t4*_t5*_t7*T(p.h) + _t4*T(p.h)*_t8*_t6 + _t16)*qd[2]*qd[6] + _t17*_t20 + qdd[0] - (_t13 + _t14)*qdd[2] - qdd[3]) / _a5;
+    qdd[4] = (_t10 + _t11)*_t20 - (-_t18*_t5*_t7*T(p.h) - _t18*T(p.h)*_t8*_t6 + _t13 + _t14 - T(2)*_t4*_t7*T(p.h)*_t8 + T(2)*_t4*_t5*T(p.h)*_t6)*_t19 + T(2)*(_t13 - _t4*_t7*T(p.h)*_t8 + _t14 + _t4*_t5*T(p.h)*_t6)*qd[2]*qd[6] + qdd[1] - _t17*qdd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qdd[6];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }
@@ -1252,11 +1252,11 @@ struct disc_cam {
     qdd[3] = (T(0)) / T(-1);
     qdd[5] = T(0);
     qdd[2] = T(0);
-    const T _t23 = _t14 + _t18*_cos2*_cos6*T(p.h) + _t18*T(p.h)*_sin2*_sin6 + _t15;
-    const T _t24 = _motion_law(0, 2, _t11)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t12)/(T(p.b2)*T(p.b2));
-    qdd[6] = (((_t14 - _t24*_cos6*T(p.h)*_sin2 + _t24*_cos2*T(p.h)*_sin6 + _t15 + T(2)*_t18*_cos2*_cos6*T(p.h) + T(2)*_t18*T(p.h)*_sin2*_sin6)*qd[6] - _t23*qd[2])*qd[6] - (_t23*qd[6] - _t22*qd[2])*qd[2] + qdd[0] - (_t16 + _t17)*qdd[2] - qdd[3]) / _a5;
-    const T _t25 = _t16 - _t18*_cos6*T(p.h)*_sin2 + _t17 + _t18*_cos2*T(p.h)*_sin6;
-    qdd[4] = (_t25*qd[2] - (-_t24*_cos2*_cos6*T(p.h) - _t24*T(p.h)*_sin2*_sin6 + _t16 + _t17 - T(2)*_t18*_cos6*T(p.h)*_sin2 + T(2)*_t18*_cos2*T(p.h)*_sin6)*qd[6])*qd[6] + (_t25*qd[6] + (_t19 + _t20)*qd[2])*qd[2] + qdd[1] - _t22*qdd[2] - (-_t18*_cos2*_cos6*T(p.h) - _t18*T(p.h)*_sin2*_sin6 - _t13*_cos2*_sin6 + _t13*_cos6*_sin2)*qdd[6];
+    const T _t23 = _motion_law(0, 2, _t11)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t12)/(T(p.b2)*T(p.b2));
+    const T _t24 = qd[6]*qd[6];
+    const T _t25 = qd[2]*qd[2];
+    qdd[6] = ((_t14 - _t23*_cos6*T(p.h)*_sin2 + _t23*_cos2*T(p.h)*_sin6 + _t15 + T(2)*_t18*_cos2*_cos6*T(p.h) + T(2)*_t18*T(p.h)*_sin2*_sin6)*_t24 - T(2)*(_t14 + _t18*_cos2*_cos6*T(p.h) + _t18*T(p.h)*_sin2*_sin6 + _t15)*qd[2]*qd[6] + _t22*_t25 + qdd[0] - (_t16 + _t17)*qdd[2] - qdd[3]) / _a5;
+    qdd[4] = (_t19 + _t20)*_t25 - (-_t23*_cos2*_cos6*T(p.h) - _t23*T(p.h)*_sin2*_sin6 + _t16 + _t17 - T(2)*_t18*_cos6*T(p.h)*_sin2 + T(2)*_t18*_cos2*T(p.h)*_sin6)*_t24 + T(2)*(_t16 - _t18*_cos6*T(p.h)*_sin2 + _t17 + _t18*_cos2*T(p.h)*_sin6)*qd[2]*qd[6] + qdd[1] - _t22*qdd[2] - (-_t18*_cos2*_cos6*T(p.h) - _t18*T(p.h)*_sin2*_sin6 - _t13*_cos2*_sin6 + _t13*_cos6*_sin2)*qdd[6];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }

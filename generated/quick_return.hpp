@@ -113,7 +113,7 @@ struct quick_return {
   template <class T>
   static void gamma([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
-    // out[nc]; 26 operations
+    // out[nc]; 21 operations
     using std::cos, std::sin;
     // Intermediate terms (3)
     const T _t0 = qd[2]*qd[2];
@@ -126,7 +126,7 @@ struct quick_return {
     out[3] = T(0);
     out[4] = -_t0*cos(q[2])*T(p.r);
     out[5] = -_t0*T(p.r)*sin(q[2]);
-    out[6] = -_t1*qd[3]*qd[5] - _t2*qd[4]*qd[5] + (-_t1*qd[3] - _t2*qd[4] + ((q[3] - q[6])*_t2 - (q[4] - q[7])*_t1)*qd[5] + _t1*qd[6] + _t2*qd[7])*qd[5] + _t1*qd[5]*qd[6] + _t2*qd[5]*qd[7];
+    out[6] = -T(2)*_t1*qd[3]*qd[5] - T(2)*_t2*qd[4]*qd[5] + ((q[3] - q[6])*_t2 - (q[4] - q[7])*_t1)*(qd[5]*qd[5]) + T(2)*_t1*qd[5]*qd[6] + T(2)*_t2*qd[5]*qd[7];
     out[7] = T(0);
     out[8] = T(0);
   }
@@ -901,7 +901,7 @@ struct quick_return {
     qdd[6] = -_t5*_t6*T(p.r) + qdd[0] - _t8*qdd[2];
     qdd[7] = -_t5*T(p.r)*_t7 + qdd[1] - (-_t6*T(p.r))*qdd[2];
     const T _t9 = _t0*_t3 - _t2*_t1;
-    qdd[5] = (-_t1*qd[3]*qd[5] - _t3*qd[4]*qd[5] + (-_t1*qd[3] - _t3*qd[4] + _t9*qd[5] + _t1*qd[6] + _t3*qd[7])*qd[5] + _t1*qd[5]*qd[6] + _t3*qd[5]*qd[7] - _t3*qdd[3] - (-_t1)*qdd[4] - (-_t3)*qdd[6] - _t1*qdd[7]) / _a7;
+    qdd[5] = (-T(2)*_t1*qd[3]*qd[5] - T(2)*_t3*qd[4]*qd[5] + _t9*(qd[5]*qd[5]) + T(2)*_t1*qd[5]*qd[6] + T(2)*_t3*qd[5]*qd[7] - _t3*qdd[3] - (-_t1)*qdd[4] - (-_t3)*qdd[6] - _t1*qdd[7]) / _a7;
     qdd[8] = qdd[5];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
@@ -955,7 +955,7 @@ struct quick_return {
     qdd[6] = -_t8*_t2*T(p.r) + qdd[0] - _t1*qdd[2];
     qdd[7] = -_t8*T(p.r)*_t0 + qdd[1] - (-_t2*T(p.r))*qdd[2];
     const T _t9 = _t3*_t6 - _t5*_t4;
-    qdd[5] = (-_t4*qd[3]*qd[5] - _t6*qd[4]*qd[5] + (-_t4*qd[3] - _t6*qd[4] + _t9*qd[5] + _t4*qd[6] + _t6*qd[7])*qd[5] + _t4*qd[5]*qd[6] + _t6*qd[5]*qd[7] - _t6*qdd[3] - (-_t4)*qdd[4] - (-_t6)*qdd[6] - _t4*qdd[7]) / _a7;
+    qdd[5] = (-T(2)*_t4*qd[3]*qd[5] - T(2)*_t6*qd[4]*qd[5] + _t9*(qd[5]*qd[5]) + T(2)*_t4*qd[5]*qd[6] + T(2)*_t6*qd[5]*qd[7] - _t6*qdd[3] - (-_t4)*qdd[4] - (-_t6)*qdd[6] - _t4*qdd[7]) / _a7;
     qdd[8] = qdd[5];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
@@ -1067,7 +1067,7 @@ struct quick_return {
     const T _t7 = qd[2]*qd[2];
     qdd[6] = -_t7*_cos2*T(p.r) + qdd[0] - _t0*qdd[2];
     qdd[7] = -_t7*T(p.r)*_sin2 + qdd[1] - (-_cos2*T(p.r))*qdd[2];
-    qdd[5] = (-_cos5*qd[3]*qd[5] - _sin5*qd[4]*qd[5] + (-_cos5*qd[3] - _sin5*qd[4] + _t5*qd[5] + _cos5*qd[6] + _sin5*qd[7])*qd[5] + _cos5*qd[5]*qd[6] + _sin5*qd[5]*qd[7] - _sin5*qdd[3] - (-_cos5)*qdd[4] - (-_sin5)*qdd[6] - _cos5*qdd[7]) / _a7;
+    qdd[5] = (-T(2)*_cos5*qd[3]*qd[5] - T(2)*_sin5*qd[4]*qd[5] + _t5*(qd[5]*qd[5]) + T(2)*_cos5*qd[5]*qd[6] + T(2)*_sin5*qd[5]*qd[7] - _sin5*qdd[3] - (-_cos5)*qdd[4] - (-_sin5)*qdd[6] - _cos5*qdd[7]) / _a7;
     qdd[8] = qdd[5];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
