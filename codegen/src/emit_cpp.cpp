@@ -1180,9 +1180,9 @@ class BlockEmitter {
       const int f = pos_first_[bi], m = static_cast<int>(plan.tears.size());
       const BlockOuts& bo = blocks_[bi];
       const auto& rows = plan.block.rows;
-      // A position part assigns its coordinates (one store each) and, except in the last pass, their
-      // m sensitivities; a rates part computes the sensitivities again, or the qd or qdd of its
-      // coordinates (a store each and one more for the correction by the tears).
+      // A position part assigns its coordinates (one store each) and, except in the last pass,
+      // their m sensitivities; a rates part computes the sensitivities again, or the qd or qdd
+      // of its coordinates (a store each and one more for the correction by the tears).
       tp.position = partition(prog_, max_ops, static_cast<int>(plan.assigned.size()), [&](int a) {
         PartCost c{{out(f + a)}, 0, 1 + m};
         for (const auto& [rc, o] : row_entries(pos_tjac_[bi], plan.assigned[a].first))
