@@ -26,6 +26,7 @@
 #include "kinegen/codegen/log.hpp"
 #include "kinegen/codegen/model.hpp"
 #include "kinegen/codegen/sensitivity.hpp"
+#include "kinegen/codegen/table.hpp"
 
 namespace py = pybind11;
 namespace kc = kinegen::codegen;
@@ -98,9 +99,15 @@ py::array_t<double> to_numpy(const Eigen::VectorXd& v) {
 
 class Mechanism {
  public:
-  Mechanism(std::string path, py::dict params) : path_(std::move(path)) {
+  // inputs: an input driver's table (`--input NAME=FILE.csv`) by its name. As on the command
+  // line, eval, check and generate take a missing input as 0 (a default Params), and analyze
+  // needs every one.
+  Mechanism(std::string path, py::dict params, py::dict inputs) : path_(std::move(path)) {
     overrides_ = overrides_of(params);
-    model_ = translate(path_, [&] { return kc::CompiledModel::from_file(path_, overrides_); });
+    for (const auto& [name, file] : inputs)
+      build_.inputs.emplace_back(py::str(name), py::str(file));
+    model_ = translate(path_,
+                       [&] { return kc::CompiledModel::from_file(path_, overrides_, build_); });
   }
 
   // Column name -> numpy array, in the CSV's column order (a dict keeps insertion order).
@@ -114,6 +121,11 @@ class Mechanism {
       std::unique_ptr<kc::CompiledModel> base;
       const kc::CompiledModel* m = model_.get();
       kc::require_driven(*m);
+      // An input driver left without its table is the command line's usage error.
+      {
+        kc::Mechanism copy = m->mechanism();
+        kc::apply_inputs(copy, {}, true);
+      }
       // The checks main.cpp's run_analyze makes before solving.
       if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
       if (!std::isfinite(t0) || !std::isfinite(t1))
@@ -197,6 +209,13 @@ class Mechanism {
       out["phi_q"] = j;
       out["nu"] = to_numpy(nu);
       out["gamma"] = to_numpy(gamma);
+      // Outputs' values (format 6.4), as `kinegen eval` adds them.
+      if (const int n = model_->programs().num_outputs; n > 0) {
+        Eigen::VectorXd values(n);
+        kc::ProgramEvaluator<double> program(model_->programs().outputs);
+        program.run(q.data(), nullptr, t, model_->params().data(), values.data());
+        out["outputs"] = to_numpy(values);
+      }
       return out;
     });
   }
@@ -240,6 +259,7 @@ class Mechanism {
       if (fold_params) {
         kc::BuildOptions build;
         build.fold_params = true;
+        build.inputs = build_.inputs;
         folded = kc::CompiledModel::from_file(path_, overrides_, build);
       }
       const kc::CompiledModel& m = folded ? *folded : *model_;
@@ -269,10 +289,13 @@ class Mechanism {
     });
   }
 
+  // Every coordinate, the bodies' x, y, phi and then the extra ones (format 6.1), as the
+  // CSV's position columns name them.
   std::vector<std::string> coordinates() const {
     std::vector<std::string> names;
     for (const auto& b : model_->mechanism().bodies)
       for (const char* c : {".x", ".y", ".phi"}) names.push_back(b.name + c);
+    for (const auto& c : model_->mechanism().coordinates) names.push_back(c.name);
     return names;
   }
 
@@ -290,6 +313,7 @@ class Mechanism {
  private:
   std::string path_;
   std::vector<kc::ParamOverride> overrides_;
+  kc::BuildOptions build_;
   std::unique_ptr<kc::CompiledModel> model_;
 };
 
@@ -323,9 +347,11 @@ PYBIND11_MODULE(kinegen, m) {
   m.attr("AnalysisError") = analysis_error;
 
   py::class_<Mechanism>(m, "Mechanism")
-      .def(py::init<std::string, py::dict>(), py::arg("path"), py::arg("params") = py::dict(),
+      .def(py::init<std::string, py::dict, py::dict>(), py::arg("path"),
+           py::arg("params") = py::dict(), py::arg("inputs") = py::dict(),
            "Reads and compiles a mechanism file; params overrides parameters like --param "
-           "(numbers or expression strings).")
+           "(numbers or expression strings), inputs gives input drivers their tables like "
+           "--input (name: CSV path).")
       .def("analyze", &Mechanism::analyze, py::arg("t0"), py::arg("t1"), py::arg("steps"),
            py::arg("forces") = false, py::arg("sensitivity") = std::vector<std::string>{},
            "Position, velocity and acceleration at t_k = t0 + k (t1 - t0) / steps: a dict from "

@@ -181,15 +181,17 @@ class FunctionPrinter {
 
   // A sum's term: returns the sign it should be joined with and the text of its magnitude.
   std::pair<bool, Printed> signed_term(int id) {
-    const Node& n = p_.nodes[id];
-    if (names_[id].empty() && n.kind == OpKind::kMul && !n.args.empty()) {
-      const Node& c = p_.nodes[n.args[0]];
-      if (c.kind == OpKind::kConst && GiNaC::is_a<GiNaC::numeric>(c.exact) &&
-          GiNaC::ex_to<GiNaC::numeric>(c.exact).is_negative()) {
-        return {true, product(n, /*negate_coefficient=*/true)};
-      }
-    }
+    if (negative_term(id)) return {true, product(p_.nodes[id], /*negate_coefficient=*/true)};
     return {false, print(id)};
+  }
+  // Whether a sum's term is printed as a subtraction: an unnamed product with a negative
+  // coefficient.
+  bool negative_term(int id) const {
+    const Node& n = p_.nodes[id];
+    if (!names_[id].empty() || n.kind != OpKind::kMul || n.args.empty()) return false;
+    const Node& c = p_.nodes[n.args[0]];
+    return c.kind == OpKind::kConst && GiNaC::is_a<GiNaC::numeric>(c.exact) &&
+           GiNaC::ex_to<GiNaC::numeric>(c.exact).is_negative();
   }
 
   Printed product(const Node& n, bool negate_coefficient) {
@@ -236,9 +238,15 @@ class FunctionPrinter {
       case OpKind::kConst: return constant(n);
       case OpKind::kInput: return input(n);
       case OpKind::kAdd: {
+        // `q[3] - q[6]`, not `-q[6] + q[3]`: a negative first term swaps with a positive
+        // second, which leaves every rounding as it was (a + b == b + a, and the rest of the
+        // sum still adds to their sum).
+        std::vector<int> args = n.args;
+        if (args.size() >= 2 && negative_term(args[0]) && !negative_term(args[1]))
+          std::swap(args[0], args[1]);
         std::string s;
-        for (std::size_t a = 0; a < n.args.size(); ++a) {
-          auto [negative, term] = signed_term(n.args[a]);
+        for (std::size_t a = 0; a < args.size(); ++a) {
+          auto [negative, term] = signed_term(args[a]);
           const std::string text = term.prec <= kSum ? "(" + term.text + ")" : term.text;
           if (a == 0)
             s = negative ? "-" + (term.prec < kProduct ? "(" + term.text + ")" : term.text) : text;

@@ -1192,16 +1192,24 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
   }
   row_begin[nc] = model.phi_q.size();
 
-  // nu = -Phi_t. gamma = -(w_q qd + 2 w_t + Phi_tt), w = Phi_q qd, with w_q qd = sum_k dw/dq_k qd_k.
+  // nu = -Phi_t. gamma = -((Phi_q qd)_q qd + 2 Phi_qt qd + Phi_tt), collected on the products
+  // of velocities as a hand derivation writes it: the coefficient of qd_i qd_k is
+  // Phi_{q_i q_k} (i = k) or 2 Phi_{q_i q_k} (i < k, the symmetric pair at once).
   for (int r = 0; r < nc; ++r) {
     const ex phi_t = diff(model.phi[r], s.t(), r);
     model.nu.push_back(-phi_t);
-    ex w = 0;
-    for (std::size_t e = row_begin[r]; e < row_begin[r + 1]; ++e)
-      w += model.phi_q[e].value * s.qd(model.phi_q[e].col);
-    ex w_q_qd = 0;
-    for (int k : row_coords[r]) w_q_qd += diff(w, s.q(k), r) * s.qd(k);
-    model.gamma.push_back(-(w_q_qd + 2 * diff(w, s.t(), r) + diff(phi_t, s.t(), r)));
+    ex quadratic = 0, mixed = 0;
+    for (std::size_t e = row_begin[r]; e < row_begin[r + 1]; ++e) {
+      const int i = model.phi_q[e].col;
+      const ex& entry = model.phi_q[e].value;
+      for (int k : row_coords[r]) {
+        if (k < i) continue;
+        const ex d = diff(entry, s.q(k), r);
+        if (!d.is_zero()) quadratic += (k == i ? d : 2 * d) * s.qd(i) * s.qd(k);
+      }
+      mixed += diff(entry, s.t(), r) * s.qd(i);
+    }
+    model.gamma.push_back(-(quadratic + 2 * mixed + diff(phi_t, s.t(), r)));
   }
 
   for (const auto& b : m.bodies) {
