@@ -1,6 +1,6 @@
 // The Python module `kinegen`: a mechanism file compiled in-process, with the command line's
 // analyses. Every number comes from the same library calls as `kinegen analyze` / `eval` /
-// `check` / `generate` (analysis.hpp, model.hpp, check.hpp, emit_cpp.hpp), and analyze's
+// `check` / `generate` (analysis.hpp, compiled_model.hpp, check.hpp, emit_cpp.hpp), and analyze's
 // columns are parsed back from the same csv_row text, so the results equal the CSV's bit for
 // bit (17 significant digits round-trip a double) and follow its column order by construction.
 // Errors raise kinegen.InputError (exit 2 on the command line), kinegen.UsageError (2) or
@@ -19,14 +19,14 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/forces.hpp"
-#include "kinegen/codegen/check.hpp"
-#include "kinegen/codegen/emit_cpp.hpp"
-#include "kinegen/codegen/log.hpp"
-#include "kinegen/codegen/model.hpp"
-#include "kinegen/codegen/sensitivity.hpp"
-#include "kinegen/codegen/table.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/check.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/sensitivity.hpp"
+#include "kinegen/codegen/base/log.hpp"
+#include "kinegen/codegen/emit/emit_cpp.hpp"
+#include "kinegen/codegen/model/table.hpp"
 
 namespace py = pybind11;
 namespace kc = kinegen::codegen;
@@ -45,7 +45,7 @@ std::string one_line(std::string text) {
 py::handle input_error, usage_error, analysis_error;
 
 // Runs `f`, turning the library's errors into the Python exceptions with the command line's
-// message (main.cpp: usage errors found after reading a file are prefixed with it).
+// message (cli/main.cpp: usage errors found after reading a file are prefixed with it).
 template <class F>
 auto translate(const std::string& file, F&& f) -> decltype(f()) {
   std::string message;
@@ -126,7 +126,7 @@ class Mechanism {
         kc::Mechanism copy = m->mechanism();
         kc::apply_inputs(copy, {}, true);
       }
-      // The checks main.cpp's run_analyze makes before solving.
+      // The checks cli/analyze.cpp makes before solving.
       if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
       if (!std::isfinite(t0) || !std::isfinite(t1))
         throw kc::UsageError("--t0 and --t1 must be finite");

@@ -1,6 +1,6 @@
 // absolute_x and absolute_y: the global x (y) of point s of a body is `value` (a driver: f(t)).
 // One file for the pair: they differ only in the axis.
-#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
 
 namespace kinegen::codegen {
 
