@@ -6,6 +6,7 @@
 #include <array>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -18,6 +19,10 @@
 #include "all_types_split.hpp"
 #include "closed_chain_4.hpp"
 #include "closed_chain_4_split.hpp"
+#ifdef KINEGEN_TORN_SPLIT
+#include "closed_chain_10.hpp"
+#include "closed_chain_10_torn.hpp"
+#endif
 #include "fourbar_chain_3.hpp"
 #include "fourbar_chain_3_rolled.hpp"
 #include "fourbar_chain_3_rolled_split.hpp"
@@ -216,4 +221,93 @@ TEST_CASE("a part stores at most max_function_ops / 5 outputs", "[split]") {
                             std::regex(R"(// out\[jac_nnz\]; (\d+) operations in (\d+) parts)")));
   CHECK(std::stoi(m[1]) <= 50);  // split for its outputs, not its operations
   CHECK(std::stoi(m[2]) == 6);   // 51 outputs in parts of at most 10
+}
+
+namespace {
+
+template <std::size_t N>
+bool same_bits(const std::array<double, N>& a, const std::array<double, N>& b) {
+  return std::memcmp(a.data(), b.data(), sizeof(double) * N) == 0;
+}
+
+// The parts of torn block `block` in a header: the number of its position parts.
+int torn_position_parts(const std::string& text, int block) {
+  const std::regex part("static void _torn" + std::to_string(block) + R"(_position_part\d+\()");
+  return static_cast<int>(
+      std::distance(std::sregex_iterator(text.begin(), text.end(), part), std::sregex_iterator()));
+}
+
+// A torn block split into parts computes the same doubles as the whole block: the parts
+// evaluate the same expression trees on the same values (sin and cos of the block's coordinates
+// pass between them in _sc), so over a full turn of the crank every solve agrees bit for bit.
+template <class Whole, class Split>
+void compare_bits(const std::string& name, int min_parts) {
+  static_assert(Whole::nq == Split::nq && Whole::num_blocks == Split::num_blocks);
+  constexpr int nq = Whole::nq;
+  INFO(name);
+  const std::string split_text = read_text(std::string(KINEGEN_SPLIT_DIR) + "/" + name + ".hpp");
+  int torn = -1;
+  for (int b = 0; b < Split::num_blocks && torn < 0; ++b)
+    if (torn_position_parts(split_text, b) > 0) torn = b;
+  REQUIRE(torn >= 0);
+  CHECK(torn_position_parts(split_text, torn) >= min_parts);
+  CHECK(split_text.find("_torn" + std::to_string(torn) + "_sensitivities_part1(") !=
+        std::string::npos);
+  CHECK(split_text.find("_torn" + std::to_string(torn) + "_qdd_part1(") != std::string::npos);
+
+  const typename Whole::Params pw{};
+  const typename Split::Params ps{};
+  const typename Whole::BlockOptions ow{};
+  const typename Split::BlockOptions os{};
+  for (const bool cache : {false, true}) {
+    INFO("trig cache " << cache);
+    std::array<double, nq> qa{}, qb{}, va{}, vb{}, aa{}, ab{};
+    for (int k = 0; k < nq; ++k) qa[k] = qb[k] = Whole::q0[k];
+    std::array<double, Whole::trig_cache_size> ta{};
+    std::array<double, Split::trig_cache_size> tb{};
+    ta.fill(std::nan(""));
+    tb.fill(std::nan(""));
+    signed char sa[Whole::num_blocks] = {}, sb[Split::num_blocks] = {};
+    for (int step = 0; step <= 126; ++step) {  // t from 0 to 6.3 > 2 pi: a full turn
+      const double t = 0.05 * step;
+      INFO("t = " << t);
+      const auto rw = Whole::solve_step(qa.data(), t, pw, va.data(), aa.data(), ow,
+                                        cache ? ta.data() : nullptr, sa);
+      const auto rs = Split::solve_step(qb.data(), t, ps, vb.data(), ab.data(), os,
+                                        cache ? tb.data() : nullptr, sb);
+      check_reports(rw, rs);
+      REQUIRE(rw.status == 0);
+      CHECK(rw.residual == rs.residual);
+      CHECK(rw.rcond == rs.rcond);
+      REQUIRE(same_bits(qa, qb));
+      REQUIRE(same_bits(va, vb));
+      REQUIRE(same_bits(aa, ab));
+      // The public functions alone, from the step's solution (a start one step behind).
+      std::array<double, nq> pa = qa, pb = qb, xa{}, xb{}, ya{}, yb{};
+      for (int k = 0; k < nq; ++k) pa[k] = pb[k] = qa[k] - 0.05 * va[k];
+      check_reports(Whole::solve_position(pa.data(), t, pw, ow),
+                    Split::solve_position(pb.data(), t, ps, os));
+      REQUIRE(same_bits(pa, pb));
+      check_reports(Whole::solve_velocity_acceleration(qa.data(), t, pw, xa.data(), ya.data(), ow),
+                    Split::solve_velocity_acceleration(qa.data(), t, ps, xb.data(), yb.data(), os));
+      REQUIRE(same_bits(xa, xb));
+      REQUIRE(same_bits(ya, yb));
+      check_reports(Whole::solve_velocity(qa.data(), t, pw, xa.data(), ow),
+                    Split::solve_velocity(qa.data(), t, ps, xb.data(), os));
+      REQUIRE(same_bits(xa, xb));
+      check_reports(Whole::solve_acceleration(qa.data(), xa.data(), t, pw, ya.data(), ow),
+                    Split::solve_acceleration(qa.data(), xa.data(), t, ps, yb.data(), os));
+      REQUIRE(same_bits(ya, yb));
+    }
+  }
+}
+
+}  // namespace
+
+TEST_CASE("a torn block in parts computes the whole block's doubles", "[split][torn]") {
+  // closed_chain_4_split (--max-function-ops 8): one assigned coordinate per part.
+  compare_bits<closed_chain_4, closed_chain_4_split>("closed_chain_4_split", 3);
+#ifdef KINEGEN_TORN_SPLIT
+  compare_bits<closed_chain_10, closed_chain_10_torn>("closed_chain_10_torn", 3);
+#endif
 }

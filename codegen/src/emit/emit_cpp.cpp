@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <set>
@@ -15,6 +16,7 @@
 #include "kinegen/codegen/emit/embedded_kernels.hpp"
 #include "kinegen/codegen/emit/reserved_names.hpp"
 #include "kinegen/codegen/model/table.hpp"
+#include "kinegen/codegen/program/partition.hpp"
 #include "kinegen/codegen/structure/block_program.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
 
@@ -337,29 +339,23 @@ struct ProgramPart {
   Program program;
 };
 
-// At most max_ops / kOpsPerStore outputs per part. g++ -O2 checks each store to `out` against
-// the earlier stores of its function (value numbering looks for a redundant store, up to 1000
-// alias queries each), so the time per part grows with the square of its stores: a Jacobian
-// part of 1000 operations has about 1600 of them. See docs/scale.md.
-constexpr int kOpsPerStore = 5;
-int max_part_outputs(int max_ops) { return std::max(1, max_ops / kOpsPerStore); }
-
-// Splits `program` into parts of about max_ops operations each (a part ends with the output
-// that reaches max_ops or max_part_outputs; one output's terms are never split).
+// Splits `program` into parts of about max_ops operations or max_part_outputs outputs each
+// (partition.hpp; one output's terms are never split).
 std::vector<ProgramPart> split_program(const Program& program, int max_ops) {
-  const std::size_t max_outputs = static_cast<std::size_t>(max_part_outputs(max_ops));
+  const PartRanges ranges =
+      partition(program, max_ops, static_cast<int>(program.outputs.size()), [&](int o) {
+        return PartCost{{program.outputs[o]}, 0, 1};
+      });
   std::vector<ProgramPart> parts;
   std::vector<int> part_of(program.nodes.size(), -1);
   std::vector<int> stack;
-  std::size_t o = 0;
-  while (o < program.outputs.size()) {
+  for (const auto& [first, last] : ranges) {
     const int part = static_cast<int>(parts.size());
     ProgramPart pp;
-    pp.first_output = static_cast<int>(o);
+    pp.first_output = first;
     std::vector<int> members;
-    int ops = 0;
     std::vector<int> outs;
-    for (; o < program.outputs.size() && ops < max_ops && outs.size() < max_outputs; ++o) {
+    for (int o = first; o < last; ++o) {
       const int id = program.outputs[o];
       outs.push_back(id);
       if (id == Program::kZero || part_of[id] == part) continue;
@@ -369,9 +365,7 @@ std::vector<ProgramPart> split_program(const Program& program, int max_ops) {
         const int k = stack.back();
         stack.pop_back();
         members.push_back(k);
-        const Node& n = program.nodes[k];
-        ops += n.kind != OpKind::kConst && n.kind != OpKind::kInput;
-        for (int a : n.args)
+        for (int a : program.nodes[k].args)
           if (part_of[a] != part) {
             part_of[a] = part;
             stack.push_back(a);
@@ -853,12 +847,13 @@ class BlockEmitter {
     roll_member_.assign(st.plans.size(), -1);
     if (roll_min > 0) find_rolls(model, roll_min);
     lazy_trig_ = !rolls_.empty();
-    if (max_ops > 0 && prog_.operation_count() > max_ops) split_blocks(max_ops);
+    if (max_ops > 0) split_blocks(max_ops);
   }
 
   int trig_cache_size() const { return 3 * trig_slots_; }
   // The functions of the repeated blocks and their coordinate tables (private members).
   void emit_rolls(std::ostringstream& os, bool velocity, bool acceleration) {
+    emit_torn_parts(os, velocity, acceleration);
     if (rolls_.empty()) return;
     os << "\n private:\n";
     for (std::size_t g = 0; g < rolls_.size(); ++g) {
@@ -897,7 +892,9 @@ class BlockEmitter {
        << "      [[maybe_unused]] signed char* block_signs = nullptr) noexcept {\n";
     if (!ranges_.empty()) {
       os << kIn << "using R = _real<T>;\n" << kOptions << kIn << "BlockReport<R> report;\n";
-      call_parts(os, "_solve_position_part", "q, t, p, o, report, trig, block_signs");
+      declare_sc(os, false);
+      call_parts(os, "_solve_position_part",
+                 "q, t, p, o, report, trig, block_signs" + sc_arg(false));
       finite_check(os, "q");
       os << kIn << "return report;\n  }\n";
       emit_position_parts(os);
@@ -933,8 +930,10 @@ class BlockEmitter {
     if (!ranges_.empty()) {
       const std::string name = motion_name(velocity, acceleration);
       os << kIn << "using R = _real<T>;\n" << kOptions << kIn << "BlockReport<R> report;\n";
+      declare_sc(os, true);
       call_parts(os, "_" + name + "_part",
-                 motion_args(velocity, acceleration, false) + ", static_cast<T*>(nullptr)");
+                 motion_args(velocity, acceleration, false) + ", static_cast<T*>(nullptr)" +
+                     sc_arg(false));
       if (velocity) finite_check(os, "qd");
       if (acceleration) finite_check(os, "qdd");
       os << kIn << "return report;\n  }\n";
@@ -960,10 +959,12 @@ class BlockEmitter {
     if (!ranges_.empty()) {
       // Split: the parts of solve_position and solve_velocity_acceleration (emitted with them).
       os << kIn << "using R = _real<T>;\n" << kOptions << kIn << "BlockReport<R> report;\n";
-      call_parts(os, "_solve_position_part", "q, t, p, o, report, trig, block_signs");
+      declare_sc(os, false);
+      call_parts(os, "_solve_position_part",
+                 "q, t, p, o, report, trig, block_signs" + sc_arg(false));
       finite_check(os, "q");
       call_parts(os, "_solve_velocity_acceleration_part",
-                 motion_args(true, true, false) + ", trig");
+                 motion_args(true, true, false) + ", trig" + sc_arg(false));
       finite_check(os, "qd");
       finite_check(os, "qdd");
       os << kIn << "return report;\n  }\n";
@@ -1173,46 +1174,131 @@ class BlockEmitter {
     os << bi << ");\n" << kIn << "if (report.status != 0) return report;\n";
   }
 
-  // Runs of consecutive blocks of about max_ops operations or max_part_outputs stores each,
-  // for the parts of a split solver. Later blocks read earlier blocks' coordinates from q (qd,
-  // qdd), so a part needs nothing from the parts before it but memory; its terms are its own.
+  // The parts of a split solver, cut once by partition(): runs of consecutive blocks
+  // (ranges_), and within a torn block whose assignments alone exceed the budget, runs of its
+  // assigned coordinates (torn_parts_). Later blocks read earlier blocks' coordinates from q
+  // (qd, qdd), so a run needs nothing from the runs before it but memory; its terms are its own.
   void split_blocks(int max_ops) {
     const int n = static_cast<int>(st_.plans.size());
-    std::vector<int> part_of(prog_.nodes.size(), -1), stack;
-    int ops = 0, first = 0, stores = 0;
-    const auto count = [&](int output) {
-      const int id = out(output);
-      const int part = static_cast<int>(ranges_.size());
-      if (id == Program::kZero || part_of[id] == part) return;
-      stack.assign(1, id);
-      part_of[id] = part;
-      while (!stack.empty()) {
-        const Node& node = prog_.nodes[stack.back()];
-        stack.pop_back();
-        ops += node.kind != OpKind::kConst && node.kind != OpKind::kInput;
-        for (int a : node.args)
-          if (part_of[a] != part) {
-            part_of[a] = part;
-            stack.push_back(a);
-          }
-      }
-    };
+    torn_parts_.assign(n, {});
     for (int bi = 0; bi < n; ++bi) {
-      if (roll_of_[bi] >= 0) {  // a call: a few statements, one store of the report
-        ops += 4;
-        stores += 1;
-      } else {
-        for (int o : block_outputs(bi)) count(o);
-        // Stores count as in split_program: each coordinate is written to q, qd and qdd.
-        stores += 3 * static_cast<int>(st_.plans[bi].block.cols.size());
+      const BlockPlan& plan = st_.plans[bi];
+      if (!plan.torn() || roll_of_[bi] >= 0) continue;
+      TornParts& tp = torn_parts_[bi];
+      const int f = pos_first_[bi], m = static_cast<int>(plan.tears.size());
+      const BlockOuts& bo = blocks_[bi];
+      const auto& rows = plan.block.rows;
+      // A position part assigns its coordinates (one store each) and, except in the last pass,
+      // their m sensitivities; a rates part computes the sensitivities again, or the qd or qdd
+      // of its coordinates (a store each and one more for the correction by the tears).
+      tp.position = partition(prog_, max_ops, static_cast<int>(plan.assigned.size()), [&](int a) {
+        PartCost c{{out(f + a)}, 0, 1 + m};
+        for (const auto& [rc, o] : row_entries(pos_tjac_[bi], plan.assigned[a].first))
+          c.nodes.push_back(out(o));
+        return c;
+      });
+      tp.rates = partition(prog_, max_ops, static_cast<int>(plan.assigned.size()), [&](int a) {
+        const int r = plan.assigned[a].first;
+        const std::size_t i = std::lower_bound(rows.begin(), rows.end(), r) - rows.begin();
+        PartCost c{{out(bo.nu[i]), out(bo.gamma[i])}, 0, m + 4};
+        for (const auto& [rc, o] : row_entries(bo.tjac, r)) c.nodes.push_back(out(o));
+        for (const auto& [col, o] : bo.coupling[i]) c.nodes.push_back(out(o));
+        return c;
+      });
+      if (tp.position.size() == 1 && tp.rates.size() == 1) {
+        tp = TornParts{};
+        continue;
       }
-      if (ops >= max_ops || stores >= max_part_outputs(max_ops) || bi + 1 == n) {
-        ranges_.push_back({first, bi + 1});
-        first = bi + 1;
-        ops = 0;
-        stores = 0;
-      }
+      tp.dependency = tear_dependency(bi);
+      tp.trig_first = static_cast<int>(torn_trig_.size());
+      for (int c : plan.block.cols)
+        if (trig_slot_[c] >= 0) {
+          tp.rotated.push_back(c);
+          torn_trig_.push_back({c, trig_slot_[c]});
+        }
     }
+    torn_any_ = std::any_of(torn_parts_.begin(), torn_parts_.end(),
+                            [](const TornParts& tp) { return !tp.position.empty(); });
+    if (prog_.operation_count() <= max_ops && !torn_any_) return;
+    ranges_ = partition(prog_, max_ops, n, [&](int bi) {
+      if (roll_of_[bi] >= 0) return PartCost{{}, 4, 1};  // a call: a few statements, one store
+      // A split torn block: its Newton loop and its calls.
+      const TornParts& tp = torn_parts_[bi];
+      if (!tp.position.empty()) {
+        const int calls = static_cast<int>(tp.position.size() + 5 * tp.rates.size());
+        return PartCost{torn_host_outputs(bi), 4 * calls,
+                        calls + 3 * static_cast<int>(st_.plans[bi].tears.size())};
+      }
+      PartCost c;
+      for (int o : block_outputs(bi)) c.nodes.push_back(out(o));
+      // Stores count as in split_program: each coordinate is written to q, qd and qdd.
+      c.stores = 3 * static_cast<int>(st_.plans[bi].block.cols.size());
+      return c;
+    });
+  }
+
+  // A torn block split into parts (split_blocks): ranges of its assigned coordinates (indices
+  // into plan.assigned) for the parts of its Newton loop and of its rates; empty: not split.
+  struct TornParts {
+    PartRanges position, rates;
+    std::map<int, std::vector<char>> dependency;  // tear_dependency
+    // Its coordinates with a trig slot, whose sin and cos (rotated by the Newton updates) live
+    // in the caller's _sc from index 2 * trig_first on, for the parts and the rates.
+    std::vector<int> rotated;
+    int trig_first = 0;
+  };
+  bool torn_split(std::size_t bi) const {
+    return !torn_parts_.empty() && !torn_parts_[bi].position.empty();
+  }
+  // The entries of `entries` in row r, in order.
+  static std::vector<std::pair<std::pair<int, int>, int>> row_entries(
+      const std::map<std::pair<int, int>, int>& entries, int r) {
+    std::vector<std::pair<std::pair<int, int>, int>> row;
+    for (auto it = entries.lower_bound({r, std::numeric_limits<int>::min()});
+         it != entries.end() && it->first.first == r; ++it)
+      row.push_back(*it);
+    return row;
+  }
+  // What a split torn block's own functions (not its parts) read: the residual rows, their
+  // Phi_q entries and couplings, and their rates.
+  std::vector<int> torn_host_outputs(std::size_t bi, bool position = true,
+                                     bool rates = true) const {
+    const BlockPlan& plan = st_.plans[bi];
+    const BlockOuts& bo = blocks_[bi];
+    const auto& rows = plan.block.rows;
+    std::vector<int> ids;
+    const int f = pos_first_[bi] + static_cast<int>(plan.assigned.size());
+    for (std::size_t i = 0; i < plan.residuals.size(); ++i) {
+      const int r = plan.residuals[i];
+      const std::size_t ri = std::lower_bound(rows.begin(), rows.end(), r) - rows.begin();
+      if (position) {
+        ids.push_back(out(f + static_cast<int>(i)));
+        for (const auto& [rc, o] : row_entries(pos_tjac_[bi], r)) ids.push_back(out(o));
+      }
+      if (rates) {
+        for (const auto& [rc, o] : row_entries(bo.tjac, r)) ids.push_back(out(o));
+        ids.push_back(out(bo.nu[ri]));
+        ids.push_back(out(bo.gamma[ri]));
+      }
+      for (const auto& [c, o] : bo.coupling[ri]) ids.push_back(out(o));
+    }
+    return ids;
+  }
+  // The extra argument of every part when torn blocks are split: the sin and cos of their
+  // rotated coordinates (2 per row of _torn_trig), owned by the public function.
+  std::string sc_arg(bool declare) const {
+    if (!torn_any_) return "";
+    return declare ? ",\n      [[maybe_unused]] T* _sc" : ", _sc";
+  }
+  // The public function's _sc; with fill, their sin and cos at q (no cache: a solve of the rates
+  // alone evaluates them, as the whole function does).
+  void declare_sc(std::ostringstream& os, bool fill) {
+    if (!torn_any_) return;
+    os << kIn << "T _sc[" << std::max<std::size_t>(2, 2 * torn_trig_.size()) << "];\n";
+    if (fill && !torn_trig_.empty())
+      os << kIn << "for (int _k = 0; _k < " << torn_trig_.size() << "; ++_k)\n"
+         << kIn << "  _trig(_sc[2 * _k], _sc[2 * _k + 1], q[_torn_trig[_k][0]], "
+         << "static_cast<T*>(nullptr), 0);\n";
   }
 
   static std::string motion_name(bool velocity, bool acceleration) {
@@ -1266,7 +1352,8 @@ class BlockEmitter {
                   "T* q, [[maybe_unused]] T t, [[maybe_unused]] const Params& p,\n"
                   "      [[maybe_unused]] const BasicBlockOptions<_real<T>>& o,\n"
                   "      BlockReport<_real<T>> report, [[maybe_unused]] T* trig,\n"
-                  "      [[maybe_unused]] signed char* block_signs");
+                  "      [[maybe_unused]] signed char* block_signs" +
+                      sc_arg(true));
       FunctionPrinter pr(prog_, symbols_);
       position_body(os, pr, ranges_[k].first, ranges_[k].second);
       os << kIn << "return report;\n  }\n";
@@ -1278,7 +1365,8 @@ class BlockEmitter {
     os << "\n private:\n";
     for (std::size_t k = 0; k < ranges_.size(); ++k) {
       part_header(os, "_" + motion_name(velocity, acceleration), k,
-                  motion_args(velocity, acceleration, true) + ",\n      [[maybe_unused]] T* trig");
+                  motion_args(velocity, acceleration, true) + ",\n      [[maybe_unused]] T* trig" +
+                      sc_arg(true));
       FunctionPrinter pr(prog_, symbols_);
       motion_trig_ = true;
       motion_body(os, pr, velocity, acceleration, ranges_[k].first, ranges_[k].second, false);
@@ -1342,6 +1430,10 @@ class BlockEmitter {
            << in << "}\n";
         declare_trig(os, pr, b.cols[0], false);
         guarded_condition(os, pr, bi);
+        continue;
+      }
+      if (torn_split(bi)) {
+        torn_position(os, pr, bi, torn_parts_[bi].rotated);
         continue;
       }
       // Terms that do not read the block's own coordinates are computed once, before the loop
@@ -1609,8 +1701,13 @@ class BlockEmitter {
   // whose values are not yet in scope (a repeated block's coordinates, or an earlier part's).
   void declare_needed_trig(std::ostringstream& os, FunctionPrinter& pr,
                            const std::vector<int>& outputs) {
-    std::vector<int> stack;
-    for (int o : outputs) stack.push_back(out(o));
+    std::vector<int> nodes;
+    for (int o : outputs) nodes.push_back(out(o));
+    for (int c : trig_read(pr, nodes)) declare_trig(os, pr, c, true);
+  }
+  // The coordinates whose sin or cos the trees of `nodes` read and that are not yet in scope.
+  std::set<int> trig_read(FunctionPrinter& pr, const std::vector<int>& nodes) const {
+    std::vector<int> stack = nodes;
     std::set<int> seen, coords;
     while (!stack.empty()) {
       const int id = stack.back();
@@ -1626,7 +1723,160 @@ class BlockEmitter {
       }
       for (int a : n.args) stack.push_back(a);
     }
-    for (int c : coords) declare_trig(os, pr, c, true);
+    return coords;
+  }
+
+  // In a split torn block's functions: `T& _sinC = _sc[..]` (and _cosC) for its coordinates
+  // that `nodes` read or that are `updated`, then sin and cos from the cache of the other
+  // coordinates `nodes` read.
+  void torn_trig(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                 const std::vector<int>& nodes, const std::vector<int>& updated) {
+    const TornParts& tp = torn_parts_[bi];
+    std::set<int> coords = trig_read(pr, nodes);
+    coords.insert(updated.begin(), updated.end());
+    for (std::size_t i = 0; i < tp.rotated.size(); ++i) {
+      const int c = tp.rotated[i];
+      if (!coords.count(c)) continue;
+      const int k = 2 * (tp.trig_first + static_cast<int>(i));
+      os << kIn << "[[maybe_unused]] T& _sin" << c << " = _sc[" << k << "];\n"
+         << kIn << "[[maybe_unused]] T& _cos" << c << " = _sc[" << k + 1 << "];\n";
+      if (sin_of_[c] >= 0) pr.bind(sin_of_[c], "_sin" + idx(c));
+      if (cos_of_[c] >= 0) pr.bind(cos_of_[c], "_cos" + idx(c));
+    }
+    for (int c : trig_read(pr, nodes)) declare_trig(os, pr, c, true);
+  }
+
+  // A split torn block's own code (its Newton loop, or its rates): sin and cos (in the
+  // position first evaluated into _sc from the cache), and the terms of its residual rows that
+  // do not read its coordinates.
+  void torn_host_trig(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi, bool position) {
+    const TornParts& tp = torn_parts_[bi];
+    if (position && !tp.rotated.empty())
+      os << kIn << "for (int _k = " << tp.trig_first << "; _k < "
+         << tp.trig_first + static_cast<int>(tp.rotated.size()) << "; ++_k)\n"
+         << kIn << "  _trig(_sc[2 * _k], _sc[2 * _k + 1], q[_torn_trig[_k][0]], trig, "
+         << "_torn_trig[_k][1]);\n";
+    const std::vector<int> host = torn_host_outputs(bi, position, !position);
+    torn_trig(os, pr, bi, host, st_.plans[bi].tears);
+    if (position)
+      for (int id : host)
+        pr.ensure(id, os, kIn, [&](int n) { return level_[n] < static_cast<int>(bi); });
+  }
+
+  // The private functions of the split torn blocks (split_blocks), called in order from the
+  // blocks' Newton loops and rates: each takes a run of the assigned coordinates.
+  void emit_torn_parts(std::ostringstream& os, bool velocity, bool acceleration) {
+    if (!torn_any_) return;
+    os << "\n private:\n";
+    if (!torn_trig_.empty()) {
+      os << "  // Split torn blocks' coordinates with rotated sin and cos: {q index, trig slot};\n"
+         << "  // the values live in _sc, 2 per row.\n";
+      emit_table(os, "_torn_trig", torn_trig_);
+    }
+    const std::string used = std_functions(prog_);
+    for (std::size_t bi = 0; bi < torn_parts_.size(); ++bi) {
+      if (!torn_split(bi)) continue;
+      const TornParts& tp = torn_parts_[bi];
+      const BlockPlan& plan = st_.plans[bi];
+      const BlockOuts& bo = blocks_[bi];
+      const int f = pos_first_[bi];
+      const std::string b = idx(static_cast<int>(bi)), in = kIn;
+      const auto row_of = [&](int r) {
+        const auto& rows = plan.block.rows;
+        return std::lower_bound(rows.begin(), rows.end(), r) - rows.begin();
+      };
+      const auto part = [&](const std::string& kind, std::size_t k,
+                            const std::pair<int, int>& range, const std::string& what,
+                            const std::string& params,
+                            const std::function<void(FunctionPrinter&)>& body) {
+        os << "  // Block " << b << ", assigned coordinates " << range.first << " to "
+           << range.second - 1 << ": " << what << ".\n"
+           << "  template <class T>\n"
+           << "  static void _torn" << b << "_" << kind << "_part" << k << "(" << params
+           << ") noexcept {\n";
+        if (!used.empty()) os << in << "using " << used << ";\n";
+        FunctionPrinter pr(prog_, symbols_);
+        body(pr);
+        os << "  }\n";
+      };
+      const std::string common =
+          "[[maybe_unused]] T t, [[maybe_unused]] const Params& p,\n"
+          "      [[maybe_unused]] T* trig, [[maybe_unused]] T* _sc";
+      for (std::size_t k = 0; k < tp.position.size(); ++k) {
+        const auto [a0, a1] = tp.position[k];
+        part("position", k, tp.position[k], "their values, then their sensitivities (_d)",
+             "T* q, " + common +
+                 ",\n      [[maybe_unused]] T* _d, [[maybe_unused]] bool _derivatives",
+             [&, a0 = a0, a1 = a1](FunctionPrinter& pr) {
+               std::vector<int> nodes, updated;
+               for (int a = a0; a < a1; ++a) {
+                 nodes.push_back(out(f + a));
+                 updated.push_back(plan.assigned[a].second);
+                 for (const auto& [rc, o] : row_entries(pos_tjac_[bi], plan.assigned[a].first))
+                   nodes.push_back(out(o));
+               }
+               torn_trig(os, pr, bi, nodes, updated);
+               for (int a = a0; a < a1; ++a) {
+                 pr.ensure(out(f + a), os, in);
+                 update(os, in, tp.rotated, plan.assigned[a].second, pr.text(out(f + a)));
+               }
+               os << in << "if (!_derivatives) return;\n";
+               for (int a = a0; a < a1; ++a)
+                 for (const auto& [rc, o] : row_entries(pos_tjac_[bi], plan.assigned[a].first))
+                   pr.ensure(out(o), os, in);
+               sensitivities(os, pr, bi, pos_tjac_[bi], tp.dependency, in,
+                             sensitivity_array(bi, "_d"), "", a0, a1);
+             });
+      }
+      for (std::size_t k = 0; k < tp.rates.size() && (velocity || acceleration); ++k) {
+        const auto [a0, a1] = tp.rates[k];
+        part("sensitivities", k, tp.rates[k], "their sensitivities to the tears (_D)",
+             "[[maybe_unused]] const T* q, " + common + ", T* _D",
+             [&, a0 = a0, a1 = a1](FunctionPrinter& pr) {
+               std::vector<int> nodes;
+               for (int a = a0; a < a1; ++a)
+                 for (const auto& [rc, o] : row_entries(bo.tjac, plan.assigned[a].first))
+                   nodes.push_back(out(o));
+               torn_trig(os, pr, bi, nodes, {});
+               for (int id : nodes) pr.ensure(id, os, in);
+               sensitivities(os, pr, bi, bo.tjac, tp.dependency, in, sensitivity_array(bi, "_D"),
+                             "", a0, a1);
+             });
+        part("correct", k, tp.rates[k], "x += their sensitivities times the tears' x",
+             "const T* _D, T* x", [&, a0 = a0, a1 = a1](FunctionPrinter&) {
+               correct(os, bi, tp.dependency, sensitivity_array(bi, "_D"), "x", a0, a1);
+             });
+        for (const bool acc : {false, true}) {
+          if (acc ? !acceleration : !velocity) continue;
+          const char* var = acc ? "qdd" : "qd";
+          part(
+              var, k, tp.rates[k], std::string("their ") + var + " with the tears' at zero",
+              std::string(acc ? "[[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,\n      "
+                              : "[[maybe_unused]] const T* q, ") +
+                  common + ", T* " + var,
+              [&, a0 = a0, a1 = a1, acc, var](FunctionPrinter& pr) {
+                const std::vector<int>& rhs = acc ? bo.gamma : bo.nu;
+                std::vector<int> nodes;
+                for (int a = a0; a < a1; ++a) {
+                  const int r = plan.assigned[a].first;
+                  nodes.push_back(out(rhs[row_of(r)]));
+                  for (const auto& [c, o] : bo.coupling[row_of(r)]) nodes.push_back(out(o));
+                  for (const auto& [rc, o] : row_entries(bo.tjac, r)) nodes.push_back(out(o));
+                }
+                torn_trig(os, pr, bi, nodes, {});
+                for (int a = a0; a < a1; ++a) {
+                  const auto [r, c] = plan.assigned[a];
+                  const std::string text = rate_rhs(os, pr, bi, rhs, var, row_of(r));
+                  const std::string s = reduced_rhs(pr, bi, text, r, c, var);
+                  os << in << ref(var, c) << " = "
+                     << divide_negated(pr, s == "T(0)" ? "" : s, bo.tjac.at({r, c}), false)
+                     << ";\n";
+                }
+              });
+        }
+      }
+    }
+    os << "\n public:\n";
   }
 
   // q[c] = value, keeping the rotated sin and cos of q[c] current.
@@ -1672,44 +1922,88 @@ class BlockEmitter {
     return codegen::tear_dependency(st_.plans[bi], pos_tjac_[bi]);
   }
 
-  // Sensitivities of the assigned coordinates to the tears (dq[c]/dq[tear j], from the
-  // assigned rows in order: the rows stay satisfied) and the tears' Jacobian (the Schur
-  // complement), printed as `prefix<j>_<c>` terms and the row-major text of the m x m matrix.
-  std::vector<std::string> schur(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
-                                 const std::map<std::pair<int, int>, int>& entries,
-                                 const std::string& in, const std::string& prefix) {
+  // The name of dq[c]/dq[tear j] (c = plan.assigned[a].second) in the function being emitted.
+  using SensitivityName = std::function<std::string(std::size_t j, int a)>;
+  // Locals `prefix<j>_<c>` (a whole block), or a caller-owned array (a split torn block).
+  SensitivityName sensitivity_locals(std::size_t bi, const std::string& prefix) const {
+    return [this, bi, prefix](std::size_t j, int a) {
+      return prefix + std::to_string(j) + "_" + idx(st_.plans[bi].assigned[a].second);
+    };
+  }
+  SensitivityName sensitivity_array(std::size_t bi, const std::string& array) const {
+    const int n = static_cast<int>(st_.plans[bi].assigned.size());
+    return [n, array](std::size_t j, int a) {
+      return array + "[" + std::to_string(static_cast<int>(j) * n + a) + "]";
+    };
+  }
+
+  // The sum over row r's block coordinates (but `skip`) of Phi_q * dq/dtear_j.
+  std::string row_sum(FunctionPrinter& pr, std::size_t bi,
+                      const std::map<std::pair<int, int>, int>& entries,
+                      const std::map<int, std::vector<char>>& dep, const SensitivityName& d_name,
+                      const std::map<int, int>& assigned_index, int r, int skip, std::size_t j) {
     const BlockPlan& plan = st_.plans[bi];
-    const std::size_t m = plan.tears.size();
-    const auto dep = tear_dependency(bi);
-    for (const auto& [rc, o] : entries) pr.ensure(out(o), os, in);
-    const auto d_name = [&](std::size_t j, int c) {
-      return prefix + std::to_string(j) + "_" + idx(c);
-    };
-    // The sum over a row's block coordinates (but `skip`) of Phi_q * dq/dtear_j.
-    const auto row_sum = [&](int r, int skip, std::size_t j) {
-      std::string sum;
-      for (const auto& [rc, o] : entries) {
-        if (rc.first != r || rc.second == skip || !dep.at(rc.second)[j]) continue;
-        add_product(sum, pr, o, rc.second == plan.tears[j] ? "" : d_name(j, rc.second));
-      }
-      return sum;
-    };
-    for (std::size_t j = 0; j < m; ++j) {
-      for (std::size_t a = 0; a < plan.assigned.size(); ++a) {
+    std::string sum;
+    for (const auto& [rc, o] : row_entries(entries, r)) {
+      if (rc.second == skip || !dep.at(rc.second)[j]) continue;
+      add_product(sum, pr, o,
+                  rc.second == plan.tears[j] ? "" : d_name(j, assigned_index.at(rc.second)));
+    }
+    return sum;
+  }
+  std::map<int, int> assigned_index(std::size_t bi) const {
+    std::map<int, int> index;
+    const auto& assigned = st_.plans[bi].assigned;
+    for (std::size_t a = 0; a < assigned.size(); ++a)
+      index[assigned[a].second] = static_cast<int>(a);
+    return index;
+  }
+
+  // Sensitivities of the assigned coordinates plan.assigned[a0..a1) to the tears (dq[c]/dq[tear
+  // j], from the assigned rows in order: the rows stay satisfied), `declare` name = ...;.
+  void sensitivities(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                     const std::map<std::pair<int, int>, int>& entries,
+                     const std::map<int, std::vector<char>>& dep, const std::string& in,
+                     const SensitivityName& d_name, const char* declare, int a0, int a1) {
+    const BlockPlan& plan = st_.plans[bi];
+    const std::map<int, int> index = assigned_index(bi);
+    for (std::size_t j = 0; j < plan.tears.size(); ++j) {
+      for (int a = a0; a < a1; ++a) {
         const auto [r, c] = plan.assigned[a];
         if (!dep.at(c)[j]) continue;
-        const std::string sum = row_sum(r, c, j);
-        os << in << "const T " << d_name(j, c) << " = "
+        const std::string sum = row_sum(pr, bi, entries, dep, d_name, index, r, c, j);
+        os << in << declare << d_name(j, a) << " = "
            << divide_negated(pr, sum, entries.at({r, c}), true) << ";\n";
       }
     }
+  }
+
+  // The tears' Jacobian (the Schur complement): the row-major text of the m x m matrix.
+  std::vector<std::string> schur_matrix(FunctionPrinter& pr, std::size_t bi,
+                                        const std::map<std::pair<int, int>, int>& entries,
+                                        const std::map<int, std::vector<char>>& dep,
+                                        const SensitivityName& d_name) {
+    const BlockPlan& plan = st_.plans[bi];
+    const std::map<int, int> index = assigned_index(bi);
     std::vector<std::string> a;
     for (int r : plan.residuals)
-      for (std::size_t j = 0; j < m; ++j) {
-        const std::string sum = row_sum(r, -1, j);
+      for (std::size_t j = 0; j < plan.tears.size(); ++j) {
+        const std::string sum = row_sum(pr, bi, entries, dep, d_name, index, r, -1, j);
         a.push_back(sum.empty() ? "T(0)" : sum);
       }
     return a;
+  }
+
+  // The sensitivities as `prefix<j>_<c>` terms and the Schur complement, for a whole block.
+  std::vector<std::string> schur(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                                 const std::map<std::pair<int, int>, int>& entries,
+                                 const std::string& in, const std::string& prefix) {
+    const auto dep = tear_dependency(bi);
+    for (const auto& [rc, o] : entries) pr.ensure(out(o), os, in);
+    const SensitivityName d_name = sensitivity_locals(bi, prefix);
+    sensitivities(os, pr, bi, entries, dep, in, d_name, "const T ", 0,
+                  static_cast<int>(st_.plans[bi].assigned.size()));
+    return schur_matrix(pr, bi, entries, dep, d_name);
   }
 
   // Newton on a torn block's tears: each pass assigns the other coordinates from the tears,
@@ -1721,12 +2015,21 @@ class BlockEmitter {
     const int f = pos_first_[bi];
     const int n_assigned = static_cast<int>(plan.assigned.size());
     const std::string in = kIn, in2 = in + "  ", b = idx(static_cast<int>(bi));
+    const bool split = torn_split(bi);
+    // Split: the parts assign the coordinates and compute their sensitivities (into _d<b>);
+    // sin and cos of the block's coordinates live in _sc.
+    if (split) torn_host_trig(os, pr, bi, true);
     newton_declare(os, bi, plan.tears);
-    os << in << "R _step" << b << " = 0;\n"
-       << in << "bool _stop" << b << " = false;\n"
-       << in << "for (int _it = 1;; ++_it) {\n";
+    os << in << "R _step" << b << " = 0;\n" << in << "bool _stop" << b << " = false;\n";
+    if (split) os << in << "T _d" << b << "[" << m * n_assigned << "];\n";
+    os << in << "for (int _it = 1;; ++_it) {\n";
     pr.open_scope();
-    for (int a = 0; a < n_assigned; ++a) {
+    if (split) {
+      for (std::size_t k = 0; k < torn_parts_[bi].position.size(); ++k)
+        os << in2 << "_torn" << b << "_position_part" << k << "(q, t, p, trig, _sc, _d" << b
+           << ", !_stop" << b << ");\n";
+    }
+    for (int a = 0; a < n_assigned && !split; ++a) {
       pr.ensure(out(f + a), os, in2);
       update(os, in2, rotated, plan.assigned[a].second, pr.text(out(f + a)));
     }
@@ -1737,7 +2040,16 @@ class BlockEmitter {
       r.push_back(pr.text(out(f + n_assigned + i)));
     }
     os << in2 << "T _r[" << m << "] = {" << join(r) << "};\n";
-    newton_solve(os, in2, bi, m, schur(os, pr, bi, pos_tjac_[bi], in2, "_d"));
+    std::vector<std::string> matrix;
+    if (split) {
+      for (int row : plan.residuals)
+        for (const auto& [rc, o] : row_entries(pos_tjac_[bi], row)) pr.ensure(out(o), os, in2);
+      matrix = schur_matrix(pr, bi, pos_tjac_[bi], torn_parts_[bi].dependency,
+                            sensitivity_array(bi, "_d" + b));
+    } else {
+      matrix = schur(os, pr, bi, pos_tjac_[bi], in2, "_d");
+    }
+    newton_solve(os, in2, bi, m, matrix);
     os << in2 << "_step" << b << " = 0;\n" << in2 << "R _qs = 0;\n" << in2 << "bool _small = true;\n";
     for (int i = 0; i < m; ++i) {
       const int c = plan.tears[i];
@@ -1777,6 +2089,22 @@ class BlockEmitter {
                     true);
         continue;
       }
+      if (torn_split(bi)) {
+        const int m = static_cast<int>(st_.plans[bi].tears.size());
+        torn_host_trig(os, pr, bi, false);
+        os << in << "T _D" << b << "[" << m * st_.plans[bi].assigned.size() << "];\n";
+        for (std::size_t p = 0; p < torn_parts_[bi].rates.size(); ++p)
+          os << in << "_torn" << b << "_sensitivities_part" << p << "(q, t, p, trig, _sc, _D" << b
+             << ");\n";
+        for (int row : st_.plans[bi].residuals)
+          for (const auto& [rc, o] : row_entries(bo.tjac, row)) pr.ensure(out(o), os, in);
+        factor(os, bi, m,
+               schur_matrix(pr, bi, bo.tjac, torn_parts_[bi].dependency,
+                            sensitivity_array(bi, "_D" + b)));
+        if (velocity) solve_rows(os, pr, bi, bo.nu, "qd");
+        if (interleave && acceleration) solve_rows(os, pr, bi, bo.gamma, "qdd");
+        continue;
+      }
       if (motion_trig_) declare_motion_trig(os, pr, bi, velocity, acceleration);
       if (st_.plans[bi].torn()) {
         const int m = static_cast<int>(st_.plans[bi].tears.size());
@@ -1813,29 +2141,15 @@ class BlockEmitter {
 
   void solve_rows(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
                   const std::vector<int>& rhs, const char* var) {
-    const BlockOuts& bo = blocks_[bi];
     const Block& blk = st_.plans[bi].block;
     const int k = static_cast<int>(blk.rows.size());
     const std::string in = kIn;
-    std::vector<std::string> texts;
-    for (int i = 0; i < k; ++i) {
-      const int rid = out(rhs[i]);
-      pr.ensure(rid, os, in);
-      for (const auto& [c, o] : bo.coupling[i]) pr.ensure(out(o), os, in);
-      std::string s = rid == Program::kZero ? "" : pr.text(rid);
-      for (const auto& [c, o] : bo.coupling[i]) {
-        const int id = out(o);
-        const Node& n = prog_.nodes[id];
-        const std::string x = ref(var, c);
-        if (n.kind == OpKind::kConst && (n.value == 1 || n.value == -1)) {
-          const bool minus = n.value == 1;
-          s += s.empty() ? (minus ? "-" + x : x) : (minus ? " - " : " + ") + x;
-        } else {
-          s += (s.empty() ? "-" : " - ") + pr.atom_text(id) + "*" + x;
-        }
-      }
-      texts.push_back(s.empty() ? "T(0)" : s);
+    if (torn_split(bi)) {
+      solve_torn_rows_split(os, pr, bi, rhs, var);
+      return;
     }
+    std::vector<std::string> texts;
+    for (int i = 0; i < k; ++i) texts.push_back(rate_rhs(os, pr, bi, rhs, var, i));
     if (st_.plans[bi].torn()) {
       solve_torn_rows(os, pr, bi, texts, var);
       return;
@@ -1855,6 +2169,98 @@ class BlockEmitter {
     os << in << "}\n";
   }
 
+  // Row i of block bi's rates: rhs minus its couplings to earlier blocks' `var`.
+  std::string rate_rhs(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                       const std::vector<int>& rhs, const char* var, std::size_t i) {
+    const BlockOuts& bo = blocks_[bi];
+    const std::string in = kIn;
+    const int rid = out(rhs[i]);
+    pr.ensure(rid, os, in);
+    for (const auto& [c, o] : bo.coupling[i]) pr.ensure(out(o), os, in);
+    std::string s = rid == Program::kZero ? "" : pr.text(rid);
+    for (const auto& [c, o] : bo.coupling[i]) {
+      const int id = out(o);
+      const Node& n = prog_.nodes[id];
+      const std::string x = ref(var, c);
+      if (n.kind == OpKind::kConst && (n.value == 1 || n.value == -1)) {
+        const bool minus = n.value == 1;
+        s += s.empty() ? (minus ? "-" + x : x) : (minus ? " - " : " + ") + x;
+      } else {
+        s += (s.empty() ? "-" : " - ") + pr.atom_text(id) + "*" + x;
+      }
+    }
+    return s.empty() ? "T(0)" : s;
+  }
+
+  // A torn block's row r: `rhs` minus the row's non-tear block entries times x (other than
+  // `skip`).
+  std::string reduced_rhs(FunctionPrinter& pr, std::size_t bi, const std::string& rhs, int r,
+                          int skip, const char* var) {
+    const BlockPlan& plan = st_.plans[bi];
+    const auto is_tear = [&](int c) {
+      return std::find(plan.tears.begin(), plan.tears.end(), c) != plan.tears.end();
+    };
+    std::string sum;
+    for (const auto& [rc, o] : row_entries(blocks_[bi].tjac, r))
+      if (rc.second != skip && !is_tear(rc.second)) add_product(sum, pr, o, ref(var, rc.second));
+    if (sum.empty()) return rhs;
+    return rhs == "T(0)" ? "-(" + sum + ")" : rhs + " - (" + sum + ")";
+  }
+
+  // The tears' x from the reduced residual rows g and the Schur complement factored in
+  // motion_body.
+  void solve_tears(std::ostringstream& os, std::size_t bi, const std::vector<std::string>& g,
+                   const char* var) {
+    const BlockPlan& plan = st_.plans[bi];
+    const int m = static_cast<int>(plan.tears.size());
+    const std::string in = kIn, b = idx(static_cast<int>(bi));
+    if (m == 1) {
+      os << in << ref(var, plan.tears[0]) << " = (" << g[0] << ") / _a" << b << ";\n";
+    } else {
+      os << in << "{\n"
+         << in << "  T _x[" << m << "] = {" << join(g) << "};\n"
+         << in << "  _lu_solve<" << m << ">(_a" << b << ", _piv" << b << ", _x);\n";
+      for (int j = 0; j < m; ++j)
+        os << in << "  " << ref(var, plan.tears[j]) << " = _x[" << j << "];\n";
+      os << in << "}\n";
+    }
+  }
+
+  // The assigned coordinates a0..a1 corrected by their sensitivities times the tears' x.
+  void correct(std::ostringstream& os, std::size_t bi, const std::map<int, std::vector<char>>& dep,
+               const SensitivityName& d_name, const char* var, int a0, int a1) {
+    const BlockPlan& plan = st_.plans[bi];
+    for (int a = a0; a < a1; ++a) {
+      const int c = plan.assigned[a].second;
+      std::string sum;
+      for (std::size_t j = 0; j < plan.tears.size(); ++j)
+        if (dep.at(c)[j])
+          sum += (sum.empty() ? "" : " + ") + d_name(j, a) + "*" + ref(var, plan.tears[j]);
+      if (!sum.empty()) os << kIn << ref(var, c) << " += " << sum << ";\n";
+    }
+  }
+
+  // A split torn block's rates: the parts' particular solution, the tears in this function,
+  // then the parts' corrections.
+  void solve_torn_rows_split(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                             const std::vector<int>& rhs, const char* var) {
+    const BlockPlan& plan = st_.plans[bi];
+    const std::string b = idx(static_cast<int>(bi)), v = var;
+    const std::size_t parts = torn_parts_[bi].rates.size();
+    for (std::size_t k = 0; k < parts; ++k)
+      os << kIn << "_torn" << b << "_" << v << "_part" << k << "(q, " << (v == "qdd" ? "qd, " : "")
+         << "t, p, trig, _sc, " << v << ");\n";
+    std::vector<std::string> g;
+    for (int r : plan.residuals) {
+      const auto& rows = plan.block.rows;
+      const std::size_t i = std::lower_bound(rows.begin(), rows.end(), r) - rows.begin();
+      g.push_back(reduced_rhs(pr, bi, rate_rhs(os, pr, bi, rhs, var, i), r, -1, var));
+    }
+    solve_tears(os, bi, g, var);
+    for (std::size_t k = 0; k < parts; ++k)
+      os << kIn << "_torn" << b << "_correct_part" << k << "(_D" << b << ", " << v << ");\n";
+  }
+
   // A torn block's linear system (Phi_q x = rhs on the block): a particular solution with the
   // tears at zero through the assigned rows, the tears from the Schur complement factored in
   // motion_body, then the assigned coordinates corrected by their sensitivities.
@@ -1863,51 +2269,21 @@ class BlockEmitter {
     const BlockPlan& plan = st_.plans[bi];
     const Block& blk = plan.block;
     const BlockOuts& bo = blocks_[bi];
-    const int m = static_cast<int>(plan.tears.size());
-    const std::string in = kIn, b = idx(static_cast<int>(bi));
-    const auto x = [&](int c) { return ref(var, c); };
+    const std::string b = idx(static_cast<int>(bi));
     const auto rhs = [&](int r) {
       const auto it = std::lower_bound(blk.rows.begin(), blk.rows.end(), r);
       return texts[it - blk.rows.begin()];
     };
-    const auto is_tear = [&](int c) {
-      return std::find(plan.tears.begin(), plan.tears.end(), c) != plan.tears.end();
-    };
-    // rhs - sum of the row's non-tear block entries times x (other than `skip`).
-    const auto reduced = [&](int r, int skip) {
-      std::string sum;
-      for (const auto& [rc, o] : bo.tjac)
-        if (rc.first == r && rc.second != skip && !is_tear(rc.second))
-          add_product(sum, pr, o, x(rc.second));
-      const std::string t = rhs(r);
-      if (sum.empty()) return t;
-      return t == "T(0)" ? "-(" + sum + ")" : t + " - (" + sum + ")";
-    };
     for (const auto& [r, c] : plan.assigned) {
-      const std::string s = reduced(r, c);
-      os << in << x(c) << " = " << divide_negated(pr, s == "T(0)" ? "" : s, bo.tjac.at({r, c}), false)
-         << ";\n";
+      const std::string s = reduced_rhs(pr, bi, rhs(r), r, c, var);
+      os << kIn << ref(var, c) << " = "
+         << divide_negated(pr, s == "T(0)" ? "" : s, bo.tjac.at({r, c}), false) << ";\n";
     }
     std::vector<std::string> g;
-    for (int r : plan.residuals) g.push_back(reduced(r, -1));
-    if (m == 1) {
-      os << in << x(plan.tears[0]) << " = (" << g[0] << ") / _a" << b << ";\n";
-    } else {
-      os << in << "{\n"
-         << in << "  T _x[" << m << "] = {" << join(g) << "};\n"
-         << in << "  _lu_solve<" << m << ">(_a" << b << ", _piv" << b << ", _x);\n";
-      for (int j = 0; j < m; ++j) os << in << "  " << x(plan.tears[j]) << " = _x[" << j << "];\n";
-      os << in << "}\n";
-    }
-    const auto dep = tear_dependency(bi);
-    for (const auto& [r, c] : plan.assigned) {
-      std::string sum;
-      for (int j = 0; j < m; ++j)
-        if (dep.at(c)[j])
-          sum += (sum.empty() ? "" : " + ") + ("_D" + b + "_" + std::to_string(j) + "_" + idx(c)) +
-                 "*" + x(plan.tears[j]);
-      if (!sum.empty()) os << in << x(c) << " += " << sum << ";\n";
-    }
+    for (int r : plan.residuals) g.push_back(reduced_rhs(pr, bi, rhs(r), r, -1, var));
+    solve_tears(os, bi, g, var);
+    correct(os, bi, tear_dependency(bi), sensitivity_locals(bi, "_D" + b + "_"), var, 0,
+            static_cast<int>(plan.assigned.size()));
   }
 
   const SymbolTable& symbols_;
@@ -1934,7 +2310,10 @@ class BlockEmitter {
   std::vector<std::map<std::pair<int, int>, int>> pos_tjac_;  // torn blocks' Phi_q outputs
   int pos_end_ = 0;
   std::vector<std::string> divisor_;
-  std::vector<std::pair<int, int>> ranges_;  // the parts' blocks [first, second); empty: one function
+  PartRanges ranges_;                  // the parts' blocks [first, second); empty: one function
+  std::vector<TornParts> torn_parts_;  // per block (split_blocks)
+  std::vector<std::vector<int>> torn_trig_;  // rows of _torn_trig: {coordinate, trig slot}
+  bool torn_any_ = false;                    // some torn block is split
 };
 
 // ---- Kinetostatics (mechanism format 6.5, forces.hpp): Phi_q^T lambda = Q after a step.

@@ -1,0 +1,38 @@
+// Cutting generated code into parts for compile time (docs/scale.md, "Split functions"):
+// g++ -O2 takes time superlinear in a function's size, so the generated functions (their
+// outputs), the block solver (its runs of blocks) and a torn block (its assigned coordinates)
+// are cut into consecutive parts by this one rule.
+#pragma once
+
+#include <algorithm>
+#include <functional>
+#include <utility>
+#include <vector>
+
+#include "kinegen/codegen/program/program.hpp"
+
+namespace kinegen::codegen {
+
+// At most max_ops / kOpsPerStore stores per part. g++ -O2 checks each store against the earlier
+// stores of its function (value numbering looks for a redundant store, up to 1000 alias queries
+// each), so the time per part grows with the square of its stores: a Jacobian part of 1000
+// operations has about 1600 of them. See docs/scale.md.
+constexpr int kOpsPerStore = 5;
+inline int max_part_outputs(int max_ops) { return std::max(1, max_ops / kOpsPerStore); }
+
+// What an item of a sequence adds to its part: the expression trees of `nodes` (nodes of
+// `program`; kZero for none), each node counted once per part and constants and inputs free,
+// plus `ops` operations and `stores` stores.
+struct PartCost {
+  std::vector<int> nodes;
+  int ops = 0;
+  int stores = 0;
+};
+
+// Consecutive ranges [first, second) of the items 0..n-1: a part ends with the item that brings
+// its operations to max_ops or its stores to max_part_outputs(max_ops). An item is never split.
+using PartRanges = std::vector<std::pair<int, int>>;
+PartRanges partition(const Program& program, int max_ops, int n,
+                     const std::function<PartCost(int)>& cost);
+
+}  // namespace kinegen::codegen
