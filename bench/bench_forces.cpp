@@ -53,7 +53,7 @@ void run(const char* name, double period) {
   std::vector<State> turn(kTurn);
   const double ns_step = best_ns([&](int k0) {
     for (int k = k0; k < k0 + kChunk; ++k) {
-      if (M::solve_step(q, T(k) * dt, p, qd, qdd, o, nullptr, nullptr, &factors).status != 0)
+      if (M::solve_step(q, T(k) * dt, p, qd, qdd, o, static_cast<T*>(nullptr), nullptr, &factors).status != 0)
         return false;
       State& s = turn[k % kTurn];
       s.factors = factors;
@@ -94,7 +94,7 @@ void run(const char* name, double period) {
   const double ns_all = best_ns([&](int k0) {
     for (int k = k0; k < k0 + kChunk; ++k) {
       const T t = T(k) * dt;
-      if (M::solve_step(q, t, p, qd, qdd, o, nullptr, nullptr, &factors).status != 0) return false;
+      if (M::solve_step(q, t, p, qd, qdd, o, static_cast<T*>(nullptr), nullptr, &factors).status != 0) return false;
       if (M::solve_forces(q, qd, qdd, t, p, lambda, o, &factors).status != 0) return false;
       M::force_columns(q, t, p, lambda, cols);
       g_checksum = g_checksum + double(cols[0]);

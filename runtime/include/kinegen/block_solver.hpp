@@ -99,6 +99,16 @@ struct HasStepFactors : std::false_type {};
 template <class Model>
 struct HasStepFactors<Model, std::void_t<typename Model::template StepFactors<double>>>
     : std::true_type {};
+// The header's StepFactors<Scalar>, or an empty struct for headers without it.
+struct NoStepFactors {};
+template <class Model, class Scalar, bool = HasStepFactors<Model>::value>
+struct StepFactorsOf {
+  using type = NoStepFactors;
+};
+template <class Model, class Scalar>
+struct StepFactorsOf<Model, Scalar, true> {
+  using type = typename Model::template StepFactors<Scalar>;
+};
 template <class Model, class = void>
 struct NumForceColumns : std::integral_constant<int, 1> {};
 template <class Model>
@@ -459,9 +469,7 @@ class Solver {
   // The factors of the last step's rate solve (headers whose solve_step keeps them), valid
   // after a successful step() until the next step() or reset(), for forces() at its t and q.
   static constexpr bool kStepFactors = kForces && detail::HasStepFactors<Model>::value;
-  struct NoFactors {};
-  std::conditional_t<kStepFactors, typename Model::template StepFactors<Scalar>, NoFactors>
-      factors_{};
+  typename detail::StepFactorsOf<Model, Scalar>::type factors_{};
   bool factors_valid_ = false;
   Scalar t_factored_ = Scalar(0);
   Vector q_factored_ = Vector::Zero();
