@@ -947,7 +947,9 @@ class BlockEmitter {
       const std::string name = motion_name(velocity, acceleration);
       os << kIn << "using R = _real<T>;\n" << kOptions << kIn << "BlockReport<R> report;\n";
       call_parts(os, "_" + name + "_part",
-                 motion_args(velocity, acceleration, false) + ", static_cast<T*>(nullptr)");
+                 motion_args(velocity, acceleration, false) + ", static_cast<T*>(nullptr)" +
+                     (parts_save(velocity, acceleration) ? ", static_cast<StepFactors<T>*>(nullptr)"
+                                                         : ""));
       if (velocity) finite_check(os, "qd");
       if (acceleration) finite_check(os, "qdd");
       os << kIn << "return report;\n  }\n";
@@ -979,7 +981,7 @@ class BlockEmitter {
       call_parts(os, "_solve_position_part", "q, t, p, o, report, trig, block_signs");
       finite_check(os, "q");
       call_parts(os, "_solve_velocity_acceleration_part",
-                 motion_args(true, true, false) + ", trig");
+                 motion_args(true, true, false) + ", trig" + (step_factors_ ? ", factors" : ""));
       finite_check(os, "qd");
       finite_check(os, "qdd");
       factors_rcond(os, "report.rcond");
@@ -1008,7 +1010,7 @@ class BlockEmitter {
 
   // StepFactors and the tables _block_transposed_reusing reads (kernels/block_linear.hpp):
   // where each block's factors are, whether solve_step keeps them (not in a repeated block's
-  // function or a split solver's parts), and each torn block's rows and coordinates in the
+  // function), and each torn block's rows and coordinates in the
   // order of its rate solve (assigned, then residual rows and tears).
   void emit_step_factors(std::ostringstream& os) const {
     const FactorLayout l = factor_layout(st_);
@@ -1343,11 +1345,15 @@ class BlockEmitter {
   void emit_motion_parts(std::ostringstream& os, bool velocity, bool acceleration) {
     os << "\n private:\n";
     for (std::size_t k = 0; k < ranges_.size(); ++k) {
+      const bool save = parts_save(velocity, acceleration);
       part_header(os, "_" + motion_name(velocity, acceleration), k,
-                  motion_args(velocity, acceleration, true) + ",\n      [[maybe_unused]] T* trig");
+                  motion_args(velocity, acceleration, true) + ",\n      [[maybe_unused]] T* trig" +
+                      (save ? ", [[maybe_unused]] StepFactors<T>* factors" : ""));
       FunctionPrinter pr(prog_, symbols_);
       motion_trig_ = true;
+      saving_ = save;
       motion_body(os, pr, velocity, acceleration, ranges_[k].first, ranges_[k].second, false);
+      saving_ = false;
       motion_trig_ = false;
       os << kIn << "return report;\n  }\n";
     }
@@ -1661,10 +1667,11 @@ class BlockEmitter {
     os << in << "}\n";
   }
   // Whether solve_step keeps block bi's factors: a K x K or torn block solved in solve_step
-  // itself (1 x 1 blocks need none: their coefficient is an entry of Phi_q).
+  // or its parts, not in a repeated block's function (1 x 1 blocks need none: their
+  // coefficient is an entry of Phi_q).
   bool kept_factors(std::size_t bi) const {
     const BlockPlan& plan = st_.plans[bi];
-    return step_factors_ && ranges_.empty() && roll_of_[bi] < 0 &&
+    return step_factors_ && roll_of_[bi] < 0 &&
            (plan.torn() || plan.block.rows.size() > 1);
   }
   // A torn block's rows (or coordinates) in its rate solve's order: the assigned ones, then
@@ -1676,6 +1683,11 @@ class BlockEmitter {
     for (const auto& [r, c] : plan.assigned) v.push_back(rows ? r : c);
     for (int x : rows ? plan.residuals : plan.tears) v.push_back(x);
     return v;
+  }
+  // The parts of a split solve_velocity_acceleration keep the factors too (solve_step calls
+  // them with its StepFactors).
+  bool parts_save(bool velocity, bool acceleration) const {
+    return step_factors_ && velocity && acceleration;
   }
   void factors_rcond(std::ostringstream& os, const char* value) {
     if (step_factors_) os << kIn << "if (factors) factors->rcond = " << value << ";\n";
