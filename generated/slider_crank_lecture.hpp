@@ -726,11 +726,14 @@ struct slider_crank_lecture {
       if (S::jac_cols[e] == col) return jac[e];
     return T(0);
   }
-  // A 1 x 1 block of Phi_q^T y = b: its coefficient, which is its factorization.
+  // A 1 x 1 block of Phi_q^T y = b: its coefficient, which is its factorization. Its
+  // reciprocal first, as _lu_factor keeps it: the division then overlaps the blocks before
+  // (it reads no y), and the solve, which waits for them, multiplies.
   template <class S, class T>
   static bool _transposed_coefficient(int k, const T* jac, T* bc, T* yc) noexcept {
     const int row = S::block_rows[S::block_begin[k]], col = S::block_cols[S::block_begin[k]];
-    const T v = bc[col] / _jac_entry<S>(jac, row, col);
+    const T inv = T(1) / _jac_entry<S>(jac, row, col);
+    const T v = bc[col] * inv;
     if (!_finite(_mag(v))) return false;
     _transposed_row<S>(row, v, k, jac, bc, yc);
     return true;
@@ -760,7 +763,8 @@ struct slider_crank_lecture {
     for (int i = 0; i < M; ++i) _transposed_row<S>(S::tear_rows[b0 + n + i], g[i], -1, jac, bc, yc);
     for (int i = n - 1; i >= 0; --i) {
       const int row = S::tear_rows[b0 + i], col = S::tear_cols[b0 + i];
-      const T v = bc[col] / _jac_entry<S>(jac, row, col);
+      const T inv = T(1) / _jac_entry<S>(jac, row, col);  // as in _transposed_coefficient
+      const T v = bc[col] * inv;
       if (!_finite(_mag(v))) return false;
       _transposed_row<S>(row, v, -1, jac, bc, yc);
     }
