@@ -55,7 +55,8 @@ void run(const char* name, double period) {
   std::vector<State> turn(kTurn);
   const double ns_step = best_ns([&](int k0) {
     for (int k = k0; k < k0 + kChunk; ++k) {
-      if (M::solve_step(q, T(k) * dt, p, qd, qdd, o, static_cast<T*>(nullptr), nullptr, &factors).status != 0)
+      if (M::solve_step(q, T(k) * dt, p, qd, qdd, o, static_cast<T*>(nullptr), nullptr, &factors)
+              .status != 0)
         return false;
       State& s = turn[k % kTurn];
       s.factors = factors;
@@ -103,7 +104,9 @@ void run(const char* name, double period) {
   const double ns_all = best_ns([&](int k0) {
     for (int k = k0; k < k0 + kChunk; ++k) {
       const T t = T(k) * dt;
-      if (M::solve_step(q, t, p, qd, qdd, o, static_cast<T*>(nullptr), nullptr, &factors).status != 0) return false;
+      if (M::solve_step(q, t, p, qd, qdd, o, static_cast<T*>(nullptr), nullptr, &factors).status !=
+          0)
+        return false;
       if (M::solve_forces(q, qd, qdd, t, p, lambda, o, &factors).status != 0) return false;
       M::force_columns(q, t, p, lambda, cols);
       g_checksum = g_checksum + double(cols[0]);
@@ -120,8 +123,8 @@ void run(const char* name, double period) {
 int main() {
   std::printf("ns per call, best of %d chunks of %d calls (0.1 degree of crank per step)\n",
               kChunks, kChunk);
-  std::printf("%-20s %-6s %5s %8s %8s %9s %8s %8s %7s\n", "model", "scalar", "nq", "step",
-              "reuse", "refactor", "columns", "all", "r/step");
+  std::printf("%-20s %-6s %5s %8s %8s %9s %8s %8s %7s\n", "model", "scalar", "nq", "step", "reuse",
+              "refactor", "columns", "all", "r/step");
   run<kinegen::models::four_bar_balanced, double>("four_bar_balanced", 1.0);
   run<kinegen::models::four_bar_balanced, float>("four_bar_balanced", 1.0);
   run<kinegen::models::press, double>("press", 1.0);

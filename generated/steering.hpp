@@ -967,8 +967,8 @@ struct steering {
   // the residual rows' y solve S^T y_r = b_t + D^T b_a, and then the assigned rows' y follow
   // from L^T y_a = b_a - C^T y_r, last row first. Linear in the block's entries.
   template <class S, int M, class T>
-  static bool _transposed_torn(int k, const T* jac, const T* a, const int* piv, const T* d,
-                               T* bc, T* yc) noexcept {
+  static bool _transposed_torn(int k, const T* jac, const T* a, const int* piv, const T* d, T* bc,
+                               T* yc) noexcept {
     const int b0 = S::block_begin[k], n = S::block_begin[k + 1] - b0 - M;  // n assigned
     T g[M];
     for (int j = 0; j < M; ++j) g[j] = bc[S::tear_cols[b0 + n + j]];
@@ -1023,7 +1023,7 @@ struct steering {
       } else if (m > 0) {
         _with_block_size<S>(m, [&](auto s) {
           ok = _transposed_torn<S, decltype(s)::value>(k, jac, a, piv, f->d + S::tear_sens_begin[k],
-                                                      b, y);
+                                                       b, y);
         });
       } else {
         _with_block_size<S>(size, [&](auto s) {

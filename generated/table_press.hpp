@@ -941,8 +941,8 @@ struct table_press {
   // the residual rows' y solve S^T y_r = b_t + D^T b_a, and then the assigned rows' y follow
   // from L^T y_a = b_a - C^T y_r, last row first. Linear in the block's entries.
   template <class S, int M, class T>
-  static bool _transposed_torn(int k, const T* jac, const T* a, const int* piv, const T* d,
-                               T* bc, T* yc) noexcept {
+  static bool _transposed_torn(int k, const T* jac, const T* a, const int* piv, const T* d, T* bc,
+                               T* yc) noexcept {
     const int b0 = S::block_begin[k], n = S::block_begin[k + 1] - b0 - M;  // n assigned
     T g[M];
     for (int j = 0; j < M; ++j) g[j] = bc[S::tear_cols[b0 + n + j]];
@@ -997,7 +997,7 @@ struct table_press {
       } else if (m > 0) {
         _with_block_size<S>(m, [&](auto s) {
           ok = _transposed_torn<S, decltype(s)::value>(k, jac, a, piv, f->d + S::tear_sens_begin[k],
-                                                      b, y);
+                                                       b, y);
         });
       } else {
         _with_block_size<S>(size, [&](auto s) {
@@ -1015,11 +1015,12 @@ struct table_press {
   using TrigCache = BasicTrigCache<T, trig_cache_size>;
 
   // The factors of a step's rate solve, kept for solve_forces at the same q and t
-  // (solve_step's last argument; kernels/block_linear.hpp): each block's LU (a torn
-  // block's: its tears' Schur complement, with the assigned coordinates' sensitivities
-  // to the tears in d), and the step's condition estimate. solve_step sets rcond to 0
-  // first and to its report's rcond once it has succeeded, so that solve_forces never
-  // uses the factors of a failed step. Caller-owned, fixed size, no constructor work.
+  // (solve_step's last argument; kernels/block_linear.hpp): each block's LU (a
+  // torn block's: its tears' Schur complement, and in d the assigned
+  // coordinates' sensitivities to the tears), and the step's condition estimate.
+  // solve_step sets rcond to 0 first and to its report's rcond once it has
+  // succeeded, so that solve_forces never uses the factors of a failed step.
+  // Caller-owned, fixed size, no constructor work.
   template <class T>
   struct StepFactors {
     T a[1];
@@ -1565,13 +1566,14 @@ struct table_press {
     }
   }
 
-  // Phi_q^T lambda = Q (generalized_force) at a solved q, qd, qdd, in reverse block
-  // order. lambda[nc]. factors: nullptr, and each block is factored again (one LU per
-  // block), or those solve_step kept at this q and t (its last argument), and nothing is
-  // factored again: the feedforward efforts after a step. Fails with status 2 (a
-  // singular or ill-conditioned block: a toggle position, where the efforts grow without
-  // bound) or 3 (not finite) and the block; report.rcond is the smallest block's, with
-  // factors the step's (below options.min_rcond every block is factored and checked).
+  // Phi_q^T lambda = Q (generalized_force) at a solved q, qd, qdd, in reverse
+  // block order. lambda[nc]. factors: nullptr, and each block is factored again
+  // (one LU per block), or those solve_step kept at this q and t (its last
+  // argument), and nothing is factored again: the feedforward efforts after a
+  // step. Fails with status 2 (a singular or ill-conditioned block: a toggle
+  // position, where the efforts grow without bound) or 3 (not finite) and the
+  // block; report.rcond is the smallest block's, with factors the step's (below
+  // options.min_rcond every block is factored and checked).
   template <class T, class U>
   static BlockReport<_real<T>> solve_forces(const T* q, const T* qd, const T* qdd, T t,
       const Params& p, T* lambda, const BasicBlockOptions<U>& options,

@@ -454,9 +454,9 @@ TEST_CASE("generated forces with the step's factors equal those factored again",
   const double rolled = reuse_against_refactor<km::scissor_lift_masses_rolled>(2 * kPi, 200, &kept);
   CHECK(kept < 3);
   INFO("largest |reused - refactored| / max |lambda| in eps: press "
-       << press << ", four_bar_balanced " << balanced << ", table_press " << table
-       << ", planetary " << planetary << ", closed_chain_masses (torn) " << torn << ", split "
-       << split << ", scissor_lift_masses " << lift << ", rolled " << rolled);
+       << press << ", four_bar_balanced " << balanced << ", table_press " << table << ", planetary "
+       << planetary << ", closed_chain_masses (torn) " << torn << ", split " << split
+       << ", scissor_lift_masses " << lift << ", rolled " << rolled);
   CHECK(std::max({press, balanced, table, planetary, torn, split, lift, rolled}) <= 16);
 }
 
@@ -472,18 +472,19 @@ TEST_CASE("generated forces with the step's factors in float and std::complex<do
   double worst_float = 0, worst_complex = 0, imag = 0;
   for (int k = 0; k <= 200; ++k) {
     const double t = 2 * kPi * k / 200;
-    REQUIRE(M::solve_step(d.q, t, d.p, d.qd, d.qdd, d.options, no_trig<double>(), nullptr, &fd).status == 0);
-    REQUIRE(M::solve_step(f.q, float(t), f.p, f.qd, f.qdd, f.options, no_trig<float>(), nullptr, &ff)
+    REQUIRE(M::solve_step(d.q, t, d.p, d.qd, d.qdd, d.options, no_trig<double>(), nullptr, &fd)
                 .status == 0);
+    REQUIRE(
+        M::solve_step(f.q, float(t), f.p, f.qd, f.qdd, f.options, no_trig<float>(), nullptr, &ff)
+            .status == 0);
     REQUIRE(M::solve_step(z.q, std::complex<double>(t), z.p, z.qd, z.qdd, z.options,
                           no_trig<std::complex<double>>(), nullptr, &fz)
                 .status == 0);
     REQUIRE(M::solve_forces(d.q, d.qd, d.qdd, t, d.p, d.lambda, d.options, &fd).status == 0);
-    REQUIRE(M::solve_forces(f.q, f.qd, f.qdd, float(t), f.p, f.lambda, f.options, &ff).status ==
-            0);
-    REQUIRE(M::solve_forces(z.q, z.qd, z.qdd, std::complex<double>(t), z.p, z.lambda, z.options,
-                            &fz)
-                .status == 0);
+    REQUIRE(M::solve_forces(f.q, f.qd, f.qdd, float(t), f.p, f.lambda, f.options, &ff).status == 0);
+    REQUIRE(
+        M::solve_forces(z.q, z.qd, z.qdd, std::complex<double>(t), z.p, z.lambda, z.options, &fz)
+            .status == 0);
     double scale = 0;
     for (double v : d.lambda) scale = std::max(scale, std::abs(v));
     for (int r = 0; r < M::nc; ++r) {
@@ -531,7 +532,9 @@ TEST_CASE("generated forces with the step's factors near a toggle: the step's co
   const double toggle[M::nq] = {0, 0, 0, g.p.r, 0, 0, g.p.r + g.p.l, 0, 0}, zero[M::nq] = {};
   double q[M::nq], qd[M::nq], qdd[M::nq];
   std::copy(toggle, toggle + M::nq, q);
-  CHECK(M::solve_step(q, 2.0, g.p, qd, qdd, g.options, no_trig<double>(), nullptr, &factors).status != 0);
+  CHECK(
+      M::solve_step(q, 2.0, g.p, qd, qdd, g.options, no_trig<double>(), nullptr, &factors).status !=
+      0);
   CHECK(factors.rcond == 0);
   const auto at = M::solve_forces(toggle, zero, zero, 2.0, g.p, lambda, g.options, &factors);
   CHECK(at.status == 2);
@@ -561,8 +564,8 @@ TEST_CASE("kinegen::Solver: forces after step() reuse its factors, and only at i
     if (k > 0) {
       // The previous state is not the last step's: factored again, bit for bit the refactoring.
       REQUIRE(solver.forces(q0, qd0, qdd0, before, lambda));
-      REQUIRE(M::solve_forces(q0.data(), qd0.data(), qdd0.data(), before, M::Params{},
-                              again.data(), M::BlockOptions{})
+      REQUIRE(M::solve_forces(q0.data(), qd0.data(), qdd0.data(), before, M::Params{}, again.data(),
+                              M::BlockOptions{})
                   .status == 0);
       CHECK(lambda == again);
     }
@@ -600,8 +603,9 @@ double reuse_against_in_process(const std::string& yaml, double t1) {
   kc::run_analysis(*model, {0, t1, 360}, [&](const kc::StateRow& row) {
     std::vector<double> cols;
     REQUIRE(solver.solve(row.t, row.q, row.qd, row.qdd, cols));
-    REQUIRE(M::solve_step(g.q, row.t, g.p, g.qd, g.qdd, g.options, no_trig<double>(), nullptr, &factors)
-                .status == 0);
+    REQUIRE(
+        M::solve_step(g.q, row.t, g.p, g.qd, g.qdd, g.options, no_trig<double>(), nullptr, &factors)
+            .status == 0);
     REQUIRE(M::solve_forces(g.q, g.qd, g.qdd, row.t, g.p, g.lambda, g.options, &factors).status ==
             0);
     M::force_columns(g.q, row.t, g.p, g.lambda, g.columns);
@@ -621,9 +625,10 @@ TEST_CASE("generated forces with the step's factors equal the in-process ForceSo
       "/examples/forces/four_bar_balanced.yaml", 1.0);
   const double torn = reuse_against_in_process<km::closed_chain_masses>(
       "/tests/mechanisms/closed_chain_masses.yaml", 2 * kPi);
-  INFO("largest difference relative to the row's largest force (generated step's own "
-       "kinematics): four_bar_balanced "
-       << balanced << ", closed_chain_masses " << torn);
+  INFO(
+      "largest difference relative to the row's largest force (generated step's own "
+      "kinematics): four_bar_balanced "
+      << balanced << ", closed_chain_masses " << torn);
   CHECK(balanced <= 1e-12);
   CHECK(torn <= 1e-12);
 }

@@ -1028,11 +1028,12 @@ class BlockEmitter {
     d_begin.push_back(idx(l.d_begin.back()));
     const auto size = [](int n) { return idx(std::max(1, n)); };
     os << "  // The factors of a step's rate solve, kept for solve_forces at the same q and t\n"
-       << "  // (solve_step's last argument; kernels/block_linear.hpp): each block's LU (a torn\n"
-       << "  // block's: its tears' Schur complement, with the assigned coordinates' sensitivities\n"
-       << "  // to the tears in d), and the step's condition estimate. solve_step sets rcond to 0\n"
-       << "  // first and to its report's rcond once it has succeeded, so that solve_forces never\n"
-       << "  // uses the factors of a failed step. Caller-owned, fixed size, no constructor work.\n"
+       << "  // (solve_step's last argument; kernels/block_linear.hpp): each block's LU (a\n"
+       << "  // torn block's: its tears' Schur complement, and in d the assigned\n"
+       << "  // coordinates' sensitivities to the tears), and the step's condition estimate.\n"
+       << "  // solve_step sets rcond to 0 first and to its report's rcond once it has\n"
+       << "  // succeeded, so that solve_forces never uses the factors of a failed step.\n"
+       << "  // Caller-owned, fixed size, no constructor work.\n"
        << "  template <class T>\n"
        << "  struct StepFactors {\n"
        << "    T a[" << size(l.a_begin.back()) << "];\n"
@@ -1671,8 +1672,7 @@ class BlockEmitter {
   // coefficient is an entry of Phi_q).
   bool kept_factors(std::size_t bi) const {
     const BlockPlan& plan = st_.plans[bi];
-    return step_factors_ && roll_of_[bi] < 0 &&
-           (plan.torn() || plan.block.rows.size() > 1);
+    return step_factors_ && roll_of_[bi] < 0 && (plan.torn() || plan.block.rows.size() > 1);
   }
   // A torn block's rows (or coordinates) in its rate solve's order: the assigned ones, then
   // the residual rows (the tears); another block's as in the structure tables.
@@ -2232,13 +2232,14 @@ void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
      << "    T g[" << ng << "];\n"
      << "    _force_geometry(q, t, p, g);\n"
      << inertia.str() << "  }\n\n"
-     << "  // Phi_q^T lambda = Q (generalized_force) at a solved q, qd, qdd, in reverse block\n"
-     << "  // order. lambda[nc]. factors: nullptr, and each block is factored again (one LU per\n"
-     << "  // block), or those solve_step kept at this q and t (its last argument), and nothing is\n"
-     << "  // factored again: the feedforward efforts after a step. Fails with status 2 (a\n"
-     << "  // singular or ill-conditioned block: a toggle position, where the efforts grow without\n"
-     << "  // bound) or 3 (not finite) and the block; report.rcond is the smallest block's, with\n"
-     << "  // factors the step's (below options.min_rcond every block is factored and checked).\n"
+     << "  // Phi_q^T lambda = Q (generalized_force) at a solved q, qd, qdd, in reverse\n"
+     << "  // block order. lambda[nc]. factors: nullptr, and each block is factored again\n"
+     << "  // (one LU per block), or those solve_step kept at this q and t (its last\n"
+     << "  // argument), and nothing is factored again: the feedforward efforts after a\n"
+     << "  // step. Fails with status 2 (a singular or ill-conditioned block: a toggle\n"
+     << "  // position, where the efforts grow without bound) or 3 (not finite) and the\n"
+     << "  // block; report.rcond is the smallest block's, with factors the step's (below\n"
+     << "  // options.min_rcond every block is factored and checked).\n"
      << "  template <class T, class U>\n"
      << "  static BlockReport<_real<T>> solve_forces(const T* q, const T* qd, const T* qdd, T t,\n"
      << "      const Params& p, T* lambda, const BasicBlockOptions<U>& options,\n"

@@ -389,9 +389,8 @@ class Solver {
   Result solve_block_step(Vector& q, Scalar t, Vector& qd, Vector& qdd, const O& o) {
     const auto& p = dense_.system().params();
     if constexpr (kStepFactors) {
-      return detail::to_result<Model>(Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), o,
-                                                        trig_.data(), signs_new_.data(),
-                                                        &factors_));
+      return detail::to_result<Model>(Model::solve_step(
+          q.data(), t, p, qd.data(), qdd.data(), o, trig_.data(), signs_new_.data(), &factors_));
     } else if constexpr (kSigns) {
       return detail::to_result<Model>(Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), o,
                                                         trig_.data(), signs_new_.data()));
