@@ -731,6 +731,31 @@ struct planetary {
     });
   }
 
+  // y of `row` is v: recorded, and subtracted from the equations of the coordinates the row
+  // reads outside block `own` (-1: every coordinate, the row's own block's too).
+  template <class S, class T>
+  static void _transposed_row(int row, const T& v, int own, const T* jac, T* bc, T* yc) noexcept {
+    yc[row] = v;
+    for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+      const int c = S::jac_cols[e];
+      if (S::coordinate_block[c] != own) bc[c] -= jac[e] * v;
+    }
+  }
+  // Block k of Phi_q^T y = b with its factors a, piv (K x K: its rows by its coordinates): bc
+  // holds the equations of the coordinates (those of later blocks' rows subtracted), yc
+  // receives its rows' y. False when they are not finite.
+  template <class S, int K, class T>
+  static bool _transposed_block(int k, const T* jac, const T* a, const int* piv, T* bc,
+                                T* yc) noexcept {
+    const int b0 = S::block_begin[k];
+    T v[K];
+    for (int j = 0; j < K; ++j) v[j] = bc[S::block_cols[b0 + j]];
+    _lu_solve_transposed<K>(a, piv, v);
+    if (!_all_finite<K>(v)) return false;
+    for (int i = 0; i < K; ++i) _transposed_row<S>(S::block_rows[b0 + i], v[i], k, jac, bc, yc);
+    return true;
+  }
+
   // Phi_q^T Y = B: y (by row) and b (by coordinate) hold m columns as in _block_forward; b is
   // used as work space and left changed. Blocks in reverse order: block k's coordinates'
   // equations involve only its own and later blocks' rows, and once its rows' y are known
@@ -741,31 +766,132 @@ struct planetary {
     return _each_factored_block<S, true>(jac, o, [&](auto size, int k, const T* a,
                                                      const int* piv) {
       constexpr int K = decltype(size)::value;
-      const int b0 = S::block_begin[k];
-      for (int col = 0; col < m; ++col) {
-        T* bc = b + col * S::nq;
-        T* yc = y + col * S::nq;
-        T v[K];
-        for (int j = 0; j < K; ++j) v[j] = bc[S::block_cols[b0 + j]];
-        _lu_solve_transposed<K>(a, piv, v);
-        if (!_all_finite<K>(v)) return false;
-        for (int i = 0; i < K; ++i) {
-          const int row = S::block_rows[b0 + i];
-          yc[row] = v[i];
-          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
-            const int c = S::jac_cols[e];
-            if (S::coordinate_block[c] != k) bc[c] -= jac[e] * v[i];
-          }
-        }
-      }
+      for (int col = 0; col < m; ++col)
+        if (!_transposed_block<S, K>(k, jac, a, piv, b + col * S::nq, y + col * S::nq))
+          return false;
       return true;
     });
+  }
+
+  // The entry of Phi_q at (row, col), from the row's entries.
+  template <class S, class T>
+  static T _jac_entry(const T* jac, int row, int col) noexcept {
+    for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e)
+      if (S::jac_cols[e] == col) return jac[e];
+    return T(0);
+  }
+  // A 1 x 1 block of Phi_q^T y = b: its coefficient, which is its factorization. Its
+  // reciprocal first, as _lu_factor keeps it: the division then overlaps the blocks before
+  // (it reads no y), and the solve, which waits for them, multiplies.
+  template <class S, class T>
+  static bool _transposed_coefficient(int k, const T* jac, T* bc, T* yc) noexcept {
+    const int row = S::block_rows[S::block_begin[k]], col = S::block_cols[S::block_begin[k]];
+    const T inv = T(1) / _jac_entry<S>(jac, row, col);
+    const T v = bc[col] * inv;
+    if (!_finite(_mag(v))) return false;
+    _transposed_row<S>(row, v, k, jac, bc, yc);
+    return true;
+  }
+  // A torn block of Phi_q^T y = b, the adjoint of the rate solve's: with A = [L B; C E] (the
+  // assigned rows by the assigned coordinates, L lower triangular with constant diagonal, then
+  // the tears; the residual rows below), D = -L^-1 B the assigned coordinates' sensitivities to
+  // the tears and S = E + C D their Schur complement (factored in a, piv; M = 1: the divisor),
+  // the residual rows' y solve S^T y_r = b_t + D^T b_a, and then the assigned rows' y follow
+  // from L^T y_a = b_a - C^T y_r, last row first. Linear in the block's entries.
+  template <class S, int M, class T>
+  static bool _transposed_torn(int k, const T* jac, const T* a, const int* piv, const T* d, T* bc,
+                               T* yc) noexcept {
+    const int b0 = S::block_begin[k], n = S::block_begin[k + 1] - b0 - M;  // n assigned
+    T g[M];
+    for (int j = 0; j < M; ++j) g[j] = bc[S::tear_cols[b0 + n + j]];
+    for (int i = 0; i < n; ++i) {
+      const T x = bc[S::tear_cols[b0 + i]];
+      for (int j = 0; j < M; ++j) g[j] += d[i * M + j] * x;
+    }
+    if constexpr (M == 1) {
+      g[0] /= a[0];
+    } else {
+      _lu_solve_transposed<M>(a, piv, g);
+    }
+    if (!_all_finite<M>(g)) return false;
+    for (int i = 0; i < M; ++i) _transposed_row<S>(S::tear_rows[b0 + n + i], g[i], -1, jac, bc, yc);
+    for (int i = n - 1; i >= 0; --i) {
+      const int row = S::tear_rows[b0 + i], col = S::tear_cols[b0 + i];
+      const T inv = T(1) / _jac_entry<S>(jac, row, col);  // as in _transposed_coefficient
+      const T v = bc[col] * inv;
+      if (!_finite(_mag(v))) return false;
+      _transposed_row<S>(row, v, -1, jac, bc, yc);
+    }
+    return true;
+  }
+  // Phi_q^T y = b (one column) with the factors a full step kept (S::StepFactors, filled by
+  // solve_step at the same q and t): nothing is factored again but the blocks the step did not
+  // keep (S::step_factored). The condition is the step's (f->rcond); without factors, or when
+  // that condition is below options.min_rcond, every block is factored again and checked as in
+  // _block_transposed.
+  template <class S, class T, class R, class F>
+  static BlockReport<R> _block_transposed_reusing(const T* jac, T* b, T* y, const F* f,
+                                                  const BasicBlockOptions<R>& o) noexcept {
+    if (!f || !(f->rcond > o.min_rcond)) return _block_transposed<S>(jac, b, y, 1, o);
+    BlockReport<R> r;
+    r.rcond = R(f->rcond);
+    bool ok = true;
+    for (int n = 0; ok && n < S::num_blocks; ++n) {
+      const int k = S::num_blocks - 1 - n, size = S::block_begin[k + 1] - S::block_begin[k];
+      const int m = S::block_tears[k];
+      const T* a = f->a + S::factor_begin[k];
+      const int* piv = f->piv + S::block_begin[k];
+      if (m == 0 && size == 1) {
+        ok = _transposed_coefficient<S>(k, jac, b, y);
+      } else if (!S::step_factored[k]) {
+        _with_block_size<S>(size, [&](auto s) {
+          constexpr int K = decltype(s)::value;
+          T a2[K * K];
+          int piv2[K];
+          if (!(ok = _block_factor<S, K>(k, jac, a2, piv2, r, o.min_rcond))) return;
+          ok = _transposed_block<S, K>(k, jac, a2, piv2, b, y);
+        });
+        if (r.status != 0) return r;
+      } else if (m > 0) {
+        _with_block_size<S>(m, [&](auto s) {
+          ok = _transposed_torn<S, decltype(s)::value>(k, jac, a, piv, f->d + S::tear_sens_begin[k],
+                                                       b, y);
+        });
+      } else {
+        _with_block_size<S>(size, [&](auto s) {
+          ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
+        });
+      }
+      if (!ok) r = _fail(r, 3, k);
+    }
+    return r;
   }
   // ---- end of kinegen kernel block_linear
 
   // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then cache.data().
   template <class T>
   using TrigCache = BasicTrigCache<T, trig_cache_size>;
+
+  // The factors of a step's rate solve, kept for solve_forces at the same q and t
+  // (solve_step's last argument; kernels/block_linear.hpp): each block's LU (a
+  // torn block's: its tears' Schur complement, and in d the assigned
+  // coordinates' sensitivities to the tears), and the step's condition estimate.
+  // solve_step sets rcond to 0 first and to its report's rcond once it has
+  // succeeded, so that solve_forces never uses the factors of a failed step.
+  // Caller-owned, fixed size, no constructor work.
+  template <class T>
+  struct StepFactors {
+    T a[16];
+    int piv[nq];
+    T d[1];
+    _real<T> rcond = 0;
+  };
+  static constexpr std::array<int, num_blocks + 1> factor_begin = {0, 0, 0, 0, 0, 0, 16};
+  static constexpr std::array<int, num_blocks> step_factored = {0, 0, 0, 0, 0, 1};
+  static constexpr std::array<int, num_blocks> block_tears = {0, 0, 0, 0, 0, 0};
+  static constexpr std::array<int, nc> tear_rows = {0, 1, 2, 3, 8, 4, 5, 6, 7};
+  static constexpr std::array<int, nq> tear_cols = {0, 1, 3, 4, 2, 5, 6, 7, 8};
+  static constexpr std::array<int, num_blocks + 1> tear_sens_begin = {0, 0, 0, 0, 0, 0, 0};
 
   // Position: each block in turn, explicit or by Newton on the block alone; q holds
   // the start (the previous solution or a prediction) and receives the solution.
@@ -1075,11 +1201,13 @@ struct planetary {
       [[maybe_unused]] const Params& p, T* qd, T* qdd,
       [[maybe_unused]] const BasicBlockOptions<U>& options,
       [[maybe_unused]] T* trig = nullptr,
-      [[maybe_unused]] signed char* block_signs = nullptr) noexcept {
+      [[maybe_unused]] signed char* block_signs = nullptr,
+      [[maybe_unused]] StepFactors<T>* factors = nullptr) noexcept {
     using R = _real<T>;
     using std::cos, std::sin;
     [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);
     BlockReport<R> report;
+    if (factors) factors->rcond = R(0);
     // Block 0: rows 0 -> q[0] (explicit)
     q[0] = T(0);
     // Block 1: rows 1 -> q[1] (explicit)
@@ -1192,6 +1320,10 @@ struct planetary {
     const R _ratio5 = _lu_factor<4>(_a5, _piv5);
     if (!(_ratio5 > o.singular_pivot_ratio))
       return _fail(report, _ratio5 == _ratio5 ? 2 : 3, 5);
+    if (factors) {
+      std::copy(_a5, _a5 + 16, factors->a + 0);
+      std::copy(_piv5, _piv5 + 4, factors->piv + 5);
+    }
     {
       T _x[4] = {qd[3], qd[4], -_t21*qd[0] - (-_t19)*qd[1] - (_t20*_t1*_t19*T(p.r_sun) + _t17*_t1*T(p.r_sun)*_t21)*qd[2], T(0)};
       _lu_solve<4>(_a5, _piv5, _x);
@@ -1220,6 +1352,7 @@ struct planetary {
       qdd[8] = _x[3];
     }
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (factors) factors->rcond = report.rcond;
     return report;
   }
 
@@ -1408,18 +1541,23 @@ struct planetary {
     }
   }
 
-  // Phi_q^T lambda = Q (generalized_force) at a solved q, qd, qdd: one LU per block,
-  // in reverse block order. lambda[nc]. Fails with status 2 (a singular or
-  // ill-conditioned block: a toggle position, where the efforts grow without bound)
-  // or 3 (not finite) and the block; report.rcond is the smallest block's.
+  // Phi_q^T lambda = Q (generalized_force) at a solved q, qd, qdd, in reverse
+  // block order. lambda[nc]. factors: nullptr, and each block is factored again
+  // (one LU per block), or those solve_step kept at this q and t (its last
+  // argument), and nothing is factored again: the feedforward efforts after a
+  // step. Fails with status 2 (a singular or ill-conditioned block: a toggle
+  // position, where the efforts grow without bound) or 3 (not finite) and the
+  // block; report.rcond is the smallest block's, with factors the step's (below
+  // options.min_rcond every block is factored and checked).
   template <class T, class U>
   static BlockReport<_real<T>> solve_forces(const T* q, const T* qd, const T* qdd, T t,
-      const Params& p, T* lambda, const BasicBlockOptions<U>& options) noexcept {
+      const Params& p, T* lambda, const BasicBlockOptions<U>& options,
+      const StepFactors<T>* factors = nullptr) noexcept {
     T jac[jac_nnz], b[nq];
     phi_q(q, t, p, jac);
     generalized_force(q, qd, qdd, t, p, b);
-    return _block_transposed<_model>(jac, b, lambda, 1,
-                                     _options_as<_real<T>>(options));
+    return _block_transposed_reusing<_model>(jac, b, lambda, factors,
+                                             _options_as<_real<T>>(options));
   }
 
   // The force_column_names columns from lambda (solve_forces) at the same q and t. The

@@ -894,6 +894,31 @@ struct steering {
     });
   }
 
+  // y of `row` is v: recorded, and subtracted from the equations of the coordinates the row
+  // reads outside block `own` (-1: every coordinate, the row's own block's too).
+  template <class S, class T>
+  static void _transposed_row(int row, const T& v, int own, const T* jac, T* bc, T* yc) noexcept {
+    yc[row] = v;
+    for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+      const int c = S::jac_cols[e];
+      if (S::coordinate_block[c] != own) bc[c] -= jac[e] * v;
+    }
+  }
+  // Block k of Phi_q^T y = b with its factors a, piv (K x K: its rows by its coordinates): bc
+  // holds the equations of the coordinates (those of later blocks' rows subtracted), yc
+  // receives its rows' y. False when they are not finite.
+  template <class S, int K, class T>
+  static bool _transposed_block(int k, const T* jac, const T* a, const int* piv, T* bc,
+                                T* yc) noexcept {
+    const int b0 = S::block_begin[k];
+    T v[K];
+    for (int j = 0; j < K; ++j) v[j] = bc[S::block_cols[b0 + j]];
+    _lu_solve_transposed<K>(a, piv, v);
+    if (!_all_finite<K>(v)) return false;
+    for (int i = 0; i < K; ++i) _transposed_row<S>(S::block_rows[b0 + i], v[i], k, jac, bc, yc);
+    return true;
+  }
+
   // Phi_q^T Y = B: y (by row) and b (by coordinate) hold m columns as in _block_forward; b is
   // used as work space and left changed. Blocks in reverse order: block k's coordinates'
   // equations involve only its own and later blocks' rows, and once its rows' y are known
@@ -904,25 +929,105 @@ struct steering {
     return _each_factored_block<S, true>(jac, o, [&](auto size, int k, const T* a,
                                                      const int* piv) {
       constexpr int K = decltype(size)::value;
-      const int b0 = S::block_begin[k];
-      for (int col = 0; col < m; ++col) {
-        T* bc = b + col * S::nq;
-        T* yc = y + col * S::nq;
-        T v[K];
-        for (int j = 0; j < K; ++j) v[j] = bc[S::block_cols[b0 + j]];
-        _lu_solve_transposed<K>(a, piv, v);
-        if (!_all_finite<K>(v)) return false;
-        for (int i = 0; i < K; ++i) {
-          const int row = S::block_rows[b0 + i];
-          yc[row] = v[i];
-          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
-            const int c = S::jac_cols[e];
-            if (S::coordinate_block[c] != k) bc[c] -= jac[e] * v[i];
-          }
-        }
-      }
+      for (int col = 0; col < m; ++col)
+        if (!_transposed_block<S, K>(k, jac, a, piv, b + col * S::nq, y + col * S::nq))
+          return false;
       return true;
     });
+  }
+
+  // The entry of Phi_q at (row, col), from the row's entries.
+  template <class S, class T>
+  static T _jac_entry(const T* jac, int row, int col) noexcept {
+    for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e)
+      if (S::jac_cols[e] == col) return jac[e];
+    return T(0);
+  }
+  // A 1 x 1 block of Phi_q^T y = b: its coefficient, which is its factorization. Its
+  // reciprocal first, as _lu_factor keeps it: the division then overlaps the blocks before
+  // (it reads no y), and the solve, which waits for them, multiplies.
+  template <class S, class T>
+  static bool _transposed_coefficient(int k, const T* jac, T* bc, T* yc) noexcept {
+    const int row = S::block_rows[S::block_begin[k]], col = S::block_cols[S::block_begin[k]];
+    const T inv = T(1) / _jac_entry<S>(jac, row, col);
+    const T v = bc[col] * inv;
+    if (!_finite(_mag(v))) return false;
+    _transposed_row<S>(row, v, k, jac, bc, yc);
+    return true;
+  }
+  // A torn block of Phi_q^T y = b, the adjoint of the rate solve's: with A = [L B; C E] (the
+  // assigned rows by the assigned coordinates, L lower triangular with constant diagonal, then
+  // the tears; the residual rows below), D = -L^-1 B the assigned coordinates' sensitivities to
+  // the tears and S = E + C D their Schur complement (factored in a, piv; M = 1: the divisor),
+  // the residual rows' y solve S^T y_r = b_t + D^T b_a, and then the assigned rows' y follow
+  // from L^T y_a = b_a - C^T y_r, last row first. Linear in the block's entries.
+  template <class S, int M, class T>
+  static bool _transposed_torn(int k, const T* jac, const T* a, const int* piv, const T* d, T* bc,
+                               T* yc) noexcept {
+    const int b0 = S::block_begin[k], n = S::block_begin[k + 1] - b0 - M;  // n assigned
+    T g[M];
+    for (int j = 0; j < M; ++j) g[j] = bc[S::tear_cols[b0 + n + j]];
+    for (int i = 0; i < n; ++i) {
+      const T x = bc[S::tear_cols[b0 + i]];
+      for (int j = 0; j < M; ++j) g[j] += d[i * M + j] * x;
+    }
+    if constexpr (M == 1) {
+      g[0] /= a[0];
+    } else {
+      _lu_solve_transposed<M>(a, piv, g);
+    }
+    if (!_all_finite<M>(g)) return false;
+    for (int i = 0; i < M; ++i) _transposed_row<S>(S::tear_rows[b0 + n + i], g[i], -1, jac, bc, yc);
+    for (int i = n - 1; i >= 0; --i) {
+      const int row = S::tear_rows[b0 + i], col = S::tear_cols[b0 + i];
+      const T inv = T(1) / _jac_entry<S>(jac, row, col);  // as in _transposed_coefficient
+      const T v = bc[col] * inv;
+      if (!_finite(_mag(v))) return false;
+      _transposed_row<S>(row, v, -1, jac, bc, yc);
+    }
+    return true;
+  }
+  // Phi_q^T y = b (one column) with the factors a full step kept (S::StepFactors, filled by
+  // solve_step at the same q and t): nothing is factored again but the blocks the step did not
+  // keep (S::step_factored). The condition is the step's (f->rcond); without factors, or when
+  // that condition is below options.min_rcond, every block is factored again and checked as in
+  // _block_transposed.
+  template <class S, class T, class R, class F>
+  static BlockReport<R> _block_transposed_reusing(const T* jac, T* b, T* y, const F* f,
+                                                  const BasicBlockOptions<R>& o) noexcept {
+    if (!f || !(f->rcond > o.min_rcond)) return _block_transposed<S>(jac, b, y, 1, o);
+    BlockReport<R> r;
+    r.rcond = R(f->rcond);
+    bool ok = true;
+    for (int n = 0; ok && n < S::num_blocks; ++n) {
+      const int k = S::num_blocks - 1 - n, size = S::block_begin[k + 1] - S::block_begin[k];
+      const int m = S::block_tears[k];
+      const T* a = f->a + S::factor_begin[k];
+      const int* piv = f->piv + S::block_begin[k];
+      if (m == 0 && size == 1) {
+        ok = _transposed_coefficient<S>(k, jac, b, y);
+      } else if (!S::step_factored[k]) {
+        _with_block_size<S>(size, [&](auto s) {
+          constexpr int K = decltype(s)::value;
+          T a2[K * K];
+          int piv2[K];
+          if (!(ok = _block_factor<S, K>(k, jac, a2, piv2, r, o.min_rcond))) return;
+          ok = _transposed_block<S, K>(k, jac, a2, piv2, b, y);
+        });
+        if (r.status != 0) return r;
+      } else if (m > 0) {
+        _with_block_size<S>(m, [&](auto s) {
+          ok = _transposed_torn<S, decltype(s)::value>(k, jac, a, piv, f->d + S::tear_sens_begin[k],
+                                                       b, y);
+        });
+      } else {
+        _with_block_size<S>(size, [&](auto s) {
+          ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
+        });
+      }
+      if (!ok) r = _fail(r, 3, k);
+    }
+    return r;
   }
   // ---- end of kinegen kernel block_linear
 

@@ -344,3 +344,291 @@ TEST_CASE(
   CHECK(both_pass >= 5);
   CHECK(both_fail >= 2);
 }
+
+// ---- The step's factors reused (StepFactors): solve_forces straight after solve_step at the
+// same t factors nothing again (kernels/block_linear.hpp, _block_transposed_reusing).
+namespace {
+
+// No sin/cos cache (solve_step's T* argument, which nullptr alone cannot deduce).
+template <class T>
+T* no_trig() {
+  return nullptr;
+}
+
+// The largest |Phi_q^T lambda - Q| of a coordinate against the largest |Phi_q^T| |lambda| + |Q|
+// of any: an independent check of a solve of Phi_q^T lambda = Q (0 for an exact one, a few eps
+// after rounding).
+template <class M>
+double transposed_residual(const double* q, const double* qd, const double* qdd, double t,
+                           const typename M::Params& p, const double* lambda) {
+  double jac[M::jac_nnz], b[M::nq], sum[M::nq], size[M::nq];
+  M::phi_q(q, t, p, jac);
+  M::generalized_force(q, qd, qdd, t, p, b);
+  for (int c = 0; c < M::nq; ++c) {
+    sum[c] = -b[c];
+    size[c] = std::abs(b[c]);
+  }
+  for (int e = 0; e < M::jac_nnz; ++e) {
+    sum[M::jac_cols[e]] += jac[e] * lambda[M::jac_rows[e]];
+    size[M::jac_cols[e]] += std::abs(jac[e] * lambda[M::jac_rows[e]]);
+  }
+  double worst = 0, scale = 0;
+  for (int c = 0; c < M::nq; ++c) {
+    worst = std::max(worst, std::abs(sum[c]));
+    scale = std::max(scale, size[c]);
+  }
+  return worst / scale;
+}
+
+// Over `steps` steps of [0, t1]: solve_step keeping its factors, then solve_forces with them and
+// without (every block factored again). Returns the largest difference of lambda relative to
+// the row's largest |lambda|, in units of eps; checks each solve's residual and the condition.
+template <class M>
+double reuse_against_refactor(double t1, int steps, int* kept_blocks) {
+  Generated<M, double> g;
+  typename M::template StepFactors<double> factors;
+  double worst = 0, residual = 0;
+  // Blocks with factors (K x K or torn; a 1 x 1 block's coefficient is an entry of Phi_q).
+  int factored = 0;
+  *kept_blocks = 0;
+  for (int k = 0; k < M::num_blocks; ++k) {
+    *kept_blocks += M::step_factored[k];
+    factored += M::block_tears[k] > 0 || M::block_begin[k + 1] - M::block_begin[k] > 1;
+  }
+  for (int k = 0; k <= steps; ++k) {
+    const double t = t1 * k / steps;
+    const auto step =
+        M::solve_step(g.q, t, g.p, g.qd, g.qdd, g.options, no_trig<double>(), nullptr, &factors);
+    REQUIRE(step.status == 0);
+    CHECK(factors.rcond == step.rcond);
+    double reused[M::nc], again[M::nc];
+    const auto r1 = M::solve_forces(g.q, g.qd, g.qdd, t, g.p, reused, g.options, &factors);
+    const auto r2 = M::solve_forces(g.q, g.qd, g.qdd, t, g.p, again, g.options);
+    REQUIRE(r1.status == 0);
+    REQUIRE(r2.status == 0);
+    // The step's condition, not measured again; with the blocks the step did not keep
+    // factored here, the smallest with theirs.
+    if (*kept_blocks == factored) CHECK(r1.rcond == step.rcond);
+    CHECK(r1.rcond == std::min(step.rcond, r1.rcond));
+    double scale = 0;
+    for (double v : again) scale = std::max(scale, std::abs(v));
+    for (int r = 0; r < M::nc; ++r)
+      worst = std::max(worst, std::abs(reused[r] - again[r]) / (scale * kEps));
+    residual = std::max(residual, transposed_residual<M>(g.q, g.qd, g.qdd, t, g.p, reused));
+  }
+  INFO("largest |Phi_q^T lambda - Q| relative, reused factors: " << residual);
+  CHECK(residual <= 64 * kEps);
+  return worst;
+}
+
+}  // namespace
+
+#include "closed_chain_masses.hpp"
+#include "closed_chain_masses_split.hpp"
+#include "planetary.hpp"
+#include "press.hpp"
+#include "scissor_lift_masses.hpp"
+#include "scissor_lift_masses_rolled.hpp"
+#include "table_press.hpp"
+
+TEST_CASE("generated forces with the step's factors equal those factored again",
+          "[forces][generated][reuse]") {
+  int kept = 0;
+  const double press = reuse_against_refactor<km::press>(1.0, 400, &kept);
+  CHECK(kept == 0);  // 1 x 1 blocks only: each coefficient is an entry of Phi_q
+  const double balanced = reuse_against_refactor<km::four_bar_balanced>(1.0, 400, &kept);
+  CHECK(kept > 0);
+  const double table = reuse_against_refactor<km::table_press>(1.0, 400, &kept);
+  const double planetary = reuse_against_refactor<km::planetary>(1.0, 400, &kept);
+  // One torn block (2 tears, 3 coordinates assigned): the transposed solve through the tears.
+  static_assert(km::closed_chain_masses::block_tears[km::closed_chain_masses::num_blocks - 1] == 2);
+  const double torn = reuse_against_refactor<km::closed_chain_masses>(2 * kPi, 400, &kept);
+  CHECK(kept == 1);
+  // Split into parts: solve_step's parts keep the factors.
+  const double split = reuse_against_refactor<km::closed_chain_masses_split>(2 * kPi, 400, &kept);
+  CHECK(kept == 1);
+  // Three torn stages; rolled (--roll-min 2), the repeated blocks keep their factors inside
+  // their functions, and solve_forces factors those again (6 x 6 LU, checked as without).
+  const double lift = reuse_against_refactor<km::scissor_lift_masses>(2 * kPi, 200, &kept);
+  CHECK(kept == 3);
+  const double rolled = reuse_against_refactor<km::scissor_lift_masses_rolled>(2 * kPi, 200, &kept);
+  CHECK(kept < 3);
+  INFO("largest |reused - refactored| / max |lambda| in eps: press "
+       << press << ", four_bar_balanced " << balanced << ", table_press " << table << ", planetary "
+       << planetary << ", closed_chain_masses (torn) " << torn << ", split " << split
+       << ", scissor_lift_masses " << lift << ", rolled " << rolled);
+  CHECK(std::max({press, balanced, table, planetary, torn, split, lift, rolled}) <= 16);
+}
+
+TEST_CASE("generated forces with the step's factors in float and std::complex<double>",
+          "[forces][generated][reuse]") {
+  using M = km::closed_chain_masses;  // the torn block
+  Generated<M, double> d;
+  Generated<M, float> f;
+  Generated<M, std::complex<double>> z;
+  M::StepFactors<double> fd;
+  M::StepFactors<float> ff;
+  M::StepFactors<std::complex<double>> fz;
+  double worst_float = 0, worst_complex = 0, imag = 0;
+  for (int k = 0; k <= 200; ++k) {
+    const double t = 2 * kPi * k / 200;
+    REQUIRE(M::solve_step(d.q, t, d.p, d.qd, d.qdd, d.options, no_trig<double>(), nullptr, &fd)
+                .status == 0);
+    REQUIRE(
+        M::solve_step(f.q, float(t), f.p, f.qd, f.qdd, f.options, no_trig<float>(), nullptr, &ff)
+            .status == 0);
+    REQUIRE(M::solve_step(z.q, std::complex<double>(t), z.p, z.qd, z.qdd, z.options,
+                          no_trig<std::complex<double>>(), nullptr, &fz)
+                .status == 0);
+    REQUIRE(M::solve_forces(d.q, d.qd, d.qdd, t, d.p, d.lambda, d.options, &fd).status == 0);
+    REQUIRE(M::solve_forces(f.q, f.qd, f.qdd, float(t), f.p, f.lambda, f.options, &ff).status == 0);
+    REQUIRE(
+        M::solve_forces(z.q, z.qd, z.qdd, std::complex<double>(t), z.p, z.lambda, z.options, &fz)
+            .status == 0);
+    double scale = 0;
+    for (double v : d.lambda) scale = std::max(scale, std::abs(v));
+    for (int r = 0; r < M::nc; ++r) {
+      worst_float = std::max(worst_float, std::abs(f.lambda[r] - d.lambda[r]) / scale);
+      worst_complex = std::max(worst_complex, std::abs(z.lambda[r].real() - d.lambda[r]) / scale);
+      imag = std::max(imag, std::abs(z.lambda[r].imag()));
+    }
+  }
+  INFO("float " << worst_float << ", complex " << worst_complex << " of the largest |lambda|");
+  CHECK(worst_float <= 1e-4);
+  CHECK(worst_complex <= 1e-13);
+  CHECK(imag == 0);
+}
+
+TEST_CASE("generated forces with the step's factors near a toggle: the step's condition",
+          "[forces][generated][reuse]") {
+  using M = km::slider_driven;
+  Generated<M, double> g;
+  M::StepFactors<double> factors;
+  double last_rcond = 1;
+  for (double t = 0; t < 1.995; t += 0.01) {
+    const auto step =
+        M::solve_step(g.q, t, g.p, g.qd, g.qdd, g.options, no_trig<double>(), nullptr, &factors);
+    REQUIRE(step.status == 0);
+    const auto r = M::solve_forces(g.q, g.qd, g.qdd, t, g.p, g.lambda, g.options, &factors);
+    REQUIRE(r.status == 0);
+    CHECK(r.rcond == step.rcond);
+    if (t < 1.5) continue;
+    INFO("t " << t << " rcond " << r.rcond);
+    CHECK(r.rcond < last_rcond);
+    last_rcond = r.rcond;
+  }
+  CHECK(last_rcond < 0.01);
+  // A condition limit above the step's: every block is factored again and checked, and the
+  // verdict is the refactored one's (the block that fails, never a value).
+  auto strict = g.options;
+  strict.min_rcond = 2 * last_rcond;
+  double lambda[M::nc];
+  const auto again = M::solve_forces(g.q, g.qd, g.qdd, 1.99, g.p, lambda, strict);
+  const auto reused = M::solve_forces(g.q, g.qd, g.qdd, 1.99, g.p, g.lambda, strict, &factors);
+  CHECK(again.status == 2);
+  CHECK(reused.status == again.status);
+  CHECK(reused.block == again.block);
+  // At the toggle the step fails, leaves rcond 0, and the factors are not used.
+  const double toggle[M::nq] = {0, 0, 0, g.p.r, 0, 0, g.p.r + g.p.l, 0, 0}, zero[M::nq] = {};
+  double q[M::nq], qd[M::nq], qdd[M::nq];
+  std::copy(toggle, toggle + M::nq, q);
+  CHECK(
+      M::solve_step(q, 2.0, g.p, qd, qdd, g.options, no_trig<double>(), nullptr, &factors).status !=
+      0);
+  CHECK(factors.rcond == 0);
+  const auto at = M::solve_forces(toggle, zero, zero, 2.0, g.p, lambda, g.options, &factors);
+  CHECK(at.status == 2);
+  CHECK(at.block >= 0);
+}
+
+#include "kinegen/block_solver.hpp"
+
+TEST_CASE("kinegen::Solver: forces after step() reuse its factors, and only at its state",
+          "[forces][generated][reuse]") {
+  using M = km::closed_chain_masses;
+  static_assert(kinegen::Solver<M>::kForces);
+  kinegen::Solver<M> solver;
+  kinegen::Solver<M>::Vector q = solver.initial_estimate(), qd, qdd, q0, qd0, qdd0;
+  kinegen::Solver<M>::LambdaVector lambda, again;
+  kinegen::Solver<M>::ForceColumns columns;
+  double worst = 0, before = -1;
+  for (int k = 0; k <= 200; ++k) {
+    const double t = 2 * kPi * k / 200;
+    REQUIRE(solver.step(t, q, qd, qdd));
+    REQUIRE(solver.forces(q, qd, qdd, t, lambda));
+    REQUIRE(M::solve_forces(q.data(), qd.data(), qdd.data(), t, M::Params{}, again.data(),
+                            M::BlockOptions{})
+                .status == 0);
+    worst = std::max(worst, (lambda - again).cwiseAbs().maxCoeff() / again.cwiseAbs().maxCoeff());
+    REQUIRE(solver.force_columns(q, qd, qdd, t, columns));
+    if (k > 0) {
+      // The previous state is not the last step's: factored again, bit for bit the refactoring.
+      REQUIRE(solver.forces(q0, qd0, qdd0, before, lambda));
+      REQUIRE(M::solve_forces(q0.data(), qd0.data(), qdd0.data(), before, M::Params{}, again.data(),
+                              M::BlockOptions{})
+                  .status == 0);
+      CHECK(lambda == again);
+    }
+    q0 = q, qd0 = qd, qdd0 = qdd, before = t;
+  }
+  INFO("largest |Solver::forces - refactored| / max |lambda|: " << worst);
+  CHECK(worst <= 64 * kEps);
+  // Float: the same solve in float's precision.
+  kinegen::Solver<M, float> f;
+  kinegen::Solver<M, float>::Vector qf = f.initial_estimate(), qdf, qddf;
+  kinegen::Solver<M, float>::LambdaVector lf;
+  REQUIRE(f.step(0.0f, qf, qdf, qddf));
+  REQUIRE(f.forces(qf, qdf, qddf, 0.0f, lf));
+  kinegen::Solver<M> d;
+  q = d.initial_estimate();
+  REQUIRE(d.step(0.0, q, qd, qdd));
+  REQUIRE(d.forces(q, qd, qdd, 0.0, lambda));
+  CHECK((lf.cast<double>() - lambda).cwiseAbs().maxCoeff() <= 1e-4 * lambda.cwiseAbs().maxCoeff());
+}
+
+namespace {
+// The largest difference of the generated columns, with the step's factors reused, from the
+// in-process ForceSolver of `analyze --forces` over [0, t1], relative to each row's largest
+// force: from the in-process row's q, qd, qdd (a solve_step from that q keeps the factors
+// at the same point; Newton's first step stays within rounding of it).
+template <class M>
+double reuse_against_in_process(const std::string& yaml, double t1) {
+  const auto model = kc::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) + yaml);
+  const kc::ForceModel forces = kc::forces_for_analysis(*model);
+  kc::ForceSolver solver(*model, forces);
+  Generated<M, double> g;
+  typename M::template StepFactors<double> factors;
+  double worst = 0;
+  int rows = 0;
+  kc::run_analysis(*model, {0, t1, 360}, [&](const kc::StateRow& row) {
+    std::vector<double> cols;
+    REQUIRE(solver.solve(row.t, row.q, row.qd, row.qdd, cols));
+    REQUIRE(
+        M::solve_step(g.q, row.t, g.p, g.qd, g.qdd, g.options, no_trig<double>(), nullptr, &factors)
+            .status == 0);
+    REQUIRE(M::solve_forces(g.q, g.qd, g.qdd, row.t, g.p, g.lambda, g.options, &factors).status ==
+            0);
+    M::force_columns(g.q, row.t, g.p, g.lambda, g.columns);
+    const double scale = largest(cols);
+    for (int c = 0; c < M::num_force_columns; ++c)
+      worst = std::max(worst, std::abs(g.columns[c] - cols[c]) / scale);
+    ++rows;
+  });
+  REQUIRE(rows == 361);
+  return worst;
+}
+}  // namespace
+
+TEST_CASE("generated forces with the step's factors equal the in-process ForceSolver",
+          "[forces][generated][reuse]") {
+  const double balanced = reuse_against_in_process<km::four_bar_balanced>(
+      "/examples/forces/four_bar_balanced.yaml", 1.0);
+  const double torn = reuse_against_in_process<km::closed_chain_masses>(
+      "/tests/mechanisms/closed_chain_masses.yaml", 2 * kPi);
+  INFO(
+      "largest difference relative to the row's largest force (generated step's own "
+      "kinematics): four_bar_balanced "
+      << balanced << ", closed_chain_masses " << torn);
+  CHECK(balanced <= 1e-12);
+  CHECK(torn <= 1e-12);
+}

@@ -620,7 +620,8 @@ void emit_kernels(std::ostringstream& os, const std::string& code) {
   const bool rotation = trig || calls("_rotate(");
   const bool lu = calls("_lu_factor<");
   const bool newton = calls("_newton_end(");
-  const bool linear = calls("_block_forward<") || calls("_block_transposed<");
+  const bool linear = calls("_block_forward<") || calls("_block_transposed<") ||
+                      calls("_block_transposed_reusing<");
   for (const auto& k : embedded::kKernels) {
     const std::string name = k.name;
     const bool used = name == "report" || (name == "lu" && (lu || linear)) ||
@@ -821,6 +822,26 @@ std::string block_comment(const Block& b, const char* kind) {
          (*kind ? std::string(" (") + kind + ")" : "");
 }
 
+// Where StepFactors keeps each block's factors (offsets, in block order, with one past the
+// end): a K x K block's LU in a (none for 1 x 1), a torn block's m x m Schur complement there
+// and its assigned coordinates' sensitivities to the tears (assigned x m, row-major) in d; the
+// pivots at the block's first place in block_cols.
+struct FactorLayout {
+  std::vector<int> a_begin{0}, d_begin{0}, piv_begin{0};
+};
+FactorLayout factor_layout(const Structure& st) {
+  FactorLayout l;
+  for (const BlockPlan& plan : st.plans) {
+    const int k = static_cast<int>(plan.block.rows.size());
+    const int m = plan.torn() ? static_cast<int>(plan.tears.size()) : k;
+    l.a_begin.push_back(l.a_begin.back() + (m > 1 || plan.torn() ? m * m : 0));
+    l.d_begin.push_back(l.d_begin.back() +
+                        (plan.torn() ? static_cast<int>(plan.assigned.size()) * m : 0));
+    l.piv_begin.push_back(l.piv_begin.back() + k);
+  }
+  return l;
+}
+
 // Position, velocity and acceleration block by block. One program holds every expression the
 // block functions need, so each function shares terms (sin and cos of an angle are computed
 // once per function) and the full-step function shares them between the phases. Terms are
@@ -933,7 +954,9 @@ class BlockEmitter {
       declare_sc(os, true);
       call_parts(os, "_" + name + "_part",
                  motion_args(velocity, acceleration, false) + ", static_cast<T*>(nullptr)" +
-                     sc_arg(false));
+                     sc_arg(false) +
+                     (parts_save(velocity, acceleration) ? ", static_cast<StepFactors<T>*>(nullptr)"
+                                                         : ""));
       if (velocity) finite_check(os, "qd");
       if (acceleration) finite_check(os, "qdd");
       os << kIn << "return report;\n  }\n";
@@ -955,32 +978,87 @@ class BlockEmitter {
        << "      [[maybe_unused]] const Params& p, T* qd, T* qdd,\n"
        << "      [[maybe_unused]] const BasicBlockOptions<U>& options,\n"
        << "      [[maybe_unused]] T* trig = nullptr,\n"
-       << "      [[maybe_unused]] signed char* block_signs = nullptr) noexcept {\n";
+       << "      [[maybe_unused]] signed char* block_signs = nullptr"
+       << (step_factors_ ? ",\n      [[maybe_unused]] StepFactors<T>* factors = nullptr" : "")
+       << ") noexcept {\n";
     if (!ranges_.empty()) {
       // Split: the parts of solve_position and solve_velocity_acceleration (emitted with them).
       os << kIn << "using R = _real<T>;\n" << kOptions << kIn << "BlockReport<R> report;\n";
       declare_sc(os, false);
+      factors_rcond(os, "R(0)");
       call_parts(os, "_solve_position_part",
                  "q, t, p, o, report, trig, block_signs" + sc_arg(false));
       finite_check(os, "q");
       call_parts(os, "_solve_velocity_acceleration_part",
-                 motion_args(true, true, false) + ", trig" + sc_arg(false));
+                 motion_args(true, true, false) + ", trig" + sc_arg(false) +
+                     (step_factors_ ? ", factors" : ""));
       finite_check(os, "qd");
       finite_check(os, "qdd");
+      factors_rcond(os, "report.rcond");
       os << kIn << "return report;\n  }\n";
       return;
     }
     FunctionPrinter pr(prog_, symbols_);
     prologue(os);
+    factors_rcond(os, "R(0)");
     const int n = static_cast<int>(st_.plans.size());
     step_mode_ = true;
     position_body(os, pr, 0, n);
     step_mode_ = false;
     finite_check(os, "q");
     motion_trig_ = true;
+    saving_ = step_factors_;
     motion_body(os, pr, true, true, 0, n, true);
+    saving_ = false;
     motion_trig_ = false;
+    factors_rcond(os, "report.rcond");
     os << kIn << "return report;\n  }\n";
+  }
+
+  // solve_step keeps its factors for solve_forces (StepFactors, emit_step_factors).
+  void keep_step_factors() { step_factors_ = true; }
+
+  // StepFactors and the tables _block_transposed_reusing reads (kernels/block_linear.hpp):
+  // where each block's factors are, whether solve_step keeps them (not in a repeated block's
+  // function), and each torn block's rows and coordinates in the
+  // order of its rate solve (assigned, then residual rows and tears).
+  void emit_step_factors(std::ostringstream& os) const {
+    const FactorLayout l = factor_layout(st_);
+    std::vector<std::string> a_begin, d_begin, kept, tears, rows, cols;
+    for (std::size_t bi = 0; bi < st_.plans.size(); ++bi) {
+      const BlockPlan& plan = st_.plans[bi];
+      a_begin.push_back(idx(l.a_begin[bi]));
+      d_begin.push_back(idx(l.d_begin[bi]));
+      kept.push_back(kept_factors(bi) ? "1" : "0");
+      tears.push_back(idx(static_cast<int>(plan.tears.size())));
+      for (int r : torn_order(bi, true)) rows.push_back(idx(r));
+      for (int c : torn_order(bi, false)) cols.push_back(idx(c));
+    }
+    a_begin.push_back(idx(l.a_begin.back()));
+    d_begin.push_back(idx(l.d_begin.back()));
+    const auto size = [](int n) { return idx(std::max(1, n)); };
+    os << "  // The factors of a step's rate solve, kept for solve_forces at the same q and t\n"
+       << "  // (solve_step's last argument; kernels/block_linear.hpp): each block's LU (a\n"
+       << "  // torn block's: its tears' Schur complement, and in d the assigned\n"
+       << "  // coordinates' sensitivities to the tears), and the step's condition estimate.\n"
+       << "  // solve_step sets rcond to 0 first and to its report's rcond once it has\n"
+       << "  // succeeded, so that solve_forces never uses the factors of a failed step.\n"
+       << "  // Caller-owned, fixed size, no constructor work.\n"
+       << "  template <class T>\n"
+       << "  struct StepFactors {\n"
+       << "    T a[" << size(l.a_begin.back()) << "];\n"
+       << "    int piv[nq];\n"
+       << "    T d[" << size(l.d_begin.back()) << "];\n"
+       << "    _real<T> rcond = 0;\n"
+       << "  };\n"
+       << "  static constexpr std::array<int, num_blocks + 1> factor_begin = {" << join(a_begin)
+       << "};\n"
+       << "  static constexpr std::array<int, num_blocks> step_factored = {" << join(kept) << "};\n"
+       << "  static constexpr std::array<int, num_blocks> block_tears = {" << join(tears) << "};\n"
+       << "  static constexpr std::array<int, nc> tear_rows = {" << join(rows) << "};\n"
+       << "  static constexpr std::array<int, nq> tear_cols = {" << join(cols) << "};\n"
+       << "  static constexpr std::array<int, num_blocks + 1> tear_sens_begin = {" << join(d_begin)
+       << "};\n\n";
   }
 
  private:
@@ -1364,12 +1442,15 @@ class BlockEmitter {
   void emit_motion_parts(std::ostringstream& os, bool velocity, bool acceleration) {
     os << "\n private:\n";
     for (std::size_t k = 0; k < ranges_.size(); ++k) {
+      const bool save = parts_save(velocity, acceleration);
       part_header(os, "_" + motion_name(velocity, acceleration), k,
                   motion_args(velocity, acceleration, true) + ",\n      [[maybe_unused]] T* trig" +
-                      sc_arg(true));
+                      sc_arg(true) + (save ? ", [[maybe_unused]] StepFactors<T>* factors" : ""));
       FunctionPrinter pr(prog_, symbols_);
       motion_trig_ = true;
+      saving_ = save;
       motion_body(os, pr, velocity, acceleration, ranges_[k].first, ranges_[k].second, false);
+      saving_ = false;
       motion_trig_ = false;
       os << kIn << "return report;\n  }\n";
     }
@@ -1646,6 +1727,7 @@ class BlockEmitter {
       os << in << "const T _a" << b << " = " << a[0] << ";\n"
          << in << "if (!(_mag(_a" << b << ") > 0)) return _fail(report, _mag(_a" << b
          << ") == 0 ? 2 : 3, " << block_id(bi) << ");\n";
+      save_factors(os, bi, k);
       return;
     }
     os << in << "T _a" << b << "[" << k * k << "] = {" << join(a) << "};\n"
@@ -1655,6 +1737,64 @@ class BlockEmitter {
        << in << "if (!(_ratio" << b << " > o.singular_pivot_ratio))\n"
        << in << "  return _fail(report, _ratio" << b << " == _ratio" << b << " ? 2 : 3, " << block_id(bi)
        << ");\n";
+    save_factors(os, bi, k);
+  }
+
+  // In solve_step: block bi's k x k factors (and a torn block's tear sensitivities, _D) into
+  // StepFactors.
+  void save_factors(std::ostringstream& os, std::size_t bi, int k) {
+    if (!saving_ || !kept_factors(bi)) return;
+    const FactorLayout l = factor_layout(st_);
+    const BlockPlan& plan = st_.plans[bi];
+    const std::string in = kIn, b = idx(static_cast<int>(bi));
+    os << in << "if (factors) {\n";
+    if (k == 1) {
+      os << in << "  factors->a[" << l.a_begin[bi] << "] = _a" << b << ";\n";
+    } else {
+      os << in << "  std::copy(_a" << b << ", _a" << b << " + " << k * k << ", factors->a + "
+         << l.a_begin[bi] << ");\n"
+         << in << "  std::copy(_piv" << b << ", _piv" << b << " + " << k << ", factors->piv + "
+         << l.piv_begin[bi] << ");\n";
+    }
+    if (plan.torn()) {
+      const auto dep = tear_dependency(bi);
+      // The sensitivities are locals, or an array when the block is split into parts.
+      const SensitivityName d_name = torn_split(bi) ? sensitivity_array(bi, "_D" + b)
+                                                    : sensitivity_locals(bi, "_D" + b + "_");
+      int e = l.d_begin[bi];
+      for (std::size_t a = 0; a < plan.assigned.size(); ++a)
+        for (int j = 0; j < k; ++j, ++e)
+          os << in << "  factors->d[" << e << "] = "
+             << (dep.at(plan.assigned[a].second)[j] ? d_name(j, static_cast<int>(a))
+                                                    : std::string("T(0)"))
+             << ";\n";
+    }
+    os << in << "}\n";
+  }
+  // Whether solve_step keeps block bi's factors: a K x K or torn block solved in solve_step
+  // or its parts, not in a repeated block's function (1 x 1 blocks need none: their
+  // coefficient is an entry of Phi_q).
+  bool kept_factors(std::size_t bi) const {
+    const BlockPlan& plan = st_.plans[bi];
+    return step_factors_ && roll_of_[bi] < 0 && (plan.torn() || plan.block.rows.size() > 1);
+  }
+  // A torn block's rows (or coordinates) in its rate solve's order: the assigned ones, then
+  // the residual rows (the tears); another block's as in the structure tables.
+  std::vector<int> torn_order(std::size_t bi, bool rows) const {
+    const BlockPlan& plan = st_.plans[bi];
+    if (!plan.torn()) return rows ? plan.block.rows : plan.block.cols;
+    std::vector<int> v;
+    for (const auto& [r, c] : plan.assigned) v.push_back(rows ? r : c);
+    for (int x : rows ? plan.residuals : plan.tears) v.push_back(x);
+    return v;
+  }
+  // The parts of a split solve_velocity_acceleration keep the factors too (solve_step calls
+  // them with its StepFactors).
+  bool parts_save(bool velocity, bool acceleration) const {
+    return step_factors_ && velocity && acceleration;
+  }
+  void factors_rcond(std::ostringstream& os, const char* value) {
+    if (step_factors_) os << kIn << "if (factors) factors->rcond = " << value << ";\n";
   }
 
   // sin and cos of the block's angles: evaluated once at the start, then rotated by each
@@ -2304,6 +2444,8 @@ class BlockEmitter {
   std::vector<char> in_position_;     // per node: read by a position output
   bool step_mode_ = false;            // emitting solve_step (motion terms follow position)
   bool motion_trig_ = false;          // the motion being emitted has the trig cache
+  bool step_factors_ = false;         // solve_step takes StepFactors (the header has forces)
+  bool saving_ = false;               // emitting solve_step's rates: keep the factors
   // sin and cos of a coordinate are declared where first read (not where it is solved): with
   // repeated blocks, whose functions solve coordinates the caller reads.
   bool lazy_trig_ = false;
@@ -2481,18 +2623,23 @@ void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
      << "    T g[" << ng << "];\n"
      << "    _force_geometry(q, t, p, g);\n"
      << inertia.str() << "  }\n\n"
-     << "  // Phi_q^T lambda = Q (generalized_force) at a solved q, qd, qdd: one LU per block,\n"
-     << "  // in reverse block order. lambda[nc]. Fails with status 2 (a singular or\n"
-     << "  // ill-conditioned block: a toggle position, where the efforts grow without bound)\n"
-     << "  // or 3 (not finite) and the block; report.rcond is the smallest block's.\n"
+     << "  // Phi_q^T lambda = Q (generalized_force) at a solved q, qd, qdd, in reverse\n"
+     << "  // block order. lambda[nc]. factors: nullptr, and each block is factored again\n"
+     << "  // (one LU per block), or those solve_step kept at this q and t (its last\n"
+     << "  // argument), and nothing is factored again: the feedforward efforts after a\n"
+     << "  // step. Fails with status 2 (a singular or ill-conditioned block: a toggle\n"
+     << "  // position, where the efforts grow without bound) or 3 (not finite) and the\n"
+     << "  // block; report.rcond is the smallest block's, with factors the step's (below\n"
+     << "  // options.min_rcond every block is factored and checked).\n"
      << "  template <class T, class U>\n"
      << "  static BlockReport<_real<T>> solve_forces(const T* q, const T* qd, const T* qdd, T t,\n"
-     << "      const Params& p, T* lambda, const BasicBlockOptions<U>& options) noexcept {\n"
+     << "      const Params& p, T* lambda, const BasicBlockOptions<U>& options,\n"
+     << "      const StepFactors<T>* factors = nullptr) noexcept {\n"
      << "    T jac[jac_nnz], b[nq];\n"
      << "    phi_q(q, t, p, jac);\n"
      << "    generalized_force(q, qd, qdd, t, p, b);\n"
-     << "    return _block_transposed<_model>(jac, b, lambda, 1,\n"
-     << "                                     _options_as<_real<T>>(options));\n"
+     << "    return _block_transposed_reusing<_model>(jac, b, lambda, factors,\n"
+     << "                                             _options_as<_real<T>>(options));\n"
      << "  }\n\n"
      << "  // The force_column_names columns from lambda (solve_forces) at the same q and t. The\n"
      << "  // reaction on the bodies is -Phi_q^T lambda; an effort is positive when it pushes its\n"
@@ -2691,8 +2838,22 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     os << "  // Values in the optional sin/cos cache of solve_position and solve_step (3 per\n"
        << "  // coordinate whose sin or cos the model uses).\n"
        << "  static constexpr int trig_cache_size = " << blocks.trig_cache_size() << ";\n\n";
+    // Linear solves with Phi_q after a position solve (the block_linear kernel): parameter
+    // sensitivities and kinetostatics append their functions after the block functions.
+    std::ostringstream linear;
+    if (linear_blocks_supported(st)) {
+      emit_sensitivity(linear, symbols, model, options);
+      // The force functions take qdd, which only a header with the accelerations gives.
+      if (acceleration) emit_forces(linear, m, symbols, model, programs, options);
+    }
+    const std::string linear_code = linear.str();
+    // With forces solve_step keeps its factors for solve_forces.
+    if (linear_code.find("_block_transposed_reusing<") != std::string::npos)
+      blocks.keep_step_factors();
     // The block functions first, so that only the kernels they call are emitted (before them).
     std::ostringstream code;
+    if (linear_code.find("_block_transposed_reusing<") != std::string::npos)
+      blocks.emit_step_factors(code);
     blocks.emit_position(code);
     if (velocity) {
       code << "\n";
@@ -2707,18 +2868,9 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
       blocks.emit_step(code);
     }
     blocks.emit_rolls(code, velocity, acceleration);
-    // Linear solves with Phi_q after a position solve (the block_linear kernel): parameter
-    // sensitivities and kinetostatics append their functions here.
-    std::ostringstream linear;
-    if (linear_blocks_supported(st)) {
-      emit_sensitivity(linear, symbols, model, options);
-      // The force functions take qdd, which only a header with the accelerations gives.
-      if (acceleration) emit_forces(linear, m, symbols, model, programs, options);
-    }
     // The tables only where a function reads them (folded headers say has_sensitivity = false).
-    const std::string linear_code = linear.str();
     if (linear_code.find("_block_forward<") != std::string::npos ||
-        linear_code.find("_block_transposed<") != std::string::npos)
+        linear_code.find("_block_transposed_reusing<") != std::string::npos)
       emit_structure_tables(os, m.name, st, programs);
     code << linear_code;
     emit_kernels(os, code.str());

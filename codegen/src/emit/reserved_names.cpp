@@ -39,6 +39,9 @@ const std::vector<std::string> kHeaderMembers = {
     // kinetostatics (emit_forces) and outputs (emit_outputs)
     "has_forces", "num_force_columns", "force_column_names", "applied_force", "generalized_force",
     "solve_forces", "force_columns", "num_outputs", "output_values", "output_rates", "outputs",
+    // the step's factors for solve_forces (emit_step_factors)
+    "StepFactors", "factor_begin", "step_factored", "block_tears", "tear_rows", "tear_cols",
+    "tear_sens_begin",
     // the kernels (runtime/include/kinegen/kernels/) pasted into the struct
     "BasicBlockOptions", "BasicTrigCache", "TrigCache", "kRoundingUlps",
     // namespaces and the runtime's Solver, which a struct of that name would hide

@@ -87,6 +87,34 @@ template <class Model>
 struct NumBlocks<Model, std::void_t<decltype(Model::num_blocks)>>
     : std::integral_constant<int, Model::num_blocks> {};
 
+// Whether the header has the kinetostatics (solve_forces, force_columns), and whether its
+// solve_step keeps its factors for them (StepFactors).
+template <class Model, class = void>
+struct HasForces : std::false_type {};
+template <class Model>
+struct HasForces<Model, std::void_t<decltype(Model::has_forces)>>
+    : std::bool_constant<Model::has_forces> {};
+template <class Model, class = void>
+struct HasStepFactors : std::false_type {};
+template <class Model>
+struct HasStepFactors<Model, std::void_t<typename Model::template StepFactors<double>>>
+    : std::true_type {};
+// The header's StepFactors<Scalar>, or an empty struct for headers without it.
+struct NoStepFactors {};
+template <class Model, class Scalar, bool = HasStepFactors<Model>::value>
+struct StepFactorsOf {
+  using type = NoStepFactors;
+};
+template <class Model, class Scalar>
+struct StepFactorsOf<Model, Scalar, true> {
+  using type = typename Model::template StepFactors<Scalar>;
+};
+template <class Model, class = void>
+struct NumForceColumns : std::integral_constant<int, 1> {};
+template <class Model>
+struct NumForceColumns<Model, std::void_t<decltype(Model::num_force_columns)>>
+    : std::integral_constant<int, Model::num_force_columns> {};
+
 // The block solver's report as a Result. What the report does not carry is left for Solver
 // to fill in (the residual) or marked unknown (condition NaN: older kernels estimate none).
 template <class Model, class Report>
@@ -216,6 +244,43 @@ class Solver {
     return r;
   }
 
+  // Kinetostatics (headers with has_forces, docs/forces.md): lambda of Phi_q^T lambda = Q at a
+  // solved q, qd, qdd, and the force_column_names columns (driver efforts, joint reactions).
+  // Straight after a successful step() at the same t and q, nothing is factored again: the
+  // step's factors are reused (a feedforward torque in a control loop); otherwise each block
+  // is factored. A toggle position fails with Status::kSingular, and the outputs are NaN.
+  static constexpr bool kForces = kBlockSolver && detail::HasForces<Model>::value;
+  using LambdaVector = Eigen::Matrix<Scalar, Model::nc, 1>;
+  using ForceColumns = Eigen::Matrix<Scalar, detail::NumForceColumns<Model>::value, 1>;
+  template <bool F = kForces, std::enable_if_t<F, int> = 0>
+  Result forces(const Vector& q, const Vector& qd, const Vector& qdd, Scalar t,
+                LambdaVector& lambda) const {
+    const auto& p = dense_.system().params();
+    Result r;
+    if constexpr (kStepFactors) {
+      const bool reuse = factors_valid_ && t == t_factored_ && q == q_factored_;
+      r = detail::to_result<Model>(Model::solve_forces(q.data(), qd.data(), qdd.data(), t, p,
+                                                       lambda.data(), block_options(),
+                                                       reuse ? &factors_ : nullptr));
+    } else {
+      r = detail::to_result<Model>(Model::solve_forces(q.data(), qd.data(), qdd.data(), t, p,
+                                                       lambda.data(), block_options()));
+    }
+    if (!r) lambda.setConstant(kNaN);
+    return r;
+  }
+  template <bool F = kForces, std::enable_if_t<F, int> = 0>
+  Result force_columns(const Vector& q, const Vector& qd, const Vector& qdd, Scalar t,
+                       ForceColumns& columns) const {
+    LambdaVector lambda;
+    const Result r = forces(q, qd, qdd, t, lambda);
+    if (r)
+      Model::force_columns(q.data(), t, dense_.system().params(), lambda.data(), columns.data());
+    else
+      columns.setConstant(kNaN);
+    return r;
+  }
+
   // One full step at time t: q is predicted from the last step (TaylorPredictor, none on the
   // first call or after reset()), then solved, then qd and qdd. q, qd and qdd are the caller's
   // state, passed back unchanged between steps (call reset() after changing them). A step
@@ -223,6 +288,7 @@ class Solver {
   // branch, or a step too coarse to tell) fails with Status::kBranchJump, as does a change of
   // a block's determinant sign where the header reports them.
   Result step(Scalar t, Vector& q, Vector& qd, Vector& qdd) {
+    factors_valid_ = false;
     const Scalar h = has_previous_ ? t - t_previous_ : Scalar(0);
     if (has_previous_) {
       const TaylorPredictor<Scalar> predict(h, h_previous_, has_two_);
@@ -270,6 +336,11 @@ class Solver {
     signs_ = signs_new_;
     t_previous_ = t;
     has_previous_ = true;
+    if constexpr (kStepFactors) {  // forces() at this t and q reuses the step's factors
+      factors_valid_ = true;
+      t_factored_ = t;
+      q_factored_ = q;
+    }
     return r;
   }
   // Forgets everything the steps kept: the predictor's history, the sin/cos cache and the
@@ -281,6 +352,7 @@ class Solver {
     trig_ = empty_trig_cache();
     signs_.fill(0);
     signs_new_.fill(0);
+    factors_valid_ = false;
   }
 
  private:
@@ -316,7 +388,10 @@ class Solver {
   template <class O>
   Result solve_block_step(Vector& q, Scalar t, Vector& qd, Vector& qdd, const O& o) {
     const auto& p = dense_.system().params();
-    if constexpr (kSigns) {
+    if constexpr (kStepFactors) {
+      return detail::to_result<Model>(Model::solve_step(
+          q.data(), t, p, qd.data(), qdd.data(), o, trig_.data(), signs_new_.data(), &factors_));
+    } else if constexpr (kSigns) {
       return detail::to_result<Model>(Model::solve_step(q.data(), t, p, qd.data(), qdd.data(), o,
                                                         trig_.data(), signs_new_.data()));
     } else if constexpr (kTrigCache > 0) {
@@ -390,6 +465,13 @@ class Solver {
   std::conditional_t<kBlockSolver, NoDense, DenseSolver<Model, Scalar>> dense_;
 
   static constexpr Scalar kNaN = std::numeric_limits<Scalar>::quiet_NaN();
+  // The factors of the last step's rate solve (headers whose solve_step keeps them), valid
+  // after a successful step() until the next step() or reset(), for forces() at its t and q.
+  static constexpr bool kStepFactors = kForces && detail::HasStepFactors<Model>::value;
+  typename detail::StepFactorsOf<Model, Scalar>::type factors_{};
+  bool factors_valid_ = false;
+  Scalar t_factored_ = Scalar(0);
+  Vector q_factored_ = Vector::Zero();
   // The generated sin/cos cache: anchors with their exact sin and cos, NaN when empty, so that
   // a step near the last one rotates instead of calling sin and cos.
   static constexpr int kTrigCache = kBlockSolver ? detail::TrigCacheSize<Model>::value : 0;
