@@ -554,8 +554,8 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
             terms = terms + v * GiNaC::abs(row.q[k]);
           }
           if (size.is_zero()) size = 1;
-          residual = std::max(residual, GiNaC::abs(f[r]) / size -
-                                            Newton::_rounding(numeric(terms / size), eps));
+          residual = std::max(
+              residual, GiNaC::abs(f[r]) / size - Newton::_rounding(numeric(terms / size), eps));
         }
       }
       const int status = Newton::_newton_status(false, converged, residual <= residual_tolerance,

@@ -380,9 +380,9 @@ Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
   result.residual = scaled_residual(ws, ws.rhs, q, rounding);
   const double rcond = result.condition > 0 ? 1 / result.condition : 0.0;
   const bool linear = linear_steps >= Newton::kLinearSteps;
-  result.status = static_cast<Status>(Newton::_newton_status(
-      false, converged, result.residual <= options.residual_tolerance, linear, result.residual,
-      rcond, options.min_rcond));
+  result.status = static_cast<Status>(
+      Newton::_newton_status(false, converged, result.residual <= options.residual_tolerance,
+                             linear, result.residual, rcond, options.min_rcond));
   return result;
 }
 

@@ -2,10 +2,10 @@
 // at run time (the command line's in-process models).
 //
 // Same Newton iteration, scaling, Newton policy (kernels/newton.hpp) and Result as the dense
-// path in solver.hpp (the algorithms there are reused; only the factorization differs): Phi_q is held as an
-// Eigen::SparseMatrix on its structural non-zeros, ordered once (COLAMD, analyzePattern at
-// construction) and factored with Eigen::SparseLU at each Newton iteration. Nothing of size
-// nq x nq is ever formed.
+// path in solver.hpp (the algorithms there are reused; only the factorization differs): Phi_q is
+// held as an Eigen::SparseMatrix on its structural non-zeros, ordered once (COLAMD, analyzePattern
+// at construction) and factored with Eigen::SparseLU at each Newton iteration. Nothing of size nq x
+// nq is ever formed.
 //
 // Allocation: the pattern, the ordering and the workspace vectors are allocated at
 // construction; SparseLU::factorize and SparseLU::solve allocate their own working storage on
