@@ -551,8 +551,8 @@ struct quick_return {
   // linear: the solve converged linearly (kLinearSteps); residual: the (scaled) residual, for
   // the finite check.
   template <class R>
-  static int _newton_status(bool budget, bool converged, bool small, bool linear,
-                            const R& residual, const R& rcond, const R& min_rcond) noexcept {
+  static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
+                            const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
     if (!_finite(abs(residual))) return 3;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
@@ -588,8 +588,8 @@ struct quick_return {
   }
   // A Newton block's end, after its last iteration: converged says whether the step criterion
   // held; step is its last scaled step, linear_steps how many of its steps were linear
-  // (_linear_step); residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum of its
-  // scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
+  // (_linear_step); residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum
+  // of its scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
   // the last factorization. Records the block in r; false (r.status and r.block set) when the
   // block failed. signs: nullptr, or the caller's entry per block (0: record the sign; else a
   // change of sign is a jump to another assembly branch).
