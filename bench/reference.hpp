@@ -11,11 +11,11 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
 
 #if __has_include("kinegen/codegen/reference.hpp")
-#include "kinegen/codegen/reference.hpp"
+#include "kinegen/codegen/analysis/reference.hpp"
 #define KINEGEN_BENCH_HAVE_CLN_REFERENCE 1
 #else
 #define KINEGEN_BENCH_HAVE_CLN_REFERENCE 0

@@ -5,12 +5,12 @@
 #include <cstdint>
 #include <string>
 
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/diagnostics.hpp"
-#include "kinegen/codegen/emit_cpp.hpp"
-#include "kinegen/codegen/forces.hpp"
-#include "kinegen/codegen/model.hpp"
-#include "kinegen/codegen/sensitivity.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/sensitivity.hpp"
+#include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/emit/emit_cpp.hpp"
 
 namespace kc = kinegen::codegen;
 

@@ -147,7 +147,7 @@ struct disc_cam {
     // out[nc]; 29 operations
     using std::cos, std::sin;
     // Intermediate terms (5)
-    const T _t0 = -T(p.Rb) - T(p.r) + (-_motion_law(0, 0, q[6]/T(p.b1)) + _motion_law(0, 0, -(-q[6] + T(p.th2))/T(p.b2)))*T(p.h);
+    const T _t0 = -T(p.Rb) - T(p.r) + (_motion_law(0, 0, -(T(p.th2) - q[6])/T(p.b2)) - _motion_law(0, 0, q[6]/T(p.b1)))*T(p.h);
     const T _t1 = cos(q[6]);
     const T _t2 = sin(q[2]);
     const T _t3 = cos(q[2]);
@@ -158,8 +158,8 @@ struct disc_cam {
     out[2] = -q[3];
     out[3] = q[5];
     out[4] = -_t0*_t1*_t2 - q[0] + _t0*_t3*_t4 + q[3];
-    out[5] = -q[1] + _t0*_t3*_t1 + _t0*_t2*_t4 + q[4];
-    out[6] = -T(p.omega)*t + q[2];
+    out[5] = _t0*_t3*_t1 - q[1] + _t0*_t2*_t4 + q[4];
+    out[6] = q[2] - T(p.omega)*t;
   }
 
   // Phi_q(q, t) at (jac_rows[k], jac_cols[k])
@@ -172,13 +172,13 @@ struct disc_cam {
     const T _t0 = T(1)/T(p.b1);
     const T _t1 = _t0*q[6];
     const T _t2 = T(1)/T(p.b2);
-    const T _t3 = -(-q[6] + T(p.th2))*_t2;
-    const T _t4 = -T(p.Rb) - T(p.r) + (-_motion_law(0, 0, _t1) + _motion_law(0, 0, _t3))*T(p.h);
+    const T _t3 = -(T(p.th2) - q[6])*_t2;
+    const T _t4 = -T(p.Rb) - T(p.r) + (_motion_law(0, 0, _t3) - _motion_law(0, 0, _t1))*T(p.h);
     const T _t5 = cos(q[2]);
     const T _t6 = cos(q[6]);
     const T _t7 = sin(q[2]);
     const T _t8 = sin(q[6]);
-    const T _t9 = -_t2*_motion_law(0, 1, _t3) + _t0*_motion_law(0, 1, _t1);
+    const T _t9 = _t0*_motion_law(0, 1, _t1) - _t2*_motion_law(0, 1, _t3);
 
     out[0] = T(1);
     out[1] = T(1);
@@ -187,9 +187,9 @@ struct disc_cam {
     out[4] = T(-1);
     out[5] = -_t4*_t5*_t6 - _t4*_t7*_t8;
     out[6] = T(1);
-    out[7] = -_t9*_t5*T(p.h)*_t8 + _t9*_t6*T(p.h)*_t7 + _t4*_t5*_t6 + _t4*_t7*_t8;
+    out[7] = _t9*_t6*T(p.h)*_t7 - _t9*_t5*T(p.h)*_t8 + _t4*_t5*_t6 + _t4*_t7*_t8;
     out[8] = T(-1);
-    out[9] = -_t4*_t6*_t7 + _t4*_t5*_t8;
+    out[9] = _t4*_t5*_t8 - _t4*_t6*_t7;
     out[10] = T(1);
     out[11] = -_t9*_t5*_t6*T(p.h) - _t9*T(p.h)*_t7*_t8 - _t4*_t5*_t8 + _t4*_t6*_t7;
     out[12] = T(1);
@@ -213,33 +213,33 @@ struct disc_cam {
   template <class T>
   static void gamma([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
-    // out[nc]; 72 operations
+    // out[nc]; 64 operations
     using std::cos, std::sin;
     // Intermediate terms (17)
     const T _t0 = T(1)/T(p.b1);
     const T _t1 = _t0*q[6];
     const T _t2 = T(1)/T(p.b2);
-    const T _t3 = -(-q[6] + T(p.th2))*_t2;
-    const T _t4 = -T(p.Rb) - T(p.r) + (-_motion_law(0, 0, _t1) + _motion_law(0, 0, _t3))*T(p.h);
+    const T _t3 = -(T(p.th2) - q[6])*_t2;
+    const T _t4 = -T(p.Rb) - T(p.r) + (_motion_law(0, 0, _t3) - _motion_law(0, 0, _t1))*T(p.h);
     const T _t5 = cos(q[6]);
     const T _t6 = sin(q[2]);
     const T _t7 = -_t4*_t5*_t6;
-    const T _t8 = cos(q[2]);
-    const T _t9 = sin(q[6]);
-    const T _t10 = _t4*_t8*_t9;
-    const T _t11 = -_t2*_motion_law(0, 1, _t3) + _t0*_motion_law(0, 1, _t1);
-    const T _t12 = _t7 + _t11*_t8*_t5*T(p.h) + _t11*T(p.h)*_t6*_t9 + _t10;
-    const T _t13 = -T(1)*_motion_law(0, 2, _t3)/(T(p.b2)*T(p.b2)) + _motion_law(0, 2, _t1)/(T(p.b1)*T(p.b1));
-    const T _t14 = -_t4*_t8*_t5;
-    const T _t15 = -_t4*_t6*_t9;
-    const T _t16 = -_t11*_t5*T(p.h)*_t6 + _t14 + _t15 + _t11*_t8*T(p.h)*_t9;
+    const T _t8 = _t0*_motion_law(0, 1, _t1) - _t2*_motion_law(0, 1, _t3);
+    const T _t9 = cos(q[2]);
+    const T _t10 = sin(q[6]);
+    const T _t11 = _t4*_t9*_t10;
+    const T _t12 = _motion_law(0, 2, _t1)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t3)/(T(p.b2)*T(p.b2));
+    const T _t13 = qd[6]*qd[6];
+    const T _t14 = qd[2]*qd[2];
+    const T _t15 = -_t4*_t9*_t5;
+    const T _t16 = -_t4*_t6*_t10;
 
     out[0] = T(0);
     out[1] = T(0);
     out[2] = T(0);
     out[3] = T(0);
-    out[4] = -(-(_t7 + _t10)*qd[2] + _t12*qd[6])*qd[2] + (-_t12*qd[2] + (-_t13*_t5*T(p.h)*_t6 + _t7 + _t13*_t8*T(p.h)*_t9 + _t10 + T(2)*_t11*_t8*_t5*T(p.h) + T(2)*_t11*T(p.h)*_t6*_t9)*qd[6])*qd[6];
-    out[5] = (-(-_t13*_t8*_t5*T(p.h) - _t13*T(p.h)*_t6*_t9 + _t14 + _t15 - T(2)*_t11*_t5*T(p.h)*_t6 + T(2)*_t11*_t8*T(p.h)*_t9)*qd[6] + _t16*qd[2])*qd[6] + (_t16*qd[6] + (_t4*_t8*_t5 + _t4*_t6*_t9)*qd[2])*qd[2];
+    out[4] = (_t7 - _t12*_t5*T(p.h)*_t6 + _t12*_t9*T(p.h)*_t10 + _t11 + T(2)*_t8*_t9*_t5*T(p.h) + T(2)*_t8*T(p.h)*_t6*_t10)*_t13 - T(2)*(_t7 + _t8*_t9*_t5*T(p.h) + _t8*T(p.h)*_t6*_t10 + _t11)*qd[2]*qd[6] + (_t7 + _t11)*_t14;
+    out[5] = (_t4*_t9*_t5 + _t4*_t6*_t10)*_t14 - (-_t12*_t9*_t5*T(p.h) - _t12*T(p.h)*_t6*_t10 + _t15 + _t16 - T(2)*_t8*_t5*T(p.h)*_t6 + T(2)*_t8*_t9*T(p.h)*_t10)*_t13 + T(2)*(_t15 - _t8*_t5*T(p.h)*_t6 + _t16 + _t8*_t9*T(p.h)*_t10)*qd[2]*qd[6];
     out[6] = T(0);
   }
 
@@ -973,14 +973,14 @@ struct disc_cam {
     R _st5 = 0;
     for (int _it = 1;; ++_it) {
       const T _t2 = _t0*q[6];
-      const T _t3 = -(-q[6] + T(p.th2))*_t1;
-      const T _t4 = -T(p.Rb) - T(p.r) + (-_motion_law(0, 0, _t2) + _motion_law(0, 0, _t3))*T(p.h);
+      const T _t3 = -(T(p.th2) - q[6])*_t1;
+      const T _t4 = -T(p.Rb) - T(p.r) + (_motion_law(0, 0, _t3) - _motion_law(0, 0, _t2))*T(p.h);
       const T _t5 = -_t4*_cos6*_sin2;
       const T _t6 = _t4*_cos2*_sin6;
-      const T _t7 = -_t1*_motion_law(0, 1, _t3) + _t0*_motion_law(0, 1, _t2);
+      const T _t7 = _t0*_motion_law(0, 1, _t2) - _t1*_motion_law(0, 1, _t3);
       const T _t8 = _t4*_cos2*_cos6;
       const T _t9 = _t4*_sin2*_sin6;
-      const T _t10 = -_t7*_cos2*T(p.h)*_sin6 + _t7*_cos6*T(p.h)*_sin2 + _t8 + _t9;
+      const T _t10 = _t7*_cos6*T(p.h)*_sin2 - _t7*_cos2*T(p.h)*_sin6 + _t8 + _t9;
       T _r[1] = {_t5 - q[0] + _t6 + q[3]};
       const T _a = _t10;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 5, _it);
@@ -1008,8 +1008,8 @@ struct disc_cam {
       }
     }
     const T _t11 = _t0*q[6];
-    const T _t12 = -(-q[6] + T(p.th2))*_t1;
-    const T _t13 = -T(p.Rb) - T(p.r) + (-_motion_law(0, 0, _t11) + _motion_law(0, 0, _t12))*T(p.h);
+    const T _t12 = -(T(p.th2) - q[6])*_t1;
+    const T _t13 = -T(p.Rb) - T(p.r) + (_motion_law(0, 0, _t12) - _motion_law(0, 0, _t11))*T(p.h);
     const T _t14 = -_t13*_cos6*_sin2;
     const T _t15 = _t13*_cos2*_sin6;
     const R _rr5[1] = {_mag(_t14 - q[0] + _t15 + q[3])};
@@ -1047,18 +1047,18 @@ struct disc_cam {
     qd[2] = T(p.omega);
     // Block 5: rows 4 -> q[6]
     const T _t0 = T(1)/T(p.b2);
-    const T _t1 = -(-q[6] + T(p.th2))*_t0;
+    const T _t1 = -(T(p.th2) - q[6])*_t0;
     const T _t2 = T(1)/T(p.b1);
     const T _t3 = _t2*q[6];
-    const T _t4 = -_t0*_motion_law(0, 1, _t1) + _t2*_motion_law(0, 1, _t3);
+    const T _t4 = _t2*_motion_law(0, 1, _t3) - _t0*_motion_law(0, 1, _t1);
     const T _t5 = cos(q[2]);
     const T _t6 = sin(q[6]);
     const T _t7 = cos(q[6]);
     const T _t8 = sin(q[2]);
-    const T _t9 = -T(p.Rb) - T(p.r) + (-_motion_law(0, 0, _t3) + _motion_law(0, 0, _t1))*T(p.h);
+    const T _t9 = -T(p.Rb) - T(p.r) + (_motion_law(0, 0, _t1) - _motion_law(0, 0, _t3))*T(p.h);
     const T _t10 = _t9*_t5*_t7;
     const T _t11 = _t9*_t8*_t6;
-    const T _t12 = -_t4*_t5*T(p.h)*_t6 + _t4*_t7*T(p.h)*_t8 + _t10 + _t11;
+    const T _t12 = _t4*_t7*T(p.h)*_t8 - _t4*_t5*T(p.h)*_t6 + _t10 + _t11;
     const T _a5 = _t12;
     if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
     const T _t13 = -_t9*_t5*_t7;
@@ -1090,18 +1090,18 @@ struct disc_cam {
     // Block 4: rows 6 -> q[2]
     // Block 5: rows 4 -> q[6]
     const T _t0 = T(1)/T(p.b2);
-    const T _t1 = -(-q[6] + T(p.th2))*_t0;
+    const T _t1 = -(T(p.th2) - q[6])*_t0;
     const T _t2 = T(1)/T(p.b1);
     const T _t3 = _t2*q[6];
-    const T _t4 = -_t0*_motion_law(0, 1, _t1) + _t2*_motion_law(0, 1, _t3);
+    const T _t4 = _t2*_motion_law(0, 1, _t3) - _t0*_motion_law(0, 1, _t1);
     const T _t5 = cos(q[2]);
     const T _t6 = sin(q[6]);
     const T _t7 = cos(q[6]);
     const T _t8 = sin(q[2]);
-    const T _t9 = -T(p.Rb) - T(p.r) + (-_motion_law(0, 0, _t3) + _motion_law(0, 0, _t1))*T(p.h);
+    const T _t9 = -T(p.Rb) - T(p.r) + (_motion_law(0, 0, _t1) - _motion_law(0, 0, _t3))*T(p.h);
     const T _t10 = _t9*_t5*_t7;
     const T _t11 = _t9*_t8*_t6;
-    const T _t12 = -_t4*_t5*T(p.h)*_t6 + _t4*_t7*T(p.h)*_t8 + _t10 + _t11;
+    const T _t12 = _t4*_t7*T(p.h)*_t8 - _t4*_t5*T(p.h)*_t6 + _t10 + _t11;
     const T _a5 = _t12;
     if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
     // Block 6: rows 5 -> q[4]
@@ -1112,14 +1112,14 @@ struct disc_cam {
     qdd[2] = T(0);
     const T _t13 = -_t9*_t7*_t8;
     const T _t14 = _t9*_t5*_t6;
-    const T _t15 = _t13 + _t14;
-    const T _t16 = _t13 + _t4*_t5*_t7*T(p.h) + _t4*T(p.h)*_t8*_t6 + _t14;
-    const T _t17 = -T(1)*_motion_law(0, 2, _t1)/(T(p.b2)*T(p.b2)) + _motion_law(0, 2, _t3)/(T(p.b1)*T(p.b1));
-    const T _t18 = -_t9*_t5*_t7;
-    const T _t19 = -_t9*_t8*_t6;
-    qdd[6] = (-(-_t15*qd[2] + _t16*qd[6])*qd[2] + (-_t16*qd[2] + (-_t17*_t7*T(p.h)*_t8 + _t13 + _t17*_t5*T(p.h)*_t6 + _t14 + T(2)*_t4*_t5*_t7*T(p.h) + T(2)*_t4*T(p.h)*_t8*_t6)*qd[6])*qd[6] + qdd[0] - (_t18 + _t19)*qdd[2] - qdd[3]) / _a5;
-    const T _t20 = -_t4*_t7*T(p.h)*_t8 + _t18 + _t19 + _t4*_t5*T(p.h)*_t6;
-    qdd[4] = (-(-_t17*_t5*_t7*T(p.h) - _t17*T(p.h)*_t8*_t6 + _t18 + _t19 - T(2)*_t4*_t7*T(p.h)*_t8 + T(2)*_t4*_t5*T(p.h)*_t6)*qd[6] + _t20*qd[2])*qd[6] + (_t20*qd[6] + (_t10 + _t11)*qd[2])*qd[2] + qdd[1] - _t15*qdd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qdd[6];
+    const T _t15 = _motion_law(0, 2, _t3)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t1)/(T(p.b2)*T(p.b2));
+    const T _t16 = qd[6]*qd[6];
+    const T _t17 = _t13 + _t14;
+    const T _t18 = qd[2]*qd[2];
+    const T _t19 = -_t9*_t5*_t7;
+    const T _t20 = -_t9*_t8*_t6;
+    qdd[6] = ((_t13 - _t15*_t7*T(p.h)*_t8 + _t15*_t5*T(p.h)*_t6 + _t14 + T(2)*_t4*_t5*_t7*T(p.h) + T(2)*_t4*T(p.h)*_t8*_t6)*_t16 - T(2)*(_t13 + _t4*_t5*_t7*T(p.h) + _t4*T(p.h)*_t8*_t6 + _t14)*qd[2]*qd[6] + _t17*_t18 + qdd[0] - (_t19 + _t20)*qdd[2] - qdd[3]) / _a5;
+    qdd[4] = (_t10 + _t11)*_t18 - (-_t15*_t5*_t7*T(p.h) - _t15*T(p.h)*_t8*_t6 + _t19 + _t20 - T(2)*_t4*_t7*T(p.h)*_t8 + T(2)*_t4*_t5*T(p.h)*_t6)*_t16 + T(2)*(_t19 - _t4*_t7*T(p.h)*_t8 + _t20 + _t4*_t5*T(p.h)*_t6)*qd[2]*qd[6] + qdd[1] - _t17*qdd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qdd[6];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }
@@ -1146,18 +1146,18 @@ struct disc_cam {
     qd[2] = T(p.omega);
     // Block 5: rows 4 -> q[6]
     const T _t0 = T(1)/T(p.b2);
-    const T _t1 = -(-q[6] + T(p.th2))*_t0;
+    const T _t1 = -(T(p.th2) - q[6])*_t0;
     const T _t2 = T(1)/T(p.b1);
     const T _t3 = _t2*q[6];
-    const T _t4 = -_t0*_motion_law(0, 1, _t1) + _t2*_motion_law(0, 1, _t3);
+    const T _t4 = _t2*_motion_law(0, 1, _t3) - _t0*_motion_law(0, 1, _t1);
     const T _t5 = cos(q[2]);
     const T _t6 = sin(q[6]);
     const T _t7 = cos(q[6]);
     const T _t8 = sin(q[2]);
-    const T _t9 = -T(p.Rb) - T(p.r) + (-_motion_law(0, 0, _t3) + _motion_law(0, 0, _t1))*T(p.h);
+    const T _t9 = -T(p.Rb) - T(p.r) + (_motion_law(0, 0, _t1) - _motion_law(0, 0, _t3))*T(p.h);
     const T _t10 = _t9*_t5*_t7;
     const T _t11 = _t9*_t8*_t6;
-    const T _t12 = -_t4*_t5*T(p.h)*_t6 + _t4*_t7*T(p.h)*_t8 + _t10 + _t11;
+    const T _t12 = _t4*_t7*T(p.h)*_t8 - _t4*_t5*T(p.h)*_t6 + _t10 + _t11;
     const T _a5 = _t12;
     if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
     const T _t13 = -_t9*_t5*_t7;
@@ -1174,11 +1174,11 @@ struct disc_cam {
     qdd[3] = (T(0)) / T(-1);
     qdd[5] = T(0);
     qdd[2] = T(0);
-    const T _t18 = _t15 + _t4*_t5*_t7*T(p.h) + _t4*T(p.h)*_t8*_t6 + _t16;
-    const T _t19 = -T(1)*_motion_law(0, 2, _t1)/(T(p.b2)*T(p.b2)) + _motion_law(0, 2, _t3)/(T(p.b1)*T(p.b1));
-    qdd[6] = (-(-_t17*qd[2] + _t18*qd[6])*qd[2] + (-_t18*qd[2] + (-_t19*_t7*T(p.h)*_t8 + _t15 + _t19*_t5*T(p.h)*_t6 + _t16 + T(2)*_t4*_t5*_t7*T(p.h) + T(2)*_t4*T(p.h)*_t8*_t6)*qd[6])*qd[6] + qdd[0] - (_t13 + _t14)*qdd[2] - qdd[3]) / _a5;
-    const T _t20 = -_t4*_t7*T(p.h)*_t8 + _t13 + _t14 + _t4*_t5*T(p.h)*_t6;
-    qdd[4] = (-(-_t19*_t5*_t7*T(p.h) - _t19*T(p.h)*_t8*_t6 + _t13 + _t14 - T(2)*_t4*_t7*T(p.h)*_t8 + T(2)*_t4*_t5*T(p.h)*_t6)*qd[6] + _t20*qd[2])*qd[6] + (_t20*qd[6] + (_t10 + _t11)*qd[2])*qd[2] + qdd[1] - _t17*qdd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qdd[6];
+    const T _t18 = _motion_law(0, 2, _t3)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t1)/(T(p.b2)*T(p.b2));
+    const T _t19 = qd[6]*qd[6];
+    const T _t20 = qd[2]*qd[2];
+    qdd[6] = ((_t15 - _t18*_t7*T(p.h)*_t8 + _t18*_t5*T(p.h)*_t6 + _t16 + T(2)*_t4*_t5*_t7*T(p.h) + T(2)*_t4*T(p.h)*_t8*_t6)*_t19 - T(2)*(_t15 + _t4*_t5*_t7*T(p.h) + _t4*T(p.h)*_t8*_t6 + _t16)*qd[2]*qd[6] + _t17*_t20 + qdd[0] - (_t13 + _t14)*qdd[2] - qdd[3]) / _a5;
+    qdd[4] = (_t10 + _t11)*_t20 - (-_t18*_t5*_t7*T(p.h) - _t18*T(p.h)*_t8*_t6 + _t13 + _t14 - T(2)*_t4*_t7*T(p.h)*_t8 + T(2)*_t4*_t5*T(p.h)*_t6)*_t19 + T(2)*(_t13 - _t4*_t7*T(p.h)*_t8 + _t14 + _t4*_t5*T(p.h)*_t6)*qd[2]*qd[6] + qdd[1] - _t17*qdd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qdd[6];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }
@@ -1219,14 +1219,14 @@ struct disc_cam {
     R _st5 = 0;
     for (int _it = 1;; ++_it) {
       const T _t2 = _t0*q[6];
-      const T _t3 = -(-q[6] + T(p.th2))*_t1;
-      const T _t4 = -T(p.Rb) - T(p.r) + (-_motion_law(0, 0, _t2) + _motion_law(0, 0, _t3))*T(p.h);
+      const T _t3 = -(T(p.th2) - q[6])*_t1;
+      const T _t4 = -T(p.Rb) - T(p.r) + (_motion_law(0, 0, _t3) - _motion_law(0, 0, _t2))*T(p.h);
       const T _t5 = -_t4*_cos6*_sin2;
       const T _t6 = _t4*_cos2*_sin6;
-      const T _t7 = -_t1*_motion_law(0, 1, _t3) + _t0*_motion_law(0, 1, _t2);
+      const T _t7 = _t0*_motion_law(0, 1, _t2) - _t1*_motion_law(0, 1, _t3);
       const T _t8 = _t4*_cos2*_cos6;
       const T _t9 = _t4*_sin2*_sin6;
-      const T _t10 = -_t7*_cos2*T(p.h)*_sin6 + _t7*_cos6*T(p.h)*_sin2 + _t8 + _t9;
+      const T _t10 = _t7*_cos6*T(p.h)*_sin2 - _t7*_cos2*T(p.h)*_sin6 + _t8 + _t9;
       T _r[1] = {_t5 - q[0] + _t6 + q[3]};
       const T _a = _t10;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 5, _it);
@@ -1254,8 +1254,8 @@ struct disc_cam {
       }
     }
     const T _t11 = _t0*q[6];
-    const T _t12 = -(-q[6] + T(p.th2))*_t1;
-    const T _t13 = -T(p.Rb) - T(p.r) + (-_motion_law(0, 0, _t11) + _motion_law(0, 0, _t12))*T(p.h);
+    const T _t12 = -(T(p.th2) - q[6])*_t1;
+    const T _t13 = -T(p.Rb) - T(p.r) + (_motion_law(0, 0, _t12) - _motion_law(0, 0, _t11))*T(p.h);
     const T _t14 = -_t13*_cos6*_sin2;
     const T _t15 = _t13*_cos2*_sin6;
     const R _rr5[1] = {_mag(_t14 - q[0] + _t15 + q[3])};
@@ -1280,10 +1280,10 @@ struct disc_cam {
     // Block 4: rows 6 -> q[2]
     qd[2] = T(p.omega);
     // Block 5: rows 4 -> q[6]
-    const T _t18 = -_t1*_motion_law(0, 1, _t12) + _t0*_motion_law(0, 1, _t11);
+    const T _t18 = _t0*_motion_law(0, 1, _t11) - _t1*_motion_law(0, 1, _t12);
     const T _t19 = _t13*_cos2*_cos6;
     const T _t20 = _t13*_sin2*_sin6;
-    const T _t21 = -_t18*_cos2*T(p.h)*_sin6 + _t18*_cos6*T(p.h)*_sin2 + _t19 + _t20;
+    const T _t21 = _t18*_cos6*T(p.h)*_sin2 - _t18*_cos2*T(p.h)*_sin6 + _t19 + _t20;
     const T _a5 = _t21;
     if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
     qd[6] = (qd[0] - (_t16 + _t17)*qd[2] - qd[3]) / _a5;
@@ -1296,11 +1296,11 @@ struct disc_cam {
     qdd[3] = (T(0)) / T(-1);
     qdd[5] = T(0);
     qdd[2] = T(0);
-    const T _t23 = _t14 + _t18*_cos2*_cos6*T(p.h) + _t18*T(p.h)*_sin2*_sin6 + _t15;
-    const T _t24 = -T(1)*_motion_law(0, 2, _t12)/(T(p.b2)*T(p.b2)) + _motion_law(0, 2, _t11)/(T(p.b1)*T(p.b1));
-    qdd[6] = (-(-_t22*qd[2] + _t23*qd[6])*qd[2] + (-_t23*qd[2] + (-_t24*_cos6*T(p.h)*_sin2 + _t14 + _t24*_cos2*T(p.h)*_sin6 + _t15 + T(2)*_t18*_cos2*_cos6*T(p.h) + T(2)*_t18*T(p.h)*_sin2*_sin6)*qd[6])*qd[6] + qdd[0] - (_t16 + _t17)*qdd[2] - qdd[3]) / _a5;
-    const T _t25 = -_t18*_cos6*T(p.h)*_sin2 + _t16 + _t17 + _t18*_cos2*T(p.h)*_sin6;
-    qdd[4] = (-(-_t24*_cos2*_cos6*T(p.h) - _t24*T(p.h)*_sin2*_sin6 + _t16 + _t17 - T(2)*_t18*_cos6*T(p.h)*_sin2 + T(2)*_t18*_cos2*T(p.h)*_sin6)*qd[6] + _t25*qd[2])*qd[6] + (_t25*qd[6] + (_t19 + _t20)*qd[2])*qd[2] + qdd[1] - _t22*qdd[2] - (-_t18*_cos2*_cos6*T(p.h) - _t18*T(p.h)*_sin2*_sin6 - _t13*_cos2*_sin6 + _t13*_cos6*_sin2)*qdd[6];
+    const T _t23 = _motion_law(0, 2, _t11)/(T(p.b1)*T(p.b1)) - T(1)*_motion_law(0, 2, _t12)/(T(p.b2)*T(p.b2));
+    const T _t24 = qd[6]*qd[6];
+    const T _t25 = qd[2]*qd[2];
+    qdd[6] = ((_t14 - _t23*_cos6*T(p.h)*_sin2 + _t23*_cos2*T(p.h)*_sin6 + _t15 + T(2)*_t18*_cos2*_cos6*T(p.h) + T(2)*_t18*T(p.h)*_sin2*_sin6)*_t24 - T(2)*(_t14 + _t18*_cos2*_cos6*T(p.h) + _t18*T(p.h)*_sin2*_sin6 + _t15)*qd[2]*qd[6] + _t22*_t25 + qdd[0] - (_t16 + _t17)*qdd[2] - qdd[3]) / _a5;
+    qdd[4] = (_t19 + _t20)*_t25 - (-_t23*_cos2*_cos6*T(p.h) - _t23*T(p.h)*_sin2*_sin6 + _t16 + _t17 - T(2)*_t18*_cos6*T(p.h)*_sin2 + T(2)*_t18*_cos2*T(p.h)*_sin6)*_t24 + T(2)*(_t16 - _t18*_cos6*T(p.h)*_sin2 + _t17 + _t18*_cos2*T(p.h)*_sin6)*qd[2]*qd[6] + qdd[1] - _t22*qdd[2] - (-_t18*_cos2*_cos6*T(p.h) - _t18*T(p.h)*_sin2*_sin6 - _t13*_cos2*_sin6 + _t13*_cos6*_sin2)*qdd[6];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }
@@ -1321,13 +1321,13 @@ struct disc_cam {
     const T _t1 = sin(q[6]);
     const T _t2 = cos(q[6]);
     const T _t3 = sin(q[2]);
-    const T _t4 = -_t0*_t1 + _t2*_t3;
+    const T _t4 = _t2*_t3 - _t0*_t1;
     const T _t5 = -_t0*_t2 - _t3*_t1;
     const T _t6 = q[6]/T(p.b1);
-    const T _t7 = -q[6] + T(p.th2);
+    const T _t7 = T(p.th2) - q[6];
     const T _t8 = T(1)/T(p.b2);
     const T _t9 = -_t7*_t8;
-    const T _t10 = -_motion_law(0, 0, _t6) + _motion_law(0, 0, _t9);
+    const T _t10 = _motion_law(0, 0, _t9) - _motion_law(0, 0, _t6);
     const T _t11 = T(1)/(T(p.b1)*T(p.b1));
     const T _t12 = _motion_law(0, 1, _t6);
     const T _t13 = _motion_law(0, 1, _t9);
@@ -1351,28 +1351,28 @@ struct disc_cam {
     out[15] = T(0);
     out[16] = T(0);
     out[17] = T(0);
-    out[18] = -_t10*_t2*_t3 + _t10*_t0*_t1;
+    out[18] = _t10*_t0*_t1 - _t10*_t2*_t3;
     out[19] = _t10*_t0*_t2 + _t10*_t3*_t1;
     out[20] = T(0);
     out[21] = T(0);
     out[22] = T(0);
     out[23] = T(0);
     out[24] = T(0);
-    out[25] = -_t11*_t2*_t12*T(p.h)*q[6]*_t3 + _t11*_t0*_t12*T(p.h)*q[6]*_t1;
+    out[25] = _t11*_t0*_t12*T(p.h)*q[6]*_t1 - _t11*_t2*_t12*T(p.h)*q[6]*_t3;
     out[26] = _t11*_t0*_t2*_t12*T(p.h)*q[6] + _t11*_t12*T(p.h)*q[6]*_t3*_t1;
     out[27] = T(0);
     out[28] = T(0);
     out[29] = T(0);
     out[30] = T(0);
     out[31] = T(0);
-    out[32] = -_t8*_t0*_t13*T(p.h)*_t1 + _t8*_t2*_t13*T(p.h)*_t3;
+    out[32] = _t8*_t2*_t13*T(p.h)*_t3 - _t8*_t0*_t13*T(p.h)*_t1;
     out[33] = -_t8*_t0*_t2*_t13*T(p.h) - _t8*_t13*T(p.h)*_t3*_t1;
     out[34] = T(0);
     out[35] = T(0);
     out[36] = T(0);
     out[37] = T(0);
     out[38] = T(0);
-    out[39] = -_t7*_t14*_t2*_t13*T(p.h)*_t3 + _t7*_t14*_t0*_t13*T(p.h)*_t1;
+    out[39] = _t7*_t14*_t0*_t13*T(p.h)*_t1 - _t7*_t14*_t2*_t13*T(p.h)*_t3;
     out[40] = _t7*_t14*_t0*_t2*_t13*T(p.h) + _t7*_t14*_t13*T(p.h)*_t3*_t1;
     out[41] = T(0);
     out[42] = T(0);

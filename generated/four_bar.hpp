@@ -61,9 +61,9 @@ struct four_bar {
     out[3] = -T(p.a)*sin(q[2]) - q[1] + q[4];
     out[4] = -cos(q[5])*T(p.b) - q[3] + cos(q[8])*T(p.c) + q[6];
     out[5] = -T(p.b)*sin(q[5]) - q[4] + T(p.c)*sin(q[8]) + q[7];
-    out[6] = -T(p.d) + q[6];
+    out[6] = q[6] - T(p.d);
     out[7] = q[7];
-    out[8] = -T(p.omega)*t + q[2];
+    out[8] = q[2] - T(p.omega)*t;
   }
 
   // Phi_q(q, t) at (jac_rows[k], jac_cols[k])
@@ -124,8 +124,8 @@ struct four_bar {
     out[1] = T(0);
     out[2] = -_t0*cos(q[2])*T(p.a);
     out[3] = -_t0*T(p.a)*sin(q[2]);
-    out[4] = -_t1*cos(q[5])*T(p.b) + _t2*cos(q[8])*T(p.c);
-    out[5] = -_t1*T(p.b)*sin(q[5]) + _t2*T(p.c)*sin(q[8]);
+    out[4] = _t2*cos(q[8])*T(p.c) - _t1*cos(q[5])*T(p.b);
+    out[5] = _t2*T(p.c)*sin(q[8]) - _t1*T(p.b)*sin(q[5]);
     out[6] = T(0);
     out[7] = T(0);
     out[8] = T(0);
@@ -970,7 +970,7 @@ struct four_bar {
     const T _t12 = qd[5]*qd[5];
     const T _t13 = qd[8]*qd[8];
     {
-      T _x[2] = {-_t12*_t4*T(p.b) + _t13*_t6*T(p.c) + qdd[3] - qdd[6], -_t12*T(p.b)*_t0 + _t13*T(p.c)*_t2 + qdd[4] - qdd[7]};
+      T _x[2] = {_t13*_t6*T(p.c) - _t12*_t4*T(p.b) + qdd[3] - qdd[6], _t13*T(p.c)*_t2 - _t12*T(p.b)*_t0 + qdd[4] - qdd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qdd[5] = _x[0];
       qdd[8] = _x[1];
@@ -1038,7 +1038,7 @@ struct four_bar {
     const T _t12 = qd[5]*qd[5];
     const T _t13 = qd[8]*qd[8];
     {
-      T _x[2] = {-_t12*_t7*T(p.b) + _t13*_t9*T(p.c) + qdd[3] - qdd[6], -_t12*T(p.b)*_t3 + _t13*T(p.c)*_t5 + qdd[4] - qdd[7]};
+      T _x[2] = {_t13*_t9*T(p.c) - _t12*_t7*T(p.b) + qdd[3] - qdd[6], _t13*T(p.c)*_t5 - _t12*T(p.b)*_t3 + qdd[4] - qdd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qdd[5] = _x[0];
       qdd[8] = _x[1];
@@ -1176,7 +1176,7 @@ struct four_bar {
     const T _t10 = qd[5]*qd[5];
     const T _t11 = qd[8]*qd[8];
     {
-      T _x[2] = {-_t10*_cos5*T(p.b) + _t11*_cos8*T(p.c) + qdd[3] - qdd[6], -_t10*T(p.b)*_sin5 + _t11*T(p.c)*_sin8 + qdd[4] - qdd[7]};
+      T _x[2] = {_t11*_cos8*T(p.c) - _t10*_cos5*T(p.b) + qdd[3] - qdd[6], _t11*T(p.c)*_sin8 - _t10*T(p.b)*_sin5 + qdd[4] - qdd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qdd[5] = _x[0];
       qdd[8] = _x[1];

@@ -58,9 +58,9 @@ struct offset_slider_crank {
     out[3] = -T(p.r)*sin(q[2]) - q[1] + q[4];
     out[4] = -cos(q[5])*T(p.l) - q[3] + q[6];
     out[5] = -T(p.l)*sin(q[5]) - q[4] + q[7];
-    out[6] = -T(p.e) + q[7];
+    out[6] = q[7] - T(p.e);
     out[7] = q[8];
-    out[8] = -T(p.omega)*t + q[2];
+    out[8] = q[2] - T(p.omega)*t;
   }
 
   // Phi_q(q, t) at (jac_rows[k], jac_cols[k])

@@ -56,7 +56,7 @@ struct planetary {
     const T _t0 = T(p.r_sun) + T(p.r_planet);
     const T _t1 = T(1)/_t0;
     const T _t2 = (T(p.r_sun)*q[2] + T(p.r_planet)*q[8])*_t1;
-    const T _t3 = (-T(p.r_planet)*q[8] + T(3.141592653589793)*_t0)*_t1;
+    const T _t3 = (T(3.141592653589793)*_t0 - T(p.r_planet)*q[8])*_t1;
 
     out[0] = q[0];
     out[1] = q[1];
@@ -64,9 +64,9 @@ struct planetary {
     out[3] = q[4];
     out[4] = -_t0*cos(q[5]) - q[3] + q[6];
     out[5] = -_t0*sin(q[5]) - q[4] + q[7];
-    out[6] = -(-q[7] + q[1])*cos(_t2) + (-q[6] + q[0])*sin(_t2);
-    out[7] = -cos(_t3)*q[7] + q[6]*sin(_t3);
-    out[8] = -T(p.omega)*t + q[2];
+    out[6] = (q[0] - q[6])*sin(_t2) - (q[1] - q[7])*cos(_t2);
+    out[7] = q[6]*sin(_t3) - cos(_t3)*q[7];
+    out[8] = q[2] - T(p.omega)*t;
   }
 
   // Phi_q(q, t) at (jac_rows[k], jac_cols[k])
@@ -81,9 +81,9 @@ struct planetary {
     const T _t2 = (T(p.r_sun)*q[2] + T(p.r_planet)*q[8])*_t1;
     const T _t3 = sin(_t2);
     const T _t4 = cos(_t2);
-    const T _t5 = -q[6] + q[0];
-    const T _t6 = -q[7] + q[1];
-    const T _t7 = (-T(p.r_planet)*q[8] + T(3.141592653589793)*_t0)*_t1;
+    const T _t5 = q[0] - q[6];
+    const T _t6 = q[1] - q[7];
+    const T _t7 = (T(3.141592653589793)*_t0 - T(p.r_planet)*q[8])*_t1;
     const T _t8 = sin(_t7);
     const T _t9 = cos(_t7);
 
@@ -129,26 +129,24 @@ struct planetary {
   template <class T>
   static void gamma([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
-    // out[nc]; 73 operations
+    // out[nc]; 56 operations
     using std::cos, std::sin;
-    // Intermediate terms (17)
+    // Intermediate terms (15)
     const T _t0 = T(p.r_sun) + T(p.r_planet);
     const T _t1 = qd[5]*qd[5];
     const T _t2 = T(1)/_t0;
     const T _t3 = (T(p.r_sun)*q[2] + T(p.r_planet)*q[8])*_t2;
     const T _t4 = cos(_t3);
-    const T _t5 = _t2*_t4*T(p.r_sun)*qd[2] + _t2*_t4*T(p.r_planet)*qd[8];
-    const T _t6 = sin(_t3);
-    const T _t7 = _t2*T(p.r_sun)*_t6*qd[2] + _t2*T(p.r_planet)*_t6*qd[8];
-    const T _t8 = -q[7] + q[1];
-    const T _t9 = T(1)/(_t0*_t0);
-    const T _t10 = T(p.r_sun)*T(p.r_sun);
-    const T _t11 = -q[6] + q[0];
-    const T _t12 = -_t8*_t9*_t4*T(p.r_sun)*T(p.r_planet) + _t11*_t9*T(p.r_sun)*T(p.r_planet)*_t6;
-    const T _t13 = T(p.r_planet)*T(p.r_planet);
-    const T _t14 = (-T(p.r_planet)*q[8] + T(3.141592653589793)*_t0)*_t2;
-    const T _t15 = cos(_t14);
-    const T _t16 = sin(_t14);
+    const T _t5 = sin(_t3);
+    const T _t6 = q[1] - q[7];
+    const T _t7 = T(1)/(_t0*_t0);
+    const T _t8 = T(p.r_sun)*T(p.r_sun);
+    const T _t9 = q[0] - q[6];
+    const T _t10 = T(p.r_planet)*T(p.r_planet);
+    const T _t11 = qd[8]*qd[8];
+    const T _t12 = (T(3.141592653589793)*_t0 - T(p.r_planet)*q[8])*_t2;
+    const T _t13 = sin(_t12);
+    const T _t14 = cos(_t12);
 
     out[0] = T(0);
     out[1] = T(0);
@@ -156,8 +154,8 @@ struct planetary {
     out[3] = T(0);
     out[4] = -_t0*_t1*cos(q[5]);
     out[5] = -_t0*_t1*sin(q[5]);
-    out[6] = -_t5*qd[0] - _t7*qd[1] + (-_t2*_t4*T(p.r_sun)*qd[0] - _t2*T(p.r_sun)*_t6*qd[1] + (-_t8*_t9*_t10*_t4 + _t11*_t9*_t10*_t6)*qd[2] + _t12*qd[8] + _t2*_t4*T(p.r_sun)*qd[6] + _t2*T(p.r_sun)*_t6*qd[7])*qd[2] + (-_t2*_t4*T(p.r_planet)*qd[0] - _t2*T(p.r_planet)*_t6*qd[1] + (-_t8*_t9*_t13*_t4 + _t11*_t9*_t13*_t6)*qd[8] + _t12*qd[2] + _t2*_t4*T(p.r_planet)*qd[6] + _t2*T(p.r_planet)*_t6*qd[7])*qd[8] + _t5*qd[6] + _t7*qd[7];
-    out[7] = -(-_t2*_t15*T(p.r_planet)*qd[6] - _t2*T(p.r_planet)*_t16*qd[7] + (-_t9*_t13*q[6]*_t16 + _t9*_t13*_t15*q[7])*qd[8])*qd[8] + _t2*_t15*T(p.r_planet)*qd[6]*qd[8] + _t2*T(p.r_planet)*_t16*qd[7]*qd[8];
+    out[6] = -T(2)*_t2*_t4*T(p.r_sun)*qd[0]*qd[2] - T(2)*_t2*_t4*T(p.r_planet)*qd[0]*qd[8] - T(2)*_t2*T(p.r_sun)*_t5*qd[1]*qd[2] - T(2)*_t2*T(p.r_planet)*_t5*qd[1]*qd[8] + (_t9*_t7*_t8*_t5 - _t6*_t7*_t8*_t4)*(qd[2]*qd[2]) + (_t9*_t7*_t10*_t5 - _t6*_t7*_t10*_t4)*_t11 + T(2)*(_t9*_t7*T(p.r_sun)*T(p.r_planet)*_t5 - _t6*_t7*_t4*T(p.r_sun)*T(p.r_planet))*qd[2]*qd[8] + T(2)*_t2*_t4*T(p.r_sun)*qd[2]*qd[6] + T(2)*_t2*_t4*T(p.r_planet)*qd[6]*qd[8] + T(2)*_t2*T(p.r_sun)*_t5*qd[2]*qd[7] + T(2)*_t2*T(p.r_planet)*_t5*qd[7]*qd[8];
+    out[7] = T(2)*_t2*_t14*T(p.r_planet)*qd[6]*qd[8] - (_t7*_t10*_t14*q[7] - _t7*_t10*q[6]*_t13)*_t11 + T(2)*_t2*T(p.r_planet)*_t13*qd[7]*qd[8];
     out[8] = T(0);
   }
 
@@ -847,12 +845,12 @@ struct planetary {
     R _st5 = 0;
     for (int _it = 1;; ++_it) {
       const T _t2 = -_t0*_cos5;
-      const T _t3 = -q[7] + q[1];
+      const T _t3 = q[1] - q[7];
       const T _t4 = (T(p.r_sun)*q[2] + T(p.r_planet)*q[8])*_t1;
       const T _t5 = cos(_t4);
-      const T _t6 = -q[6] + q[0];
+      const T _t6 = q[0] - q[6];
       const T _t7 = sin(_t4);
-      const T _t8 = (-T(p.r_planet)*q[8] + T(3.141592653589793)*_t0)*_t1;
+      const T _t8 = (T(3.141592653589793)*_t0 - T(p.r_planet)*q[8])*_t1;
       const T _t9 = cos(_t8);
       const T _t10 = sin(_t8);
       const T _t11 = _t0*_sin5;
@@ -860,7 +858,7 @@ struct planetary {
       const T _t13 = _t6*_t1*_t5*T(p.r_planet) + _t3*_t1*T(p.r_planet)*_t7;
       const T _t14 = -_t9;
       const T _t15 = -_t1*_t9*T(p.r_planet)*q[6] - _t1*T(p.r_planet)*q[7]*_t10;
-      T _r[4] = {_t2 - q[3] + q[6], -_t0*_sin5 - q[4] + q[7], -_t3*_t5 + _t6*_t7, -_t9*q[7] + q[6]*_t10};
+      T _r[4] = {_t2 - q[3] + q[6], -_t0*_sin5 - q[4] + q[7], _t6*_t7 - _t3*_t5, q[6]*_t10 - _t9*q[7]};
       T _a[16] = {_t11, T(1), T(0), T(0), _t2, T(0), T(1), T(0), T(0), _t12, _t5, _t13, T(0), _t10, _t14, _t15};
       _row_max<4>(_a, _cs5, _rmax5);
       int _piv[4];
@@ -903,15 +901,15 @@ struct planetary {
       }
     }
     const T _t16 = -_t0*_cos5;
-    const T _t17 = -q[7] + q[1];
+    const T _t17 = q[1] - q[7];
     const T _t18 = (T(p.r_sun)*q[2] + T(p.r_planet)*q[8])*_t1;
     const T _t19 = cos(_t18);
-    const T _t20 = -q[6] + q[0];
+    const T _t20 = q[0] - q[6];
     const T _t21 = sin(_t18);
-    const T _t22 = (-T(p.r_planet)*q[8] + T(3.141592653589793)*_t0)*_t1;
+    const T _t22 = (T(3.141592653589793)*_t0 - T(p.r_planet)*q[8])*_t1;
     const T _t23 = cos(_t22);
     const T _t24 = sin(_t22);
-    const R _rr5[4] = {_mag(_t16 - q[3] + q[6]), _mag(-_t0*_sin5 - q[4] + q[7]), _mag(-_t17*_t19 + _t20*_t21), _mag(-_t23*q[7] + q[6]*_t24)};
+    const R _rr5[4] = {_mag(_t16 - q[3] + q[6]), _mag(-_t0*_sin5 - q[4] + q[7]), _mag(_t20*_t21 - _t17*_t19), _mag(q[6]*_t24 - _t23*q[7])};
     const R _res5 = _scaled_max<4>(_rr5, _rmax5);
     const R _cm5[4] = {std::max(_rmax5[0], _mag(T(-1)) * R(coordinate_scales[3])), std::max(_rmax5[1], _mag(T(-1)) * R(coordinate_scales[4])), std::max(std::max(std::max(_rmax5[2], _mag(_t21) * R(coordinate_scales[0])), _mag(-_t19) * R(coordinate_scales[1])), _mag(_t20*_t1*_t19*T(p.r_sun) + _t17*_t1*T(p.r_sun)*_t21)), _rmax5[3]};
     _rc5 = _coupled_rcond<4>(_rc5, _rmax5, _cm5);
@@ -951,10 +949,10 @@ struct planetary {
     const T _t7 = sin(_t6);
     const T _t8 = -_t7;
     const T _t9 = cos(_t6);
-    const T _t10 = -q[6] + q[0];
-    const T _t11 = -q[7] + q[1];
+    const T _t10 = q[0] - q[6];
+    const T _t11 = q[1] - q[7];
     const T _t12 = _t10*_t5*_t9*T(p.r_planet) + _t11*_t5*T(p.r_planet)*_t7;
-    const T _t13 = (-T(p.r_planet)*q[8] + T(3.141592653589793)*_t0)*_t5;
+    const T _t13 = (T(3.141592653589793)*_t0 - T(p.r_planet)*q[8])*_t5;
     const T _t14 = sin(_t13);
     const T _t15 = cos(_t13);
     const T _t16 = -_t15;
@@ -1002,10 +1000,10 @@ struct planetary {
     const T _t7 = sin(_t6);
     const T _t8 = -_t7;
     const T _t9 = cos(_t6);
-    const T _t10 = -q[6] + q[0];
-    const T _t11 = -q[7] + q[1];
+    const T _t10 = q[0] - q[6];
+    const T _t11 = q[1] - q[7];
     const T _t12 = _t10*_t5*_t9*T(p.r_planet) + _t11*_t5*T(p.r_planet)*_t7;
-    const T _t13 = (-T(p.r_planet)*q[8] + T(3.141592653589793)*_t0)*_t5;
+    const T _t13 = (T(3.141592653589793)*_t0 - T(p.r_planet)*q[8])*_t5;
     const T _t14 = sin(_t13);
     const T _t15 = cos(_t13);
     const T _t16 = -_t15;
@@ -1021,14 +1019,12 @@ struct planetary {
     qdd[4] = T(0);
     qdd[2] = T(0);
     const T _t18 = qd[5]*qd[5];
-    const T _t19 = _t5*_t9*T(p.r_sun)*qd[2] + _t5*_t9*T(p.r_planet)*qd[8];
-    const T _t20 = _t5*T(p.r_sun)*_t7*qd[2] + _t5*T(p.r_planet)*_t7*qd[8];
-    const T _t21 = T(1)/(_t0*_t0);
-    const T _t22 = T(p.r_sun)*T(p.r_sun);
-    const T _t23 = -_t11*_t21*_t9*T(p.r_sun)*T(p.r_planet) + _t10*_t21*T(p.r_sun)*T(p.r_planet)*_t7;
-    const T _t24 = T(p.r_planet)*T(p.r_planet);
+    const T _t19 = T(1)/(_t0*_t0);
+    const T _t20 = T(p.r_sun)*T(p.r_sun);
+    const T _t21 = T(p.r_planet)*T(p.r_planet);
+    const T _t22 = qd[8]*qd[8];
     {
-      T _x[4] = {-_t0*_t18*_t3 + qdd[3], -_t0*_t18*_t1 + qdd[4], -_t19*qd[0] - _t20*qd[1] + (-_t5*_t9*T(p.r_sun)*qd[0] - _t5*T(p.r_sun)*_t7*qd[1] + (-_t11*_t21*_t22*_t9 + _t10*_t21*_t22*_t7)*qd[2] + _t23*qd[8] + _t5*_t9*T(p.r_sun)*qd[6] + _t5*T(p.r_sun)*_t7*qd[7])*qd[2] + (-_t5*_t9*T(p.r_planet)*qd[0] - _t5*T(p.r_planet)*_t7*qd[1] + (-_t11*_t21*_t24*_t9 + _t10*_t21*_t24*_t7)*qd[8] + _t23*qd[2] + _t5*_t9*T(p.r_planet)*qd[6] + _t5*T(p.r_planet)*_t7*qd[7])*qd[8] + _t19*qd[6] + _t20*qd[7] - _t7*qdd[0] - (-_t9)*qdd[1] - (_t10*_t5*_t9*T(p.r_sun) + _t11*_t5*T(p.r_sun)*_t7)*qdd[2], -(-_t5*_t15*T(p.r_planet)*qd[6] - _t5*T(p.r_planet)*_t14*qd[7] + (-_t21*_t24*q[6]*_t14 + _t21*_t24*_t15*q[7])*qd[8])*qd[8] + _t5*_t15*T(p.r_planet)*qd[6]*qd[8] + _t5*T(p.r_planet)*_t14*qd[7]*qd[8]};
+      T _x[4] = {-_t0*_t18*_t3 + qdd[3], -_t0*_t18*_t1 + qdd[4], -T(2)*_t5*_t9*T(p.r_sun)*qd[0]*qd[2] - T(2)*_t5*_t9*T(p.r_planet)*qd[0]*qd[8] - T(2)*_t5*T(p.r_sun)*_t7*qd[1]*qd[2] - T(2)*_t5*T(p.r_planet)*_t7*qd[1]*qd[8] + (_t10*_t19*_t20*_t7 - _t11*_t19*_t20*_t9)*(qd[2]*qd[2]) + (_t10*_t19*_t21*_t7 - _t11*_t19*_t21*_t9)*_t22 + T(2)*(_t10*_t19*T(p.r_sun)*T(p.r_planet)*_t7 - _t11*_t19*_t9*T(p.r_sun)*T(p.r_planet))*qd[2]*qd[8] + T(2)*_t5*_t9*T(p.r_sun)*qd[2]*qd[6] + T(2)*_t5*_t9*T(p.r_planet)*qd[6]*qd[8] + T(2)*_t5*T(p.r_sun)*_t7*qd[2]*qd[7] + T(2)*_t5*T(p.r_planet)*_t7*qd[7]*qd[8] - _t7*qdd[0] - (-_t9)*qdd[1] - (_t10*_t5*_t9*T(p.r_sun) + _t11*_t5*T(p.r_sun)*_t7)*qdd[2], T(2)*_t5*_t15*T(p.r_planet)*qd[6]*qd[8] - (_t19*_t21*_t15*q[7] - _t19*_t21*q[6]*_t14)*_t22 + T(2)*_t5*T(p.r_planet)*_t14*qd[7]*qd[8]};
       _lu_solve<4>(_a5, _piv5, _x);
       qdd[5] = _x[0];
       qdd[6] = _x[1];
@@ -1070,10 +1066,10 @@ struct planetary {
     const T _t7 = sin(_t6);
     const T _t8 = -_t7;
     const T _t9 = cos(_t6);
-    const T _t10 = -q[6] + q[0];
-    const T _t11 = -q[7] + q[1];
+    const T _t10 = q[0] - q[6];
+    const T _t11 = q[1] - q[7];
     const T _t12 = _t10*_t5*_t9*T(p.r_planet) + _t11*_t5*T(p.r_planet)*_t7;
-    const T _t13 = (-T(p.r_planet)*q[8] + T(3.141592653589793)*_t0)*_t5;
+    const T _t13 = (T(3.141592653589793)*_t0 - T(p.r_planet)*q[8])*_t5;
     const T _t14 = sin(_t13);
     const T _t15 = cos(_t13);
     const T _t16 = -_t15;
@@ -1098,14 +1094,12 @@ struct planetary {
     qdd[4] = T(0);
     qdd[2] = T(0);
     const T _t18 = qd[5]*qd[5];
-    const T _t19 = _t5*_t9*T(p.r_sun)*qd[2] + _t5*_t9*T(p.r_planet)*qd[8];
-    const T _t20 = _t5*T(p.r_sun)*_t7*qd[2] + _t5*T(p.r_planet)*_t7*qd[8];
-    const T _t21 = T(1)/(_t0*_t0);
-    const T _t22 = T(p.r_sun)*T(p.r_sun);
-    const T _t23 = -_t11*_t21*_t9*T(p.r_sun)*T(p.r_planet) + _t10*_t21*T(p.r_sun)*T(p.r_planet)*_t7;
-    const T _t24 = T(p.r_planet)*T(p.r_planet);
+    const T _t19 = T(1)/(_t0*_t0);
+    const T _t20 = T(p.r_sun)*T(p.r_sun);
+    const T _t21 = T(p.r_planet)*T(p.r_planet);
+    const T _t22 = qd[8]*qd[8];
     {
-      T _x[4] = {-_t0*_t18*_t3 + qdd[3], -_t0*_t18*_t1 + qdd[4], -_t19*qd[0] - _t20*qd[1] + (-_t5*_t9*T(p.r_sun)*qd[0] - _t5*T(p.r_sun)*_t7*qd[1] + (-_t11*_t21*_t22*_t9 + _t10*_t21*_t22*_t7)*qd[2] + _t23*qd[8] + _t5*_t9*T(p.r_sun)*qd[6] + _t5*T(p.r_sun)*_t7*qd[7])*qd[2] + (-_t5*_t9*T(p.r_planet)*qd[0] - _t5*T(p.r_planet)*_t7*qd[1] + (-_t11*_t21*_t24*_t9 + _t10*_t21*_t24*_t7)*qd[8] + _t23*qd[2] + _t5*_t9*T(p.r_planet)*qd[6] + _t5*T(p.r_planet)*_t7*qd[7])*qd[8] + _t19*qd[6] + _t20*qd[7] - _t7*qdd[0] - (-_t9)*qdd[1] - (_t10*_t5*_t9*T(p.r_sun) + _t11*_t5*T(p.r_sun)*_t7)*qdd[2], -(-_t5*_t15*T(p.r_planet)*qd[6] - _t5*T(p.r_planet)*_t14*qd[7] + (-_t21*_t24*q[6]*_t14 + _t21*_t24*_t15*q[7])*qd[8])*qd[8] + _t5*_t15*T(p.r_planet)*qd[6]*qd[8] + _t5*T(p.r_planet)*_t14*qd[7]*qd[8]};
+      T _x[4] = {-_t0*_t18*_t3 + qdd[3], -_t0*_t18*_t1 + qdd[4], -T(2)*_t5*_t9*T(p.r_sun)*qd[0]*qd[2] - T(2)*_t5*_t9*T(p.r_planet)*qd[0]*qd[8] - T(2)*_t5*T(p.r_sun)*_t7*qd[1]*qd[2] - T(2)*_t5*T(p.r_planet)*_t7*qd[1]*qd[8] + (_t10*_t19*_t20*_t7 - _t11*_t19*_t20*_t9)*(qd[2]*qd[2]) + (_t10*_t19*_t21*_t7 - _t11*_t19*_t21*_t9)*_t22 + T(2)*(_t10*_t19*T(p.r_sun)*T(p.r_planet)*_t7 - _t11*_t19*_t9*T(p.r_sun)*T(p.r_planet))*qd[2]*qd[8] + T(2)*_t5*_t9*T(p.r_sun)*qd[2]*qd[6] + T(2)*_t5*_t9*T(p.r_planet)*qd[6]*qd[8] + T(2)*_t5*T(p.r_sun)*_t7*qd[2]*qd[7] + T(2)*_t5*T(p.r_planet)*_t7*qd[7]*qd[8] - _t7*qdd[0] - (-_t9)*qdd[1] - (_t10*_t5*_t9*T(p.r_sun) + _t11*_t5*T(p.r_sun)*_t7)*qdd[2], T(2)*_t5*_t15*T(p.r_planet)*qd[6]*qd[8] - (_t19*_t21*_t15*q[7] - _t19*_t21*q[6]*_t14)*_t22 + T(2)*_t5*T(p.r_planet)*_t14*qd[7]*qd[8]};
       _lu_solve<4>(_a5, _piv5, _x);
       qdd[5] = _x[0];
       qdd[6] = _x[1];
@@ -1150,12 +1144,12 @@ struct planetary {
     R _st5 = 0;
     for (int _it = 1;; ++_it) {
       const T _t2 = -_t0*_cos5;
-      const T _t3 = -q[7] + q[1];
+      const T _t3 = q[1] - q[7];
       const T _t4 = (T(p.r_sun)*q[2] + T(p.r_planet)*q[8])*_t1;
       const T _t5 = cos(_t4);
-      const T _t6 = -q[6] + q[0];
+      const T _t6 = q[0] - q[6];
       const T _t7 = sin(_t4);
-      const T _t8 = (-T(p.r_planet)*q[8] + T(3.141592653589793)*_t0)*_t1;
+      const T _t8 = (T(3.141592653589793)*_t0 - T(p.r_planet)*q[8])*_t1;
       const T _t9 = cos(_t8);
       const T _t10 = sin(_t8);
       const T _t11 = _t0*_sin5;
@@ -1163,7 +1157,7 @@ struct planetary {
       const T _t13 = _t6*_t1*_t5*T(p.r_planet) + _t3*_t1*T(p.r_planet)*_t7;
       const T _t14 = -_t9;
       const T _t15 = -_t1*_t9*T(p.r_planet)*q[6] - _t1*T(p.r_planet)*q[7]*_t10;
-      T _r[4] = {_t2 - q[3] + q[6], -_t0*_sin5 - q[4] + q[7], -_t3*_t5 + _t6*_t7, -_t9*q[7] + q[6]*_t10};
+      T _r[4] = {_t2 - q[3] + q[6], -_t0*_sin5 - q[4] + q[7], _t6*_t7 - _t3*_t5, q[6]*_t10 - _t9*q[7]};
       T _a[16] = {_t11, T(1), T(0), T(0), _t2, T(0), T(1), T(0), T(0), _t12, _t5, _t13, T(0), _t10, _t14, _t15};
       _row_max<4>(_a, _cs5, _rmax5);
       int _piv[4];
@@ -1206,15 +1200,15 @@ struct planetary {
       }
     }
     const T _t16 = -_t0*_cos5;
-    const T _t17 = -q[7] + q[1];
+    const T _t17 = q[1] - q[7];
     const T _t18 = (T(p.r_sun)*q[2] + T(p.r_planet)*q[8])*_t1;
     const T _t19 = cos(_t18);
-    const T _t20 = -q[6] + q[0];
+    const T _t20 = q[0] - q[6];
     const T _t21 = sin(_t18);
-    const T _t22 = (-T(p.r_planet)*q[8] + T(3.141592653589793)*_t0)*_t1;
+    const T _t22 = (T(3.141592653589793)*_t0 - T(p.r_planet)*q[8])*_t1;
     const T _t23 = cos(_t22);
     const T _t24 = sin(_t22);
-    const R _rr5[4] = {_mag(_t16 - q[3] + q[6]), _mag(-_t0*_sin5 - q[4] + q[7]), _mag(-_t17*_t19 + _t20*_t21), _mag(-_t23*q[7] + q[6]*_t24)};
+    const R _rr5[4] = {_mag(_t16 - q[3] + q[6]), _mag(-_t0*_sin5 - q[4] + q[7]), _mag(_t20*_t21 - _t17*_t19), _mag(q[6]*_t24 - _t23*q[7])};
     const R _res5 = _scaled_max<4>(_rr5, _rmax5);
     const R _cm5[4] = {std::max(_rmax5[0], _mag(T(-1)) * R(coordinate_scales[3])), std::max(_rmax5[1], _mag(T(-1)) * R(coordinate_scales[4])), std::max(std::max(std::max(_rmax5[2], _mag(_t21) * R(coordinate_scales[0])), _mag(-_t19) * R(coordinate_scales[1])), _mag(_t20*_t1*_t19*T(p.r_sun) + _t17*_t1*T(p.r_sun)*_t21)), _rmax5[3]};
     _rc5 = _coupled_rcond<4>(_rc5, _rmax5, _cm5);
@@ -1257,14 +1251,12 @@ struct planetary {
     qdd[4] = T(0);
     qdd[2] = T(0);
     const T _t30 = qd[5]*qd[5];
-    const T _t31 = _t1*_t19*T(p.r_sun)*qd[2] + _t1*_t19*T(p.r_planet)*qd[8];
-    const T _t32 = _t1*T(p.r_sun)*_t21*qd[2] + _t1*T(p.r_planet)*_t21*qd[8];
-    const T _t33 = T(1)/(_t0*_t0);
-    const T _t34 = T(p.r_sun)*T(p.r_sun);
-    const T _t35 = -_t17*_t33*_t19*T(p.r_sun)*T(p.r_planet) + _t20*_t33*T(p.r_sun)*T(p.r_planet)*_t21;
-    const T _t36 = T(p.r_planet)*T(p.r_planet);
+    const T _t31 = T(1)/(_t0*_t0);
+    const T _t32 = T(p.r_sun)*T(p.r_sun);
+    const T _t33 = T(p.r_planet)*T(p.r_planet);
+    const T _t34 = qd[8]*qd[8];
     {
-      T _x[4] = {-_t0*_t30*_cos5 + qdd[3], -_t0*_t30*_sin5 + qdd[4], -_t31*qd[0] - _t32*qd[1] + (-_t1*_t19*T(p.r_sun)*qd[0] - _t1*T(p.r_sun)*_t21*qd[1] + (-_t17*_t33*_t34*_t19 + _t20*_t33*_t34*_t21)*qd[2] + _t35*qd[8] + _t1*_t19*T(p.r_sun)*qd[6] + _t1*T(p.r_sun)*_t21*qd[7])*qd[2] + (-_t1*_t19*T(p.r_planet)*qd[0] - _t1*T(p.r_planet)*_t21*qd[1] + (-_t17*_t33*_t36*_t19 + _t20*_t33*_t36*_t21)*qd[8] + _t35*qd[2] + _t1*_t19*T(p.r_planet)*qd[6] + _t1*T(p.r_planet)*_t21*qd[7])*qd[8] + _t31*qd[6] + _t32*qd[7] - _t21*qdd[0] - (-_t19)*qdd[1] - (_t20*_t1*_t19*T(p.r_sun) + _t17*_t1*T(p.r_sun)*_t21)*qdd[2], -(-_t1*_t23*T(p.r_planet)*qd[6] - _t1*T(p.r_planet)*_t24*qd[7] + (-_t33*_t36*q[6]*_t24 + _t33*_t36*_t23*q[7])*qd[8])*qd[8] + _t1*_t23*T(p.r_planet)*qd[6]*qd[8] + _t1*T(p.r_planet)*_t24*qd[7]*qd[8]};
+      T _x[4] = {-_t0*_t30*_cos5 + qdd[3], -_t0*_t30*_sin5 + qdd[4], -T(2)*_t1*_t19*T(p.r_sun)*qd[0]*qd[2] - T(2)*_t1*_t19*T(p.r_planet)*qd[0]*qd[8] - T(2)*_t1*T(p.r_sun)*_t21*qd[1]*qd[2] - T(2)*_t1*T(p.r_planet)*_t21*qd[1]*qd[8] + (_t20*_t31*_t32*_t21 - _t17*_t31*_t32*_t19)*(qd[2]*qd[2]) + (_t20*_t31*_t33*_t21 - _t17*_t31*_t33*_t19)*_t34 + T(2)*(_t20*_t31*T(p.r_sun)*T(p.r_planet)*_t21 - _t17*_t31*_t19*T(p.r_sun)*T(p.r_planet))*qd[2]*qd[8] + T(2)*_t1*_t19*T(p.r_sun)*qd[2]*qd[6] + T(2)*_t1*_t19*T(p.r_planet)*qd[6]*qd[8] + T(2)*_t1*T(p.r_sun)*_t21*qd[2]*qd[7] + T(2)*_t1*T(p.r_planet)*_t21*qd[7]*qd[8] - _t21*qdd[0] - (-_t19)*qdd[1] - (_t20*_t1*_t19*T(p.r_sun) + _t17*_t1*T(p.r_sun)*_t21)*qdd[2], T(2)*_t1*_t23*T(p.r_planet)*qd[6]*qd[8] - (_t31*_t33*_t23*q[7] - _t31*_t33*q[6]*_t24)*_t34 + T(2)*_t1*T(p.r_planet)*_t24*qd[7]*qd[8]};
       _lu_solve<4>(_a5, _piv5, _x);
       qdd[5] = _x[0];
       qdd[6] = _x[1];
@@ -1294,19 +1286,19 @@ struct planetary {
     const T _t4 = T(p.r_sun)*q[2] + T(p.r_planet)*q[8];
     const T _t5 = T(1)/(_t2*_t2);
     const T _t6 = _t4*_t5;
-    const T _t7 = -_t3*q[2] + _t6;
-    const T _t8 = -q[6] + q[0];
+    const T _t7 = _t6 - _t3*q[2];
+    const T _t8 = q[0] - q[6];
     const T _t9 = _t4*_t3;
     const T _t10 = cos(_t9);
-    const T _t11 = -q[7] + q[1];
+    const T _t11 = q[1] - q[7];
     const T _t12 = sin(_t9);
-    const T _t13 = -T(p.r_planet)*q[8] + T(3.141592653589793)*_t2;
+    const T _t13 = T(3.141592653589793)*_t2 - T(p.r_planet)*q[8];
     const T _t14 = -_t13*_t5;
     const T _t15 = _t14 + T(3.141592653589793)*_t3;
     const T _t16 = _t13*_t3;
     const T _t17 = cos(_t16);
     const T _t18 = sin(_t16);
-    const T _t19 = -_t3*q[8] + _t6;
+    const T _t19 = _t6 - _t3*q[8];
     const T _t20 = _t14 + (T(3.141592653589793) - q[8])*_t3;
 
     out[0] = T(0);

@@ -1338,7 +1338,7 @@ struct press {
     out[3] = T(0);
     out[4] = T(0);
     out[5] = T(0);
-    out[6] = -(T(1) - _motion_law(2, 0, -(-q[2] + T(6.283185307179586))/T(p.window)))*_motion_law(2, 0, -(-T(p.contact) - q[6] + T(p.r) + T(p.l))/T(p.ramp))*T(p.F);
+    out[6] = -(T(1) - _motion_law(2, 0, -(T(6.283185307179586) - q[2])/T(p.window)))*_motion_law(2, 0, -(-T(p.contact) - q[6] + T(p.r) + T(p.l))/T(p.ramp))*T(p.F);
     out[7] = T(0);
     out[8] = T(0);
   }

@@ -58,9 +58,9 @@ struct quick_return {
     out[3] = T(p.d) + q[4];
     out[4] = -cos(q[2])*T(p.r) - q[0] + q[6];
     out[5] = -T(p.r)*sin(q[2]) - q[1] + q[7];
-    out[6] = -(-q[7] + q[4])*cos(q[5]) + (-q[6] + q[3])*sin(q[5]);
-    out[7] = -q[5] + q[8];
-    out[8] = -T(p.omega)*t + q[2];
+    out[6] = (q[3] - q[6])*sin(q[5]) - (q[4] - q[7])*cos(q[5]);
+    out[7] = q[8] - q[5];
+    out[8] = q[2] - T(p.omega)*t;
   }
 
   // Phi_q(q, t) at (jac_rows[k], jac_cols[k])
@@ -85,7 +85,7 @@ struct quick_return {
     out[9] = T(1);
     out[10] = _t0;
     out[11] = -_t1;
-    out[12] = (-q[6] + q[3])*_t1 + (-q[7] + q[4])*_t0;
+    out[12] = (q[3] - q[6])*_t1 + (q[4] - q[7])*_t0;
     out[13] = -_t0;
     out[14] = _t1;
     out[15] = T(-1);
@@ -113,7 +113,7 @@ struct quick_return {
   template <class T>
   static void gamma([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
-    // out[nc]; 26 operations
+    // out[nc]; 21 operations
     using std::cos, std::sin;
     // Intermediate terms (3)
     const T _t0 = qd[2]*qd[2];
@@ -126,7 +126,7 @@ struct quick_return {
     out[3] = T(0);
     out[4] = -_t0*cos(q[2])*T(p.r);
     out[5] = -_t0*T(p.r)*sin(q[2]);
-    out[6] = -_t1*qd[3]*qd[5] - _t2*qd[4]*qd[5] + (-_t1*qd[3] - _t2*qd[4] + (-(-q[7] + q[4])*_t1 + (-q[6] + q[3])*_t2)*qd[5] + _t1*qd[6] + _t2*qd[7])*qd[5] + _t1*qd[5]*qd[6] + _t2*qd[5]*qd[7];
+    out[6] = -T(2)*_t1*qd[3]*qd[5] - T(2)*_t2*qd[4]*qd[5] + ((q[3] - q[6])*_t2 - (q[4] - q[7])*_t1)*(qd[5]*qd[5]) + T(2)*_t1*qd[5]*qd[6] + T(2)*_t2*qd[5]*qd[7];
     out[7] = T(0);
     out[8] = T(0);
   }
@@ -813,8 +813,8 @@ struct quick_return {
     const T _t0 = T(p.r)*_sin2;
     q[7] = _t0 + q[1];
     // Block 7: rows 6 -> q[5] (newton)
-    const T _t1 = -q[7] + q[4];
-    const T _t2 = -q[6] + q[3];
+    const T _t1 = q[4] - q[7];
+    const T _t2 = q[3] - q[6];
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
     R _rmax7[1] = {}, _qs7 = 0, _rc7 = 1, _pv7 = 0;
@@ -823,7 +823,7 @@ struct quick_return {
     bool _conv7 = false;
     R _st7 = 0;
     for (int _it = 1;; ++_it) {
-      const T _t3 = -_t1*_cos5 + _t2*_sin5;
+      const T _t3 = _t2*_sin5 - _t1*_cos5;
       const T _t4 = _t2*_cos5 + _t1*_sin5;
       T _r[1] = {_t3};
       const T _a = _t4;
@@ -851,7 +851,7 @@ struct quick_return {
         break;
       }
     }
-    const T _t5 = -_t1*_cos5 + _t2*_sin5;
+    const T _t5 = _t2*_sin5 - _t1*_cos5;
     const R _rr7[1] = {_mag(_t5)};
     const R _res7 = _scaled_max<1>(_rr7, _rmax7);
     const R _cm7[1] = {std::max(std::max(std::max(std::max(_rmax7[0], _mag(_sin5) * R(coordinate_scales[3])), _mag(-_cos5) * R(coordinate_scales[4])), _mag(-_sin5) * R(coordinate_scales[6])), _mag(_cos5) * R(coordinate_scales[7]))};
@@ -891,9 +891,9 @@ struct quick_return {
     const T _t2 = cos(q[2]);
     qd[7] = qd[1] - (-_t2*T(p.r))*qd[2];
     // Block 7: rows 6 -> q[5]
-    const T _t3 = -q[6] + q[3];
+    const T _t3 = q[3] - q[6];
     const T _t4 = cos(q[5]);
-    const T _t5 = -q[7] + q[4];
+    const T _t5 = q[4] - q[7];
     const T _t6 = sin(q[5]);
     const T _t7 = _t3*_t4 + _t5*_t6;
     const T _a7 = _t7;
@@ -923,9 +923,9 @@ struct quick_return {
     // Block 5: rows 4 -> q[6]
     // Block 6: rows 5 -> q[7]
     // Block 7: rows 6 -> q[5]
-    const T _t0 = -q[6] + q[3];
+    const T _t0 = q[3] - q[6];
     const T _t1 = cos(q[5]);
-    const T _t2 = -q[7] + q[4];
+    const T _t2 = q[4] - q[7];
     const T _t3 = sin(q[5]);
     const T _t4 = _t0*_t1 + _t2*_t3;
     const T _a7 = _t4;
@@ -942,8 +942,8 @@ struct quick_return {
     const T _t8 = T(p.r)*_t7;
     qdd[6] = -_t5*_t6*T(p.r) + qdd[0] - _t8*qdd[2];
     qdd[7] = -_t5*T(p.r)*_t7 + qdd[1] - (-_t6*T(p.r))*qdd[2];
-    const T _t9 = -_t2*_t1 + _t0*_t3;
-    qdd[5] = (-_t1*qd[3]*qd[5] - _t3*qd[4]*qd[5] + (-_t1*qd[3] - _t3*qd[4] + _t9*qd[5] + _t1*qd[6] + _t3*qd[7])*qd[5] + _t1*qd[5]*qd[6] + _t3*qd[5]*qd[7] - _t3*qdd[3] - (-_t1)*qdd[4] - (-_t3)*qdd[6] - _t1*qdd[7]) / _a7;
+    const T _t9 = _t0*_t3 - _t2*_t1;
+    qdd[5] = (-T(2)*_t1*qd[3]*qd[5] - T(2)*_t3*qd[4]*qd[5] + _t9*(qd[5]*qd[5]) + T(2)*_t1*qd[5]*qd[6] + T(2)*_t3*qd[5]*qd[7] - _t3*qdd[3] - (-_t1)*qdd[4] - (-_t3)*qdd[6] - _t1*qdd[7]) / _a7;
     qdd[8] = qdd[5];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
@@ -977,9 +977,9 @@ struct quick_return {
     const T _t2 = cos(q[2]);
     qd[7] = qd[1] - (-_t2*T(p.r))*qd[2];
     // Block 7: rows 6 -> q[5]
-    const T _t3 = -q[6] + q[3];
+    const T _t3 = q[3] - q[6];
     const T _t4 = cos(q[5]);
-    const T _t5 = -q[7] + q[4];
+    const T _t5 = q[4] - q[7];
     const T _t6 = sin(q[5]);
     const T _t7 = _t3*_t4 + _t5*_t6;
     const T _a7 = _t7;
@@ -996,8 +996,8 @@ struct quick_return {
     const T _t8 = qd[2]*qd[2];
     qdd[6] = -_t8*_t2*T(p.r) + qdd[0] - _t1*qdd[2];
     qdd[7] = -_t8*T(p.r)*_t0 + qdd[1] - (-_t2*T(p.r))*qdd[2];
-    const T _t9 = -_t5*_t4 + _t3*_t6;
-    qdd[5] = (-_t4*qd[3]*qd[5] - _t6*qd[4]*qd[5] + (-_t4*qd[3] - _t6*qd[4] + _t9*qd[5] + _t4*qd[6] + _t6*qd[7])*qd[5] + _t4*qd[5]*qd[6] + _t6*qd[5]*qd[7] - _t6*qdd[3] - (-_t4)*qdd[4] - (-_t6)*qdd[6] - _t4*qdd[7]) / _a7;
+    const T _t9 = _t3*_t6 - _t5*_t4;
+    qdd[5] = (-T(2)*_t4*qd[3]*qd[5] - T(2)*_t6*qd[4]*qd[5] + _t9*(qd[5]*qd[5]) + T(2)*_t4*qd[5]*qd[6] + T(2)*_t6*qd[5]*qd[7] - _t6*qdd[3] - (-_t4)*qdd[4] - (-_t6)*qdd[6] - _t4*qdd[7]) / _a7;
     qdd[8] = qdd[5];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
@@ -1033,8 +1033,8 @@ struct quick_return {
     const T _t0 = T(p.r)*_sin2;
     q[7] = _t0 + q[1];
     // Block 7: rows 6 -> q[5] (newton)
-    const T _t1 = -q[7] + q[4];
-    const T _t2 = -q[6] + q[3];
+    const T _t1 = q[4] - q[7];
+    const T _t2 = q[3] - q[6];
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
     R _rmax7[1] = {}, _qs7 = 0, _rc7 = 1, _pv7 = 0;
@@ -1043,7 +1043,7 @@ struct quick_return {
     bool _conv7 = false;
     R _st7 = 0;
     for (int _it = 1;; ++_it) {
-      const T _t3 = -_t1*_cos5 + _t2*_sin5;
+      const T _t3 = _t2*_sin5 - _t1*_cos5;
       const T _t4 = _t2*_cos5 + _t1*_sin5;
       T _r[1] = {_t3};
       const T _a = _t4;
@@ -1071,7 +1071,7 @@ struct quick_return {
         break;
       }
     }
-    const T _t5 = -_t1*_cos5 + _t2*_sin5;
+    const T _t5 = _t2*_sin5 - _t1*_cos5;
     const R _rr7[1] = {_mag(_t5)};
     const R _res7 = _scaled_max<1>(_rr7, _rmax7);
     const R _cm7[1] = {std::max(std::max(std::max(std::max(_rmax7[0], _mag(_sin5) * R(coordinate_scales[3])), _mag(-_cos5) * R(coordinate_scales[4])), _mag(-_sin5) * R(coordinate_scales[6])), _mag(_cos5) * R(coordinate_scales[7]))};
@@ -1111,7 +1111,7 @@ struct quick_return {
     const T _t7 = qd[2]*qd[2];
     qdd[6] = -_t7*_cos2*T(p.r) + qdd[0] - _t0*qdd[2];
     qdd[7] = -_t7*T(p.r)*_sin2 + qdd[1] - (-_cos2*T(p.r))*qdd[2];
-    qdd[5] = (-_cos5*qd[3]*qd[5] - _sin5*qd[4]*qd[5] + (-_cos5*qd[3] - _sin5*qd[4] + _t5*qd[5] + _cos5*qd[6] + _sin5*qd[7])*qd[5] + _cos5*qd[5]*qd[6] + _sin5*qd[5]*qd[7] - _sin5*qdd[3] - (-_cos5)*qdd[4] - (-_sin5)*qdd[6] - _cos5*qdd[7]) / _a7;
+    qdd[5] = (-T(2)*_cos5*qd[3]*qd[5] - T(2)*_sin5*qd[4]*qd[5] + _t5*(qd[5]*qd[5]) + T(2)*_cos5*qd[5]*qd[6] + T(2)*_sin5*qd[5]*qd[7] - _sin5*qdd[3] - (-_cos5)*qdd[4] - (-_sin5)*qdd[6] - _cos5*qdd[7]) / _a7;
     qdd[8] = qdd[5];
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;

@@ -50,10 +50,10 @@ struct slider_crank {
     using std::cos, std::sin;
     out[0] = q[0];
     out[1] = q[1];
-    out[2] = -q[3] + T(p.l)*sin(q[5]) + cos(q[2]) + q[0];
+    out[2] = T(p.l)*sin(q[5]) - q[3] + cos(q[2]) + q[0];
     out[3] = -cos(q[5])*T(p.l) - q[4] + q[1] + sin(q[2]);
     out[4] = q[4];
-    out[5] = -T(p.omega)*t + q[2];
+    out[5] = q[2] - T(p.omega)*t;
   }
 
   // Phi_q(q, t) at (jac_rows[k], jac_cols[k])
@@ -102,7 +102,7 @@ struct slider_crank {
     out[0] = T(0);
     out[1] = T(0);
     out[2] = _t0*cos(q[2]) + _t1*T(p.l)*sin(q[5]);
-    out[3] = -_t1*cos(q[5])*T(p.l) + _t0*sin(q[2]);
+    out[3] = _t0*sin(q[2]) - _t1*cos(q[5])*T(p.l);
     out[4] = T(0);
     out[5] = T(0);
   }
@@ -891,7 +891,7 @@ struct slider_crank {
     const T _t4 = qd[2]*qd[2];
     const T _t5 = sin(q[2]);
     const T _t6 = cos(q[2]);
-    qdd[5] = (-_t2*_t3*T(p.l) + _t4*_t5 - qdd[1] - _t6*qdd[2] + qdd[4]) / _a4;
+    qdd[5] = (_t4*_t5 - _t2*_t3*T(p.l) - qdd[1] - _t6*qdd[2] + qdd[4]) / _a4;
     qdd[3] = (_t4*_t6 + _t2*T(p.l)*_t0 - qdd[0] - (-_t5)*qdd[2] - (_t3*T(p.l))*qdd[5]) / T(-1);
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
@@ -933,7 +933,7 @@ struct slider_crank {
     qdd[4] = T(0);
     const T _t5 = qd[5]*qd[5];
     const T _t6 = qd[2]*qd[2];
-    qdd[5] = (-_t5*_t4*T(p.l) + _t6*_t3 - qdd[1] - _t2*qdd[2] + qdd[4]) / _a4;
+    qdd[5] = (_t6*_t3 - _t5*_t4*T(p.l) - qdd[1] - _t2*qdd[2] + qdd[4]) / _a4;
     qdd[3] = (_t6*_t2 + _t5*T(p.l)*_t0 - qdd[0] - (-_t3)*qdd[2] - (_t4*T(p.l))*qdd[5]) / T(-1);
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
@@ -1028,7 +1028,7 @@ struct slider_crank {
     qdd[4] = T(0);
     const T _t2 = qd[5]*qd[5];
     const T _t3 = qd[2]*qd[2];
-    qdd[5] = (-_t2*_cos5*T(p.l) + _t3*_sin2 - qdd[1] - _cos2*qdd[2] + qdd[4]) / _a4;
+    qdd[5] = (_t3*_sin2 - _t2*_cos5*T(p.l) - qdd[1] - _cos2*qdd[2] + qdd[4]) / _a4;
     qdd[3] = (_t3*_cos2 + _t2*T(p.l)*_sin5 - qdd[0] - (-_sin2)*qdd[2] - (_cos5*T(p.l))*qdd[5]) / T(-1);
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;

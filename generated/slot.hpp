@@ -56,13 +56,13 @@ struct slot {
     const T _t1 = q[6]*q[6];
     const T _t2 = sin(q[5]);
 
-    out[0] = -T(p.d) + q[0];
+    out[0] = q[0] - T(p.d);
     out[1] = q[1];
     out[2] = q[3];
     out[3] = q[4];
     out[4] = -_t0*q[6] - q[3] + _t1*T(p.k)*_t2 + cos(q[2])*T(p.rc) + q[0];
     out[5] = -_t1*_t0*T(p.k) - q[4] - q[6]*_t2 + T(p.rc)*sin(q[2]) + q[1];
-    out[6] = -T(p.omega)*t + q[2];
+    out[6] = q[2] - T(p.omega)*t;
   }
 
   // Phi_q(q, t) at (jac_rows[k], jac_cols[k])
@@ -84,11 +84,11 @@ struct slot {
     out[5] = -T(p.rc)*sin(q[2]);
     out[6] = T(-1);
     out[7] = _t0*_t1*T(p.k) + q[6]*_t2;
-    out[8] = -_t1 + T(2)*T(p.k)*q[6]*_t2;
+    out[8] = T(2)*T(p.k)*q[6]*_t2 - _t1;
     out[9] = T(1);
     out[10] = cos(q[2])*T(p.rc);
     out[11] = T(-1);
-    out[12] = -_t1*q[6] + _t0*T(p.k)*_t2;
+    out[12] = _t0*T(p.k)*_t2 - _t1*q[6];
     out[13] = -_t2 - T(2)*_t1*T(p.k)*q[6];
     out[14] = T(1);
   }
@@ -111,22 +111,22 @@ struct slot {
   template <class T>
   static void gamma([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
-    // out[nc]; 36 operations
+    // out[nc]; 28 operations
     using std::cos, std::sin;
     // Intermediate terms (6)
     const T _t0 = cos(q[5]);
     const T _t1 = sin(q[5]);
-    const T _t2 = T(2)*_t0*T(p.k)*q[6] + _t1;
+    const T _t2 = qd[6]*qd[6];
     const T _t3 = q[6]*q[6];
-    const T _t4 = qd[2]*qd[2];
-    const T _t5 = -T(2)*T(p.k)*q[6]*_t1 + _t0;
+    const T _t4 = qd[5]*qd[5];
+    const T _t5 = qd[2]*qd[2];
 
     out[0] = T(0);
     out[1] = T(0);
     out[2] = T(0);
     out[3] = T(0);
-    out[4] = -(_t2*qd[5] + T(2)*T(p.k)*_t1*qd[6])*qd[6] + (-_t2*qd[6] + (-_t0*q[6] + _t3*T(p.k)*_t1)*qd[5])*qd[5] + _t4*cos(q[2])*T(p.rc);
-    out[5] = (-(_t3*_t0*T(p.k) + q[6]*_t1)*qd[5] + _t5*qd[6])*qd[5] + (_t5*qd[5] + T(2)*_t0*T(p.k)*qd[6])*qd[6] + _t4*T(p.rc)*sin(q[2]);
+    out[4] = -T(2)*(T(2)*_t0*T(p.k)*q[6] + _t1)*qd[5]*qd[6] - T(2)*_t2*T(p.k)*_t1 + (_t3*T(p.k)*_t1 - _t0*q[6])*_t4 + _t5*cos(q[2])*T(p.rc);
+    out[5] = _t5*T(p.rc)*sin(q[2]) - (_t3*_t0*T(p.k) + q[6]*_t1)*_t4 + T(2)*(_t0 - T(2)*T(p.k)*q[6]*_t1)*qd[5]*qd[6] + T(2)*_t2*_t0*T(p.k);
     out[6] = T(0);
   }
 
@@ -862,7 +862,7 @@ struct slot {
       const T _t2 = q[6]*q[6];
       const T _t3 = _t2*T(p.k)*_sin5;
       const T _t4 = _t2*_cos5*T(p.k) + q[6]*_sin5;
-      const T _t5 = -_cos5 + T(2)*T(p.k)*q[6]*_sin5;
+      const T _t5 = T(2)*T(p.k)*q[6]*_sin5 - _cos5;
       const T _t6 = _t1 + _t3;
       const T _t7 = -_sin5 - T(2)*_cos5*T(p.k)*q[6];
       T _r[2] = {_t1 - q[3] + _t3 + _t0 + q[0], -_t2*_cos5*T(p.k) - q[4] - q[6]*_sin5 + T(p.rc)*_sin2 + q[1]};
@@ -936,7 +936,7 @@ struct slot {
     const T _t1 = cos(q[5]);
     const T _t2 = sin(q[5]);
     const T _t3 = _t0*_t1*T(p.k) + q[6]*_t2;
-    const T _t4 = -_t1 + T(2)*T(p.k)*q[6]*_t2;
+    const T _t4 = T(2)*T(p.k)*q[6]*_t2 - _t1;
     const T _t5 = -_t1*q[6];
     const T _t6 = _t0*T(p.k)*_t2;
     const T _t7 = _t5 + _t6;
@@ -979,7 +979,7 @@ struct slot {
     const T _t1 = cos(q[5]);
     const T _t2 = sin(q[5]);
     const T _t3 = _t0*_t1*T(p.k) + q[6]*_t2;
-    const T _t4 = -_t1 + T(2)*T(p.k)*q[6]*_t2;
+    const T _t4 = T(2)*T(p.k)*q[6]*_t2 - _t1;
     const T _t5 = -_t1*q[6];
     const T _t6 = _t0*T(p.k)*_t2;
     const T _t7 = _t5 + _t6;
@@ -994,14 +994,14 @@ struct slot {
     qdd[3] = T(0);
     qdd[4] = T(0);
     qdd[2] = T(0);
-    const T _t9 = T(2)*_t1*T(p.k)*q[6] + _t2;
-    const T _t10 = qd[2]*qd[2];
-    const T _t11 = cos(q[2]);
-    const T _t12 = sin(q[2]);
-    const T _t13 = -T(2)*T(p.k)*q[6]*_t2 + _t1;
-    const T _t14 = _t11*T(p.rc);
+    const T _t9 = qd[6]*qd[6];
+    const T _t10 = qd[5]*qd[5];
+    const T _t11 = qd[2]*qd[2];
+    const T _t12 = cos(q[2]);
+    const T _t13 = sin(q[2]);
+    const T _t14 = _t12*T(p.rc);
     {
-      T _x[2] = {-(_t9*qd[5] + T(2)*T(p.k)*_t2*qd[6])*qd[6] + (-_t9*qd[6] + _t7*qd[5])*qd[5] + _t10*_t11*T(p.rc) - qdd[0] - (-T(p.rc)*_t12)*qdd[2] + qdd[3], (-_t3*qd[5] + _t13*qd[6])*qd[5] + (_t13*qd[5] + T(2)*_t1*T(p.k)*qd[6])*qd[6] + _t10*T(p.rc)*_t12 - qdd[1] - _t14*qdd[2] + qdd[4]};
+      T _x[2] = {-T(2)*(T(2)*_t1*T(p.k)*q[6] + _t2)*qd[5]*qd[6] - T(2)*_t9*T(p.k)*_t2 + _t7*_t10 + _t11*_t12*T(p.rc) - qdd[0] - (-T(p.rc)*_t13)*qdd[2] + qdd[3], _t11*T(p.rc)*_t13 - _t3*_t10 + T(2)*(_t1 - T(2)*T(p.k)*q[6]*_t2)*qd[5]*qd[6] + T(2)*_t9*_t1*T(p.k) - qdd[1] - _t14*qdd[2] + qdd[4]};
       _lu_solve<2>(_a5, _piv5, _x);
       qdd[5] = _x[0];
       qdd[6] = _x[1];
@@ -1035,7 +1035,7 @@ struct slot {
     const T _t1 = cos(q[5]);
     const T _t2 = sin(q[5]);
     const T _t3 = _t0*_t1*T(p.k) + q[6]*_t2;
-    const T _t4 = -_t1 + T(2)*T(p.k)*q[6]*_t2;
+    const T _t4 = T(2)*T(p.k)*q[6]*_t2 - _t1;
     const T _t5 = -_t1*q[6];
     const T _t6 = _t0*T(p.k)*_t2;
     const T _t7 = _t5 + _t6;
@@ -1060,11 +1060,11 @@ struct slot {
     qdd[3] = T(0);
     qdd[4] = T(0);
     qdd[2] = T(0);
-    const T _t12 = T(2)*_t1*T(p.k)*q[6] + _t2;
-    const T _t13 = qd[2]*qd[2];
-    const T _t14 = -T(2)*T(p.k)*q[6]*_t2 + _t1;
+    const T _t12 = qd[6]*qd[6];
+    const T _t13 = qd[5]*qd[5];
+    const T _t14 = qd[2]*qd[2];
     {
-      T _x[2] = {-(_t12*qd[5] + T(2)*T(p.k)*_t2*qd[6])*qd[6] + (-_t12*qd[6] + _t7*qd[5])*qd[5] + _t13*_t10*T(p.rc) - qdd[0] - (-T(p.rc)*_t9)*qdd[2] + qdd[3], (-_t3*qd[5] + _t14*qd[6])*qd[5] + (_t14*qd[5] + T(2)*_t1*T(p.k)*qd[6])*qd[6] + _t13*T(p.rc)*_t9 - qdd[1] - _t11*qdd[2] + qdd[4]};
+      T _x[2] = {-T(2)*(T(2)*_t1*T(p.k)*q[6] + _t2)*qd[5]*qd[6] - T(2)*_t12*T(p.k)*_t2 + _t7*_t13 + _t14*_t10*T(p.rc) - qdd[0] - (-T(p.rc)*_t9)*qdd[2] + qdd[3], _t14*T(p.rc)*_t9 - _t3*_t13 + T(2)*(_t1 - T(2)*T(p.k)*q[6]*_t2)*qd[5]*qd[6] + T(2)*_t12*_t1*T(p.k) - qdd[1] - _t11*qdd[2] + qdd[4]};
       _lu_solve<2>(_a5, _piv5, _x);
       qdd[5] = _x[0];
       qdd[6] = _x[1];
@@ -1111,7 +1111,7 @@ struct slot {
       const T _t2 = q[6]*q[6];
       const T _t3 = _t2*T(p.k)*_sin5;
       const T _t4 = _t2*_cos5*T(p.k) + q[6]*_sin5;
-      const T _t5 = -_cos5 + T(2)*T(p.k)*q[6]*_sin5;
+      const T _t5 = T(2)*T(p.k)*q[6]*_sin5 - _cos5;
       const T _t6 = _t1 + _t3;
       const T _t7 = -_sin5 - T(2)*_cos5*T(p.k)*q[6];
       T _r[2] = {_t1 - q[3] + _t3 + _t0 + q[0], -_t2*_cos5*T(p.k) - q[4] - q[6]*_sin5 + T(p.rc)*_sin2 + q[1]};
@@ -1170,7 +1170,7 @@ struct slot {
     qd[2] = T(p.omega);
     // Block 5: rows 4, 5 -> q[5], q[6]
     const T _t11 = _t9*_cos5*T(p.k) + q[6]*_sin5;
-    const T _t12 = -_cos5 + T(2)*T(p.k)*q[6]*_sin5;
+    const T _t12 = T(2)*T(p.k)*q[6]*_sin5 - _cos5;
     const T _t13 = _t8 + _t10;
     const T _t14 = -_sin5 - T(2)*_cos5*T(p.k)*q[6];
     T _a5[4] = {_t11, _t12, _t13, _t14};
@@ -1190,11 +1190,11 @@ struct slot {
     qdd[3] = T(0);
     qdd[4] = T(0);
     qdd[2] = T(0);
-    const T _t15 = T(2)*_cos5*T(p.k)*q[6] + _sin5;
-    const T _t16 = qd[2]*qd[2];
-    const T _t17 = -T(2)*T(p.k)*q[6]*_sin5 + _cos5;
+    const T _t15 = qd[6]*qd[6];
+    const T _t16 = qd[5]*qd[5];
+    const T _t17 = qd[2]*qd[2];
     {
-      T _x[2] = {-(_t15*qd[5] + T(2)*T(p.k)*_sin5*qd[6])*qd[6] + (-_t15*qd[6] + _t13*qd[5])*qd[5] + _t16*_cos2*T(p.rc) - qdd[0] - (-T(p.rc)*_sin2)*qdd[2] + qdd[3], (-_t11*qd[5] + _t17*qd[6])*qd[5] + (_t17*qd[5] + T(2)*_cos5*T(p.k)*qd[6])*qd[6] + _t16*T(p.rc)*_sin2 - qdd[1] - _t0*qdd[2] + qdd[4]};
+      T _x[2] = {-T(2)*(T(2)*_cos5*T(p.k)*q[6] + _sin5)*qd[5]*qd[6] - T(2)*_t15*T(p.k)*_sin5 + _t13*_t16 + _t17*_cos2*T(p.rc) - qdd[0] - (-T(p.rc)*_sin2)*qdd[2] + qdd[3], _t17*T(p.rc)*_sin2 - _t11*_t16 + T(2)*(_cos5 - T(2)*T(p.k)*q[6]*_sin5)*qd[5]*qd[6] + T(2)*_t15*_cos5*T(p.k) - qdd[1] - _t0*qdd[2] + qdd[4]};
       _lu_solve<2>(_a5, _piv5, _x);
       qdd[5] = _x[0];
       qdd[6] = _x[1];

@@ -61,7 +61,7 @@ struct steering {
     // out[nc]; 64 operations
     using std::cos, std::sin;
     // Intermediate terms (20)
-    const T _t0 = -q[3] + q[0];
+    const T _t0 = q[0] - q[3];
     const T _t1 = sin(q[5]);
     const T _t2 = -q[4];
     const T _t3 = _t2 + q[1];
@@ -71,29 +71,29 @@ struct steering {
     const T _t7 = _t5 - T(p.arm)*_t6 + T(p.a);
     const T _t8 = -(_t7*_t7);
     const T _t9 = cos(T(p.lean));
-    const T _t10 = -T(p.h) + _t9*T(p.arm);
+    const T _t10 = _t9*T(p.arm) - T(p.h);
     const T _t11 = -(_t10*_t10);
     const T _t12 = sin(q[8]);
     const T _t13 = cos(q[8]);
     const T _t14 = -_t4*T(p.a) - q[6] + _t9*T(p.arm)*_t12 + _t13*T(p.arm)*_t6 + q[3];
-    const T _t15 = -T(p.arm)*_t6*_t12 + _t2 + _t9*_t13*T(p.arm) + T(p.a)*_t1 + q[7];
+    const T _t15 = _t2 - T(p.arm)*_t6*_t12 + _t9*_t13*T(p.arm) + T(p.a)*_t1 + q[7];
     const T _t16 = cos(q[11]);
     const T _t17 = sin(q[11]);
     const T _t18 = -_t16*T(p.arm)*_t6 - q[9] + _t9*T(p.arm)*_t17 + _t4*T(p.a) + q[3];
-    const T _t19 = -T(p.a)*_t1 + _t2 + _t9*_t16*T(p.arm) + T(p.arm)*_t6*_t17 + q[10];
+    const T _t19 = _t2 - T(p.a)*_t1 + _t9*_t16*T(p.arm) + T(p.arm)*_t6*_t17 + q[10];
 
     out[0] = q[0];
     out[1] = q[1];
     out[2] = q[5];
     out[3] = -_t0*_t1 - T(p.rj) + _t3*_t4;
-    out[4] = _t0*_t4 + _t3*_t1 + (-q[5] + q[2])*T(p.rj);
+    out[4] = _t0*_t4 + _t3*_t1 + (q[2] - q[5])*T(p.rj);
     out[5] = T(p.w) + q[6];
     out[6] = T(p.rj) + T(p.h) + q[7];
     out[7] = _t5 + q[9];
     out[8] = T(p.rj) + T(p.h) + q[10];
     out[9] = _t8 + _t11 + _t14*_t14 + _t15*_t15;
     out[10] = _t8 + _t11 + _t18*_t18 + _t19*_t19;
-    out[11] = -T(p.turn)*sin(T(p.omega)*t) + q[2];
+    out[11] = q[2] - T(p.turn)*sin(T(p.omega)*t);
   }
 
   // Phi_q(q, t) at (jac_rows[k], jac_cols[k])
@@ -107,7 +107,7 @@ struct steering {
     const T _t1 = -_t0;
     const T _t2 = cos(q[5]);
     const T _t3 = -_t2;
-    const T _t4 = -q[3] + q[0];
+    const T _t4 = q[0] - q[3];
     const T _t5 = -q[4];
     const T _t6 = _t5 + q[1];
     const T _t7 = T(-2)*_t2*T(p.a);
@@ -135,7 +135,7 @@ struct steering {
     const T _t29 = _t27 - q[9] + _t28 + _t2*T(p.a) + q[3];
     const T _t30 = _t8*_t25*T(p.arm);
     const T _t31 = T(p.arm)*_t11*_t26;
-    const T _t32 = -T(p.a)*_t0 + _t5 + _t30 + _t31 + q[10];
+    const T _t32 = _t5 - T(p.a)*_t0 + _t30 + _t31 + q[10];
 
     out[0] = T(1);
     out[1] = T(1);
@@ -156,17 +156,17 @@ struct steering {
     out[16] = T(1);
     out[17] = T(1);
     out[18] = _t7 - T(2)*q[6] + T(2)*_t8*T(p.arm)*_t9 + T(2)*_t10*T(p.arm)*_t11 + _t12;
-    out[19] = -T(2)*_t8*_t10*T(p.arm) + _t13 - T(2)*q[7] + T(2)*T(p.arm)*_t11*_t9 + _t14;
+    out[19] = _t13 - T(2)*_t8*_t10*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t11*_t9 + _t14;
     out[20] = T(2)*_t17*T(p.a)*_t0 + T(2)*_t20*_t2*T(p.a);
     out[21] = -T(2)*_t8*T(p.arm)*_t9 - T(2)*_t10*T(p.arm)*_t11 + _t21 + _t22 + T(2)*q[6];
-    out[22] = -T(2)*T(p.arm)*_t11*_t9 + _t23 + T(2)*_t8*_t10*T(p.arm) + _t24 + T(2)*q[7];
-    out[23] = -T(2)*_t20*(_t15 + _t16) + T(2)*_t17*(_t18 + _t19);
+    out[22] = _t23 - T(2)*T(p.arm)*_t11*_t9 + T(2)*_t8*_t10*T(p.arm) + _t24 + T(2)*q[7];
+    out[23] = T(2)*_t17*(_t18 + _t19) - T(2)*_t20*(_t15 + _t16);
     out[24] = -T(2)*_t25*T(p.arm)*_t11 - T(2)*q[9] + T(2)*_t8*T(p.arm)*_t26 + _t22 + _t12;
     out[25] = -T(2)*_t8*_t25*T(p.arm) - T(2)*T(p.arm)*_t11*_t26 - T(2)*q[10] + _t24 + _t14;
     out[26] = -T(2)*_t29*T(p.a)*_t0 - T(2)*_t32*_t2*T(p.a);
-    out[27] = -T(2)*_t8*T(p.arm)*_t26 + _t7 + _t21 + T(2)*_t25*T(p.arm)*_t11 + T(2)*q[9];
+    out[27] = _t7 - T(2)*_t8*T(p.arm)*_t26 + _t21 + T(2)*_t25*T(p.arm)*_t11 + T(2)*q[9];
     out[28] = _t13 + _t23 + T(2)*_t8*_t25*T(p.arm) + T(2)*T(p.arm)*_t11*_t26 + T(2)*q[10];
-    out[29] = -T(2)*(_t27 + _t28)*_t32 + T(2)*_t29*(_t30 + _t31);
+    out[29] = T(2)*_t29*(_t30 + _t31) - T(2)*(_t27 + _t28)*_t32;
     out[30] = T(1);
   }
 
@@ -194,59 +194,54 @@ struct steering {
   template <class T>
   static void gamma([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
-    // out[nc]; 157 operations
+    // out[nc]; 132 operations
     using std::cos, std::sin;
-    // Intermediate terms (38)
-    const T _t0 = cos(q[5]);
-    const T _t1 = sin(q[5]);
-    const T _t2 = -q[4];
-    const T _t3 = _t2 + q[1];
-    const T _t4 = -q[3] + q[0];
-    const T _t5 = sin(T(p.lean));
-    const T _t6 = sin(q[8]);
-    const T _t7 = -T(p.arm)*_t5*_t6;
-    const T _t8 = cos(T(p.lean));
-    const T _t9 = cos(q[8]);
-    const T _t10 = _t8*_t9*T(p.arm);
-    const T _t11 = _t7 + _t10;
-    const T _t12 = _t8*T(p.arm)*_t6;
-    const T _t13 = _t9*T(p.arm)*_t5;
-    const T _t14 = _t12 + _t13;
-    const T _t15 = -_t0*T(p.a) - q[6] + _t12 + _t13 + q[3];
-    const T _t16 = _t7 + _t2 + _t10 + T(p.a)*_t1 + q[7];
-    const T _t17 = -_t14*_t0*T(p.a) + _t11*T(p.a)*_t1;
-    const T _t18 = -_t0*T(p.a)*qd[4];
-    const T _t19 = _t0*_t0;
-    const T _t20 = T(p.a)*T(p.a);
-    const T _t21 = _t1*_t1;
-    const T _t22 = T(p.a)*_t1*qd[3];
-    const T _t23 = -_t0*T(p.a)*qd[5] - qd[7] + _t14*qd[8] + qd[4];
-    const T _t24 = -qd[6] + _t11*qd[8] + T(p.a)*_t1*qd[5] + qd[3];
-    const T _t25 = cos(q[11]);
-    const T _t26 = -_t25*T(p.arm)*_t5;
-    const T _t27 = sin(q[11]);
-    const T _t28 = _t8*T(p.arm)*_t27;
-    const T _t29 = _t26 + _t28;
-    const T _t30 = _t8*_t25*T(p.arm);
-    const T _t31 = T(p.arm)*_t5*_t27;
-    const T _t32 = _t30 + _t31;
-    const T _t33 = _t26 - q[9] + _t28 + _t0*T(p.a) + q[3];
-    const T _t34 = -T(p.a)*_t1 + _t2 + _t30 + _t31 + q[10];
-    const T _t35 = -_t32*T(p.a)*_t1 + _t29*_t0*T(p.a);
-    const T _t36 = -T(p.a)*_t1*qd[5] - qd[9] + _t32*qd[11] + qd[3];
-    const T _t37 = -qd[10] + _t29*qd[11] + _t0*T(p.a)*qd[5] + qd[4];
+    // Intermediate terms (33)
+    const T _t0 = -q[4];
+    const T _t1 = _t0 + q[1];
+    const T _t2 = cos(q[5]);
+    const T _t3 = q[0] - q[3];
+    const T _t4 = sin(q[5]);
+    const T _t5 = qd[5]*qd[5];
+    const T _t6 = sin(T(p.lean));
+    const T _t7 = sin(q[8]);
+    const T _t8 = -T(p.arm)*_t6*_t7;
+    const T _t9 = cos(T(p.lean));
+    const T _t10 = cos(q[8]);
+    const T _t11 = _t9*_t10*T(p.arm);
+    const T _t12 = _t8 + _t0 + _t11 + T(p.a)*_t4 + q[7];
+    const T _t13 = _t9*T(p.arm)*_t7;
+    const T _t14 = _t10*T(p.arm)*_t6;
+    const T _t15 = -_t2*T(p.a) - q[6] + _t13 + _t14 + q[3];
+    const T _t16 = _t2*_t2;
+    const T _t17 = T(p.a)*T(p.a);
+    const T _t18 = _t4*_t4;
+    const T _t19 = T(-2)*(qd[3]*qd[3]);
+    const T _t20 = T(-2)*(qd[4]*qd[4]);
+    const T _t21 = _t13 + _t14;
+    const T _t22 = _t8 + _t11;
+    const T _t23 = cos(q[11]);
+    const T _t24 = _t9*_t23*T(p.arm);
+    const T _t25 = sin(q[11]);
+    const T _t26 = T(p.arm)*_t6*_t25;
+    const T _t27 = _t24 + _t26;
+    const T _t28 = -_t23*T(p.arm)*_t6;
+    const T _t29 = _t9*T(p.arm)*_t25;
+    const T _t30 = _t28 + _t29;
+    const T _t31 = _t0 - T(p.a)*_t4 + _t24 + _t26 + q[10];
+    const T _t32 = _t28 - q[9] + _t29 + _t2*T(p.a) + q[3];
 
     out[0] = T(0);
     out[1] = T(0);
     out[2] = T(0);
-    out[3] = -(-_t0*qd[0] - _t1*qd[1] + (-_t3*_t0 + _t4*_t1)*qd[5] + _t0*qd[3] + _t1*qd[4])*qd[5] - _t0*qd[3]*qd[5] - _t1*qd[4]*qd[5] + _t0*qd[0]*qd[5] + _t1*qd[1]*qd[5];
-    out[4] = -_t0*qd[1]*qd[5] - _t1*qd[3]*qd[5] + (-_t0*qd[1] - _t1*qd[3] + (_t4*_t0 + _t3*_t1)*qd[5] + _t0*qd[4] + _t1*qd[0])*qd[5] + _t0*qd[4]*qd[5] + _t1*qd[0]*qd[5];
+    out[3] = -(_t3*_t4 - _t1*_t2)*_t5 - T(2)*_t2*qd[3]*qd[5] - T(2)*_t4*qd[4]*qd[5] + T(2)*_t2*qd[0]*qd[5] + T(2)*_t4*qd[1]*qd[5];
+    out[4] = -T(2)*_t2*qd[1]*qd[5] - T(2)*_t4*qd[3]*qd[5] + (_t3*_t2 + _t1*_t4)*_t5 + T(2)*_t2*qd[4]*qd[5] + T(2)*_t4*qd[0]*qd[5];
     out[5] = T(0);
     out[6] = T(0);
     out[7] = T(0);
     out[8] = T(0);
-    out[9] = -T(2)*(-(-(_t11*_t11) - (_t14*_t14) + _t15*_t14 + _t16*_t11)*qd[8] - _t11*qd[6] - _t14*qd[7] + _t17*qd[5] + _t11*qd[3] + _t14*qd[4])*qd[8] - T(2)*(_t18 - T(p.a)*_t1*qd[6] + (-_t16*T(p.a)*_t1 + _t15*_t0*T(p.a) + _t19*_t20 + _t20*_t21)*qd[5] + _t17*qd[8] + _t0*T(p.a)*qd[7] + _t22)*qd[5] - T(2)*_t23*qd[4] - T(2)*_t24*qd[3] + T(2)*_t23*qd[7] + T(2)*_t24*qd[6];
-    out[10] = -T(2)*(-(-(_t29*_t29) - (_t32*_t32) + _t33*_t29 + _t34*_t32)*qd[11] - _t29*qd[10] - _t32*qd[9] + _t35*qd[5] + _t29*qd[4] + _t32*qd[3])*qd[11] - T(2)*_t36*qd[3] - T(2)*_t37*qd[4] + T(2)*(-_t35*qd[11] + _t18 - T(p.a)*_t1*qd[9] + (-_t34*T(p.a)*_t1 - _t19*_t20 - _t20*_t21 + _t33*_t0*T(p.a))*qd[5] + _t0*T(p.a)*qd[10] + _t22)*qd[5] + T(2)*_t36*qd[9] + T(2)*_t37*qd[10];
+    out[9] = _t19 - T(2)*(_t15*_t2*T(p.a) - _t12*T(p.a)*_t4 + _t16*_t17 + _t17*_t18)*_t5 + _t20 - T(2)*(qd[6]*qd[6]) - T(2)*(qd[7]*qd[7]) - T(4)*(_t22*T(p.a)*_t4 - _t21*_t2*T(p.a))*qd[5]*qd[8] - T(4)*_t22*qd[3]*qd[8] - T(4)*_t21*qd[4]*qd[8] - T(4)*_t2*T(p.a)*qd[5]*qd[7] - T(4)*T(p.a)*_t4*qd[3]*qd[5] + T(2)*(-(_t22*_t22) - (_t21*_t21) + _t15*_t21 + _t12*_t22)*(qd[8]*qd[8]) + T(4)*_t22*qd[6]*qd[8] + T(4)*_t21*qd[7]*qd[8] + T(4)*_t2*T(p.a)*qd[4]*qd[5] + T(4)*T(p.a)*_t4*qd[5]*qd[6] + T(4)*qd[3]*qd[6] + T(4)*qd[4]*qd[7];
+    out[10] = _t19 - T(2)*(qd[10]*qd[10]) + _t20 - T(2)*(qd[9]*qd[9]) - T(4)*(_t30*_t2*T(p.a) - _t27*T(p.a)*_t4)*qd[11]*qd[5] - T(4)*_t30*qd[11]*qd[4] - T(4)*_t27*qd[11]*qd[3] - T(4)*_t2*T(p.a)*qd[4]*qd[5] - T(4)*T(p.a)*_t4*qd[5]*qd[9] + T(2)*(-_t31*T(p.a)*_t4 - _t16*_t17 - _t17*_t18 + _t32*_t2*T(p.a))*_t5 + T(2)*(-(_t30*_t30) - (_t27*_t27) + _t32*_t30 + _t31*_t27)*(qd[11]*qd[11]) + T(4)*_t30*qd[10]*qd[11] + T(4)*_t27*qd[11]*qd[9] + T(4)*_t2*T(p.a)*qd[10]*qd[5] + T(4)*T(p.a)*_t4*qd[3]*qd[5] + T(4)*qd[10]*qd[4] + T(4)*qd[3]*qd[9];
     out[11] = -(T(p.omega)*T(p.omega))*T(p.turn)*sin(T(p.omega)*t);
   }
 
@@ -1013,13 +1008,13 @@ struct steering {
     bool _conv4 = false;
     R _st4 = 0;
     for (int _it = 1;; ++_it) {
-      const T _t5 = -q[3] + q[0];
+      const T _t5 = q[0] - q[3];
       const T _t6 = -q[4];
       const T _t7 = _t6 + q[1];
-      const T _t8 = -_t5*_sin5 + _t2 + _t7*_cos5;
+      const T _t8 = _t2 - _t5*_sin5 + _t7*_cos5;
       const T _t9 = _t5*_cos5;
       const T _t10 = _t7*_sin5;
-      T _r[2] = {_t8, _t9 + _t10 + (-q[5] + q[2])*T(p.rj)};
+      T _r[2] = {_t8, _t9 + _t10 + (q[2] - q[5])*T(p.rj)};
       T _a[4] = {_sin5, _t3, _t3, _t4};
       _row_max<2>(_a, _cs4, _rmax4);
       int _piv[2];
@@ -1051,13 +1046,13 @@ struct steering {
         break;
       }
     }
-    const T _t11 = -q[3] + q[0];
+    const T _t11 = q[0] - q[3];
     const T _t12 = -q[4];
     const T _t13 = _t12 + q[1];
-    const T _t14 = -_t11*_sin5 + _t2 + _t13*_cos5;
+    const T _t14 = _t2 - _t11*_sin5 + _t13*_cos5;
     const T _t15 = _t11*_cos5;
     const T _t16 = _t13*_sin5;
-    const R _rr4[2] = {_mag(_t14), _mag(_t15 + _t16 + (-q[5] + q[2])*T(p.rj))};
+    const R _rr4[2] = {_mag(_t14), _mag(_t15 + _t16 + (q[2] - q[5])*T(p.rj))};
     const R _res4 = _scaled_max<2>(_rr4, _rmax4);
     const R _cm4[2] = {std::max(std::max(std::max(_rmax4[0], _mag(_t4) * R(coordinate_scales[0])), _mag(_cos5) * R(coordinate_scales[1])), _mag(-_t11*_cos5 - _t13*_sin5)), std::max(std::max(std::max(std::max(_rmax4[1], _mag(_cos5) * R(coordinate_scales[0])), _mag(_sin5) * R(coordinate_scales[1])), _mag(T(p.rj))), _mag(_t14))};
     _rc4 = _coupled_rcond<2>(_rc4, _rmax4, _cm4);
@@ -1097,7 +1092,7 @@ struct steering {
       const T _t31 = _t29 + _t12 + _t30 + T(p.a)*_sin5 + q[7];
       const T _t32 = _t26 + _t27;
       const T _t33 = _t29 + _t30;
-      const T _t34 = -T(2)*_t31*_t32 + T(2)*_t28*_t33;
+      const T _t34 = T(2)*_t28*_t33 - T(2)*_t31*_t32;
       T _r[1] = {_t22 + _t25 + _t28*_t28 + _t31*_t31};
       const T _a = _t34;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 9, _it);
@@ -1140,7 +1135,7 @@ struct steering {
     const T _t46 = T(2)*_cos5*T(p.a);
     const T _t47 = T(-2)*q[4];
     const T _t48 = T(2)*T(p.a)*_sin5;
-    const R _cm9[1] = {std::max(std::max(std::max(std::max(std::max(_rmax9[0], _mag(_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42) * R(coordinate_scales[3])), _mag(-T(2)*_t23*_cos8*T(p.arm) + _t43 - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44) * R(coordinate_scales[4])), _mag(T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))), _mag(-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6]) * R(coordinate_scales[6])), _mag(-T(2)*T(p.arm)*_t20*_sin8 + _t47 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7]) * R(coordinate_scales[7]))};
+    const R _cm9[1] = {std::max(std::max(std::max(std::max(std::max(_rmax9[0], _mag(_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42) * R(coordinate_scales[3])), _mag(_t43 - T(2)*_t23*_cos8*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44) * R(coordinate_scales[4])), _mag(T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))), _mag(-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6]) * R(coordinate_scales[6])), _mag(_t47 - T(2)*T(p.arm)*_t20*_sin8 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7]) * R(coordinate_scales[7]))};
     _rc9 = _coupled_rcond<1>(_rc9, _rmax9, _cm9);
     if (!_newton_end(report, 9, _n9, _conv9, o, _st9, _nl9, _res9, _qs9, _rc9, _sg9, block_signs))
       return report;
@@ -1158,10 +1153,10 @@ struct steering {
       const T _t51 = _t49 - q[9] + _t50 + _cos5*T(p.a) + q[3];
       const T _t52 = _t23*_cos11*T(p.arm);
       const T _t53 = T(p.arm)*_t20*_sin11;
-      const T _t54 = -T(p.a)*_sin5 + _t12 + _t52 + _t53 + q[10];
+      const T _t54 = _t12 - T(p.a)*_sin5 + _t52 + _t53 + q[10];
       const T _t55 = _t49 + _t50;
       const T _t56 = _t52 + _t53;
-      const T _t57 = -T(2)*_t55*_t54 + T(2)*_t51*_t56;
+      const T _t57 = T(2)*_t51*_t56 - T(2)*_t55*_t54;
       T _r[1] = {_t22 + _t25 + _t51*_t51 + _t54*_t54};
       const T _a = _t57;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 10, _it);
@@ -1193,10 +1188,10 @@ struct steering {
     const T _t60 = _t58 - q[9] + _t59 + _cos5*T(p.a) + q[3];
     const T _t61 = _t23*_cos11*T(p.arm);
     const T _t62 = T(p.arm)*_t20*_sin11;
-    const T _t63 = -T(p.a)*_sin5 + _t12 + _t61 + _t62 + q[10];
+    const T _t63 = _t12 - T(p.a)*_sin5 + _t61 + _t62 + q[10];
     const R _rr10[1] = {_mag(_t22 + _t25 + _t60*_t60 + _t63*_t63)};
     const R _res10 = _scaled_max<1>(_rr10, _rmax10);
-    const R _cm10[1] = {std::max(std::max(std::max(std::max(std::max(_rmax10[0], _mag(-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42) * R(coordinate_scales[3])), _mag(-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44) * R(coordinate_scales[4])), _mag(-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))), _mag(-T(2)*_t23*T(p.arm)*_sin11 + _t41 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9]) * R(coordinate_scales[9])), _mag(_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10]) * R(coordinate_scales[10]))};
+    const R _cm10[1] = {std::max(std::max(std::max(std::max(std::max(_rmax10[0], _mag(-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42) * R(coordinate_scales[3])), _mag(-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44) * R(coordinate_scales[4])), _mag(-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))), _mag(_t41 - T(2)*_t23*T(p.arm)*_sin11 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9]) * R(coordinate_scales[9])), _mag(_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10]) * R(coordinate_scales[10]))};
     _rc10 = _coupled_rcond<1>(_rc10, _rmax10, _cm10);
     if (!_newton_end(report, 10, _n10, _conv10, o, _st10, _nl10, _res10, _qs10, _rc10, _sg10, block_signs))
       return report;
@@ -1232,11 +1227,11 @@ struct steering {
     const R _ratio4 = _lu_factor<2>(_a4, _piv4);
     if (!(_ratio4 > o.singular_pivot_ratio))
       return _fail(report, _ratio4 == _ratio4 ? 2 : 3, 4);
-    const T _t5 = -q[3] + q[0];
+    const T _t5 = q[0] - q[3];
     const T _t6 = -q[4];
     const T _t7 = _t6 + q[1];
     const T _t8 = -T(p.rj);
-    const T _t9 = -_t5*_t1 + _t8 + _t7*_t2;
+    const T _t9 = _t8 - _t5*_t1 + _t7*_t2;
     {
       T _x[2] = {-_t4*qd[0] - _t2*qd[1] - (-_t5*_t2 - _t7*_t1)*qd[5], -_t2*qd[0] - _t1*qd[1] - T(p.rj)*qd[2] - _t9*qd[5]};
       _lu_solve<2>(_a4, _piv4, _x);
@@ -1264,7 +1259,7 @@ struct steering {
     const T _t19 = _t17 + _t18;
     const T _t20 = -_t2*T(p.a) - q[6] + _t17 + _t18 + q[3];
     const T _t21 = _t12 + _t15;
-    const T _t22 = -T(2)*_t16*_t19 + T(2)*_t20*_t21;
+    const T _t22 = T(2)*_t20*_t21 - T(2)*_t16*_t19;
     const T _a9 = _t22;
     if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? 2 : 3, 9);
     const T _t23 = T(-2)*_t2*T(p.a);
@@ -1275,7 +1270,7 @@ struct steering {
     const T _t28 = T(2)*_t2*T(p.a);
     const T _t29 = T(-2)*q[4];
     const T _t30 = T(2)*T(p.a)*_t1;
-    qd[8] = (-(_t23 - T(2)*q[6] + T(2)*_t13*T(p.arm)*_t11 + T(2)*_t14*T(p.arm)*_t10 + _t24)*qd[3] - (-T(2)*_t13*_t14*T(p.arm) + _t25 - T(2)*q[7] + T(2)*T(p.arm)*_t10*_t11 + _t26)*qd[4] - (T(2)*_t20*T(p.a)*_t1 + T(2)*_t16*_t2*T(p.a))*qd[5] - (-T(2)*_t13*T(p.arm)*_t11 - T(2)*_t14*T(p.arm)*_t10 + _t27 + _t28 + T(2)*q[6])*qd[6] - (-T(2)*T(p.arm)*_t10*_t11 + _t29 + T(2)*_t13*_t14*T(p.arm) + _t30 + T(2)*q[7])*qd[7]) / _a9;
+    qd[8] = (-(_t23 - T(2)*q[6] + T(2)*_t13*T(p.arm)*_t11 + T(2)*_t14*T(p.arm)*_t10 + _t24)*qd[3] - (_t25 - T(2)*_t13*_t14*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t10*_t11 + _t26)*qd[4] - (T(2)*_t20*T(p.a)*_t1 + T(2)*_t16*_t2*T(p.a))*qd[5] - (-T(2)*_t13*T(p.arm)*_t11 - T(2)*_t14*T(p.arm)*_t10 + _t27 + _t28 + T(2)*q[6])*qd[6] - (_t29 - T(2)*T(p.arm)*_t10*_t11 + T(2)*_t13*_t14*T(p.arm) + _t30 + T(2)*q[7])*qd[7]) / _a9;
     // Block 10: rows 10 -> q[11]
     const T _t31 = cos(q[11]);
     const T _t32 = -_t31*T(p.arm)*_t10;
@@ -1284,13 +1279,13 @@ struct steering {
     const T _t35 = _t32 + _t34;
     const T _t36 = _t13*_t31*T(p.arm);
     const T _t37 = T(p.arm)*_t10*_t33;
-    const T _t38 = -T(p.a)*_t1 + _t6 + _t36 + _t37 + q[10];
+    const T _t38 = _t6 - T(p.a)*_t1 + _t36 + _t37 + q[10];
     const T _t39 = _t32 - q[9] + _t34 + _t2*T(p.a) + q[3];
     const T _t40 = _t36 + _t37;
-    const T _t41 = -T(2)*_t35*_t38 + T(2)*_t39*_t40;
+    const T _t41 = T(2)*_t39*_t40 - T(2)*_t35*_t38;
     const T _a10 = _t41;
     if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? 2 : 3, 10);
-    qd[11] = (-(-T(2)*_t31*T(p.arm)*_t10 - T(2)*q[9] + T(2)*_t13*T(p.arm)*_t33 + _t28 + _t24)*qd[3] - (-T(2)*_t13*_t31*T(p.arm) - T(2)*T(p.arm)*_t10*_t33 - T(2)*q[10] + _t30 + _t26)*qd[4] - (-T(2)*_t39*T(p.a)*_t1 - T(2)*_t38*_t2*T(p.a))*qd[5] - (-T(2)*_t13*T(p.arm)*_t33 + _t23 + _t27 + T(2)*_t31*T(p.arm)*_t10 + T(2)*q[9])*qd[9] - (_t25 + _t29 + T(2)*_t13*_t31*T(p.arm) + T(2)*T(p.arm)*_t10*_t33 + T(2)*q[10])*qd[10]) / _a10;
+    qd[11] = (-(-T(2)*_t31*T(p.arm)*_t10 - T(2)*q[9] + T(2)*_t13*T(p.arm)*_t33 + _t28 + _t24)*qd[3] - (-T(2)*_t13*_t31*T(p.arm) - T(2)*T(p.arm)*_t10*_t33 - T(2)*q[10] + _t30 + _t26)*qd[4] - (-T(2)*_t39*T(p.a)*_t1 - T(2)*_t38*_t2*T(p.a))*qd[5] - (_t23 - T(2)*_t13*T(p.arm)*_t33 + _t27 + T(2)*_t31*T(p.arm)*_t10 + T(2)*q[9])*qd[9] - (_t25 + _t29 + T(2)*_t13*_t31*T(p.arm) + T(2)*T(p.arm)*_t10*_t33 + T(2)*q[10])*qd[10]) / _a10;
     if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
     return report;
   }
@@ -1337,7 +1332,7 @@ struct steering {
     const T _t14 = _t12 + _t13;
     const T _t15 = -_t1*T(p.a) - q[6] + _t12 + _t13 + q[3];
     const T _t16 = _t6 + _t10;
-    const T _t17 = -T(2)*_t11*_t14 + T(2)*_t15*_t16;
+    const T _t17 = T(2)*_t15*_t16 - T(2)*_t11*_t14;
     const T _a9 = _t17;
     if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? 2 : 3, 9);
     // Block 10: rows 10 -> q[11]
@@ -1348,10 +1343,10 @@ struct steering {
     const T _t22 = _t19 + _t21;
     const T _t23 = _t8*_t18*T(p.arm);
     const T _t24 = T(p.arm)*_t4*_t20;
-    const T _t25 = -T(p.a)*_t0 + _t7 + _t23 + _t24 + q[10];
+    const T _t25 = _t7 - T(p.a)*_t0 + _t23 + _t24 + q[10];
     const T _t26 = _t19 - q[9] + _t21 + _t1*T(p.a) + q[3];
     const T _t27 = _t23 + _t24;
-    const T _t28 = -T(2)*_t22*_t25 + T(2)*_t26*_t27;
+    const T _t28 = T(2)*_t26*_t27 - T(2)*_t22*_t25;
     const T _a10 = _t28;
     if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? 2 : 3, 10);
     qdd[0] = T(0);
@@ -1361,13 +1356,14 @@ struct steering {
     const T _t30 = sin(_t29);
     qdd[2] = -(T(p.omega)*T(p.omega))*T(p.turn)*_t30;
     const T _t31 = _t7 + q[1];
-    const T _t32 = -q[3] + q[0];
-    const T _t33 = _t32*_t1;
-    const T _t34 = _t31*_t0;
-    const T _t35 = -T(p.rj);
-    const T _t36 = -_t32*_t0 + _t35 + _t31*_t1;
+    const T _t32 = q[0] - q[3];
+    const T _t33 = qd[5]*qd[5];
+    const T _t34 = _t32*_t1;
+    const T _t35 = _t31*_t0;
+    const T _t36 = -T(p.rj);
+    const T _t37 = _t36 - _t32*_t0 + _t31*_t1;
     {
-      T _x[2] = {-(-_t1*qd[0] - _t0*qd[1] + (-_t31*_t1 + _t32*_t0)*qd[5] + _t1*qd[3] + _t0*qd[4])*qd[5] - _t1*qd[3]*qd[5] - _t0*qd[4]*qd[5] + _t1*qd[0]*qd[5] + _t0*qd[1]*qd[5] - _t3*qdd[0] - _t1*qdd[1] - (-_t32*_t1 - _t31*_t0)*qdd[5], -_t1*qd[1]*qd[5] - _t0*qd[3]*qd[5] + (-_t1*qd[1] - _t0*qd[3] + (_t33 + _t34)*qd[5] + _t1*qd[4] + _t0*qd[0])*qd[5] + _t1*qd[4]*qd[5] + _t0*qd[0]*qd[5] - _t1*qdd[0] - _t0*qdd[1] - T(p.rj)*qdd[2] - _t36*qdd[5]};
+      T _x[2] = {-(_t32*_t0 - _t31*_t1)*_t33 - T(2)*_t1*qd[3]*qd[5] - T(2)*_t0*qd[4]*qd[5] + T(2)*_t1*qd[0]*qd[5] + T(2)*_t0*qd[1]*qd[5] - _t3*qdd[0] - _t1*qdd[1] - (-_t32*_t1 - _t31*_t0)*qdd[5], -T(2)*_t1*qd[1]*qd[5] - T(2)*_t0*qd[3]*qd[5] + (_t34 + _t35)*_t33 + T(2)*_t1*qd[4]*qd[5] + T(2)*_t0*qd[0]*qd[5] - _t1*qdd[0] - _t0*qdd[1] - T(p.rj)*qdd[2] - _t37*qdd[5]};
       _lu_solve<2>(_a4, _piv4, _x);
       qdd[3] = _x[0];
       qdd[4] = _x[1];
@@ -1376,27 +1372,21 @@ struct steering {
     qdd[7] = T(0);
     qdd[9] = T(0);
     qdd[10] = T(0);
-    const T _t37 = -_t14*_t1*T(p.a) + _t16*T(p.a)*_t0;
-    const T _t38 = -_t1*T(p.a)*qd[4];
-    const T _t39 = _t1*_t1;
-    const T _t40 = T(p.a)*T(p.a);
-    const T _t41 = _t0*_t0;
-    const T _t42 = T(p.a)*_t0*qd[3];
-    const T _t43 = -_t1*T(p.a)*qd[5] - qd[7] + _t14*qd[8] + qd[4];
-    const T _t44 = -qd[6] + _t16*qd[8] + T(p.a)*_t0*qd[5] + qd[3];
-    const T _t45 = T(-2)*_t1*T(p.a);
-    const T _t46 = T(2)*q[3];
-    const T _t47 = T(-2)*T(p.a)*_t0;
-    const T _t48 = T(2)*q[4];
-    const T _t49 = T(-2)*q[3];
-    const T _t50 = T(2)*_t1*T(p.a);
-    const T _t51 = T(-2)*q[4];
-    const T _t52 = T(2)*T(p.a)*_t0;
-    qdd[8] = (-T(2)*(-(-(_t16*_t16) - (_t14*_t14) + _t15*_t14 + _t11*_t16)*qd[8] - _t16*qd[6] - _t14*qd[7] + _t37*qd[5] + _t16*qd[3] + _t14*qd[4])*qd[8] - T(2)*(_t38 - T(p.a)*_t0*qd[6] + (-_t11*T(p.a)*_t0 + _t15*_t1*T(p.a) + _t39*_t40 + _t40*_t41)*qd[5] + _t37*qd[8] + _t1*T(p.a)*qd[7] + _t42)*qd[5] - T(2)*_t43*qd[4] - T(2)*_t44*qd[3] + T(2)*_t43*qd[7] + T(2)*_t44*qd[6] - (_t45 - T(2)*q[6] + T(2)*_t8*T(p.arm)*_t5 + T(2)*_t9*T(p.arm)*_t4 + _t46)*qdd[3] - (-T(2)*_t8*_t9*T(p.arm) + _t47 - T(2)*q[7] + T(2)*T(p.arm)*_t4*_t5 + _t48)*qdd[4] - (T(2)*_t15*T(p.a)*_t0 + T(2)*_t11*_t1*T(p.a))*qdd[5] - (-T(2)*_t8*T(p.arm)*_t5 - T(2)*_t9*T(p.arm)*_t4 + _t49 + _t50 + T(2)*q[6])*qdd[6] - (-T(2)*T(p.arm)*_t4*_t5 + _t51 + T(2)*_t8*_t9*T(p.arm) + _t52 + T(2)*q[7])*qdd[7]) / _a9;
-    const T _t53 = -_t27*T(p.a)*_t0 + _t22*_t1*T(p.a);
-    const T _t54 = -T(p.a)*_t0*qd[5] - qd[9] + _t27*qd[11] + qd[3];
-    const T _t55 = -qd[10] + _t22*qd[11] + _t1*T(p.a)*qd[5] + qd[4];
-    qdd[11] = (-T(2)*(-(-(_t22*_t22) - (_t27*_t27) + _t26*_t22 + _t25*_t27)*qd[11] - _t22*qd[10] - _t27*qd[9] + _t53*qd[5] + _t22*qd[4] + _t27*qd[3])*qd[11] - T(2)*_t54*qd[3] - T(2)*_t55*qd[4] + T(2)*(-_t53*qd[11] + _t38 - T(p.a)*_t0*qd[9] + (-_t25*T(p.a)*_t0 - _t39*_t40 - _t40*_t41 + _t26*_t1*T(p.a))*qd[5] + _t1*T(p.a)*qd[10] + _t42)*qd[5] + T(2)*_t54*qd[9] + T(2)*_t55*qd[10] - (-T(2)*_t18*T(p.arm)*_t4 - T(2)*q[9] + T(2)*_t8*T(p.arm)*_t20 + _t50 + _t46)*qdd[3] - (-T(2)*_t8*_t18*T(p.arm) - T(2)*T(p.arm)*_t4*_t20 - T(2)*q[10] + _t52 + _t48)*qdd[4] - (-T(2)*_t26*T(p.a)*_t0 - T(2)*_t25*_t1*T(p.a))*qdd[5] - (-T(2)*_t8*T(p.arm)*_t20 + _t45 + _t49 + T(2)*_t18*T(p.arm)*_t4 + T(2)*q[9])*qdd[9] - (_t47 + _t51 + T(2)*_t8*_t18*T(p.arm) + T(2)*T(p.arm)*_t4*_t20 + T(2)*q[10])*qdd[10]) / _a10;
+    const T _t38 = _t1*_t1;
+    const T _t39 = T(p.a)*T(p.a);
+    const T _t40 = _t0*_t0;
+    const T _t41 = T(-2)*(qd[3]*qd[3]);
+    const T _t42 = T(-2)*(qd[4]*qd[4]);
+    const T _t43 = T(-2)*_t1*T(p.a);
+    const T _t44 = T(2)*q[3];
+    const T _t45 = T(-2)*T(p.a)*_t0;
+    const T _t46 = T(2)*q[4];
+    const T _t47 = T(-2)*q[3];
+    const T _t48 = T(2)*_t1*T(p.a);
+    const T _t49 = T(-2)*q[4];
+    const T _t50 = T(2)*T(p.a)*_t0;
+    qdd[8] = (_t41 - T(2)*(_t15*_t1*T(p.a) - _t11*T(p.a)*_t0 + _t38*_t39 + _t39*_t40)*_t33 + _t42 - T(2)*(qd[6]*qd[6]) - T(2)*(qd[7]*qd[7]) - T(4)*(_t16*T(p.a)*_t0 - _t14*_t1*T(p.a))*qd[5]*qd[8] - T(4)*_t16*qd[3]*qd[8] - T(4)*_t14*qd[4]*qd[8] - T(4)*_t1*T(p.a)*qd[5]*qd[7] - T(4)*T(p.a)*_t0*qd[3]*qd[5] + T(2)*(-(_t16*_t16) - (_t14*_t14) + _t15*_t14 + _t11*_t16)*(qd[8]*qd[8]) + T(4)*_t16*qd[6]*qd[8] + T(4)*_t14*qd[7]*qd[8] + T(4)*_t1*T(p.a)*qd[4]*qd[5] + T(4)*T(p.a)*_t0*qd[5]*qd[6] + T(4)*qd[3]*qd[6] + T(4)*qd[4]*qd[7] - (_t43 - T(2)*q[6] + T(2)*_t8*T(p.arm)*_t5 + T(2)*_t9*T(p.arm)*_t4 + _t44)*qdd[3] - (_t45 - T(2)*_t8*_t9*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t4*_t5 + _t46)*qdd[4] - (T(2)*_t15*T(p.a)*_t0 + T(2)*_t11*_t1*T(p.a))*qdd[5] - (-T(2)*_t8*T(p.arm)*_t5 - T(2)*_t9*T(p.arm)*_t4 + _t47 + _t48 + T(2)*q[6])*qdd[6] - (_t49 - T(2)*T(p.arm)*_t4*_t5 + T(2)*_t8*_t9*T(p.arm) + _t50 + T(2)*q[7])*qdd[7]) / _a9;
+    qdd[11] = (_t41 - T(2)*(qd[10]*qd[10]) + _t42 - T(2)*(qd[9]*qd[9]) - T(4)*(_t22*_t1*T(p.a) - _t27*T(p.a)*_t0)*qd[11]*qd[5] - T(4)*_t22*qd[11]*qd[4] - T(4)*_t27*qd[11]*qd[3] - T(4)*_t1*T(p.a)*qd[4]*qd[5] - T(4)*T(p.a)*_t0*qd[5]*qd[9] + T(2)*(-_t25*T(p.a)*_t0 - _t38*_t39 - _t39*_t40 + _t26*_t1*T(p.a))*_t33 + T(2)*(-(_t22*_t22) - (_t27*_t27) + _t26*_t22 + _t25*_t27)*(qd[11]*qd[11]) + T(4)*_t22*qd[10]*qd[11] + T(4)*_t27*qd[11]*qd[9] + T(4)*_t1*T(p.a)*qd[10]*qd[5] + T(4)*T(p.a)*_t0*qd[3]*qd[5] + T(4)*qd[10]*qd[4] + T(4)*qd[3]*qd[9] - (-T(2)*_t18*T(p.arm)*_t4 - T(2)*q[9] + T(2)*_t8*T(p.arm)*_t20 + _t48 + _t44)*qdd[3] - (-T(2)*_t8*_t18*T(p.arm) - T(2)*T(p.arm)*_t4*_t20 - T(2)*q[10] + _t50 + _t46)*qdd[4] - (-T(2)*_t26*T(p.a)*_t0 - T(2)*_t25*_t1*T(p.a))*qdd[5] - (_t43 - T(2)*_t8*T(p.arm)*_t20 + _t47 + T(2)*_t18*T(p.arm)*_t4 + T(2)*q[9])*qdd[9] - (_t45 + _t49 + T(2)*_t8*_t18*T(p.arm) + T(2)*T(p.arm)*_t4*_t20 + T(2)*q[10])*qdd[10]) / _a10;
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }
@@ -1430,11 +1420,11 @@ struct steering {
     const R _ratio4 = _lu_factor<2>(_a4, _piv4);
     if (!(_ratio4 > o.singular_pivot_ratio))
       return _fail(report, _ratio4 == _ratio4 ? 2 : 3, 4);
-    const T _t5 = -q[3] + q[0];
+    const T _t5 = q[0] - q[3];
     const T _t6 = -q[4];
     const T _t7 = _t6 + q[1];
     const T _t8 = -T(p.rj);
-    const T _t9 = -_t5*_t1 + _t8 + _t7*_t2;
+    const T _t9 = _t8 - _t5*_t1 + _t7*_t2;
     {
       T _x[2] = {-_t4*qd[0] - _t2*qd[1] - (-_t5*_t2 - _t7*_t1)*qd[5], -_t2*qd[0] - _t1*qd[1] - T(p.rj)*qd[2] - _t9*qd[5]};
       _lu_solve<2>(_a4, _piv4, _x);
@@ -1462,7 +1452,7 @@ struct steering {
     const T _t19 = _t17 + _t18;
     const T _t20 = -_t2*T(p.a) - q[6] + _t17 + _t18 + q[3];
     const T _t21 = _t12 + _t15;
-    const T _t22 = -T(2)*_t16*_t19 + T(2)*_t20*_t21;
+    const T _t22 = T(2)*_t20*_t21 - T(2)*_t16*_t19;
     const T _a9 = _t22;
     if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? 2 : 3, 9);
     const T _t23 = T(-2)*_t2*T(p.a);
@@ -1473,7 +1463,7 @@ struct steering {
     const T _t28 = T(2)*_t2*T(p.a);
     const T _t29 = T(-2)*q[4];
     const T _t30 = T(2)*T(p.a)*_t1;
-    qd[8] = (-(_t23 - T(2)*q[6] + T(2)*_t13*T(p.arm)*_t11 + T(2)*_t14*T(p.arm)*_t10 + _t24)*qd[3] - (-T(2)*_t13*_t14*T(p.arm) + _t25 - T(2)*q[7] + T(2)*T(p.arm)*_t10*_t11 + _t26)*qd[4] - (T(2)*_t20*T(p.a)*_t1 + T(2)*_t16*_t2*T(p.a))*qd[5] - (-T(2)*_t13*T(p.arm)*_t11 - T(2)*_t14*T(p.arm)*_t10 + _t27 + _t28 + T(2)*q[6])*qd[6] - (-T(2)*T(p.arm)*_t10*_t11 + _t29 + T(2)*_t13*_t14*T(p.arm) + _t30 + T(2)*q[7])*qd[7]) / _a9;
+    qd[8] = (-(_t23 - T(2)*q[6] + T(2)*_t13*T(p.arm)*_t11 + T(2)*_t14*T(p.arm)*_t10 + _t24)*qd[3] - (_t25 - T(2)*_t13*_t14*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t10*_t11 + _t26)*qd[4] - (T(2)*_t20*T(p.a)*_t1 + T(2)*_t16*_t2*T(p.a))*qd[5] - (-T(2)*_t13*T(p.arm)*_t11 - T(2)*_t14*T(p.arm)*_t10 + _t27 + _t28 + T(2)*q[6])*qd[6] - (_t29 - T(2)*T(p.arm)*_t10*_t11 + T(2)*_t13*_t14*T(p.arm) + _t30 + T(2)*q[7])*qd[7]) / _a9;
     // Block 10: rows 10 -> q[11]
     const T _t31 = cos(q[11]);
     const T _t32 = -_t31*T(p.arm)*_t10;
@@ -1482,23 +1472,24 @@ struct steering {
     const T _t35 = _t32 + _t34;
     const T _t36 = _t13*_t31*T(p.arm);
     const T _t37 = T(p.arm)*_t10*_t33;
-    const T _t38 = -T(p.a)*_t1 + _t6 + _t36 + _t37 + q[10];
+    const T _t38 = _t6 - T(p.a)*_t1 + _t36 + _t37 + q[10];
     const T _t39 = _t32 - q[9] + _t34 + _t2*T(p.a) + q[3];
     const T _t40 = _t36 + _t37;
-    const T _t41 = -T(2)*_t35*_t38 + T(2)*_t39*_t40;
+    const T _t41 = T(2)*_t39*_t40 - T(2)*_t35*_t38;
     const T _a10 = _t41;
     if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? 2 : 3, 10);
-    qd[11] = (-(-T(2)*_t31*T(p.arm)*_t10 - T(2)*q[9] + T(2)*_t13*T(p.arm)*_t33 + _t28 + _t24)*qd[3] - (-T(2)*_t13*_t31*T(p.arm) - T(2)*T(p.arm)*_t10*_t33 - T(2)*q[10] + _t30 + _t26)*qd[4] - (-T(2)*_t39*T(p.a)*_t1 - T(2)*_t38*_t2*T(p.a))*qd[5] - (-T(2)*_t13*T(p.arm)*_t33 + _t23 + _t27 + T(2)*_t31*T(p.arm)*_t10 + T(2)*q[9])*qd[9] - (_t25 + _t29 + T(2)*_t13*_t31*T(p.arm) + T(2)*T(p.arm)*_t10*_t33 + T(2)*q[10])*qd[10]) / _a10;
+    qd[11] = (-(-T(2)*_t31*T(p.arm)*_t10 - T(2)*q[9] + T(2)*_t13*T(p.arm)*_t33 + _t28 + _t24)*qd[3] - (-T(2)*_t13*_t31*T(p.arm) - T(2)*T(p.arm)*_t10*_t33 - T(2)*q[10] + _t30 + _t26)*qd[4] - (-T(2)*_t39*T(p.a)*_t1 - T(2)*_t38*_t2*T(p.a))*qd[5] - (_t23 - T(2)*_t13*T(p.arm)*_t33 + _t27 + T(2)*_t31*T(p.arm)*_t10 + T(2)*q[9])*qd[9] - (_t25 + _t29 + T(2)*_t13*_t31*T(p.arm) + T(2)*T(p.arm)*_t10*_t33 + T(2)*q[10])*qd[10]) / _a10;
     if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[5] = T(0);
     const T _t42 = sin(_t0);
     qdd[2] = -(T(p.omega)*T(p.omega))*T(p.turn)*_t42;
-    const T _t43 = _t5*_t2;
-    const T _t44 = _t7*_t1;
+    const T _t43 = qd[5]*qd[5];
+    const T _t44 = _t5*_t2;
+    const T _t45 = _t7*_t1;
     {
-      T _x[2] = {-(-_t2*qd[0] - _t1*qd[1] + (-_t7*_t2 + _t5*_t1)*qd[5] + _t2*qd[3] + _t1*qd[4])*qd[5] - _t2*qd[3]*qd[5] - _t1*qd[4]*qd[5] + _t2*qd[0]*qd[5] + _t1*qd[1]*qd[5] - _t4*qdd[0] - _t2*qdd[1] - (-_t5*_t2 - _t7*_t1)*qdd[5], -_t2*qd[1]*qd[5] - _t1*qd[3]*qd[5] + (-_t2*qd[1] - _t1*qd[3] + (_t43 + _t44)*qd[5] + _t2*qd[4] + _t1*qd[0])*qd[5] + _t2*qd[4]*qd[5] + _t1*qd[0]*qd[5] - _t2*qdd[0] - _t1*qdd[1] - T(p.rj)*qdd[2] - _t9*qdd[5]};
+      T _x[2] = {-(_t5*_t1 - _t7*_t2)*_t43 - T(2)*_t2*qd[3]*qd[5] - T(2)*_t1*qd[4]*qd[5] + T(2)*_t2*qd[0]*qd[5] + T(2)*_t1*qd[1]*qd[5] - _t4*qdd[0] - _t2*qdd[1] - (-_t5*_t2 - _t7*_t1)*qdd[5], -T(2)*_t2*qd[1]*qd[5] - T(2)*_t1*qd[3]*qd[5] + (_t44 + _t45)*_t43 + T(2)*_t2*qd[4]*qd[5] + T(2)*_t1*qd[0]*qd[5] - _t2*qdd[0] - _t1*qdd[1] - T(p.rj)*qdd[2] - _t9*qdd[5]};
       _lu_solve<2>(_a4, _piv4, _x);
       qdd[3] = _x[0];
       qdd[4] = _x[1];
@@ -1507,19 +1498,13 @@ struct steering {
     qdd[7] = T(0);
     qdd[9] = T(0);
     qdd[10] = T(0);
-    const T _t45 = -_t19*_t2*T(p.a) + _t21*T(p.a)*_t1;
-    const T _t46 = -_t2*T(p.a)*qd[4];
-    const T _t47 = _t2*_t2;
-    const T _t48 = T(p.a)*T(p.a);
-    const T _t49 = _t1*_t1;
-    const T _t50 = T(p.a)*_t1*qd[3];
-    const T _t51 = -_t2*T(p.a)*qd[5] - qd[7] + _t19*qd[8] + qd[4];
-    const T _t52 = -qd[6] + _t21*qd[8] + T(p.a)*_t1*qd[5] + qd[3];
-    qdd[8] = (-T(2)*(-(-(_t21*_t21) - (_t19*_t19) + _t20*_t19 + _t16*_t21)*qd[8] - _t21*qd[6] - _t19*qd[7] + _t45*qd[5] + _t21*qd[3] + _t19*qd[4])*qd[8] - T(2)*(_t46 - T(p.a)*_t1*qd[6] + (-_t16*T(p.a)*_t1 + _t20*_t2*T(p.a) + _t47*_t48 + _t48*_t49)*qd[5] + _t45*qd[8] + _t2*T(p.a)*qd[7] + _t50)*qd[5] - T(2)*_t51*qd[4] - T(2)*_t52*qd[3] + T(2)*_t51*qd[7] + T(2)*_t52*qd[6] - (_t23 - T(2)*q[6] + T(2)*_t13*T(p.arm)*_t11 + T(2)*_t14*T(p.arm)*_t10 + _t24)*qdd[3] - (-T(2)*_t13*_t14*T(p.arm) + _t25 - T(2)*q[7] + T(2)*T(p.arm)*_t10*_t11 + _t26)*qdd[4] - (T(2)*_t20*T(p.a)*_t1 + T(2)*_t16*_t2*T(p.a))*qdd[5] - (-T(2)*_t13*T(p.arm)*_t11 - T(2)*_t14*T(p.arm)*_t10 + _t27 + _t28 + T(2)*q[6])*qdd[6] - (-T(2)*T(p.arm)*_t10*_t11 + _t29 + T(2)*_t13*_t14*T(p.arm) + _t30 + T(2)*q[7])*qdd[7]) / _a9;
-    const T _t53 = -_t40*T(p.a)*_t1 + _t35*_t2*T(p.a);
-    const T _t54 = -T(p.a)*_t1*qd[5] - qd[9] + _t40*qd[11] + qd[3];
-    const T _t55 = -qd[10] + _t35*qd[11] + _t2*T(p.a)*qd[5] + qd[4];
-    qdd[11] = (-T(2)*(-(-(_t35*_t35) - (_t40*_t40) + _t39*_t35 + _t38*_t40)*qd[11] - _t35*qd[10] - _t40*qd[9] + _t53*qd[5] + _t35*qd[4] + _t40*qd[3])*qd[11] - T(2)*_t54*qd[3] - T(2)*_t55*qd[4] + T(2)*(-_t53*qd[11] + _t46 - T(p.a)*_t1*qd[9] + (-_t38*T(p.a)*_t1 - _t47*_t48 - _t48*_t49 + _t39*_t2*T(p.a))*qd[5] + _t2*T(p.a)*qd[10] + _t50)*qd[5] + T(2)*_t54*qd[9] + T(2)*_t55*qd[10] - (-T(2)*_t31*T(p.arm)*_t10 - T(2)*q[9] + T(2)*_t13*T(p.arm)*_t33 + _t28 + _t24)*qdd[3] - (-T(2)*_t13*_t31*T(p.arm) - T(2)*T(p.arm)*_t10*_t33 - T(2)*q[10] + _t30 + _t26)*qdd[4] - (-T(2)*_t39*T(p.a)*_t1 - T(2)*_t38*_t2*T(p.a))*qdd[5] - (-T(2)*_t13*T(p.arm)*_t33 + _t23 + _t27 + T(2)*_t31*T(p.arm)*_t10 + T(2)*q[9])*qdd[9] - (_t25 + _t29 + T(2)*_t13*_t31*T(p.arm) + T(2)*T(p.arm)*_t10*_t33 + T(2)*q[10])*qdd[10]) / _a10;
+    const T _t46 = _t2*_t2;
+    const T _t47 = T(p.a)*T(p.a);
+    const T _t48 = _t1*_t1;
+    const T _t49 = T(-2)*(qd[3]*qd[3]);
+    const T _t50 = T(-2)*(qd[4]*qd[4]);
+    qdd[8] = (_t49 - T(2)*(_t20*_t2*T(p.a) - _t16*T(p.a)*_t1 + _t46*_t47 + _t47*_t48)*_t43 + _t50 - T(2)*(qd[6]*qd[6]) - T(2)*(qd[7]*qd[7]) - T(4)*(_t21*T(p.a)*_t1 - _t19*_t2*T(p.a))*qd[5]*qd[8] - T(4)*_t21*qd[3]*qd[8] - T(4)*_t19*qd[4]*qd[8] - T(4)*_t2*T(p.a)*qd[5]*qd[7] - T(4)*T(p.a)*_t1*qd[3]*qd[5] + T(2)*(-(_t21*_t21) - (_t19*_t19) + _t20*_t19 + _t16*_t21)*(qd[8]*qd[8]) + T(4)*_t21*qd[6]*qd[8] + T(4)*_t19*qd[7]*qd[8] + T(4)*_t2*T(p.a)*qd[4]*qd[5] + T(4)*T(p.a)*_t1*qd[5]*qd[6] + T(4)*qd[3]*qd[6] + T(4)*qd[4]*qd[7] - (_t23 - T(2)*q[6] + T(2)*_t13*T(p.arm)*_t11 + T(2)*_t14*T(p.arm)*_t10 + _t24)*qdd[3] - (_t25 - T(2)*_t13*_t14*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t10*_t11 + _t26)*qdd[4] - (T(2)*_t20*T(p.a)*_t1 + T(2)*_t16*_t2*T(p.a))*qdd[5] - (-T(2)*_t13*T(p.arm)*_t11 - T(2)*_t14*T(p.arm)*_t10 + _t27 + _t28 + T(2)*q[6])*qdd[6] - (_t29 - T(2)*T(p.arm)*_t10*_t11 + T(2)*_t13*_t14*T(p.arm) + _t30 + T(2)*q[7])*qdd[7]) / _a9;
+    qdd[11] = (_t49 - T(2)*(qd[10]*qd[10]) + _t50 - T(2)*(qd[9]*qd[9]) - T(4)*(_t35*_t2*T(p.a) - _t40*T(p.a)*_t1)*qd[11]*qd[5] - T(4)*_t35*qd[11]*qd[4] - T(4)*_t40*qd[11]*qd[3] - T(4)*_t2*T(p.a)*qd[4]*qd[5] - T(4)*T(p.a)*_t1*qd[5]*qd[9] + T(2)*(-_t38*T(p.a)*_t1 - _t46*_t47 - _t47*_t48 + _t39*_t2*T(p.a))*_t43 + T(2)*(-(_t35*_t35) - (_t40*_t40) + _t39*_t35 + _t38*_t40)*(qd[11]*qd[11]) + T(4)*_t35*qd[10]*qd[11] + T(4)*_t40*qd[11]*qd[9] + T(4)*_t2*T(p.a)*qd[10]*qd[5] + T(4)*T(p.a)*_t1*qd[3]*qd[5] + T(4)*qd[10]*qd[4] + T(4)*qd[3]*qd[9] - (-T(2)*_t31*T(p.arm)*_t10 - T(2)*q[9] + T(2)*_t13*T(p.arm)*_t33 + _t28 + _t24)*qdd[3] - (-T(2)*_t13*_t31*T(p.arm) - T(2)*T(p.arm)*_t10*_t33 - T(2)*q[10] + _t30 + _t26)*qdd[4] - (-T(2)*_t39*T(p.a)*_t1 - T(2)*_t38*_t2*T(p.a))*qdd[5] - (_t23 - T(2)*_t13*T(p.arm)*_t33 + _t27 + T(2)*_t31*T(p.arm)*_t10 + T(2)*q[9])*qdd[9] - (_t25 + _t29 + T(2)*_t13*_t31*T(p.arm) + T(2)*T(p.arm)*_t10*_t33 + T(2)*q[10])*qdd[10]) / _a10;
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }
@@ -1558,13 +1543,13 @@ struct steering {
     bool _conv4 = false;
     R _st4 = 0;
     for (int _it = 1;; ++_it) {
-      const T _t5 = -q[3] + q[0];
+      const T _t5 = q[0] - q[3];
       const T _t6 = -q[4];
       const T _t7 = _t6 + q[1];
-      const T _t8 = -_t5*_sin5 + _t2 + _t7*_cos5;
+      const T _t8 = _t2 - _t5*_sin5 + _t7*_cos5;
       const T _t9 = _t5*_cos5;
       const T _t10 = _t7*_sin5;
-      T _r[2] = {_t8, _t9 + _t10 + (-q[5] + q[2])*T(p.rj)};
+      T _r[2] = {_t8, _t9 + _t10 + (q[2] - q[5])*T(p.rj)};
       T _a[4] = {_sin5, _t3, _t3, _t4};
       _row_max<2>(_a, _cs4, _rmax4);
       int _piv[2];
@@ -1596,13 +1581,13 @@ struct steering {
         break;
       }
     }
-    const T _t11 = -q[3] + q[0];
+    const T _t11 = q[0] - q[3];
     const T _t12 = -q[4];
     const T _t13 = _t12 + q[1];
-    const T _t14 = -_t11*_sin5 + _t2 + _t13*_cos5;
+    const T _t14 = _t2 - _t11*_sin5 + _t13*_cos5;
     const T _t15 = _t11*_cos5;
     const T _t16 = _t13*_sin5;
-    const R _rr4[2] = {_mag(_t14), _mag(_t15 + _t16 + (-q[5] + q[2])*T(p.rj))};
+    const R _rr4[2] = {_mag(_t14), _mag(_t15 + _t16 + (q[2] - q[5])*T(p.rj))};
     const R _res4 = _scaled_max<2>(_rr4, _rmax4);
     const R _cm4[2] = {std::max(std::max(std::max(_rmax4[0], _mag(_t4) * R(coordinate_scales[0])), _mag(_cos5) * R(coordinate_scales[1])), _mag(-_t11*_cos5 - _t13*_sin5)), std::max(std::max(std::max(std::max(_rmax4[1], _mag(_cos5) * R(coordinate_scales[0])), _mag(_sin5) * R(coordinate_scales[1])), _mag(T(p.rj))), _mag(_t14))};
     _rc4 = _coupled_rcond<2>(_rc4, _rmax4, _cm4);
@@ -1642,7 +1627,7 @@ struct steering {
       const T _t31 = _t29 + _t12 + _t30 + T(p.a)*_sin5 + q[7];
       const T _t32 = _t26 + _t27;
       const T _t33 = _t29 + _t30;
-      const T _t34 = -T(2)*_t31*_t32 + T(2)*_t28*_t33;
+      const T _t34 = T(2)*_t28*_t33 - T(2)*_t31*_t32;
       T _r[1] = {_t22 + _t25 + _t28*_t28 + _t31*_t31};
       const T _a = _t34;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 9, _it);
@@ -1685,7 +1670,7 @@ struct steering {
     const T _t46 = T(2)*_cos5*T(p.a);
     const T _t47 = T(-2)*q[4];
     const T _t48 = T(2)*T(p.a)*_sin5;
-    const R _cm9[1] = {std::max(std::max(std::max(std::max(std::max(_rmax9[0], _mag(_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42) * R(coordinate_scales[3])), _mag(-T(2)*_t23*_cos8*T(p.arm) + _t43 - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44) * R(coordinate_scales[4])), _mag(T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))), _mag(-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6]) * R(coordinate_scales[6])), _mag(-T(2)*T(p.arm)*_t20*_sin8 + _t47 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7]) * R(coordinate_scales[7]))};
+    const R _cm9[1] = {std::max(std::max(std::max(std::max(std::max(_rmax9[0], _mag(_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42) * R(coordinate_scales[3])), _mag(_t43 - T(2)*_t23*_cos8*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44) * R(coordinate_scales[4])), _mag(T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))), _mag(-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6]) * R(coordinate_scales[6])), _mag(_t47 - T(2)*T(p.arm)*_t20*_sin8 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7]) * R(coordinate_scales[7]))};
     _rc9 = _coupled_rcond<1>(_rc9, _rmax9, _cm9);
     if (!_newton_end(report, 9, _n9, _conv9, o, _st9, _nl9, _res9, _qs9, _rc9, _sg9, block_signs))
       return report;
@@ -1703,10 +1688,10 @@ struct steering {
       const T _t51 = _t49 - q[9] + _t50 + _cos5*T(p.a) + q[3];
       const T _t52 = _t23*_cos11*T(p.arm);
       const T _t53 = T(p.arm)*_t20*_sin11;
-      const T _t54 = -T(p.a)*_sin5 + _t12 + _t52 + _t53 + q[10];
+      const T _t54 = _t12 - T(p.a)*_sin5 + _t52 + _t53 + q[10];
       const T _t55 = _t49 + _t50;
       const T _t56 = _t52 + _t53;
-      const T _t57 = -T(2)*_t55*_t54 + T(2)*_t51*_t56;
+      const T _t57 = T(2)*_t51*_t56 - T(2)*_t55*_t54;
       T _r[1] = {_t22 + _t25 + _t51*_t51 + _t54*_t54};
       const T _a = _t57;
       if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 10, _it);
@@ -1738,10 +1723,10 @@ struct steering {
     const T _t60 = _t58 - q[9] + _t59 + _cos5*T(p.a) + q[3];
     const T _t61 = _t23*_cos11*T(p.arm);
     const T _t62 = T(p.arm)*_t20*_sin11;
-    const T _t63 = -T(p.a)*_sin5 + _t12 + _t61 + _t62 + q[10];
+    const T _t63 = _t12 - T(p.a)*_sin5 + _t61 + _t62 + q[10];
     const R _rr10[1] = {_mag(_t22 + _t25 + _t60*_t60 + _t63*_t63)};
     const R _res10 = _scaled_max<1>(_rr10, _rmax10);
-    const R _cm10[1] = {std::max(std::max(std::max(std::max(std::max(_rmax10[0], _mag(-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42) * R(coordinate_scales[3])), _mag(-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44) * R(coordinate_scales[4])), _mag(-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))), _mag(-T(2)*_t23*T(p.arm)*_sin11 + _t41 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9]) * R(coordinate_scales[9])), _mag(_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10]) * R(coordinate_scales[10]))};
+    const R _cm10[1] = {std::max(std::max(std::max(std::max(std::max(_rmax10[0], _mag(-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42) * R(coordinate_scales[3])), _mag(-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44) * R(coordinate_scales[4])), _mag(-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))), _mag(_t41 - T(2)*_t23*T(p.arm)*_sin11 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9]) * R(coordinate_scales[9])), _mag(_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10]) * R(coordinate_scales[10]))};
     _rc10 = _coupled_rcond<1>(_rc10, _rmax10, _cm10);
     if (!_newton_end(report, 10, _n10, _conv10, o, _st10, _nl10, _res10, _qs10, _rc10, _sg10, block_signs))
       return report;
@@ -1777,24 +1762,25 @@ struct steering {
     // Block 9: rows 9 -> q[8]
     const T _t64 = _t35 + _t36;
     const T _t65 = _t38 + _t39;
-    const T _t66 = -T(2)*_t40*_t64 + T(2)*_t37*_t65;
+    const T _t66 = T(2)*_t37*_t65 - T(2)*_t40*_t64;
     const T _a9 = _t66;
     if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? 2 : 3, 9);
-    qd[8] = (-(_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42)*qd[3] - (-T(2)*_t23*_cos8*T(p.arm) + _t43 - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44)*qd[4] - (T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))*qd[5] - (-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6])*qd[6] - (-T(2)*T(p.arm)*_t20*_sin8 + _t47 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7])*qd[7]) / _a9;
+    qd[8] = (-(_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42)*qd[3] - (_t43 - T(2)*_t23*_cos8*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44)*qd[4] - (T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))*qd[5] - (-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6])*qd[6] - (_t47 - T(2)*T(p.arm)*_t20*_sin8 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7])*qd[7]) / _a9;
     // Block 10: rows 10 -> q[11]
     const T _t67 = _t58 + _t59;
     const T _t68 = _t61 + _t62;
-    const T _t69 = -T(2)*_t67*_t63 + T(2)*_t60*_t68;
+    const T _t69 = T(2)*_t60*_t68 - T(2)*_t67*_t63;
     const T _a10 = _t69;
     if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? 2 : 3, 10);
-    qd[11] = (-(-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42)*qd[3] - (-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44)*qd[4] - (-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))*qd[5] - (-T(2)*_t23*T(p.arm)*_sin11 + _t41 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9])*qd[9] - (_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10])*qd[10]) / _a10;
+    qd[11] = (-(-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42)*qd[3] - (-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44)*qd[4] - (-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))*qd[5] - (_t41 - T(2)*_t23*T(p.arm)*_sin11 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9])*qd[9] - (_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10])*qd[10]) / _a10;
     if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[5] = T(0);
     qdd[2] = -(T(p.omega)*T(p.omega))*T(p.turn)*_t1;
+    const T _t70 = qd[5]*qd[5];
     {
-      T _x[2] = {-(-_cos5*qd[0] - _sin5*qd[1] + (-_t13*_cos5 + _t11*_sin5)*qd[5] + _cos5*qd[3] + _sin5*qd[4])*qd[5] - _cos5*qd[3]*qd[5] - _sin5*qd[4]*qd[5] + _cos5*qd[0]*qd[5] + _sin5*qd[1]*qd[5] - _t4*qdd[0] - _cos5*qdd[1] - (-_t11*_cos5 - _t13*_sin5)*qdd[5], -_cos5*qd[1]*qd[5] - _sin5*qd[3]*qd[5] + (-_cos5*qd[1] - _sin5*qd[3] + (_t15 + _t16)*qd[5] + _cos5*qd[4] + _sin5*qd[0])*qd[5] + _cos5*qd[4]*qd[5] + _sin5*qd[0]*qd[5] - _cos5*qdd[0] - _sin5*qdd[1] - T(p.rj)*qdd[2] - _t14*qdd[5]};
+      T _x[2] = {-(_t11*_sin5 - _t13*_cos5)*_t70 - T(2)*_cos5*qd[3]*qd[5] - T(2)*_sin5*qd[4]*qd[5] + T(2)*_cos5*qd[0]*qd[5] + T(2)*_sin5*qd[1]*qd[5] - _t4*qdd[0] - _cos5*qdd[1] - (-_t11*_cos5 - _t13*_sin5)*qdd[5], -T(2)*_cos5*qd[1]*qd[5] - T(2)*_sin5*qd[3]*qd[5] + (_t15 + _t16)*_t70 + T(2)*_cos5*qd[4]*qd[5] + T(2)*_sin5*qd[0]*qd[5] - _cos5*qdd[0] - _sin5*qdd[1] - T(p.rj)*qdd[2] - _t14*qdd[5]};
       _lu_solve<2>(_a4, _piv4, _x);
       qdd[3] = _x[0];
       qdd[4] = _x[1];
@@ -1803,19 +1789,13 @@ struct steering {
     qdd[7] = T(0);
     qdd[9] = T(0);
     qdd[10] = T(0);
-    const T _t70 = -_t64*_cos5*T(p.a) + _t65*T(p.a)*_sin5;
-    const T _t71 = -_cos5*T(p.a)*qd[4];
-    const T _t72 = _cos5*_cos5;
-    const T _t73 = T(p.a)*T(p.a);
-    const T _t74 = _sin5*_sin5;
-    const T _t75 = T(p.a)*_sin5*qd[3];
-    const T _t76 = -_cos5*T(p.a)*qd[5] - qd[7] + _t64*qd[8] + qd[4];
-    const T _t77 = -qd[6] + _t65*qd[8] + T(p.a)*_sin5*qd[5] + qd[3];
-    qdd[8] = (-T(2)*(-(-(_t65*_t65) - (_t64*_t64) + _t37*_t64 + _t40*_t65)*qd[8] - _t65*qd[6] - _t64*qd[7] + _t70*qd[5] + _t65*qd[3] + _t64*qd[4])*qd[8] - T(2)*(_t71 - T(p.a)*_sin5*qd[6] + (-_t40*T(p.a)*_sin5 + _t37*_cos5*T(p.a) + _t72*_t73 + _t73*_t74)*qd[5] + _t70*qd[8] + _cos5*T(p.a)*qd[7] + _t75)*qd[5] - T(2)*_t76*qd[4] - T(2)*_t77*qd[3] + T(2)*_t76*qd[7] + T(2)*_t77*qd[6] - (_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42)*qdd[3] - (-T(2)*_t23*_cos8*T(p.arm) + _t43 - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44)*qdd[4] - (T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))*qdd[5] - (-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6])*qdd[6] - (-T(2)*T(p.arm)*_t20*_sin8 + _t47 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7])*qdd[7]) / _a9;
-    const T _t78 = -_t68*T(p.a)*_sin5 + _t67*_cos5*T(p.a);
-    const T _t79 = -T(p.a)*_sin5*qd[5] - qd[9] + _t68*qd[11] + qd[3];
-    const T _t80 = -qd[10] + _t67*qd[11] + _cos5*T(p.a)*qd[5] + qd[4];
-    qdd[11] = (-T(2)*(-(-(_t67*_t67) - (_t68*_t68) + _t60*_t67 + _t63*_t68)*qd[11] - _t67*qd[10] - _t68*qd[9] + _t78*qd[5] + _t67*qd[4] + _t68*qd[3])*qd[11] - T(2)*_t79*qd[3] - T(2)*_t80*qd[4] + T(2)*(-_t78*qd[11] + _t71 - T(p.a)*_sin5*qd[9] + (-_t63*T(p.a)*_sin5 - _t72*_t73 - _t73*_t74 + _t60*_cos5*T(p.a))*qd[5] + _cos5*T(p.a)*qd[10] + _t75)*qd[5] + T(2)*_t79*qd[9] + T(2)*_t80*qd[10] - (-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42)*qdd[3] - (-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44)*qdd[4] - (-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))*qdd[5] - (-T(2)*_t23*T(p.arm)*_sin11 + _t41 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9])*qdd[9] - (_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10])*qdd[10]) / _a10;
+    const T _t71 = _cos5*_cos5;
+    const T _t72 = T(p.a)*T(p.a);
+    const T _t73 = _sin5*_sin5;
+    const T _t74 = T(-2)*(qd[3]*qd[3]);
+    const T _t75 = T(-2)*(qd[4]*qd[4]);
+    qdd[8] = (_t74 - T(2)*(_t37*_cos5*T(p.a) - _t40*T(p.a)*_sin5 + _t71*_t72 + _t72*_t73)*_t70 + _t75 - T(2)*(qd[6]*qd[6]) - T(2)*(qd[7]*qd[7]) - T(4)*(_t65*T(p.a)*_sin5 - _t64*_cos5*T(p.a))*qd[5]*qd[8] - T(4)*_t65*qd[3]*qd[8] - T(4)*_t64*qd[4]*qd[8] - T(4)*_cos5*T(p.a)*qd[5]*qd[7] - T(4)*T(p.a)*_sin5*qd[3]*qd[5] + T(2)*(-(_t65*_t65) - (_t64*_t64) + _t37*_t64 + _t40*_t65)*(qd[8]*qd[8]) + T(4)*_t65*qd[6]*qd[8] + T(4)*_t64*qd[7]*qd[8] + T(4)*_cos5*T(p.a)*qd[4]*qd[5] + T(4)*T(p.a)*_sin5*qd[5]*qd[6] + T(4)*qd[3]*qd[6] + T(4)*qd[4]*qd[7] - (_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42)*qdd[3] - (_t43 - T(2)*_t23*_cos8*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44)*qdd[4] - (T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))*qdd[5] - (-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6])*qdd[6] - (_t47 - T(2)*T(p.arm)*_t20*_sin8 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7])*qdd[7]) / _a9;
+    qdd[11] = (_t74 - T(2)*(qd[10]*qd[10]) + _t75 - T(2)*(qd[9]*qd[9]) - T(4)*(_t67*_cos5*T(p.a) - _t68*T(p.a)*_sin5)*qd[11]*qd[5] - T(4)*_t67*qd[11]*qd[4] - T(4)*_t68*qd[11]*qd[3] - T(4)*_cos5*T(p.a)*qd[4]*qd[5] - T(4)*T(p.a)*_sin5*qd[5]*qd[9] + T(2)*(-_t63*T(p.a)*_sin5 - _t71*_t72 - _t72*_t73 + _t60*_cos5*T(p.a))*_t70 + T(2)*(-(_t67*_t67) - (_t68*_t68) + _t60*_t67 + _t63*_t68)*(qd[11]*qd[11]) + T(4)*_t67*qd[10]*qd[11] + T(4)*_t68*qd[11]*qd[9] + T(4)*_cos5*T(p.a)*qd[10]*qd[5] + T(4)*T(p.a)*_sin5*qd[3]*qd[5] + T(4)*qd[10]*qd[4] + T(4)*qd[3]*qd[9] - (-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42)*qdd[3] - (-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44)*qdd[4] - (-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))*qdd[5] - (_t41 - T(2)*_t23*T(p.arm)*_sin11 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9])*qdd[9] - (_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10])*qdd[10]) / _a10;
     if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
     return report;
   }
@@ -1971,13 +1951,13 @@ struct steering {
     const T _t18 = _t2*_t17*T(p.arm);
     const T _t19 = sin(q[11]);
     const T _t20 = T(p.arm)*_t6*_t19;
-    const T _t21 = -T(p.a)*_t13 + _t11 + _t18 + _t20 + q[10];
+    const T _t21 = _t11 - T(p.a)*_t13 + _t18 + _t20 + q[10];
     const T _t22 = -_t17*T(p.arm)*_t6;
     const T _t23 = _t2*T(p.arm)*_t19;
     const T _t24 = _t22 - q[9] + _t23 + _t1*T(p.a) + q[3];
     const T _t25 = -T(2)*T(p.w) - T(2)*T(p.arm)*_t6 + T(2)*T(p.a);
-    const T _t26 = -T(2)*T(p.h) + T(2)*_t2*T(p.arm);
-    const T _t27 = -T(p.h) + _t2*T(p.arm);
+    const T _t26 = T(2)*_t2*T(p.arm) - T(2)*T(p.h);
+    const T _t27 = _t2*T(p.arm) - T(p.h);
     const T _t28 = T(-2)*_t27*_t2;
     const T _t29 = -T(p.w) - T(p.arm)*_t6 + T(p.a);
     const T _t30 = T(2)*_t29*_t6;
@@ -1985,15 +1965,15 @@ struct steering {
     const T _t32 = T(2)*_t27*T(p.arm)*_t6;
 
     out[3] = T(-1);
-    out[4] = -q[5] + q[2];
+    out[4] = q[2] - q[5];
     out[5] = T(0);
     out[6] = T(1);
     out[7] = T(0);
     out[8] = T(1);
     out[23] = -sin(_t0);
     out[35] = -cos(_t0)*T(p.turn)*t;
-    out[45] = -T(2)*_t8*_t1 + _t9 + T(2)*_t14*_t13 + _t15 + _t16;
-    out[46] = -T(2)*_t21*_t13 + _t9 + T(2)*_t24*_t1 + _t15 + _t16;
+    out[45] = _t9 - T(2)*_t8*_t1 + T(2)*_t14*_t13 + _t15 + _t16;
+    out[46] = _t9 - T(2)*_t21*_t13 + T(2)*_t24*_t1 + _t15 + _t16;
     out[53] = T(1);
     out[54] = T(0);
     out[55] = T(-1);
@@ -2006,10 +1986,10 @@ struct steering {
     out[68] = T(1);
     out[69] = _t26;
     out[70] = _t26;
-    out[81] = _t28 + T(2)*_t8*(_t2*_t3 + _t5*_t6) + _t30 + T(2)*_t14*(-_t6*_t3 + _t2*_t5);
-    out[82] = _t28 + T(2)*_t24*(-_t17*_t6 + _t2*_t19) + T(2)*_t21*(_t2*_t17 + _t6*_t19) + _t30;
-    out[93] = -T(2)*_t14*(_t4 + _t7) + T(2)*_t8*(_t10 + _t12) + _t31 + _t32;
-    out[94] = -T(2)*_t24*(_t18 + _t20) + T(2)*(_t22 + _t23)*_t21 + _t31 + _t32;
+    out[81] = _t28 + T(2)*_t8*(_t2*_t3 + _t5*_t6) + _t30 + T(2)*_t14*(_t2*_t5 - _t6*_t3);
+    out[82] = _t28 + T(2)*_t24*(_t2*_t19 - _t17*_t6) + T(2)*_t21*(_t2*_t17 + _t6*_t19) + _t30;
+    out[93] = T(2)*_t8*(_t10 + _t12) - T(2)*_t14*(_t4 + _t7) + _t31 + _t32;
+    out[94] = T(2)*(_t22 + _t23)*_t21 - T(2)*_t24*(_t18 + _t20) + _t31 + _t32;
     for (int _m = 0; _m < 20; ++_m)
       _phi_p_roll0(q, t, p, out, _phi_p_roll0_i[_m], _phi_p_roll0_o[_m]);
     for (int _m = 0; _m < 25; ++_m)

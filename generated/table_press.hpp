@@ -236,7 +236,7 @@ struct table_press {
     out[5] = -T(p.l)*sin(q[5]) - q[4] + q[7];
     out[6] = q[7];
     out[7] = q[8];
-    out[8] = -_tbl0(0, t) + q[2];
+    out[8] = q[2] - _tbl0(0, t);
   }
 
   // Phi_q(q, t) at (jac_rows[k], jac_cols[k])

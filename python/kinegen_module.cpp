@@ -1,6 +1,6 @@
 // The Python module `kinegen`: a mechanism file compiled in-process, with the command line's
 // analyses. Every number comes from the same library calls as `kinegen analyze` / `eval` /
-// `check` / `generate` (analysis.hpp, model.hpp, check.hpp, emit_cpp.hpp), and analyze's
+// `check` / `generate` (analysis.hpp, compiled_model.hpp, check.hpp, emit_cpp.hpp), and analyze's
 // columns are parsed back from the same csv_row text, so the results equal the CSV's bit for
 // bit (17 significant digits round-trip a double) and follow its column order by construction.
 // Errors raise kinegen.InputError (exit 2 on the command line), kinegen.UsageError (2) or
@@ -19,13 +19,14 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/forces.hpp"
-#include "kinegen/codegen/check.hpp"
-#include "kinegen/codegen/emit_cpp.hpp"
-#include "kinegen/codegen/log.hpp"
-#include "kinegen/codegen/model.hpp"
-#include "kinegen/codegen/sensitivity.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/check.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/sensitivity.hpp"
+#include "kinegen/codegen/base/log.hpp"
+#include "kinegen/codegen/emit/emit_cpp.hpp"
+#include "kinegen/codegen/model/table.hpp"
 
 namespace py = pybind11;
 namespace kc = kinegen::codegen;
@@ -44,7 +45,7 @@ std::string one_line(std::string text) {
 py::handle input_error, usage_error, analysis_error;
 
 // Runs `f`, turning the library's errors into the Python exceptions with the command line's
-// message (main.cpp: usage errors found after reading a file are prefixed with it).
+// message (cli/main.cpp: usage errors found after reading a file are prefixed with it).
 template <class F>
 auto translate(const std::string& file, F&& f) -> decltype(f()) {
   std::string message;
@@ -98,9 +99,15 @@ py::array_t<double> to_numpy(const Eigen::VectorXd& v) {
 
 class Mechanism {
  public:
-  Mechanism(std::string path, py::dict params) : path_(std::move(path)) {
+  // inputs: an input driver's table (`--input NAME=FILE.csv`) by its name. As on the command
+  // line, eval, check and generate take a missing input as 0 (a default Params), and analyze
+  // needs every one.
+  Mechanism(std::string path, py::dict params, py::dict inputs) : path_(std::move(path)) {
     overrides_ = overrides_of(params);
-    model_ = translate(path_, [&] { return kc::CompiledModel::from_file(path_, overrides_); });
+    for (const auto& [name, file] : inputs)
+      build_.inputs.emplace_back(py::str(name), py::str(file));
+    model_ = translate(path_,
+                       [&] { return kc::CompiledModel::from_file(path_, overrides_, build_); });
   }
 
   // Column name -> numpy array, in the CSV's column order (a dict keeps insertion order).
@@ -114,7 +121,12 @@ class Mechanism {
       std::unique_ptr<kc::CompiledModel> base;
       const kc::CompiledModel* m = model_.get();
       kc::require_driven(*m);
-      // The checks main.cpp's run_analyze makes before solving.
+      // An input driver left without its table is the command line's usage error.
+      {
+        kc::Mechanism copy = m->mechanism();
+        kc::apply_inputs(copy, {}, true);
+      }
+      // The checks cli/analyze.cpp makes before solving.
       if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
       if (!std::isfinite(t0) || !std::isfinite(t1))
         throw kc::UsageError("--t0 and --t1 must be finite");
@@ -197,6 +209,13 @@ class Mechanism {
       out["phi_q"] = j;
       out["nu"] = to_numpy(nu);
       out["gamma"] = to_numpy(gamma);
+      // Outputs' values (format 6.4), as `kinegen eval` adds them.
+      if (const int n = model_->programs().num_outputs; n > 0) {
+        Eigen::VectorXd values(n);
+        kc::ProgramEvaluator<double> program(model_->programs().outputs);
+        program.run(q.data(), nullptr, t, model_->params().data(), values.data());
+        out["outputs"] = to_numpy(values);
+      }
       return out;
     });
   }
@@ -240,6 +259,7 @@ class Mechanism {
       if (fold_params) {
         kc::BuildOptions build;
         build.fold_params = true;
+        build.inputs = build_.inputs;
         folded = kc::CompiledModel::from_file(path_, overrides_, build);
       }
       const kc::CompiledModel& m = folded ? *folded : *model_;
@@ -269,10 +289,13 @@ class Mechanism {
     });
   }
 
+  // Every coordinate, the bodies' x, y, phi and then the extra ones (format 6.1), as the
+  // CSV's position columns name them.
   std::vector<std::string> coordinates() const {
     std::vector<std::string> names;
     for (const auto& b : model_->mechanism().bodies)
       for (const char* c : {".x", ".y", ".phi"}) names.push_back(b.name + c);
+    for (const auto& c : model_->mechanism().coordinates) names.push_back(c.name);
     return names;
   }
 
@@ -290,6 +313,7 @@ class Mechanism {
  private:
   std::string path_;
   std::vector<kc::ParamOverride> overrides_;
+  kc::BuildOptions build_;
   std::unique_ptr<kc::CompiledModel> model_;
 };
 
@@ -323,9 +347,11 @@ PYBIND11_MODULE(kinegen, m) {
   m.attr("AnalysisError") = analysis_error;
 
   py::class_<Mechanism>(m, "Mechanism")
-      .def(py::init<std::string, py::dict>(), py::arg("path"), py::arg("params") = py::dict(),
+      .def(py::init<std::string, py::dict, py::dict>(), py::arg("path"),
+           py::arg("params") = py::dict(), py::arg("inputs") = py::dict(),
            "Reads and compiles a mechanism file; params overrides parameters like --param "
-           "(numbers or expression strings).")
+           "(numbers or expression strings), inputs gives input drivers their tables like "
+           "--input (name: CSV path).")
       .def("analyze", &Mechanism::analyze, py::arg("t0"), py::arg("t1"), py::arg("steps"),
            py::arg("forces") = false, py::arg("sensitivity") = std::vector<std::string>{},
            "Position, velocity and acceleration at t_k = t0 + k (t1 - t0) / steps: a dict from "

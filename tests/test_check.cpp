@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/check.hpp"
-#include "kinegen/codegen/diagnostics.hpp"
-#include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/analysis/check.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/base/diagnostics.hpp"
 #include "support/run_command.hpp"
 
 namespace {

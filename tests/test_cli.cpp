@@ -16,8 +16,8 @@
 #include <utility>
 #include <vector>
 
-#include "kinegen/codegen/mechanism.hpp"
-#include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/model/mechanism.hpp"
 #include "support/closed_form.hpp"
 #include "support/run_command.hpp"
 

@@ -22,8 +22,8 @@
 #include <thread>
 #include <vector>
 
-#include "kinegen/codegen/mechanism.hpp"
-#include "kinegen/codegen/reserved_names.hpp"
+#include "kinegen/codegen/emit/reserved_names.hpp"
+#include "kinegen/codegen/model/mechanism.hpp"
 #include "support/run_command.hpp"
 
 namespace {

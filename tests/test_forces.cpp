@@ -6,9 +6,9 @@
 
 #include <cmath>
 
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/forces.hpp"
-#include "kinegen/codegen/reference.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/reference.hpp"
 #include "support/run_command.hpp"
 
 #include <algorithm>

@@ -19,11 +19,11 @@
 #include <vector>
 
 #include "gear_pair.hpp"
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/forces.hpp"
-#include "kinegen/codegen/mechanism.hpp"
-#include "kinegen/codegen/model.hpp"
-#include "kinegen/codegen/reference.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/reference.hpp"
+#include "kinegen/codegen/model/mechanism.hpp"
 #include "planetary.hpp"
 #include "support/run_command.hpp"
 

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/diagnostics.hpp"
-#include "kinegen/codegen/mechanism.hpp"
+#include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/model/mechanism.hpp"
 #include "support/run_command.hpp"
 
 namespace {

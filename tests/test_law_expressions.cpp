@@ -16,11 +16,11 @@
 #include <vector>
 
 #include "dwell_slider_crank.hpp"
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/check.hpp"
-#include "kinegen/codegen/functions.hpp"
-#include "kinegen/codegen/model.hpp"
-#include "kinegen/codegen/reference.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/check.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/reference.hpp"
+#include "kinegen/codegen/symbolic/functions.hpp"
 #include "support/run_command.hpp"
 
 namespace {

@@ -9,8 +9,8 @@
 #include <utility>
 #include <vector>
 
-#include "kinegen/codegen/mechanism.hpp"
-#include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/model/mechanism.hpp"
 
 namespace {
 

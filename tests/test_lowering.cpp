@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/evaluator.hpp"
-#include "kinegen/codegen/model.hpp"
-#include "kinegen/codegen/program.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/evaluator.hpp"
+#include "kinegen/codegen/program/program.hpp"
 
 namespace {
 

@@ -10,7 +10,7 @@
 #include <fstream>
 #include <functional>
 
-#include "kinegen/codegen/table.hpp"
+#include "kinegen/codegen/model/table.hpp"
 #include "kinegen/kernels/motion_law.hpp"
 #include "kinegen/kernels/spline.hpp"
 

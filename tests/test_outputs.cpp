@@ -18,9 +18,9 @@
 #include <vector>
 
 #include "four_bar_outputs.hpp"
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/reference.hpp"
-#include "kinegen/codegen/sensitivity.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/reference.hpp"
+#include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "slider_crank_outputs.hpp"
 #include "support/closed_form.hpp"
 #include "support/run_command.hpp"

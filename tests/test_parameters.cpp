@@ -12,11 +12,11 @@
 #include <regex>
 #include <string>
 
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/diagnostics.hpp"
-#include "kinegen/codegen/emit_cpp.hpp"
-#include "kinegen/codegen/model.hpp"
-#include "kinegen/codegen/sensitivity.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/sensitivity.hpp"
+#include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "support/closed_form.hpp"
 #include "support/run_command.hpp"
 

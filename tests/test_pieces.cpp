@@ -12,10 +12,10 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/format.hpp"
-#include "kinegen/codegen/mechanism.hpp"
-#include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/model/mechanism.hpp"
 #include "pieces_drive.hpp"
 #include "support/run_command.hpp"
 

@@ -19,10 +19,10 @@
 #include <vector>
 
 #include "four_bar.hpp"
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/diagnostics.hpp"
-#include "kinegen/codegen/model.hpp"
-#include "kinegen/codegen/reference.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/reference.hpp"
+#include "kinegen/codegen/base/diagnostics.hpp"
 #include "offset_slider_crank.hpp"
 #include "quick_return.hpp"
 #include "slider_crank.hpp"

@@ -1,13 +1,13 @@
-// The registry of constraint types (constraints.hpp): every registered type is exercised by
-// tests/mechanisms/all_types.yaml (so the emitter's strict compile and `kinegen check` see it),
+// The registry of constraint types (constraints/registry.hpp): every registered type is exercised
+// by tests/mechanisms/all_types.yaml (so the emitter's strict compile and `kinegen check` see it),
 // the loader knows exactly the registered types, and row names reach the messages.
 #include <catch2/catch.hpp>
 #include <set>
 #include <string>
 
-#include "kinegen/codegen/constraints.hpp"
-#include "kinegen/codegen/mechanism.hpp"
-#include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
+#include "kinegen/codegen/model/mechanism.hpp"
 
 namespace {
 

@@ -17,8 +17,8 @@
 #include <utility>
 #include <vector>
 
-#include "kinegen/codegen/analysis.hpp"  // format_number
-#include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"  // format_number
+#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "slider_crank.hpp"
 #include "slider_crank_lecture.hpp"
 

@@ -16,12 +16,12 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/diagnostics.hpp"
-#include "kinegen/codegen/evaluator.hpp"
-#include "kinegen/codegen/model.hpp"
-#include "kinegen/codegen/reference.hpp"
-#include "kinegen/codegen/sensitivity.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/evaluator.hpp"
+#include "kinegen/codegen/analysis/reference.hpp"
+#include "kinegen/codegen/analysis/sensitivity.hpp"
+#include "kinegen/codegen/base/diagnostics.hpp"
 #include "support/run_command.hpp"
 
 namespace {

@@ -17,10 +17,10 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/diagnostics.hpp"
-#include "kinegen/codegen/model.hpp"
-#include "kinegen/codegen/structure.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/structure/structure.hpp"
 #include "support/run_command.hpp"
 
 namespace {

@@ -12,9 +12,9 @@
 #include "big_small.hpp"
 #include "far_point.hpp"
 #include "four_bar.hpp"
-#include "kinegen/codegen/analysis.hpp"
-#include "kinegen/codegen/check.hpp"
-#include "kinegen/codegen/model.hpp"
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/check.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "stephenson3.hpp"
 
 namespace {

@@ -14,9 +14,9 @@
 #include <sstream>
 #include <string>
 
-#include "kinegen/codegen/diagnostics.hpp"
-#include "kinegen/codegen/model.hpp"
-#include "kinegen/codegen/tolerance.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/tolerance.hpp"
+#include "kinegen/codegen/base/diagnostics.hpp"
 #include "support/run_command.hpp"
 
 namespace {

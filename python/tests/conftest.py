@@ -18,4 +18,6 @@ def source():
 
 
 def examples():
-    return sorted(str(p) for p in (SOURCE / "examples").glob("*.yaml"))
+    # The single-file examples and those in folders (cams, forces, gears, slots, ...).
+    return sorted(str(p) for pattern in ("*.yaml", "*/*.yaml")
+                  for p in (SOURCE / "examples").glob(pattern))

@@ -72,7 +72,9 @@ def test_eval_equals_command_line(path):
     assert r.returncode == 0, r.stderr
     want = json.loads(r.stdout)
     got = m.eval(q, qd, 0.25)
-    assert list(got) == ["phi", "phi_q", "nu", "gamma"]
+    # Outputs (format 6.4) only where the file has them, as on the command line.
+    assert list(got) == list(want)
+    assert list(got)[:4] == ["phi", "phi_q", "nu", "gamma"]
     for key in want:
         assert np.array_equal(got[key], np.array(want[key], dtype=float)), key
     assert got["phi_q"].shape == (m.nc, m.nq)
@@ -199,3 +201,52 @@ drivers:
     # th = 0 is 1, and r's own sensitivity no longer moves l: d(slider.x)/d(r) = cos th = 1.
     assert got["d(slider.x)/d(l)"][0] == pytest.approx(1.0, abs=1e-12)
     assert got["d(slider.x)/d(r)"][0] == pytest.approx(1.0, abs=1e-12)
+
+
+def test_eval_outputs_equal_command_line(source):
+    path = str(source / "tests" / "mechanisms" / "four_bar_outputs.yaml")
+    m = kinegen.Mechanism(path)
+    r = run("eval", path, "--t", "0.5")
+    assert r.returncode == 0, r.stderr
+    want = json.loads(r.stdout)
+    got = m.eval(t=0.5)
+    assert list(got) == ["phi", "phi_q", "nu", "gamma", "outputs"]
+    assert np.array_equal(got["outputs"], np.array(want["outputs"], dtype=float))
+    assert got["outputs"].shape == (4,)
+
+
+def test_extra_coordinates_are_named_like_the_csv(source):
+    """coordinates lists every coordinate, the extra ones (format 6.1) after the bodies', with
+    the names of the CSV's position columns."""
+    path = str(source / "tests" / "mechanisms" / "parabolic_slot.yaml")
+    m = kinegen.Mechanism(path)
+    assert len(m.coordinates) == m.nq
+    got = m.analyze(0, 1, 2)
+    for name in m.coordinates:
+        assert name in got, name
+    assert m.coordinates[-1] == "u"
+    assert m.coordinates[:3] == ["plate.x", "plate.y", "plate.phi"]
+
+
+def test_inputs_like_the_command_line(source, tmp_path):
+    """inputs= gives an input driver its table as --input does: the same numbers bit for bit;
+    analyze without it is the command line's usage error, while eval takes it as 0."""
+    path = str(source / "tests" / "mechanisms" / "pieces_drive.yaml")
+    table = str(source / "tests" / "mechanisms" / "pieces_lift.csv")
+    out = tmp_path / "out.csv"
+    r = run("analyze", path, "--input", "stroke=" + table, "--t0", "0", "--t1", "2",
+            "--steps", "8", "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    header, values = read_csv(out)
+    got = kinegen.Mechanism(path, inputs={"stroke": table}).analyze(0, 2, 8)
+    assert list(got) == header
+    assert all(np.array_equal(got[h], values[:, k]) for k, h in enumerate(header))
+    r = run("analyze", path, "--t0", "0", "--t1", "2", "--steps", "8")
+    assert r.returncode == 2
+    without = kinegen.Mechanism(path)
+    with pytest.raises(kinegen.UsageError) as e:
+        without.analyze(0, 2, 8)
+    assert "--input stroke=FILE.csv" in str(e.value)
+    assert without.eval()["phi"].shape == (without.nc,)
+    with pytest.raises(kinegen.UsageError):
+        kinegen.Mechanism(path, inputs={"nope": table})

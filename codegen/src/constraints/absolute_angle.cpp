@@ -1,5 +1,5 @@
 // absolute_angle: a body's angle is `value` (a driver: f(t)).
-#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
 
 namespace kinegen::codegen {
 

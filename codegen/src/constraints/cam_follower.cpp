@@ -3,7 +3,7 @@
 // tangents are parallel, (A_i curve_i'(a))^perp . (A_j curve_j'(b)) = 0 (1). A roller is a
 // circle, a flat face a line. Of the two contacts (from either side) the solver keeps the one
 // it assembled on.
-#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
 
 namespace kinegen::codegen {
 

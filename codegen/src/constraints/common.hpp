@@ -7,7 +7,7 @@
 #include <utility>
 #include <vector>
 
-#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
 
 namespace kinegen::codegen {
 

@@ -1,6 +1,6 @@
 // expression: equations written out, each string = 0; in the parameters and coordinates, and
 // for a driver also t. Nothing is drawn for them: animate finds the points that move together.
-#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
 
 namespace kinegen::codegen {
 

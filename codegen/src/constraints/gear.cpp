@@ -13,7 +13,7 @@
 #include <sstream>
 
 #include "common.hpp"
-#include "kinegen/codegen/format.hpp"
+#include "kinegen/codegen/base/format.hpp"
 
 namespace kinegen::codegen {
 

@@ -1,6 +1,6 @@
 // The one list of joint and driver types. A new type: its file in this folder (CMake globs
 // them) and one line in each of the two lists below.
-#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
 
 namespace kinegen::codegen {
 

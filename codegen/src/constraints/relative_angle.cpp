@@ -1,5 +1,5 @@
 // relative_angle: body j's angle minus body i's is `value` (a driver: f(t)).
-#include "kinegen/codegen/constraints.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
 
 namespace kinegen::codegen {
 

@@ -1,0 +1,64 @@
+// Parameter sensitivities of the solved position (spec 6.6): Phi_p from the same symbolic model,
+// dq/dp = -Phi_q^-1 Phi_p with the factorization of Phi_q at the converged q (run_analysis does
+// the solve), and for the named points dC/dp = C_q dq/dp + dC/dp|explicit.
+#pragma once
+
+#include <ginac/ginac.h>
+
+#include <Eigen/Dense>
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/program/program.hpp"
+
+namespace kinegen::codegen {
+
+// dPhi/dp for each parameter index in `params`, symbolic: output k * nc + r is dPhi_r/dp_k.
+// Beside derive(): the same Phi, differentiated by parameter symbols instead of coordinates.
+std::vector<GiNaC::ex> derive_phi_p(const SymbolicModel& model, const SymbolTable& symbols,
+                                    const std::vector<int>& params);
+
+// What run_analysis needs to add sensitivities to each row.
+struct SensitivityModel {
+  std::vector<int> params;         // parameter indices, in the order asked for
+  std::vector<std::string> names;  // their names
+  Program phi_p;                   // nc * np outputs, as derive_phi_p orders them
+  // d s'/dp of each named point's local offset, evaluated: point_ds[k][point].
+  std::vector<std::vector<Eigen::Vector2d>> point_ds;
+  // The outputs' explicit dO/dp (np x outputs, parameter-major), then O_q (outputs x nq).
+  Program output_p;
+};
+
+// The index of the parameter `name`; a UsageError starting with `option` (the command-line
+// option that named it) lists the parameters there are.
+int find_parameter(const CompiledModel& model, const std::string& name, const std::string& option);
+
+// Resolves `names` (the parameters in the order given) and lowers Phi_p. Throws UsageError
+// naming an unknown or repeated parameter. A
+// parameter that nothing depends on is valid: its columns are zeros.
+SensitivityModel build_sensitivity(const CompiledModel& model,
+                                   const std::vector<std::string>& names);
+
+// Splits "p1,p2,..." (the --sensitivity argument); empty items are a UsageError.
+std::vector<std::string> split_parameter_list(const std::string& list);
+
+// The points' total derivatives at q: dpoints (2 * points x np), rows x, y per point in file
+// order, from dq_dp (nq x np).
+void point_sensitivities(const CompiledModel& model, const SensitivityModel& sensitivity,
+                         const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
+                         Eigen::MatrixXd& dpoints);
+
+// The outputs' total derivatives dO/dp = O_q dq/dp + dO/dp|explicit at q, t: doutputs
+// (outputs x np).
+void output_sensitivities(const CompiledModel& model, const SensitivityModel& sensitivity, double t,
+                          const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
+                          Eigen::MatrixXd& doutputs);
+
+// The CSV column names the sensitivities add, in order: for each parameter, for each body
+// `d(B.x)/d(p)`, `d(B.y)/d(p)`, `d(B.phi)/d(p)`, then for each point `d(P.x)/d(p)`,
+// `d(P.y)/d(p)`, then for each output `d(O)/d(p)`.
+std::vector<std::string> sensitivity_columns(const Mechanism& mechanism,
+                                             const std::vector<std::string>& names);
+
+}  // namespace kinegen::codegen

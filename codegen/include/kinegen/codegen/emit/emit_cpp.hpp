@@ -1,0 +1,52 @@
+// The C++ back end: one self-contained header per mechanism (spec section 4).
+#pragma once
+
+#include <string>
+
+#include "kinegen/codegen/base/format.hpp"  // format_double
+#include "kinegen/codegen/base/version.hpp"  // kVersion
+#include "kinegen/codegen/model/mechanism.hpp"
+#include "kinegen/codegen/program/program.hpp"
+#include "kinegen/codegen/symbolic/symbolic.hpp"
+
+namespace kinegen::codegen {
+
+// Which analyses a header supports: position only (phi, phi_q and the block position solver),
+// position and velocity (adds nu), or all (adds gamma); the default is all.
+enum class Outputs { kPosition, kVelocity, kAll };
+
+// The default of EmitOptions::max_function_ops (kinegen generate --max-function-ops).
+inline constexpr int kDefaultMaxFunctionOps = 1000;
+// The default of EmitOptions::roll_min (kinegen generate --roll-min).
+inline constexpr int kDefaultRollMin = 16;
+
+struct EmitOptions {
+  Outputs outputs = Outputs::kAll;
+  // The block solver (structure.hpp) besides the section-4 functions.
+  bool block_solver = true;
+  // The parameters were folded into constants (--fold-params): the header says so, and keeps
+  // Params only for the same API.
+  bool folded_params = false;
+  // Functions with more operations than this are split into private parts that the public
+  // function calls in order (g++ -O2 compile time grows superlinearly with a function's size);
+  // 0: never split. The block solver is split at block boundaries. See docs/scale.md.
+  int max_function_ops = kDefaultMaxFunctionOps;
+  // Repeated blocks: Newton blocks that are the same up to which coordinates they read (the
+  // loops of a chain) are emitted once, as a function that each of them calls with a table of
+  // its coordinates, when at least this many are alike; 0: never. Keeps large models' code,
+  // and so their compile time and instruction-cache footprint, from growing with N.
+  int roll_min = kDefaultRollMin;
+  // The namespace the model's struct lives in (kinegen generate --namespace): two models of
+  // the same name need different ones to live in one program.
+  std::string name_space = "kinegen::models";
+};
+
+// The generated header's text. Only validated identifiers and numbers from the mechanism reach
+// it; the source file is named by its base name, with anything unusual replaced.
+std::string emit_header(const Mechanism& mechanism, const SymbolTable& symbols,
+                        const SymbolicModel& model, const ModelPrograms& programs);
+std::string emit_header(const Mechanism& mechanism, const SymbolTable& symbols,
+                        const SymbolicModel& model, const ModelPrograms& programs,
+                        const EmitOptions& options);
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,12 @@
+// The emit stage: the C++ back end.
+//
+// Takes: the Mechanism, SymbolTable, SymbolicModel and ModelPrograms (the stages before it) and
+// EmitOptions; from them the Structure and BlockProgram (structure stage), the force and
+// sensitivity expressions. Gives: one self-contained C++ header per mechanism as a
+// std::string (emit_header, spec section 4), carrying the block-solver kernels it calls
+// (runtime/include/kinegen/kernels/, embedded at build time). reserved_names.hpp: the names a
+// header cannot carry (spec 6.1), checked before emitting.
+#pragma once
+
+#include "kinegen/codegen/emit/emit_cpp.hpp"
+#include "kinegen/codegen/emit/reserved_names.hpp"

@@ -1,0 +1,183 @@
+// The mechanism stage: plain, validated data read from a mechanism file.
+//
+// Nothing here knows GiNaC. Expressions are kept as text with the place they came from, so the
+// symbolic stage can parse them and still point its errors at the YAML line.
+#pragma once
+
+#include <array>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/motion.hpp"
+
+namespace kinegen::codegen {
+
+// An expression as written in the file ("2.0", "omega*t", "x_crank - 1").
+struct Expr {
+  std::string text;
+  SourceLoc loc;
+};
+
+struct Vec2 {
+  Expr x, y;
+};
+
+struct Parameter {
+  std::string name;
+  Expr value;  // a constant, or an expression of earlier parameters (a derived parameter)
+  SourceLoc loc;
+};
+
+// A named subexpression (format 6.1): coordinates, parameters, t and earlier definitions.
+struct Definition {
+  std::string name;
+  Expr value;
+  SourceLoc loc;
+};
+
+// A reported scalar (format 6.4): coordinates, t, parameters and definitions; its CSV columns
+// are NAME, NAME.v and NAME.a.
+struct Output {
+  std::string name;
+  Expr value;
+  SourceLoc loc;
+};
+
+struct Body {
+  std::string name;
+  std::array<Expr, 3> q0;  // x, y, phi
+  SourceLoc loc;
+};
+
+// An extra scalar unknown (format 6.1): a curve parameter, a contact angle. Follows the bodies'
+// coordinates in q, in file order; expressions use it by its name.
+struct Coordinate {
+  std::string name;
+  Expr q0;
+  CoordinateKind kind = CoordinateKind::kScalar;
+  SourceLoc loc;
+};
+
+// A registered joint or driver type (constraints/registry.hpp): its keys, equations and drawing.
+struct ConstraintKind;
+
+// A body reference: an index into Mechanism::bodies, or kGround.
+inline constexpr int kGround = -1;
+
+// A driver's law beyond one expression (format 6.3): pieces, a period, a table or a run-time
+// input. With none of them the law is Constraint::value.
+struct DriverPiece {
+  Expr until;  // empty text for the last piece
+  Expr f;
+  SourceLoc loc;
+};
+
+struct DriverLaw {
+  std::vector<DriverPiece> pieces;  // `f: [{until: T1, f: E1}, ..., {f: En}]`
+  std::optional<Expr> period;       // `period: T`
+  std::string table;                // `table: FILE.csv` (as written)
+  SourceLoc table_loc;
+  int table_id = -1;   // its fitted spline (table.hpp's registry)
+  bool input = false;  // `f: input`
+  bool plain() const { return pieces.empty() && table_id < 0 && !input; }
+};
+
+// One joint or driver: its kind and the values of its keys, with the defaults the format
+// promises filled in (s = [0, 0], angle = 0). Which keys there are is the kind's (KeySpec).
+struct Constraint {
+  const ConstraintKind* kind = nullptr;
+  bool is_driver = false;
+  std::string name;  // optional, a validated identifier; "" when not given
+  std::string item;  // how messages name it: "joints[2] (revolute)"
+  SourceLoc loc;
+  int i = kGround;   // body i (or `body` for one-body types)
+  int j = kGround;   // body j
+  std::map<std::string, Vec2> vectors;  // local vectors by key: si, sj, s, vi
+  std::map<std::string, Expr> scalars;  // other constants by key
+  std::map<std::string, bool> flags;    // true/false keys (a gear's `internal`)
+  Expr value;        // value / length / angle of a joint, or f(t) of a driver
+  DriverLaw law;     // a driver's pieces, period, table or input (format 6.3)
+  std::vector<Expr> equations;  // expression constraints: each string = 0
+  std::map<std::string, Vec2> curves;      // kCurve keys: [x(u), y(u)] local to a body
+  std::map<std::string, int> coordinates;  // kCoordinate keys: index into Mechanism::coordinates
+
+  const char* type_name() const;
+  // Number of scalar equations this constraint contributes.
+  int equation_count() const;
+  // A vector key of the kind (throws std::logic_error for a key the kind does not have).
+  const Vec2& vector(const std::string& key) const;
+};
+
+struct Point {
+  std::string name;
+  int body = kGround;
+  Vec2 s;
+  SourceLoc loc;
+};
+
+// Kinetostatics (format 6.5). Mass data of one body: all default to 0; mass and inertia (about the centre of mass) >= 0.
+struct BodyMass {
+  Expr mass{"0", {}}, inertia{"0", {}};
+  Vec2 com{{"0", {}}, {"0", {}}};  // in the body's frame
+  SourceLoc loc;
+};
+
+struct Load {
+  enum class Kind { kForce, kTorque, kSpringDamper, kRotationalSpringDamper };
+  Kind kind = Kind::kForce;
+  std::string name;  // optional
+  std::string item;  // "forces[2] (spring_damper)"
+  SourceLoc loc;
+  int body = kGround;     // force, torque
+  int i = kGround, j = kGround;  // spring-dampers
+  Vec2 s, si, sj;         // points (force: s; linear spring-damper: si, sj)
+  Vec2 f;                 // force: global components
+  Expr value;             // torque
+  Expr stiffness, damping, length0, preload, angle0;
+};
+
+struct ForceSpec {
+  std::vector<BodyMass> bodies;  // one per body (empty: all zero)
+  Vec2 gravity{{"0", {}}, {"0", {}}};
+  SourceLoc gravity_loc;
+  std::vector<Load> loads;
+};
+
+struct Mechanism {
+  std::string name;
+  SourceLoc name_loc;  // of the `name:` value
+  std::string source;  // the file it was read from, as given by the user
+  std::vector<Parameter> parameters;
+  std::vector<Definition> definitions;
+  std::vector<Body> bodies;
+  std::vector<Coordinate> coordinates;  // extra unknowns, after the bodies' in q
+  std::vector<Constraint> joints;
+  std::vector<Constraint> drivers;
+  std::vector<Point> points;
+  std::vector<Output> outputs;
+  ForceSpec forces;  // masses, gravity and loads (`analyze --forces`)
+
+  int nq() const {
+    return 3 * static_cast<int>(bodies.size()) + static_cast<int>(coordinates.size());
+  }
+  // The index in q of extra coordinate k.
+  int coordinate_index(int k) const { return 3 * static_cast<int>(bodies.size()) + k; }
+  int nc() const;
+  // Joints then drivers, in file order: the order of the rows of Phi.
+  std::vector<const Constraint*> constraints() const;
+  std::optional<int> find_body(const std::string& name) const;
+};
+
+// Reads and validates a mechanism file. Throws InputError naming the file, item and line.
+Mechanism load_mechanism(const std::string& path);
+// The same from text in memory (`source` names it in messages).
+Mechanism parse_mechanism(const std::string& yaml_text, const std::string& source);
+
+// Whether `name` may become a C++ identifier in generated code: a C identifier, not a C++
+// keyword, and not a reserved form (leading underscore, or "__" anywhere).
+bool is_valid_identifier(const std::string& name);
+
+}  // namespace kinegen::codegen

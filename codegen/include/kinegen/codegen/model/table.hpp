@@ -1,0 +1,82 @@
+// Measured tables for `table:` drivers and `--input` files (mechanism format 6.3): reading a
+// two-column CSV safely, and fitting the cubic spline that kernels/spline.hpp evaluates.
+//
+// Takes: a path relative to the mechanism file (or a command-line path), the item that names
+// it (for messages) and whether the law is periodic. Gives: a Spline (knots, values, second
+// derivatives; for a periodic table also its period and rise). Throws InputError.
+#pragma once
+
+#include <ginac/ginac.h>
+
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/base/diagnostics.hpp"
+
+namespace kinegen::codegen {
+
+struct Spline {
+  std::vector<double> t, y, m;  // knots, values (less the trend when periodic), S'' at knots
+  bool periodic = false;
+  double period = 0;  // periodic: t.back() (t.front() is 0)
+  double rise = 0;    // periodic: f(period) - f(0)
+
+  // f[0..2] = value, first and second derivative at x; false outside a non-periodic table.
+  bool eval(double x, double* f) const;
+};
+
+// The tables of every mechanism loaded in this process, by number (kinegen_table's id in
+// functions.hpp): registering the same spline twice gives the same number. Entries are never
+// removed or moved, so a reference stays valid. Thread-safe.
+int register_table(const Spline& spline);
+const Spline& registered_table(int id);
+
+// The order-th derivative (0..2) of a spline at x in CLN arithmetic (the reference), with the
+// knots taken exactly; x's precision is kept. Throws AnalysisError outside a table that does
+// not repeat.
+GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::numeric& x);
+
+struct Mechanism;
+// The times every table of `m`'s drivers covers (those without a period): [lo, hi], and the
+// first driver whose table does not hold t (nullptr when all do, or there is none). Tables are
+// never extrapolated (format 6.3); the analysis stops at such a t.
+struct TableCoverage {
+  double lo = -std::numeric_limits<double>::infinity();
+  double hi = std::numeric_limits<double>::infinity();
+};
+TableCoverage table_coverage(const Mechanism& m);
+// The driver (its item) whose table does not cover t, with the table's range, or "".
+std::string table_outside(const Mechanism& m, double t);
+
+// Turns each named input driver (`f: input`) into a table driver read from its CSV file
+// (`analyze --input NAME=FILE.csv`; the path is the user's, relative to the working
+// directory, not confined). Throws UsageError for a name that is not an input driver, one
+// given twice, or (when `required`) an input driver left without a table.
+void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::string>>& inputs,
+                  bool required);
+
+// Limits that keep a hostile table from costing unbounded time or memory.
+inline constexpr std::size_t kMaxTableBytes = 8u << 20;
+inline constexpr std::size_t kMaxTableRows = 200000;
+
+struct TableSource {
+  std::string mechanism_file;  // the file that names the table (messages; its folder roots it)
+  std::string item;            // e.g. "drivers[0] (absolute_angle) table"
+  SourceLoc loc;
+  bool confine = true;  // refuse a path that leaves the mechanism's folder (by .. or a link)
+};
+
+// Reads `path` (two columns, a header row, t strictly increasing, at least 4 rows, finite).
+// Returns the columns t and value.
+void read_table(const std::string& path, const TableSource& source, std::vector<double>& t,
+                std::vector<double>& value);
+
+// The not-a-knot cubic spline through (t, y): reproduces any cubic polynomial exactly.
+Spline fit_not_a_knot(std::vector<double> t, std::vector<double> y);
+
+// The periodic spline: t[0] must be 0; the values less their trend (y.back() - y.front()) t / T
+// are interpolated by a spline whose value, slope and curvature match across the seam.
+Spline fit_periodic(std::vector<double> t, std::vector<double> y);
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,94 @@
+// The straight-line program: symbolic outputs lowered to a list of operations in dependency
+// order, with common subexpressions shared (GiNaC has no CSE; this one keys on GiNaC's
+// structural order), constant subtrees folded to one literal, and zero outputs dropped.
+// Both back ends consume it: the C++ emitter and the in-process evaluator.
+#pragma once
+
+#include <ginac/ginac.h>
+
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/symbolic/symbolic.hpp"
+
+namespace kinegen::codegen {
+
+enum class OpKind {
+  kConst,   // a number: `value` (double) and `exact`
+  kInput,   // q[k], qd[k], t or a parameter
+  kAdd,     // sum of args
+  kMul,     // product of args
+  kPowInt,  // args[0] ^ exponent (integer, non-zero, not 1)
+  kPow,     // args[0] ^ args[1]
+  kSqrt,
+  kSin,
+  kCos,
+  kTan,
+  kAsin,
+  kAcos,
+  kAtan,
+  kExp,
+  kLog,
+  kMotionLaw,    // d^order/dx^order of motion law `law` at args[0] (kernels/motion_law.hpp)
+  kSelect,       // re(args[0]) < 0 ? args[1] : args[2] (a driver's pieces, kernels/piecewise.hpp)
+  kFloor,        // floor(re(args[0])) (whole periods, kernels/piecewise.hpp)
+  kDriverInput,  // d^order/dt^order of input driver `table` (Params members, format 6.3)
+  kTable,  // d^order/dx^order of table `table` (registered_table) at args[0] (kernels/spline.hpp)
+};
+
+struct Node {
+  OpKind kind = OpKind::kConst;
+  std::vector<int> args;
+  int exponent = 0;   // kPowInt
+  int law = 0, order = 0;  // kMotionLaw; order also kTable
+  int table = -1;          // kTable: its number in table.hpp's registry; kDriverInput: driver
+  double value = 0;   // kConst
+  GiNaC::ex exact;    // kConst: the exact (or high-precision) value
+  Input input{InputKind::kT, 0};  // kInput
+  int uses = 0;       // references from other nodes and outputs
+  // Computed once into a named intermediate term (`_tK`) rather than inlined where used:
+  // operations used more than once, and bases of integer powers (x*x reads x twice).
+  bool named = false;
+};
+
+// Whether a product's argument is divided by rather than multiplied: an inlined negative
+// integer power. Both back ends follow this, so they round identically.
+inline bool is_divisor(const Node& arg) {
+  return arg.kind == OpKind::kPowInt && arg.exponent < 0 && !arg.named;
+}
+
+// Integer powers up to this magnitude become repeated products; larger ones call pow.
+inline constexpr int kMaxUnrolledPower = 8;
+
+// A value that is a compile-time constant or a node.
+struct Program {
+  std::vector<Node> nodes;   // in dependency order: args precede their users
+  std::vector<int> outputs;  // node per output; kZero for an identically zero output
+  static constexpr int kZero = -1;
+
+  // Whether the program reads any input of this kind (for unused-argument handling).
+  bool reads(InputKind kind) const;
+  // Nodes that are computed (not inputs, not constants).
+  int operation_count() const;
+};
+
+// Lowers `outputs` to one program; shared subexpressions become shared nodes.
+Program lower(const std::vector<GiNaC::ex>& outputs, const SymbolTable& symbols);
+
+// The programs of one mechanism: what both back ends need.
+struct ModelPrograms {
+  int nq = 0, nc = 0;
+  std::vector<int> jac_rows, jac_cols;
+  Program phi, phi_q, nu, gamma;
+  // Outputs (format 6.4): their values (q, t); output_rates: the rates, then the
+  // accelerations at qdd = 0, then O_q (outputs x nq, row-major), all in q, qd, t.
+  int num_outputs = 0;
+  Program outputs, output_rates;
+};
+
+// The concatenation output_rates lowers: rates, a0, O_q (SymbolicModel's output fields).
+std::vector<GiNaC::ex> output_rate_expressions(const SymbolicModel& model);
+
+ModelPrograms lower_model(const SymbolicModel& model, const SymbolTable& symbols, int nq);
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,12 @@
+// The symbolic stage: the mechanism's equations and their derivatives as GiNaC expressions.
+//
+// Takes: a Mechanism (model stage). Gives: a SymbolTable (every GiNaC symbol: coordinates,
+// velocities, time, parameters, inputs) and a SymbolicModel (derive): Phi(q, t), the
+// structural non-zeros of Phi_q, nu = -Phi_t, gamma, q0, the points' offsets, the outputs,
+// exact parameter values, the coordinate kinds and the length scale. functions.hpp is the one
+// table of the expression language's functions and motion laws. Next: the program stage
+// (lowering) and the structure stage (BLT).
+#pragma once
+
+#include "kinegen/codegen/symbolic/functions.hpp"
+#include "kinegen/codegen/symbolic/symbolic.hpp"

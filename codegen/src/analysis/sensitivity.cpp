@@ -1,0 +1,127 @@
+#include "kinegen/codegen/analysis/sensitivity.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "kinegen/codegen/analysis/evaluator.hpp"
+
+namespace kinegen::codegen {
+
+std::vector<GiNaC::ex> derive_phi_p(const SymbolicModel& model, const SymbolTable& symbols,
+                                    const std::vector<int>& params) {
+  std::vector<GiNaC::ex> out;
+  out.reserve(model.phi.size() * params.size());
+  for (int p : params)
+    for (const auto& row : model.phi) out.push_back(row.diff(symbols.param(p)));
+  return out;
+}
+
+std::vector<std::string> split_parameter_list(const std::string& list) {
+  std::vector<std::string> names;
+  std::size_t begin = 0;
+  while (true) {
+    const std::size_t end = list.find(',', begin);
+    std::string name = list.substr(begin, end == std::string::npos ? end : end - begin);
+    if (name.empty())
+      throw UsageError("--sensitivity expects parameter names separated by commas, got '" + list +
+                       "'");
+    names.push_back(std::move(name));
+    if (end == std::string::npos) break;
+    begin = end + 1;
+  }
+  return names;
+}
+
+int find_parameter(const CompiledModel& model, const std::string& name, const std::string& option) {
+  const SymbolTable& symbols = model.symbols();
+  for (int k = 0; k < symbols.num_params(); ++k)
+    if (symbols.param_name(k) == name) return k;
+  std::string known;
+  for (int k = 0; k < symbols.num_params(); ++k)
+    known += (known.empty() ? "" : ", ") + symbols.param_name(k);
+  throw UsageError(option + ": the mechanism has no parameter '" + name +
+                   "' (it has: " + (known.empty() ? "none" : known) + ")");
+}
+
+SensitivityModel build_sensitivity(const CompiledModel& model,
+                                   const std::vector<std::string>& names) {
+  const SymbolTable& symbols = model.symbols();
+  SensitivityModel s;
+  for (const auto& name : names) {
+    // A repeated name would repeat column names, which a reader keyed on names collapses.
+    if (std::find(s.names.begin(), s.names.end(), name) != s.names.end())
+      throw UsageError("--sensitivity: '" + name + "' is given twice");
+    s.params.push_back(find_parameter(model, name, "--sensitivity"));
+    s.names.push_back(name);
+  }
+  s.phi_p = lower(derive_phi_p(model.symbolic(), symbols, s.params), symbols);
+  const auto& values = model.symbolic().param_values;
+  for (int p : s.params) {
+    std::vector<Eigen::Vector2d> ds;
+    for (const auto& [x, y] : model.symbolic().point_s)
+      ds.emplace_back(to_double(substitute_params(x.diff(symbols.param(p)), symbols, values)),
+                      to_double(substitute_params(y.diff(symbols.param(p)), symbols, values)));
+    s.point_ds.push_back(std::move(ds));
+  }
+  const SymbolicModel& sym = model.symbolic();
+  std::vector<GiNaC::ex> output_p;
+  for (int p : s.params)
+    for (const auto& o : sym.output_values) output_p.push_back(o.diff(symbols.param(p)));
+  output_p.insert(output_p.end(), sym.output_q.begin(), sym.output_q.end());
+  s.output_p = lower(output_p, symbols);
+  return s;
+}
+
+void point_sensitivities(const CompiledModel& model, const SensitivityModel& sensitivity,
+                         const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
+                         Eigen::MatrixXd& dpoints) {
+  const auto& points = model.mechanism().points;
+  const int np = static_cast<int>(sensitivity.params.size());
+  dpoints.resize(2 * static_cast<Eigen::Index>(points.size()), np);
+  for (std::size_t p = 0; p < points.size(); ++p) {
+    const int b = 3 * points[p].body;
+    const double c = std::cos(q[b + 2]), sn = std::sin(q[b + 2]);
+    const Eigen::Matrix2d a{{c, -sn}, {sn, c}};
+    const Eigen::Vector2d as = a * model.point_offsets()[p];
+    const Eigen::Vector2d as_perp(-as[1], as[0]);  // d(A s)/dphi
+    for (int k = 0; k < np; ++k)
+      dpoints.block<2, 1>(2 * p, k) =
+          dq_dp.block<2, 1>(b, k) + dq_dp(b + 2, k) * as_perp + a * sensitivity.point_ds[k][p];
+    dpoints.array() += 0.0;  // -0 prints as 0
+  }
+}
+
+void output_sensitivities(const CompiledModel& model, const SensitivityModel& sensitivity, double t,
+                          const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
+                          Eigen::MatrixXd& doutputs) {
+  const int n = model.programs().num_outputs, nq = model.nq();
+  const int np = static_cast<int>(sensitivity.params.size());
+  doutputs.resize(n, np);
+  if (n == 0) return;
+  // Runs per row; outputs are few, so the work space is small next to the solve.
+  std::vector<double> values(static_cast<std::size_t>(n) * (np + nq));
+  ProgramEvaluator<double>(sensitivity.output_p)
+      .run(q.data(), nullptr, t, model.params().data(), values.data());
+  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>
+      o_q(values.data() + static_cast<std::size_t>(n) * np, n, nq);
+  for (int k = 0; k < np; ++k)
+    for (int o = 0; o < n; ++o)
+      doutputs(o, k) = values[k * n + o] + o_q.row(o).dot(dq_dp.col(k)) + 0.0;  // -0 prints as 0
+}
+
+std::vector<std::string> sensitivity_columns(const Mechanism& m,
+                                             const std::vector<std::string>& names) {
+  std::vector<std::string> columns;
+  for (const auto& p : names) {
+    const auto add = [&](const std::string& c) { columns.push_back("d(" + c + ")/d(" + p + ")"); };
+    for (const auto& b : m.bodies)
+      for (const char* c : {".x", ".y", ".phi"}) add(b.name + c);
+    for (const auto& q : m.coordinates) add(q.name);
+    for (const auto& pt : m.points)
+      for (const char* c : {".x", ".y"}) add(pt.name + c);
+    for (const auto& o : m.outputs) add(o.name);
+  }
+  return columns;
+}
+
+}  // namespace kinegen::codegen

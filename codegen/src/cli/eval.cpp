@@ -1,0 +1,67 @@
+// `kinegen eval`: Phi, Phi_q, nu, gamma (and the outputs' values) at one q, qd, t as JSON.
+#include <Eigen/Dense>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/evaluator.hpp"
+#include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/io/output_file.hpp"
+
+namespace kinegen::cli {
+
+namespace {
+
+std::string json_number(double v) { return std::isfinite(v) ? kc::format_number(v) : "null"; }
+
+std::string json_array(const Eigen::VectorXd& v) {
+  std::string s = "[";
+  for (int k = 0; k < v.size(); ++k) s += (k ? ", " : "") + json_number(v[k]);
+  return s + "]";
+}
+
+Eigen::VectorXd vector_arg(const std::vector<double>& values, int n, const char* option) {
+  if (static_cast<int>(values.size()) != n)
+    throw kc::UsageError(std::string(option) + " expects " + std::to_string(n) +
+                         " comma-separated values (one per coordinate), got " +
+                         std::to_string(values.size()));
+  return Eigen::Map<const Eigen::VectorXd>(values.data(), n);
+}
+
+}  // namespace
+
+int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
+             const std::vector<double>& qd_arg) {
+  const auto model = load(c, {}, false);
+  const int nq = model->nq(), nc = model->nc();
+  const Eigen::VectorXd q = q_arg.empty() ? model->q0() : vector_arg(q_arg, nq, "--q");
+  const Eigen::VectorXd qd =
+      qd_arg.empty() ? Eigen::VectorXd::Zero(nq) : vector_arg(qd_arg, nq, "--qd");
+  kc::ModelEvaluator<double> eval(*model);
+  Eigen::VectorXd phi(nc), nu(nc), gamma(nc);
+  Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(nc, nq);
+  eval.phi(q.data(), t, phi.data());
+  eval.jacobian(q.data(), t, jac);
+  eval.nu(q.data(), t, nu.data());
+  eval.gamma(q.data(), qd.data(), t, gamma.data());
+  std::string rows;
+  for (int r = 0; r < nc; ++r) rows += (r ? ", " : "") + json_array(jac.row(r).transpose());
+  // Outputs' values (format 6.4); a file without outputs keeps its v1 JSON.
+  std::string outputs;
+  if (model->programs().num_outputs > 0) {
+    Eigen::VectorXd values(model->programs().num_outputs);
+    kc::ProgramEvaluator<double> program(model->programs().outputs);
+    program.run(q.data(), nullptr, t, model->params().data(), values.data());
+    outputs = ", \"outputs\": " + json_array(values);
+  }
+  kc::OutputFile out("-");
+  out.stream() << "{\"phi\": " << json_array(phi) << ", \"phi_q\": [" << rows
+               << "], \"nu\": " << json_array(nu) << ", \"gamma\": " << json_array(gamma) << outputs
+               << "}\n";
+  out.commit();
+  return 0;
+}
+
+}  // namespace kinegen::cli

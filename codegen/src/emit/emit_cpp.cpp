@@ -1,0 +1,2366 @@
+#include "kinegen/codegen/emit/emit_cpp.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+
+#include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/sensitivity.hpp"
+#include "kinegen/codegen/emit/embedded_kernels.hpp"
+#include "kinegen/codegen/emit/reserved_names.hpp"
+#include "kinegen/codegen/model/table.hpp"
+#include "kinegen/codegen/structure/block_program.hpp"
+#include "kinegen/codegen/structure/structure.hpp"
+
+namespace kinegen::codegen {
+
+namespace {
+
+// Precedence of a printed expression, to decide on parentheses.
+enum Prec { kSum = 1, kUnary = 2, kProduct = 3, kAtom = 4 };
+
+struct Printed {
+  std::string text;
+  Prec prec;
+};
+
+// Integers that double (and T(int) for float, through double) holds exactly.
+bool is_small_integer(const GiNaC::numeric& x) {
+  return x.is_integer() && GiNaC::abs(x) <= GiNaC::numeric(1L << 53);
+}
+
+std::string str(const GiNaC::numeric& x) {
+  std::ostringstream os;
+  os << x;
+  return os.str();
+}
+
+std::string safe_comment_text(const std::string& s) {
+  std::string out;
+  for (char ch : s)
+    out += (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '.' || ch == '-' ||
+            ch == '+')
+               ? ch
+               : '?';
+  return out;
+}
+
+// The Params members of input driver k (format 6.3, `f: input`): its value, rate and
+// acceleration, NAME, NAME_v and NAME_a.
+std::string input_member(const Mechanism& m, int driver, int order) {
+  static const char* const kSuffix[] = {"", "_v", "_a"};
+  return m.drivers.at(static_cast<std::size_t>(driver)).name + kSuffix[order];
+}
+
+// The members FunctionPrinter wrote as `p.@inK.O@`, named.
+std::string with_input_members(std::string header, const Mechanism& m) {
+  for (std::size_t p = header.find("p.@in"); p != std::string::npos; p = header.find("p.@in", p)) {
+    const std::size_t dot = header.find('.', p + 5), end = header.find('@', p + 5);
+    const int driver = std::stoi(header.substr(p + 5, dot - p - 5));
+    const int order = std::stoi(header.substr(dot + 1, end - dot - 1));
+    header.replace(p + 2, end + 1 - (p + 2), input_member(m, driver, order));
+  }
+  return header;
+}
+
+// A table's function as FunctionPrinter writes it, `_tbl@ID@` (ID its registry number), until
+// with_expression_kernels numbers the tables of the header from 0.
+std::string table_token(int id) { return "_tbl@" + std::to_string(id) + "@"; }
+
+class FunctionPrinter {
+ public:
+  FunctionPrinter(const Program& program, const SymbolTable& symbols)
+      : p_(program), symbols_(symbols), names_(program.nodes.size()) {}
+
+  // The body of a generated function: the intermediate terms, then `out[k] = ...;`.
+  // first_output: the index of the program's first output in `out` (a part of a split function).
+  // out_index: where output k goes, out_index[first_output + k] (outputs taken from a larger
+  // set); or, with outputs_through_table, out[_o[k]] (a repeated constraint's function).
+  std::string body(const char* indent, int first_output = 0,
+                   const std::vector<int>* out_index = nullptr,
+                   bool outputs_through_table = false) {
+    std::ostringstream os;
+    int count = 0;
+    for (const auto& n : p_.nodes) count += n.named;
+    if (count > 0) os << indent << "// Intermediate terms (" << count << ")\n";
+    int next = 0;
+    for (std::size_t k = 0; k < p_.nodes.size(); ++k) {
+      if (!p_.nodes[k].named) continue;
+      const std::string name = "_t" + std::to_string(next++);
+      os << indent << "const T " << name << " = " << print(static_cast<int>(k)).text << ";\n";
+      names_[k] = name;
+    }
+    if (count > 0 && !p_.outputs.empty()) os << "\n";
+    for (std::size_t o = 0; o < p_.outputs.size(); ++o) {
+      const int id = p_.outputs[o];
+      const int k = first_output + static_cast<int>(o);
+      const std::string target = outputs_through_table ? "_o[" + std::to_string(o) + "]"
+                                 : out_index           ? std::to_string((*out_index)[k])
+                                                       : std::to_string(k);
+      os << indent << "out[" << target << "] = " << (id == Program::kZero ? "T(0)" : print(id).text)
+         << ";\n";
+    }
+    return os.str();
+  }
+
+  // Demand-driven printing, for functions whose outputs are interleaved with solves: prints
+  // (as `const T _tK = ...;`) the named terms `id` needs that are not yet in scope, skipping
+  // those `allowed` rejects (they are printed later, nearer their use).
+  void ensure(int id, std::ostream& os, const std::string& indent,
+              const std::function<bool(int)>& allowed = nullptr) {
+    if (id == Program::kZero || !names_[id].empty()) return;
+    const Node& n = p_.nodes[id];
+    for (int a : n.args) ensure(a, os, indent, allowed);
+    if (!n.named || (allowed && !allowed(id))) return;
+    const std::string name = "_t" + std::to_string(next_++);
+    os << indent << "const T " << name << " = " << print(id).text << ";\n";
+    names_[id] = name;
+    if (!scopes_.empty()) scopes_.back().push_back(id);
+  }
+  // Names `id` (a named term) by a variable the caller declares and keeps up to date.
+  void bind(int id, const std::string& name) { names_[id] = name; }
+  // Coordinates read through a table (a repeated block's function): q[c] prints as
+  // q[_i[slot[c]]], and likewise qd.
+  void read_through(const std::vector<int>* slot) { slot_ = slot; }
+  bool named(int id) const { return !names_[id].empty(); }
+  // The text of a node whose named terms are in scope.
+  std::string text(int id) { return id == Program::kZero ? "T(0)" : print(id).text; }
+  std::string atom_text(int id) { return id == Program::kZero ? "T(0)" : atom(id); }
+  // Terms printed between open_scope and close_scope go out of scope at the close.
+  void open_scope() { scopes_.emplace_back(); }
+  void close_scope() {
+    for (int id : scopes_.back()) names_[id].clear();
+    scopes_.pop_back();
+  }
+
+ private:
+  std::string atom(int id) {
+    const Printed e = print(id);
+    return e.prec == kAtom ? e.text : "(" + e.text + ")";
+  }
+
+  Printed constant(const Node& n) {
+    if (GiNaC::is_a<GiNaC::numeric>(n.exact)) {
+      const auto x = GiNaC::ex_to<GiNaC::numeric>(n.exact);
+      if (is_small_integer(x)) return {"T(" + str(x) + ")", kAtom};
+      if (x.is_rational() && is_small_integer(x.numer()) && is_small_integer(x.denom()))
+        return {"T(" + str(x.numer()) + ")/T(" + str(x.denom()) + ")", kProduct};
+    }
+    return {"T(" + format_double(n.value) + ")", kAtom};
+  }
+
+  std::string index(int c) const {
+    return slot_ ? "_i[" + std::to_string((*slot_)[c]) + "]" : std::to_string(c);
+  }
+
+  Printed input(const Node& n) {
+    switch (n.input.kind) {
+      case InputKind::kQ: return {"q[" + index(n.input.index) + "]", kAtom};
+      case InputKind::kQd: return {"qd[" + index(n.input.index) + "]", kAtom};
+      case InputKind::kT: return {"t", kAtom};
+      case InputKind::kParam: return {"T(p." + symbols_.param_name(n.input.index) + ")", kAtom};
+    }
+    return {"?", kAtom};
+  }
+
+  std::string power(int base, int n) {
+    if (n > kMaxUnrolledPower) return "pow(" + print(base).text + ", T(" + std::to_string(n) + "))";
+    const std::string b = atom(base);
+    std::string s = b;
+    for (int k = 1; k < n; ++k) s += "*" + b;
+    return s;
+  }
+
+  // A sum's term: returns the sign it should be joined with and the text of its magnitude.
+  std::pair<bool, Printed> signed_term(int id) {
+    if (negative_term(id)) return {true, product(p_.nodes[id], /*negate_coefficient=*/true)};
+    return {false, print(id)};
+  }
+  // Whether a sum's term is printed as a subtraction: an unnamed product with a negative
+  // coefficient.
+  bool negative_term(int id) const {
+    const Node& n = p_.nodes[id];
+    if (!names_[id].empty() || n.kind != OpKind::kMul || n.args.empty()) return false;
+    const Node& c = p_.nodes[n.args[0]];
+    return c.kind == OpKind::kConst && GiNaC::is_a<GiNaC::numeric>(c.exact) &&
+           GiNaC::ex_to<GiNaC::numeric>(c.exact).is_negative();
+  }
+
+  Printed product(const Node& n, bool negate_coefficient) {
+    std::string num, den;
+    bool leading_minus = false;
+    for (std::size_t a = 0; a < n.args.size(); ++a) {
+      const int id = n.args[a];
+      const Node& arg = p_.nodes[id];
+      if (is_divisor(arg)) {
+        const int m = -arg.exponent;
+        den += "/" + (m == 1 ? atom(arg.args[0]) : "(" + power(arg.args[0], m) + ")");
+        continue;
+      }
+      std::string factor;
+      if (a == 0 && arg.kind == OpKind::kConst && GiNaC::is_a<GiNaC::numeric>(arg.exact)) {
+        GiNaC::numeric c = GiNaC::ex_to<GiNaC::numeric>(arg.exact);
+        if (negate_coefficient) c = -c;
+        if (c == -1 && n.args.size() > 1 && !is_divisor(p_.nodes[n.args[1]])) {
+          leading_minus = true;
+          continue;
+        }
+        if (c == 1 && n.args.size() > 1 && !is_divisor(p_.nodes[n.args[1]])) continue;
+        Node shown = arg;
+        shown.exact = c;
+        shown.value = c.to_double();
+        const Printed pc = constant(shown);
+        factor = pc.prec == kAtom ? pc.text : "(" + pc.text + ")";
+      } else {
+        factor = atom(id);
+      }
+      num += (num.empty() ? "" : "*") + factor;
+    }
+    if (num.empty()) num = "T(1)";
+    std::string s = num + den;
+    if (leading_minus) return {"-" + s, kUnary};
+    return {s, kProduct};
+  }
+
+  Printed print(int id) {
+    if (!names_[id].empty()) return {names_[id], kAtom};
+    const Node& n = p_.nodes[id];
+    const auto call = [&](const char* f) { return Printed{std::string(f) + "(" + print(n.args[0]).text + ")", kAtom}; };
+    switch (n.kind) {
+      case OpKind::kConst: return constant(n);
+      case OpKind::kInput: return input(n);
+      case OpKind::kAdd: {
+        // `q[3] - q[6]`, not `-q[6] + q[3]`: a negative first term swaps with a positive
+        // second, which leaves every rounding as it was (a + b == b + a, and the rest of the
+        // sum still adds to their sum).
+        std::vector<int> args = n.args;
+        if (args.size() >= 2 && negative_term(args[0]) && !negative_term(args[1]))
+          std::swap(args[0], args[1]);
+        std::string s;
+        for (std::size_t a = 0; a < args.size(); ++a) {
+          auto [negative, term] = signed_term(args[a]);
+          const std::string text = term.prec <= kSum ? "(" + term.text + ")" : term.text;
+          if (a == 0)
+            s = negative ? "-" + (term.prec < kProduct ? "(" + term.text + ")" : term.text) : text;
+          else
+            s += (negative ? " - " : " + ") +
+                 (negative && term.prec < kProduct ? "(" + term.text + ")" : text);
+        }
+        return {s, kSum};
+      }
+      case OpKind::kMul: return product(n, false);
+      case OpKind::kPowInt:
+        if (n.exponent > 0) {
+          const std::string s = power(n.args[0], n.exponent);
+          return {s, n.exponent == 1 || n.exponent > kMaxUnrolledPower ? kAtom : kProduct};
+        }
+        return {"T(1)/" + (n.exponent == -1 ? atom(n.args[0]) : "(" + power(n.args[0], -n.exponent) + ")"),
+                kProduct};
+      case OpKind::kPow:
+        return {"pow(" + print(n.args[0]).text + ", " + print(n.args[1]).text + ")", kAtom};
+      case OpKind::kSqrt: return call("sqrt");
+      case OpKind::kSin: return call("sin");
+      case OpKind::kCos: return call("cos");
+      case OpKind::kTan: return call("tan");
+      case OpKind::kAsin: return call("asin");
+      case OpKind::kAcos: return call("acos");
+      case OpKind::kAtan: return call("atan");
+      case OpKind::kExp: return call("exp");
+      case OpKind::kLog: return call("log");
+      case OpKind::kMotionLaw:  // the motion_law kernel (kernels/motion_law.hpp)
+        return {"_motion_law(" + std::to_string(n.law) + ", " + std::to_string(n.order) + ", " +
+                    print(n.args[0]).text + ")",
+                kAtom};
+      case OpKind::kSelect:  // the piecewise kernel (kernels/piecewise.hpp)
+        return {"_select(" + print(n.args[0]).text + ", " + print(n.args[1]).text + ", " +
+                    print(n.args[2]).text + ")",
+                kAtom};
+      case OpKind::kFloor:
+        return call("_floor_re");
+      case OpKind::kDriverInput:  // named by emit_header (input_members)
+        return {"T(p.@in" + std::to_string(n.table) + "." + std::to_string(n.order) + "@)", kAtom};
+      case OpKind::kTable:  // renumbered per header by with_expression_kernels
+        return {table_token(n.table) + "(" + std::to_string(n.order) + ", " +
+                    print(n.args[0]).text + ")",
+                kAtom};
+    }
+    return {"?", kAtom};
+  }
+
+  const Program& p_;
+  const SymbolTable& symbols_;
+  std::vector<std::string> names_;
+  int next_ = 0;
+  std::vector<std::vector<int>> scopes_;
+  const std::vector<int>* slot_ = nullptr;
+};
+
+template <class Container>
+std::string join(const Container& values) {
+  std::string s;
+  for (const auto& v : values) s += (s.empty() ? "" : ", ") + v;
+  return s;
+}
+
+// The std functions a program calls, for a using-declaration: unqualified calls then find
+// std's overloads for float, double and std::complex, and other scalar types by ADL.
+std::string std_functions(const Program& program) {
+  static const std::pair<OpKind, const char*> kFunctions[] = {
+      {OpKind::kAcos, "acos"}, {OpKind::kAsin, "asin"}, {OpKind::kAtan, "atan"},
+      {OpKind::kCos, "cos"},   {OpKind::kExp, "exp"},   {OpKind::kLog, "log"},
+      {OpKind::kPow, "pow"},   {OpKind::kSin, "sin"},   {OpKind::kSqrt, "sqrt"},
+      {OpKind::kTan, "tan"}};
+  std::string used;
+  for (const auto& [kind, fname] : kFunctions) {
+    bool uses = false;
+    for (const auto& n : program.nodes)
+      uses = uses || n.kind == kind ||
+             (kind == OpKind::kPow && n.kind == OpKind::kPowInt &&
+              std::abs(n.exponent) > kMaxUnrolledPower);
+    if (uses) used += std::string(used.empty() ? "" : ", ") + "std::" + fname;
+  }
+  return used;
+}
+
+// A part of a program split for compile time: a contiguous range of outputs and every node they
+// read, in the program's order. Nodes keep their kind, arguments and `named` flags, so a part
+// evaluates each output exactly as the whole program does; terms shared with other parts are
+// recomputed.
+struct ProgramPart {
+  int first_output = 0;
+  Program program;
+};
+
+// At most max_ops / kOpsPerStore outputs per part. g++ -O2 checks each store to `out` against
+// the earlier stores of its function (value numbering looks for a redundant store, up to 1000
+// alias queries each), so the time per part grows with the square of its stores: a Jacobian
+// part of 1000 operations has about 1600 of them. See docs/scale.md.
+constexpr int kOpsPerStore = 5;
+int max_part_outputs(int max_ops) { return std::max(1, max_ops / kOpsPerStore); }
+
+// Splits `program` into parts of about max_ops operations each (a part ends with the output
+// that reaches max_ops or max_part_outputs; one output's terms are never split).
+std::vector<ProgramPart> split_program(const Program& program, int max_ops) {
+  const std::size_t max_outputs = static_cast<std::size_t>(max_part_outputs(max_ops));
+  std::vector<ProgramPart> parts;
+  std::vector<int> part_of(program.nodes.size(), -1);
+  std::vector<int> stack;
+  std::size_t o = 0;
+  while (o < program.outputs.size()) {
+    const int part = static_cast<int>(parts.size());
+    ProgramPart pp;
+    pp.first_output = static_cast<int>(o);
+    std::vector<int> members;
+    int ops = 0;
+    std::vector<int> outs;
+    for (; o < program.outputs.size() && ops < max_ops && outs.size() < max_outputs; ++o) {
+      const int id = program.outputs[o];
+      outs.push_back(id);
+      if (id == Program::kZero || part_of[id] == part) continue;
+      stack.assign(1, id);
+      part_of[id] = part;
+      while (!stack.empty()) {
+        const int k = stack.back();
+        stack.pop_back();
+        members.push_back(k);
+        const Node& n = program.nodes[k];
+        ops += n.kind != OpKind::kConst && n.kind != OpKind::kInput;
+        for (int a : n.args)
+          if (part_of[a] != part) {
+            part_of[a] = part;
+            stack.push_back(a);
+          }
+      }
+    }
+    std::sort(members.begin(), members.end());
+    std::vector<int> remap(program.nodes.size(), -1);
+    for (int k : members) {
+      remap[k] = static_cast<int>(pp.program.nodes.size());
+      Node n = program.nodes[k];
+      for (int& a : n.args) a = remap[a];
+      pp.program.nodes.push_back(std::move(n));
+    }
+    for (int id : outs) pp.program.outputs.push_back(id == Program::kZero ? id : remap[id]);
+    parts.push_back(std::move(pp));
+  }
+  return parts;
+}
+
+void emit_signature(std::ostringstream& os, const std::string& name, bool with_qd) {
+  os << "  template <class T>\n";
+  os << "  static void " << name << "([[maybe_unused]] const T* q,";
+  if (with_qd) os << " [[maybe_unused]] const T* qd,";
+  os << "\n      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {\n";
+}
+
+// One function, or when the program has more than max_ops operations or max_part_outputs
+// outputs (max_ops > 0), private parts that the function calls in order: g++ -O2 takes time
+// superlinear in a function's size.
+// out_index: the out index of each of the program's outputs (default: k); tail: code that ends
+// the public function.
+void emit_function(std::ostringstream& os, const char* name, const char* out_size,
+                   const Program& program, const SymbolTable& symbols, bool with_qd,
+                   int max_ops, const std::vector<int>* out_index = nullptr,
+                   const std::string& tail = "") {
+  if (max_ops > 0 &&
+      (program.operation_count() > max_ops ||
+       static_cast<int>(program.outputs.size()) > max_part_outputs(max_ops))) {
+    const std::vector<ProgramPart> parts = split_program(program, max_ops);
+    os << " private:\n";
+    for (std::size_t k = 0; k < parts.size(); ++k) {
+      const Program& part = parts[k].program;
+      const int last = parts[k].first_output + static_cast<int>(part.outputs.size()) - 1;
+      emit_signature(os, "_" + std::string(name) + "_part" + std::to_string(k), with_qd);
+      if (out_index)
+        os << "    // outputs " << parts[k].first_output << ".." << last << " of the "
+           << program.outputs.size() << " not repeated; " << part.operation_count()
+           << " operations\n";
+      else
+        os << "    // out[" << parts[k].first_output << ".." << last << "]; "
+           << part.operation_count() << " operations\n";
+      if (const std::string used = std_functions(part); !used.empty())
+        os << "    using " << used << ";\n";
+      os << FunctionPrinter(part, symbols).body("    ", parts[k].first_output, out_index);
+      os << "  }\n";
+    }
+    os << "\n public:\n";
+    emit_signature(os, name, with_qd);
+    os << "    // out[" << out_size << "]; " << program.operation_count() << " operations in "
+       << parts.size() << " parts\n";
+    for (std::size_t k = 0; k < parts.size(); ++k)
+      os << "    _" << name << "_part" << k << "(q, " << (with_qd ? "qd, " : "") << "t, p, out);\n";
+    os << tail << "  }\n";
+    return;
+  }
+  os << "  template <class T>\n";
+  os << "  static void " << name << "([[maybe_unused]] const T* q,";
+  if (with_qd) os << " [[maybe_unused]] const T* qd,";
+  os << "\n      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {\n";
+  os << "    // out[" << out_size << "]; " << program.operation_count() << " operations\n";
+  if (const std::string used = std_functions(program); !used.empty())
+    os << "    using " << used << ";\n";
+  os << FunctionPrinter(program, symbols).body("    ", 0, out_index);
+  os << tail << "  }\n";
+}
+
+// Repeated pieces (blocks, constraints) are compared under a renaming of the coordinates they
+// read: the k-th coordinate of a piece's table becomes the model's k-th.
+
+// `static constexpr int name[rows][columns]`, a table of the repeated pieces (a row of zero
+// columns is stored as one 0, which nothing reads).
+void emit_table(std::ostringstream& os, const std::string& name,
+                const std::vector<std::vector<int>>& rows) {
+  os << "  static constexpr int " << name << "[" << rows.size() << "]["
+     << std::max<std::size_t>(1, rows[0].size()) << "] = {\n";
+  for (const auto& row : rows) {
+    std::vector<std::string> v;
+    for (int x : row) v.push_back(std::to_string(x));
+    os << "      {" << (v.empty() ? "0" : join(v)) << "},\n";
+  }
+  os << "  };\n";
+}
+
+// Adds the coordinates whose q or qd `e` reads to `read`.
+void add_coordinates_read(const GiNaC::ex& e, const SymbolTable& symbols, std::set<int>& read) {
+  for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it)
+    if (GiNaC::is_a<GiNaC::symbol>(*it)) {
+      const Input in = symbols.classify(*it);
+      if (in.kind == InputKind::kQ || in.kind == InputKind::kQd) read.insert(in.index);
+    }
+}
+
+// table[k] -> coordinate k, q and qd alike; one substitution, so the renaming is simultaneous.
+GiNaC::exmap table_renaming(const std::vector<int>& table, const SymbolTable& symbols) {
+  GiNaC::exmap rename;
+  for (std::size_t k = 0; k < table.size(); ++k) {
+    rename[symbols.q(table[k])] = symbols.q(static_cast<int>(k));
+    rename[symbols.qd(table[k])] = symbols.qd(static_cast<int>(k));
+  }
+  return rename;
+}
+
+// Equal printed keys should mean equal renamed expressions, but names could coincide: this
+// compares exactly.
+bool same_expressions(const std::vector<GiNaC::ex>& a, const std::vector<GiNaC::ex>& b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t k = 0; k < a.size(); ++k)
+    if (!a[k].is_equal(b[k])) return false;
+  return true;
+}
+
+// Section-4 functions with repeated constraints (EmitOptions::roll_min): the outputs of each
+// constraint form a group; groups alike up to the coordinates they read (with the k-th
+// coordinate read, ascending, renamed to the model's k-th, q and qd alike, every output is the
+// same expression) are evaluated by one function, in a loop over tables of their coordinates
+// and output indices. The rest is lowered and emitted as usual.
+struct RolledOutputs {
+  struct Class {
+    Program program;                       // the first group's outputs
+    std::vector<int> slot;                 // coordinate -> its slot in the first group's table
+    std::vector<std::vector<int>> coords;  // per group: coordinates read, ascending
+    std::vector<std::vector<int>> outs;    // per group: its out indices
+  };
+  std::vector<Class> classes;
+  Program rest;                 // the outputs of no class
+  std::vector<int> rest_index;  // their out indices
+};
+
+RolledOutputs roll_outputs(const std::vector<GiNaC::ex>& exprs, const std::vector<int>& group,
+                           const SymbolTable& symbols, int roll_min) {
+  RolledOutputs ro;
+  std::map<int, std::vector<int>> members;  // group -> its outputs, in order
+  for (std::size_t k = 0; k < exprs.size(); ++k) members[group[k]].push_back(static_cast<int>(k));
+  std::map<std::string, std::vector<int>> alike;  // key -> groups
+  std::map<int, std::vector<int>> coords;
+  std::map<int, std::vector<GiNaC::ex>> renamed;
+  for (const auto& [g, outs] : members) {
+    std::set<int> read;
+    for (int k : outs) add_coordinates_read(exprs[k], symbols, read);
+    const std::vector<int> list(read.begin(), read.end());
+    const GiNaC::exmap rename = table_renaming(list, symbols);
+    std::ostringstream key;
+    key << outs.size() << " " << list.size();
+    for (int k : outs) {
+      renamed[g].push_back(exprs[k].subs(rename));
+      key << " " << renamed[g].back() << ";";
+    }
+    coords[g] = list;
+    alike[key.str()].push_back(g);
+  }
+  std::vector<char> rolled(exprs.size(), 0);
+  for (const auto& [key, groups] : alike) {
+    if (static_cast<int>(groups.size()) < roll_min) continue;
+    const int first = groups[0];
+    RolledOutputs::Class c;
+    for (int g : groups) {
+      if (coords[g].size() != coords[first].size() || !same_expressions(renamed[g], renamed[first]))
+        continue;
+      c.coords.push_back(coords[g]);
+      c.outs.push_back(members[g]);
+    }
+    if (static_cast<int>(c.outs.size()) < roll_min) continue;
+    for (const auto& outs : c.outs)
+      for (int k : outs) rolled[k] = 1;
+    std::vector<GiNaC::ex> first_exprs;
+    for (int k : members[first]) first_exprs.push_back(exprs[k]);
+    c.program = lower(first_exprs, symbols);
+    c.slot.assign(symbols.nq(), -1);
+    for (std::size_t j = 0; j < coords[first].size(); ++j)
+      c.slot[coords[first][j]] = static_cast<int>(j);
+    ro.classes.push_back(std::move(c));
+  }
+  std::vector<GiNaC::ex> rest;
+  for (std::size_t k = 0; k < exprs.size(); ++k)
+    if (!rolled[k]) {
+      rest.push_back(exprs[k]);
+      ro.rest_index.push_back(static_cast<int>(k));
+    }
+  ro.rest = lower(rest, symbols);
+  return ro;
+}
+
+// emit_function for outputs of which some are rolled (roll_outputs): each class's function and
+// tables (private), then the function, which evaluates the rest and loops over the classes.
+void emit_rolled_function(std::ostringstream& os, const char* name, const char* out_size,
+                          const RolledOutputs& ro, const SymbolTable& symbols, bool with_qd,
+                          int max_ops) {
+  os << " private:\n";
+  std::ostringstream tail;
+  for (std::size_t g = 0; g < ro.classes.size(); ++g) {
+    const RolledOutputs::Class& c = ro.classes[g];
+    const std::string f = "_" + std::string(name) + "_roll" + std::to_string(g);
+    os << "  // Repeated constraints (" << c.outs.size() << "): alike up to the coordinates they "
+       << "read (" << f << "_i,\n  // ascending) and where their outputs go (" << f << "_o).\n";
+    emit_table(os, f + "_i", c.coords);
+    emit_table(os, f + "_o", c.outs);
+    os << "  template <class T>\n"
+       << "  static void " << f << "([[maybe_unused]] const T* q,"
+       << (with_qd ? " [[maybe_unused]] const T* qd," : "") << "\n"
+       << "      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,\n"
+       << "      [[maybe_unused]] const int* _i, const int* _o) noexcept {\n";
+    if (const std::string used = std_functions(c.program); !used.empty())
+      os << "    using " << used << ";\n";
+    FunctionPrinter pr(c.program, symbols);
+    pr.read_through(&c.slot);
+    os << pr.body("    ", 0, nullptr, true) << "  }\n";
+    tail << "    for (int _m = 0; _m < " << c.outs.size() << "; ++_m)\n"
+         << "      " << f << "(q, " << (with_qd ? "qd, " : "") << "t, p, out, " << f << "_i[_m], "
+         << f << "_o[_m]);\n";
+  }
+  os << "\n public:\n";
+  emit_function(os, name, out_size, ro.rest, symbols, with_qd, max_ops, &ro.rest_index,
+                tail.str());
+}
+
+// emit_function, or emit_rolled_function when some constraints repeat (roll_min > 0).
+void emit_function_rolled_if(std::ostringstream& os, const char* name, const char* out_size,
+                             const Program& program, const std::vector<GiNaC::ex>& exprs,
+                             const std::vector<int>& group, const SymbolTable& symbols,
+                             bool with_qd, int max_ops, int roll_min) {
+  if (roll_min > 0) {
+    const RolledOutputs ro = roll_outputs(exprs, group, symbols, roll_min);
+    if (!ro.classes.empty()) {
+      emit_rolled_function(os, name, out_size, ro, symbols, with_qd, max_ops);
+      return;
+    }
+  }
+  emit_function(os, name, out_size, program, symbols, with_qd, max_ops);
+}
+
+// ---- Block solver (structure.hpp): position, velocity and acceleration block by block.
+
+std::string idx(int k) { return std::to_string(k); }
+
+// The block-solver kernels (runtime/include/kinegen/kernels/, embedded at build time) that
+// `code` calls, with those they call, in dependency order: each pasted unchanged between marker
+// comments (tests/test_kernels.cpp compares them with the files).
+void emit_kernels(std::ostringstream& os, const std::string& code) {
+  const auto calls = [&](const char* name) { return code.find(name) != std::string::npos; };
+  const bool trig = calls("_trig(");
+  const bool rotation = trig || calls("_rotate(");
+  const bool lu = calls("_lu_factor<");
+  const bool newton = calls("_newton_end(");
+  const bool linear = calls("_block_forward<") || calls("_block_transposed<");
+  for (const auto& k : embedded::kKernels) {
+    const std::string name = k.name;
+    const bool used = name == "report" || (name == "lu" && (lu || linear)) ||
+                      (name == "block_linear" && linear) ||
+                      (name == "rotation" && rotation) || (name == "trig_cache" && trig) ||
+                      (name == "newton" && newton);
+    if (!used) continue;
+    os << "  // ---- kinegen kernel " << name << " (kinegen/kernels/" << name << ".hpp)\n"
+       << k.text << "  // ---- end of kinegen kernel " << name << "\n\n";
+  }
+}
+
+// The knots of each table a header reads, as constant arrays, and its function `_tblK(order,
+// x)` over the spline kernel; the tokens renamed to `_tblK` in order of first use.
+std::string with_tables(std::string& header, std::size_t at) {
+  std::string data;
+  int next = 0;
+  for (std::size_t p = header.find("_tbl@", at); p != std::string::npos;
+       p = header.find("_tbl@", at)) {
+    const std::size_t end = header.find('@', p + 5);
+    const std::string token = header.substr(p, end + 1 - p);
+    const Spline& s = registered_table(std::stoi(token.substr(5)));
+    const std::string name = "_tbl" + std::to_string(next++);
+    for (std::size_t q = header.find(token); q != std::string::npos; q = header.find(token, q))
+      header.replace(q, token.size(), name);
+    const auto array = [&](const char* suffix, const std::vector<double>& v) {
+      std::string line =
+          "  static constexpr double " + name + suffix + "[" + std::to_string(v.size()) + "] = {";
+      for (std::size_t k = 0; k < v.size(); ++k) line += (k ? ", " : "") + format_double(v[k]);
+      return line + "};\n";
+    };
+    data += "  // Table " + std::to_string(next - 1) +
+            (s.periodic ? " (periodic, period " + format_double(s.period) + ")" : "") +
+            ": knots, values" + (s.periodic ? " less the trend" : "") +
+            " and the spline's second derivatives (not extrapolated: NaN outside)\n";
+    data += array("_t", s.t) + array("_y", s.y) + array("_m", s.m);
+    data += "  template <class T>\n  static T " + name + "(int order, const T& x) noexcept {\n" +
+            "    return _table(" + name + "_t, " + name + "_y, " + name + "_m, " +
+            std::to_string(s.t.size()) + ", double(" + format_double(s.periodic ? s.period : 0.0) +
+            "), double(" + format_double(s.rise) + "), order, x);\n  }\n\n";
+  }
+  return data;
+}
+
+// The kernels that expressions call (motion laws, pieces, tables), pasted at `at` (before the
+// first function) once the whole header is written, so that every function that calls one
+// counts.
+std::string with_expression_kernels(std::string header, std::size_t at) {
+  const std::string tables = with_tables(header, at);
+  const bool uses[] = {header.find("_motion_law(", at) != std::string::npos,
+                       header.find("_select(", at) != std::string::npos ||
+                           header.find("_floor_re(", at) != std::string::npos,
+                       !tables.empty()};
+  const char* names[] = {"motion_law", "piecewise", "spline"};
+  std::string text;
+  for (int u = 0; u < 3; ++u) {
+    if (!uses[u]) continue;
+    for (const auto& k : embedded::kKernels) {
+      if (std::string(k.name) != names[u]) continue;
+      text += std::string("  // ---- kinegen kernel ") + names[u] + " (kinegen/kernels/" +
+              names[u] + ".hpp)\n" + k.text + "  // ---- end of kinegen kernel " + names[u] +
+              "\n\n";
+    }
+  }
+  header.insert(at, text + tables);
+  return header;
+}
+
+// The block-linear kernel keeps a K x K matrix per block on the stack and instantiates its LU
+// for every size up to the largest block; beyond this size the linear solves after a position
+// solve (sensitivities, forces) are not generated.
+constexpr int kMaxLinearBlock = 16;
+
+bool linear_blocks_supported(const Structure& st) {
+  return st.order.perfect && !st.plans.empty() && st.largest_block() <= kMaxLinearBlock;
+}
+
+// The structure tables the block_linear kernel reads (kernels/block_linear.hpp).
+void emit_structure_tables(std::ostringstream& os, const std::string& name, const Structure& st,
+                           const ModelPrograms& programs) {
+  std::vector<std::string> begin{"0"}, rows, cols, block(programs.nq), slot(programs.nq);
+  for (std::size_t k = 0; k < st.order.blocks.size(); ++k) {
+    const Block& b = st.order.blocks[k];
+    for (std::size_t i = 0; i < b.cols.size(); ++i) {
+      block[b.cols[i]] = std::to_string(k);
+      slot[b.cols[i]] = std::to_string(cols.size());
+      rows.push_back(std::to_string(b.rows[i]));
+      cols.push_back(std::to_string(b.cols[i]));
+    }
+    begin.push_back(std::to_string(cols.size()));
+  }
+  std::vector<std::string> row_begin;
+  std::size_t e = 0;
+  for (int r = 0; r <= programs.nc; ++r) {
+    while (e < programs.jac_rows.size() && programs.jac_rows[e] < r) ++e;
+    row_begin.push_back(std::to_string(e));
+  }
+  for (std::size_t k = 1; k < programs.jac_rows.size(); ++k)
+    if (programs.jac_rows[k] < programs.jac_rows[k - 1])
+      throw std::logic_error("emit_structure_tables: Phi_q entries are not sorted by row");
+  os << "  // The block structure as tables, for the linear solves with Phi_q after a position\n"
+     << "  // solve (kinegen/kernels/block_linear.hpp): each block's rows and coordinates in solve\n"
+     << "  // order, each coordinate's block and place, each row's first Phi_q entry.\n"
+     << "  static constexpr std::array<int, num_blocks + 1> block_begin = {" << join(begin)
+     << "};\n"
+     << "  static constexpr std::array<int, nc> block_rows = {" << join(rows) << "};\n"
+     << "  static constexpr std::array<int, nq> block_cols = {" << join(cols) << "};\n"
+     << "  static constexpr std::array<int, nq> coordinate_block = {" << join(block) << "};\n"
+     << "  static constexpr std::array<int, nq> coordinate_slot = {" << join(slot) << "};\n"
+     << "  static constexpr std::array<int, nc + 1> jac_row_begin = {" << join(row_begin)
+     << "};\n"
+     // The kernel's S, named so that a function parameter named like the model (q, options)
+     // cannot hide it; no model's name starts with '_'.
+     << "  using _model = " << name << ";\n\n";
+}
+
+// ---- Parameter sensitivities (spec 6.6): Phi_p and dq/dp = -Phi_q^-1 Phi_p through the
+// block structure, after a position solve.
+
+// Each row's constraint, numbered in order of first appearance: the groups roll_outputs rolls.
+std::vector<int> constraint_groups(const SymbolicModel& model) {
+  std::map<const Constraint*, int> index;
+  std::vector<int> group;
+  for (const auto& row : model.rows)
+    group.push_back(index.emplace(row.constraint, index.size()).first->second);
+  return group;
+}
+
+// num_params, has_sensitivity, phi_p and solve_sensitivity. With --fold-params the code does
+// not read Params, so there is nothing to differentiate: only the flags, false.
+void emit_sensitivity(std::ostringstream& os, const SymbolTable& symbols,
+                      const SymbolicModel& model, const EmitOptions& options) {
+  const int np = symbols.num_params();
+  os << "\n  // Parameter sensitivities (spec 6.6). num_params: the members of Params, in order\n"
+     << "  // (parameter k is the k-th member).\n"
+     << "  static constexpr int num_params = " << np << ";\n";
+  if (options.folded_params) {
+    os << "  // None: the parameters were folded into constants (--fold-params), so nothing here\n"
+       << "  // depends on Params.\n"
+       << "  static constexpr bool has_sensitivity = false;\n";
+    return;
+  }
+  os << "  static constexpr bool has_sensitivity = true;\n\n";
+  std::vector<int> params(np);
+  for (int k = 0; k < np; ++k) params[k] = k;
+  const std::vector<GiNaC::ex> exprs = derive_phi_p(model, symbols, params);
+  // Output k * nc + r is row r's derivative by parameter k: rows of one constraint by one
+  // parameter form a group (alike constraints roll as in phi).
+  const std::vector<int> rows = constraint_groups(model);
+  const int groups = rows.empty() ? 0 : *std::max_element(rows.begin(), rows.end()) + 1;
+  std::vector<int> group;
+  for (int k = 0; k < np; ++k)
+    for (int r : rows) group.push_back(k * groups + r);
+  os << "  // Phi_p(q, t): out[k * nc + r] = dPhi_r/dp_k (nc x num_params, column-major).\n";
+  if (np == 0) {
+    os << "  template <class T>\n"
+       << "  static void phi_p([[maybe_unused]] const T* q, [[maybe_unused]] T t,\n"
+       << "      [[maybe_unused]] const Params& p, [[maybe_unused]] T* out) noexcept {}\n";
+  } else {
+    emit_function_rolled_if(os, "phi_p", "nc * num_params", lower(exprs, symbols), exprs, group,
+                            symbols, false, options.max_function_ops, options.roll_min);
+  }
+  os << "\n  // The work space of solve_sensitivity, in T's: Phi_q's entries, then -Phi_p.\n"
+     << "  static constexpr int sensitivity_work_size = jac_nnz + nc * num_params;\n\n"
+     << "  // Sensitivities of a solved position to the parameters: dq_dp[k * nq + i] = dq_i/dp_k\n"
+     << "  // (nq x num_params, column-major) solves Phi_q dq/dp = -Phi_p at q, t, p, where q\n"
+     << "  // is a converged solve_position (not re-checked). Phi_q is factored block by block,\n"
+     << "  // once for all parameters (kinegen/kernels/block_linear.hpp); a singular or\n"
+     << "  // ill-conditioned block (rcond at most options.min_rcond) fails with status 2 and its\n"
+     << "  // index, a non-finite value with status 3, and dq_dp is then incomplete.\n"
+     << "  // work: sensitivity_work_size values owned by the caller.\n"
+     << "  template <class T, class U>\n"
+     << "  static BlockReport<_real<T>> solve_sensitivity(const T* q, T t, const Params& p,\n"
+     << "      T* dq_dp, const BasicBlockOptions<U>& options, T* work) noexcept {\n"
+     << "    using R = _real<T>;\n"
+     << "    T* const jac = work;\n"
+     << "    T* const rhs = work + jac_nnz;\n"
+     << "    phi_q(q, t, p, jac);\n"
+     << "    phi_p(q, t, p, rhs);\n"
+     << "    for (int k = 0; k < nc * num_params; ++k) rhs[k] = -rhs[k];\n"
+     << "    return _block_forward<_model>(jac, rhs, dq_dp, num_params, _options_as<R>(options));\n"
+     << "  }\n"
+     << "  // The same with the work space on the stack: sizeof(T) * sensitivity_work_size bytes,\n"
+     << "  // plus one block's matrix (max_block_size^2 T's) in the kernel.\n"
+     << "  template <class T, class U>\n"
+     << "  static BlockReport<_real<T>> solve_sensitivity(const T* q, T t, const Params& p,\n"
+     << "      T* dq_dp, const BasicBlockOptions<U>& options) noexcept {\n"
+     << "    T work[sensitivity_work_size];\n"
+     << "    return solve_sensitivity(q, t, p, dq_dp, options, work);\n"
+     << "  }\n";
+}
+
+std::string block_comment(const Block& b, const char* kind) {
+  std::vector<std::string> rows, cols;
+  for (int r : b.rows) rows.push_back(idx(r));
+  for (int c : b.cols) cols.push_back("q[" + idx(c) + "]");
+  return std::string("rows ") + join(rows) + " -> " + join(cols) +
+         (*kind ? std::string(" (") + kind + ")" : "");
+}
+
+// Position, velocity and acceleration block by block. One program holds every expression the
+// block functions need, so each function shares terms (sin and cos of an angle are computed
+// once per function) and the full-step function shares them between the phases. Terms are
+// printed where first needed; those inside a Newton loop go out of scope with it.
+class BlockEmitter {
+ public:
+  BlockEmitter(const SymbolicModel& model, const SymbolTable& symbols, const Structure& st,
+               int max_ops, int roll_min = 0)
+      : symbols_(symbols), st_(st), kinds_(model.coordinate_kinds) {
+    BlockProgram bp = build_block_program(model, symbols, st);
+    pos_first_ = std::move(bp.position_first);
+    pos_end_ = bp.position_end;
+    pos_tjac_ = std::move(bp.torn_jacobian);
+    blocks_ = std::move(bp.rates);
+    prog_ = std::move(bp.program);
+    level_ = std::move(bp.level);
+    sin_of_ = std::move(bp.sin_of);
+    cos_of_ = std::move(bp.cos_of);
+    trig_slot_ = std::move(bp.trig_slot);
+    trig_slots_ = bp.trig_slots;
+    in_position_ = std::move(bp.in_position);
+    outs_ = std::move(bp.exprs);
+    roll_of_.assign(st.plans.size(), -1);
+    roll_member_.assign(st.plans.size(), -1);
+    if (roll_min > 0) find_rolls(model, roll_min);
+    lazy_trig_ = !rolls_.empty();
+    if (max_ops > 0 && prog_.operation_count() > max_ops) split_blocks(max_ops);
+  }
+
+  int trig_cache_size() const { return 3 * trig_slots_; }
+  // The functions of the repeated blocks and their coordinate tables (private members).
+  void emit_rolls(std::ostringstream& os, bool velocity, bool acceleration) {
+    if (rolls_.empty()) return;
+    os << "\n private:\n";
+    for (std::size_t g = 0; g < rolls_.size(); ++g) {
+      const Roll& r = rolls_[g];
+      const std::string name = "_roll" + idx(static_cast<int>(g));
+      os << "\n  // Repeated blocks (" << r.blocks.size() << ", the first is block " << r.blocks[0]
+         << "): alike up to the coordinates\n"
+         << "  // they read, so each calls the functions below with its row of " << name << "_i\n"
+         << "  // (its own coordinates, then the others it reads)"
+         << (r.slots[0].empty() ? "" : " and of " + name + "_s (its sin/cos\n  // cache slots)")
+         << ".\n";
+      emit_table(os, name + "_i", r.coords);
+      if (!r.slots[0].empty()) emit_table(os, name + "_s", r.slots);
+      r.emitter->emit_rolled_position(os, name);
+      if (velocity) r.emitter->emit_rolled_motion(os, name, true, false);
+      if (acceleration) {
+        r.emitter->emit_rolled_motion(os, name, false, true);
+        r.emitter->emit_rolled_motion(os, name, true, true);
+      }
+    }
+    os << "\n public:\n";
+  }
+
+  void emit_position(std::ostringstream& os) {
+    os << "  // Position: each block in turn, explicit or by Newton on the block alone; q holds\n"
+       << "  // the start (the previous solution or a prediction) and receives the solution.\n"
+       << "  // trig: optional cache of trig_cache_size values, kept by the caller from call to call\n"
+       << "  // (fill it with NaN first), so that sin and cos near the last values are rotations.\n"
+       << "  // block_signs: optional, num_blocks entries kept by the caller (zero first): each Newton\n"
+       << "  // block's determinant sign is recorded there, and a change fails with status 6.\n"
+       << "  template <class T, class U>\n"
+       << "  static BlockReport<_real<T>> solve_position(T* q, [[maybe_unused]] T t,\n"
+       << "      [[maybe_unused]] const Params& p,\n"
+       << "      [[maybe_unused]] const BasicBlockOptions<U>& options,\n"
+       << "      [[maybe_unused]] T* trig = nullptr,\n"
+       << "      [[maybe_unused]] signed char* block_signs = nullptr) noexcept {\n";
+    if (!ranges_.empty()) {
+      os << kIn << "using R = _real<T>;\n" << kOptions << kIn << "BlockReport<R> report;\n";
+      call_parts(os, "_solve_position_part", "q, t, p, o, report, trig, block_signs");
+      finite_check(os, "q");
+      os << kIn << "return report;\n  }\n";
+      emit_position_parts(os);
+      return;
+    }
+    FunctionPrinter pr(prog_, symbols_);
+    prologue(os);
+    position_body(os, pr, 0, static_cast<int>(st_.plans.size()));
+    finite_check(os, "q");
+    os << kIn << "return report;\n  }\n";
+  }
+
+  void emit_motion(std::ostringstream& os, bool velocity, bool acceleration) {
+    if (velocity && acceleration) {
+      os << "  // Velocity (Phi_q qd = nu) and acceleration (Phi_q qdd = gamma) at a solved q,\n"
+         << "  // block by block with one factorization per block.\n"
+         << "  template <class T, class U>\n"
+         << "  static BlockReport<_real<T>> solve_velocity_acceleration([[maybe_unused]] const T* q,\n"
+         << "      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd, T* qdd,\n";
+    } else if (velocity) {
+      os << "  // Velocity: Phi_q qd = nu at a solved q, block by block.\n"
+         << "  template <class T, class U>\n"
+         << "  static BlockReport<_real<T>> solve_velocity([[maybe_unused]] const T* q,\n"
+         << "      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* qd,\n";
+    } else {
+      os << "  // Acceleration: Phi_q qdd = gamma at a solved q and qd, block by block.\n"
+         << "  template <class T, class U>\n"
+         << "  static BlockReport<_real<T>> solve_acceleration([[maybe_unused]] const T* q,\n"
+         << "      [[maybe_unused]] const T* qd, [[maybe_unused]] T t,\n"
+         << "      [[maybe_unused]] const Params& p, T* qdd,\n";
+    }
+    os << "      [[maybe_unused]] const BasicBlockOptions<U>& options) noexcept {\n";
+    if (!ranges_.empty()) {
+      const std::string name = motion_name(velocity, acceleration);
+      os << kIn << "using R = _real<T>;\n" << kOptions << kIn << "BlockReport<R> report;\n";
+      call_parts(os, "_" + name + "_part",
+                 motion_args(velocity, acceleration, false) + ", static_cast<T*>(nullptr)");
+      if (velocity) finite_check(os, "qd");
+      if (acceleration) finite_check(os, "qdd");
+      os << kIn << "return report;\n  }\n";
+      emit_motion_parts(os, velocity, acceleration);
+      return;
+    }
+    FunctionPrinter pr(prog_, symbols_);
+    prologue(os);
+    motion_body(os, pr, velocity, acceleration, 0, static_cast<int>(blocks_.size()), true);
+    os << kIn << "return report;\n  }\n";
+  }
+
+  // The full step: position, then velocity and acceleration, sharing every term.
+  void emit_step(std::ostringstream& os) {
+    os << "  // A full step: solve_position, then solve_velocity_acceleration, in one function\n"
+       << "  // so that terms at the solved q are computed once.\n"
+       << "  template <class T, class U>\n"
+       << "  static BlockReport<_real<T>> solve_step(T* q, [[maybe_unused]] T t,\n"
+       << "      [[maybe_unused]] const Params& p, T* qd, T* qdd,\n"
+       << "      [[maybe_unused]] const BasicBlockOptions<U>& options,\n"
+       << "      [[maybe_unused]] T* trig = nullptr,\n"
+       << "      [[maybe_unused]] signed char* block_signs = nullptr) noexcept {\n";
+    if (!ranges_.empty()) {
+      // Split: the parts of solve_position and solve_velocity_acceleration (emitted with them).
+      os << kIn << "using R = _real<T>;\n" << kOptions << kIn << "BlockReport<R> report;\n";
+      call_parts(os, "_solve_position_part", "q, t, p, o, report, trig, block_signs");
+      finite_check(os, "q");
+      call_parts(os, "_solve_velocity_acceleration_part",
+                 motion_args(true, true, false) + ", trig");
+      finite_check(os, "qd");
+      finite_check(os, "qdd");
+      os << kIn << "return report;\n  }\n";
+      return;
+    }
+    FunctionPrinter pr(prog_, symbols_);
+    prologue(os);
+    const int n = static_cast<int>(st_.plans.size());
+    step_mode_ = true;
+    position_body(os, pr, 0, n);
+    step_mode_ = false;
+    finite_check(os, "q");
+    motion_trig_ = true;
+    motion_body(os, pr, true, true, 0, n, true);
+    motion_trig_ = false;
+    os << kIn << "return report;\n  }\n";
+  }
+
+ private:
+  using BlockOuts = BlockRates;
+  static constexpr const char* kIn = "    ";
+  // The public functions take options of any real type; the blocks compute in T's.
+  static constexpr const char* kOptions =
+      "    [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);\n";
+  // Repeated blocks emitted once (find_rolls).
+  struct Roll {
+    std::unique_ptr<Structure> st;          // the first block alone
+    std::unique_ptr<BlockEmitter> emitter;  // its functions, reading coordinates through _i
+    std::vector<int> blocks;                // the blocks, ascending
+    std::vector<std::vector<int>> coords;   // per block: its coordinate table
+    std::vector<std::vector<int>> slots;    // per block: its trig cache slots
+  };
+
+  int out(int k) const { return prog_.outputs[k]; }
+
+  // q[c] (or qd, qdd) as the function being emitted names it: through the coordinate table in
+  // a repeated block's function.
+  std::string ref(const std::string& var, int c) const {
+    return var + "[" + (local_.empty() ? idx(c) : "_i[" + idx(local_[c]) + "]") + "]";
+  }
+  // A repeated block's function prints the first block's coordinates (its comments' q[c] are
+  // those of the first block; the code reads q[_i[k]]).
+  std::string block_label(std::size_t bi) const {
+    return "Block " + idx(local_.empty() ? static_cast<int>(bi) : first_block_) +
+           (local_.empty() ? "" : " and the blocks alike");
+  }
+  std::string block_id(std::size_t bi) const {
+    return local_.empty() ? idx(static_cast<int>(bi)) : "_b";
+  }
+
+  // Every output block bi's functions read.
+  std::vector<int> block_outputs(std::size_t bi) const {
+    std::vector<int> ids;
+    const int end = bi + 1 < st_.plans.size() ? pos_first_[bi + 1] : pos_end_;
+    for (int o = pos_first_[bi]; o < end; ++o) ids.push_back(o);
+    const BlockOuts& bo = blocks_[bi];
+    ids.insert(ids.end(), bo.jbb.begin(), bo.jbb.end());
+    for (const auto& [rc, o] : bo.tjac) ids.push_back(o);
+    for (const auto& row : bo.coupling)
+      for (const auto& [c, o] : row) ids.push_back(o);
+    ids.insert(ids.end(), bo.nu.begin(), bo.nu.end());
+    ids.insert(ids.end(), bo.gamma.begin(), bo.gamma.end());
+    return ids;
+  }
+
+  // Newton blocks that are the same up to a renaming of the coordinates they read. A block's
+  // coordinate table lists its own coordinates (in order), then the others it reads (its
+  // expressions' q and qd, and the coordinates its rows couple to), ascending. Two blocks are
+  // alike when, with the k-th coordinate of each table renamed to the model's k-th (q and qd
+  // alike), their structure and every expression agree exactly. Classes of at least roll_min
+  // blocks are emitted once.
+  void find_rolls(const SymbolicModel& model, int roll_min) {
+    const int nb = static_cast<int>(st_.plans.size());
+    const int nq = static_cast<int>(st_.order.col_block.size());
+    std::map<std::string, std::vector<int>> groups;
+    std::vector<std::vector<int>> coords(nb);
+    std::vector<std::vector<GiNaC::ex>> renamed(nb);
+    for (int bi = 0; bi < nb; ++bi) {
+      const BlockPlan& plan = st_.plans[bi];
+      if (plan.kind != BlockKind::kNewton) continue;
+      const Block& b = plan.block;
+      const std::vector<int> ids = block_outputs(bi);
+      std::set<int> read;
+      for (int id : ids) add_coordinates_read(outs_[id], symbols_, read);
+      for (const auto& row : blocks_[bi].coupling)
+        for (const auto& [c, o] : row) read.insert(c);
+      std::vector<int> list = b.cols;
+      for (int c : read)
+        if (!std::binary_search(b.cols.begin(), b.cols.end(), c)) list.push_back(c);
+      std::map<int, int> slot;
+      for (std::size_t j = 0; j < list.size(); ++j) slot[list[j]] = static_cast<int>(j);
+      const GiNaC::exmap rename = table_renaming(list, symbols_);
+      const auto row_of = [&](int r) {
+        return std::lower_bound(b.rows.begin(), b.rows.end(), r) - b.rows.begin();
+      };
+      std::ostringstream key;
+      key << b.rows.size() << " " << list.size() << " t";
+      for (int c : plan.tears) key << " " << slot.at(c);
+      key << " r";
+      for (int r : plan.residuals) key << " " << row_of(r);
+      key << " a";
+      for (const auto& [r, c] : plan.assigned) key << " " << row_of(r) << ":" << slot.at(c);
+      key << " j";
+      for (const auto& [rc, o] : pos_tjac_[bi]) key << " " << row_of(rc.first) << ":" << slot.at(rc.second);
+      key << " c";
+      for (const auto& row : blocks_[bi].coupling) {
+        for (const auto& [c, o] : row) key << " " << slot.at(c);
+        key << " |";
+      }
+      key << " e";
+      for (int id : ids) {
+        renamed[bi].push_back(outs_[id].subs(rename));
+        key << " " << renamed[bi].back() << ";";
+      }
+      coords[bi] = list;
+      groups[key.str()].push_back(bi);
+    }
+    for (const auto& [key, members] : groups) {
+      if (static_cast<int>(members.size()) < roll_min) continue;
+      Roll r;
+      const int first = members[0];
+      std::vector<int> alike;
+      for (int bi : members)
+        if (same_expressions(renamed[bi], renamed[first])) alike.push_back(bi);
+      if (static_cast<int>(alike.size()) < roll_min) continue;
+      r.st = std::make_unique<Structure>();
+      Structure& sub = *r.st;
+      sub.order.perfect = true;
+      sub.order.blocks = {st_.plans[first].block};
+      sub.order.col_block.assign(nq, -1);
+      sub.order.row_block.assign(st_.order.row_block.size(), -1);
+      for (int c : st_.plans[first].block.cols) sub.order.col_block[c] = 0;
+      for (int row : st_.plans[first].block.rows) sub.order.row_block[row] = 0;
+      sub.plans = {st_.plans[first]};
+      r.emitter = std::make_unique<BlockEmitter>(model, symbols_, sub, 0, 0);
+      BlockEmitter& e = *r.emitter;
+      e.local_.assign(nq, -1);
+      e.first_block_ = first;
+      for (std::size_t j = 0; j < coords[first].size(); ++j)
+        e.local_[coords[first][j]] = static_cast<int>(j);
+      // The trig cache slots of each block's coordinates, in the order of e's slots.
+      std::vector<int> by_slot(e.trig_slots_, -1);
+      for (int c = 0; c < nq; ++c)
+        if (e.trig_slot_[c] >= 0) by_slot[e.trig_slot_[c]] = e.local_[c];
+      for (int bi : alike) {
+        std::vector<int> slots;
+        bool ok = true;
+        for (int j : by_slot) {
+          const int s = j < 0 ? -1 : trig_slot_[coords[bi][j]];
+          ok = ok && s >= 0;
+          slots.push_back(s);
+        }
+        if (!ok) continue;
+        roll_of_[bi] = static_cast<int>(rolls_.size());
+        roll_member_[bi] = static_cast<int>(r.blocks.size());
+        r.blocks.push_back(bi);
+        r.coords.push_back(coords[bi]);
+        r.slots.push_back(slots);
+      }
+      if (r.blocks.empty()) continue;
+      rolls_.push_back(std::move(r));
+    }
+  }
+
+  void emit_rolled_position(std::ostringstream& os, const std::string& name) {
+    os << "  template <class T>\n"
+       << "  static BlockReport<_real<T>> " << name << "_position(T* q, [[maybe_unused]] T t,\n"
+       << "      [[maybe_unused]] const Params& p,\n"
+       << "      [[maybe_unused]] const BasicBlockOptions<_real<T>>& o,\n"
+       << "      BlockReport<_real<T>> report, [[maybe_unused]] T* trig,\n"
+       << "      [[maybe_unused]] signed char* block_signs, const int* _i,\n"
+       << "      [[maybe_unused]] const int* _s, [[maybe_unused]] int _b) noexcept {\n"
+       << kIn << "using R [[maybe_unused]] = _real<T>;\n";
+    if (const std::string used = std_functions(prog_); !used.empty())
+      os << kIn << "using " << used << ";\n";
+    FunctionPrinter pr(prog_, symbols_);
+    pr.read_through(&local_);
+    position_body(os, pr, 0, 1);
+    os << kIn << "return report;\n  }\n";
+  }
+
+  void emit_rolled_motion(std::ostringstream& os, const std::string& name, bool velocity,
+                          bool acceleration) {
+    os << "  template <class T>\n"
+       << "  static BlockReport<_real<T>> " << name << "_" << motion_name(velocity, acceleration) << "("
+       << motion_args(velocity, acceleration, true) << ",\n"
+       << "      [[maybe_unused]] T* trig, const int* _i, [[maybe_unused]] const int* _s,\n"
+       << "      [[maybe_unused]] int _b) noexcept {\n"
+       << kIn << "using R [[maybe_unused]] = _real<T>;\n";
+    if (const std::string used = std_functions(prog_); !used.empty())
+      os << kIn << "using " << used << ";\n";
+    FunctionPrinter pr(prog_, symbols_);
+    pr.read_through(&local_);
+    motion_trig_ = true;
+    motion_body(os, pr, velocity, acceleration, 0, 1, false);
+    os << kIn << "return report;\n  }\n";
+  }
+
+  // A repeated block's call (its functions report failures with the block's index).
+  void call_rolled(std::ostringstream& os, std::size_t bi, const std::string& function,
+                   const std::string& args, bool slots) {
+    const int g = roll_of_[bi], m = roll_member_[bi];
+    const std::string name = "_roll" + idx(g);
+    os << kIn << "report = " << name << "_" << function << "(" << args << ", " << name << "_i["
+       << m << "], ";
+    if (slots) os << (rolls_[g].slots[0].empty() ? "nullptr" : name + "_s[" + idx(m) + "]") << ", ";
+    os << bi << ");\n" << kIn << "if (report.status != 0) return report;\n";
+  }
+
+  // Runs of consecutive blocks of about max_ops operations or max_part_outputs stores each,
+  // for the parts of a split solver. Later blocks read earlier blocks' coordinates from q (qd,
+  // qdd), so a part needs nothing from the parts before it but memory; its terms are its own.
+  void split_blocks(int max_ops) {
+    const int n = static_cast<int>(st_.plans.size());
+    std::vector<int> part_of(prog_.nodes.size(), -1), stack;
+    int ops = 0, first = 0, stores = 0;
+    const auto count = [&](int output) {
+      const int id = out(output);
+      const int part = static_cast<int>(ranges_.size());
+      if (id == Program::kZero || part_of[id] == part) return;
+      stack.assign(1, id);
+      part_of[id] = part;
+      while (!stack.empty()) {
+        const Node& node = prog_.nodes[stack.back()];
+        stack.pop_back();
+        ops += node.kind != OpKind::kConst && node.kind != OpKind::kInput;
+        for (int a : node.args)
+          if (part_of[a] != part) {
+            part_of[a] = part;
+            stack.push_back(a);
+          }
+      }
+    };
+    for (int bi = 0; bi < n; ++bi) {
+      if (roll_of_[bi] >= 0) {  // a call: a few statements, one store of the report
+        ops += 4;
+        stores += 1;
+      } else {
+        for (int o : block_outputs(bi)) count(o);
+        // Stores count as in split_program: each coordinate is written to q, qd and qdd.
+        stores += 3 * static_cast<int>(st_.plans[bi].block.cols.size());
+      }
+      if (ops >= max_ops || stores >= max_part_outputs(max_ops) || bi + 1 == n) {
+        ranges_.push_back({first, bi + 1});
+        first = bi + 1;
+        ops = 0;
+        stores = 0;
+      }
+    }
+  }
+
+  static std::string motion_name(bool velocity, bool acceleration) {
+    return velocity && acceleration ? "solve_velocity_acceleration"
+           : velocity               ? "solve_velocity"
+                                    : "solve_acceleration";
+  }
+  // The arguments of a motion part: the public function's, then the report.
+  static std::string motion_args(bool velocity, bool acceleration, bool declare) {
+    const char* mu = "[[maybe_unused]] ";
+    std::vector<std::string> a;
+    const auto arg = [&](const std::string& type, const std::string& name) {
+      a.push_back(declare ? mu + type + " " + name : name);
+    };
+    arg("const T*", "q");
+    if (!velocity) arg("const T*", "qd");
+    arg("T", "t");
+    arg("const Params&", "p");
+    if (velocity) arg("T*", "qd");
+    if (acceleration) arg("T*", "qdd");
+    arg("const BasicBlockOptions<_real<T>>&", "o");
+    arg("BlockReport<_real<T>>", "report");
+    std::string s;
+    for (std::size_t k = 0; k < a.size(); ++k)
+      s += (k == 0 ? "" : declare && k % 2 == 0 ? ",\n      " : ", ") + a[k];
+    return s;
+  }
+
+  void call_parts(std::ostringstream& os, const std::string& name, const std::string& args) {
+    for (std::size_t k = 0; k < ranges_.size(); ++k) {
+      os << kIn << "report = " << name << k << "(" << args << ");\n";
+      if (k + 1 < ranges_.size()) os << kIn << "if (report.status != 0) return report;\n";
+    }
+  }
+
+  void part_header(std::ostringstream& os, const std::string& name, std::size_t k,
+                   const std::string& params) {
+    os << "  // Blocks " << ranges_[k].first << " to " << ranges_[k].second - 1 << " of "
+       << name.substr(1) << ".\n"
+       << "  template <class T>\n"
+       << "  static BlockReport<_real<T>> " << name << "_part" << k << "(" << params << ") noexcept {\n"
+       << kIn << "using R [[maybe_unused]] = _real<T>;\n";
+    if (const std::string used = std_functions(prog_); !used.empty())
+      os << kIn << "using " << used << ";\n";
+  }
+
+  void emit_position_parts(std::ostringstream& os) {
+    os << "\n private:\n";
+    for (std::size_t k = 0; k < ranges_.size(); ++k) {
+      part_header(os, "_solve_position", k,
+                  "T* q, [[maybe_unused]] T t, [[maybe_unused]] const Params& p,\n"
+                  "      [[maybe_unused]] const BasicBlockOptions<_real<T>>& o,\n"
+                  "      BlockReport<_real<T>> report, [[maybe_unused]] T* trig,\n"
+                  "      [[maybe_unused]] signed char* block_signs");
+      FunctionPrinter pr(prog_, symbols_);
+      position_body(os, pr, ranges_[k].first, ranges_[k].second);
+      os << kIn << "return report;\n  }\n";
+    }
+    os << "\n public:\n";
+  }
+
+  void emit_motion_parts(std::ostringstream& os, bool velocity, bool acceleration) {
+    os << "\n private:\n";
+    for (std::size_t k = 0; k < ranges_.size(); ++k) {
+      part_header(os, "_" + motion_name(velocity, acceleration), k,
+                  motion_args(velocity, acceleration, true) + ",\n      [[maybe_unused]] T* trig");
+      FunctionPrinter pr(prog_, symbols_);
+      motion_trig_ = true;
+      motion_body(os, pr, velocity, acceleration, ranges_[k].first, ranges_[k].second, false);
+      motion_trig_ = false;
+      os << kIn << "return report;\n  }\n";
+    }
+    os << "\n public:\n";
+  }
+
+  void prologue(std::ostringstream& os) {
+    os << kIn << "using R = _real<T>;\n";
+    if (const std::string used = std_functions(prog_); !used.empty())
+      os << kIn << "using " << used << ";\n";
+    os << kOptions << kIn << "BlockReport<R> report;\n";
+  }
+
+  void finite_check(std::ostringstream& os, const char* v) {
+    os << kIn << "if (!_all_finite<nq>(" << v << ")) return _fail(report, 3, -1);\n";
+  }
+
+  // Blocks [b0, b1).
+  void position_body(std::ostringstream& os, FunctionPrinter& pr, int b0, int b1) {
+    const std::string in = kIn;
+    for (std::size_t bi = b0; bi < static_cast<std::size_t>(b1); ++bi) {
+      const BlockPlan& plan = st_.plans[bi];
+      const Block& b = plan.block;
+      const int f = pos_first_[bi];
+      const int k = static_cast<int>(b.rows.size());
+      os << in << "// " << block_label(bi) << ": " << block_comment(b, to_string(plan.kind))
+         << "\n";
+      if (roll_of_[bi] >= 0) {
+        call_rolled(os, bi, "position", "q, t, p, o, report, trig, block_signs", true);
+        continue;
+      }
+      if (plan.torn()) {
+        std::vector<std::string> tears;
+        for (int c : plan.tears) tears.push_back("q[" + idx(c) + "]");
+        os << in << "// Torn: Newton on " << join(tears) << "; " << plan.assigned.size()
+           << " coordinates assigned in order from them, " << plan.residuals.size()
+           << " residual rows.\n";
+      }
+      const int n_out = (bi + 1 < st_.plans.size() ? pos_first_[bi + 1] : pos_end_) - f;
+      std::vector<int> outputs(n_out);
+      for (int o = 0; o < n_out; ++o) outputs[o] = f + o;
+      if (plan.kind == BlockKind::kExplicit) {
+        if (lazy_trig_) declare_needed_trig(os, pr, outputs);
+        pr.ensure(out(f), os, in);
+        os << in << ref("q", b.cols[0]) << " = " << pr.text(out(f)) << ";\n";
+        declare_trig(os, pr, b.cols[0], false);
+        continue;
+      }
+      if (plan.kind == BlockKind::kExplicitGuarded) {
+        if (lazy_trig_) declare_needed_trig(os, pr, outputs);
+        pr.ensure(out(f), os, in);
+        pr.ensure(out(f + 1), os, in);
+        os << in << "{\n"
+           << in << "  const T _c = " << pr.text(out(f)) << ";\n"
+           << in << "  if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? 2 : 3, " << block_id(bi)
+           << ");\n"
+           << in << "  " << ref("q", b.cols[0]) << " = -(" << pr.text(out(f + 1)) << ") / _c;\n"
+           << in << "}\n";
+        declare_trig(os, pr, b.cols[0], false);
+        guarded_condition(os, pr, bi);
+        continue;
+      }
+      // Terms that do not read the block's own coordinates are computed once, before the loop
+      // (with lazy sin and cos: after the block's own, so that the search skips those).
+      std::vector<int> rotated;
+      if (lazy_trig_) {
+        rotated = declare_rotations(os, pr, b);
+        declare_needed_trig(os, pr, outputs);
+      }
+      for (int o = 0; o < n_out; ++o)
+        pr.ensure(out(f + o), os, in, [&](int id) { return level_[id] < static_cast<int>(bi); });
+      if (!lazy_trig_) rotated = declare_rotations(os, pr, b);
+      if (plan.torn()) {
+        torn_position(os, pr, bi, rotated);
+        continue;
+      }
+      const std::string bs = idx(static_cast<int>(bi));
+      newton_declare(os, bi, b.cols);
+      os << in << "R _st" << bs << " = 0;\n";
+      os << in << "for (int _it = 1;; ++_it) {\n";
+      pr.open_scope();
+      const std::string in2 = in + "  ";
+      for (int o = 0; o < n_out; ++o) pr.ensure(out(f + o), os, in2);
+      std::vector<std::string> r, a;
+      for (int o = 0; o < k; ++o) r.push_back(pr.text(out(f + o)));
+      for (int o = k; o < n_out; ++o) a.push_back(pr.text(out(f + o)));
+      os << in2 << "T _r[" << k << "] = {" << join(r) << "};\n";
+      newton_solve(os, in2, bi, k, a);
+      os << in2 << "R _step = 0, _qs = 0;\n" << in2 << "bool _small = true;\n";
+      for (int i = 0; i < k; ++i) {
+        const int c = b.cols[i];
+        update(os, in2, rotated, c, ref("q", c) + " - _r[" + idx(i) + "]");
+        os << in2 << "_step = std::max(_step, _mag(_r[" << i << "])"
+           << inv_scale(c) << ");\n";
+        step_criterion(os, in2, c, i);
+      }
+      os << in2 << "if (!_finite(_step)) return _fail(report, 3, " << block_id(bi) << ", _it);\n";
+      linear_count(os, in2, bs, "_step");
+      newton_stop(os, in2, bi, k, {"_st" + bs + " = _step;", "break;"});
+      pr.close_scope();
+      os << in << "}\n";
+      std::vector<int> rows;
+      for (int o = 0; o < k; ++o) rows.push_back(f + o);
+      newton_finish(os, pr, bi, rows, "_st" + bs);
+    }
+  }
+
+  // |output o| as an entry of Phi_q's column col, in the column's units (lengths times their
+  // coordinate scale), for the condition checks.
+  std::string scaled_entry(FunctionPrinter& pr, int col, int o) {
+    return "_mag(" + pr.text(out(o)) + ")" +
+           (length_coordinate(col) ? " * R(" + ref("coordinate_scales", col) + ")" : "");
+  }
+
+  // A guarded block's coefficient against its row's couplings to earlier blocks, at the solved
+  // q: the block's condition within all of Phi_q (a coefficient that is small beside them is a
+  // near-singular Phi_q although it is not zero). Recorded in the report's rcond.
+  void guarded_condition(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi) {
+    const BlockOuts& bo = blocks_[bi];
+    const int c = st_.plans[bi].block.cols[0];
+    std::string m = "_own";
+    bool coupled = false;
+    for (const auto& [col, o] : bo.coupling[0]) {
+      if (out(o) == Program::kZero) continue;
+      pr.ensure(out(o), os, kIn);
+      m = "std::max(" + m + ", " + scaled_entry(pr, col, o) + ")";
+      coupled = true;
+    }
+    if (!coupled || out(bo.jbb[0]) == Program::kZero) return;
+    pr.ensure(out(bo.jbb[0]), os, kIn);
+    const std::string b = block_id(bi);
+    os << kIn << "{\n"
+       << kIn << "  const R _own = " << scaled_entry(pr, c, bo.jbb[0]) << ";\n"
+       << kIn << "  const R _rc = _own / " << m << ";\n"
+       << kIn << "  if (!(_rc > o.min_rcond)) return _fail(report, 2, " << b << ");\n"
+       << kIn << "  report.rcond = std::min(report.rcond, _rc);\n"
+       << kIn << "}\n";
+  }
+
+  // Newton blocks check what the dense path checks (kernels/newton.hpp): before the loop, the
+  // state its last iteration leaves for the recheck: the row scales (_rmax), the columns'
+  // scales (_d: lengths times length_scale), the scaled |q| sum, the condition estimate and
+  // the determinant's sign of the last factorization, the iteration count and whether the step
+  // criterion held.
+  void newton_declare(std::ostringstream& os, std::size_t bi, const std::vector<int>& cols) {
+    const std::string b = idx(static_cast<int>(bi));
+    const int k = static_cast<int>(cols.size());
+    std::vector<std::string> d;
+    for (int c : cols)
+      d.push_back(length_coordinate(c) ? "R(" + ref("coordinate_scales", c) + ")" : "R(1)");
+    os << kIn << "R _rmax" << b << "[" << k << "] = {}, _qs" << b << " = 0, _rc" << b << " = 1, _pv"
+       << b << " = 0;\n"
+       << kIn << "[[maybe_unused]] const R _cs" << b << "[" << k << "] = {" << join(d) << "};\n"
+       << kIn << "int _n" << b << " = 0, _sg" << b << " = 1, _nl" << b << " = 0;\n"
+       << kIn << "bool _conv" << b << " = false;\n";
+  }
+
+  // Whether a coordinate is a length (scaled by length_scale) rather than an angle.
+  // Lengths (and scalars) are measured in units of their coordinate_scales entry, angles in
+  // radians: the factor that does it in steps and roundings ("" for an angle), and the scale.
+  bool length_coordinate(int c) const { return kinds_[c] != CoordinateKind::kAngle; }
+  std::string inv_scale(int c) const {
+    return length_coordinate(c) ? " * R(1 / " + ref("coordinate_scales", c) + ")" : "";
+  }
+
+  // The step criterion for block coordinate c (the update in _r[i]), with the rounding
+  // allowance; adds its scaled |q| to _qs.
+  void step_criterion(std::ostringstream& os, const std::string& in, int c, int i) {
+    const std::string scale = inv_scale(c);
+    os << in << "_qs += _mag(" << ref("q", c) << ")" << scale << ";\n"
+       << in << "_small &= _step_converged(_mag(_r[" << i << "])" << scale << ", _mag("
+       << ref("q", c) << ")" << scale << ", o.tolerance);\n";
+  }
+
+  // Counts the linear steps (the Newton policy's convergence-rate test) in _nl<b>.
+  void linear_count(std::ostringstream& os, const std::string& in, const std::string& b,
+                    const std::string& step) {
+    os << in << "_nl" << b << " += _linear_step(" << step << ", _pv" << b << ");\n"
+       << in << "_pv" << b << " = " << step << ";\n";
+  }
+
+  // The end of an iteration: stop when the step criterion holds (or the fixed budget is
+  // spent), or at max_iterations; then keep what the recheck needs (`keep`: more of it).
+  void newton_stop(std::ostringstream& os, const std::string& in, std::size_t bi, int k,
+                   const std::vector<std::string>& keep) {
+    const std::string b = idx(static_cast<int>(bi));
+    os << in << "_conv" << b << " = _small;\n"
+       << in << "if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||\n"
+       << in << "    _it >= o.max_iterations) {\n"
+       << in << "  _n" << b << " = _it;\n"
+       << in << "  _qs" << b << " = _qs;\n";
+    if (k == 1) {
+      os << in << "  _sg" << b << " = _re(_a) < 0 ? -1 : 1;\n";
+    } else {
+      os << in << "  _rc" << b << " = _lu_rcond<" << k << ">(_a, _piv, _rmax" << b << ", _cs" << b
+         << ");\n"
+         << in << "  _sg" << b << " = _lu_det_sign<" << k << ">(_a, _piv);\n";
+    }
+    for (const std::string& line : keep) os << in << "  " << line << "\n";
+    os << in << "}\n";
+  }
+
+  // After the loop: the residual rows (outputs) at the final q, scaled by the last row scales,
+  // and the block's verdict (_newton_end).
+  void newton_finish(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                     const std::vector<int>& rows, const std::string& step) {
+    const std::string b = idx(static_cast<int>(bi));
+    for (int o : rows) pr.ensure(out(o), os, kIn);
+    std::vector<std::string> r;
+    for (int o : rows) r.push_back("_mag(" + pr.text(out(o)) + ")");
+    os << kIn << "const R _rr" << b << "[" << rows.size() << "] = {" << join(r) << "};\n"
+       << kIn << "const R _res" << b << " = _scaled_max<" << rows.size() << ">(_rr" << b << ", _rmax"
+       << b << ");\n";
+    // The condition within all of Phi_q: each row's largest scaled entry, couplings to earlier
+    // blocks included (_coupled_rcond), at the final q.
+    const BlockPlan& plan = st_.plans[bi];
+    const std::vector<int>& own = plan.torn() ? plan.residuals : plan.block.rows;
+    std::vector<std::string> cm;
+    bool coupled = false;
+    for (std::size_t i = 0; i < own.size(); ++i) {
+      const auto& block_rows = plan.block.rows;
+      const auto& coupling =
+          blocks_[bi].coupling[std::lower_bound(block_rows.begin(), block_rows.end(), own[i]) -
+                               block_rows.begin()];
+      std::string m = "_rmax" + b + "[" + idx(static_cast<int>(i)) + "]";
+      // A torn block's rows are scaled by their Schur complement, which vanishes where the
+      // block is singular: measure them against their own Phi_q entries too.
+      for (const auto& [rc, o] : pos_tjac_[bi]) {
+        if (rc.first != own[i] || out(o) == Program::kZero) continue;
+        pr.ensure(out(o), os, kIn);
+        m = "std::max(" + m + ", " + scaled_entry(pr, rc.second, o) + ")";
+        coupled = true;
+      }
+      for (const auto& [c, o] : coupling) {
+        if (out(o) == Program::kZero) continue;
+        pr.ensure(out(o), os, kIn);
+        m = "std::max(" + m + ", " + scaled_entry(pr, c, o) + ")";
+        coupled = true;
+      }
+      cm.push_back(m);
+    }
+    if (coupled)
+      os << kIn << "const R _cm" << b << "[" << own.size() << "] = {" << join(cm) << "};\n"
+         << kIn << "_rc" << b << " = _coupled_rcond<" << own.size() << ">(_rc" << b << ", _rmax" << b
+         << ", _cm" << b << ");\n";
+    os << kIn << "if (!_newton_end(report, " << block_id(bi) << ", _n" << b << ", _conv" << b
+       << ", o, " << step << ", _nl" << b << ", _res" << b << ", _qs" << b << ", _rc" << b
+       << ", _sg" << b << ", block_signs))\n"
+       << kIn << "  return report;\n";
+  }
+
+  // One Newton update inside an iteration: _r[] holds the residuals of a k x k system whose
+  // matrix is `a` (row-major texts); leaves the step in _r, or reports a singular block.
+  void newton_solve(std::ostringstream& os, const std::string& in, std::size_t bi, int k,
+                    const std::vector<std::string>& a) {
+    const std::string b = idx(static_cast<int>(bi));
+    if (k == 1) {
+      os << in << "const T _a = " << a[0] << ";\n"
+         << in << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << block_id(bi)
+         << ", _it);\n"
+         << in << "_rmax" << b << "[0] = _mag(_a) * _cs" << b << "[0];\n"
+         << in << "_r[0] /= _a;\n";
+      return;
+    }
+    os << in << "T _a[" << k * k << "] = {" << join(a) << "};\n"
+       << in << "_row_max<" << k << ">(_a, _cs" << b << ", _rmax" << b << ");\n"
+       << in << "int _piv[" << k << "];\n"
+       << in << "const R _ratio = _lu_factor<" << k << ">(_a, _piv);\n"
+       << in << "if (!(_ratio > o.singular_pivot_ratio))\n"
+       << in << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << block_id(bi) << ", _it);\n"
+       << in << "_lu_solve<" << k << ">(_a, _piv, _r);\n";
+  }
+
+  // Block bi's k x k matrix `a` for the rates, kept as _a<bi> (k = 1: the divisor) or factored
+  // into _a<bi>/_piv<bi>; reports a singular block.
+  void factor(std::ostringstream& os, std::size_t bi, int k, const std::vector<std::string>& a) {
+    const std::string in = kIn, b = idx(static_cast<int>(bi));
+    if (k == 1) {
+      os << in << "const T _a" << b << " = " << a[0] << ";\n"
+         << in << "if (!(_mag(_a" << b << ") > 0)) return _fail(report, _mag(_a" << b
+         << ") == 0 ? 2 : 3, " << block_id(bi) << ");\n";
+      return;
+    }
+    os << in << "T _a" << b << "[" << k * k << "] = {" << join(a) << "};\n"
+       << in << "int _piv" << b << "[" << k << "];\n"
+       << in << "const R _ratio" << b << " = _lu_factor<" << k << ">(_a" << b << ", _piv"
+       << b << ");\n"
+       << in << "if (!(_ratio" << b << " > o.singular_pivot_ratio))\n"
+       << in << "  return _fail(report, _ratio" << b << " == _ratio" << b << " ? 2 : 3, " << block_id(bi)
+       << ");\n";
+  }
+
+  // sin and cos of the block's angles: evaluated once at the start, then rotated by each
+  // Newton update (_rotate), and left in scope for the terms after the loop.
+  std::vector<int> declare_rotations(std::ostringstream& os, FunctionPrinter& pr,
+                                     const Block& b) {
+    std::vector<int> rotated;
+    for (int c : b.cols)
+      if (declare_trig(os, pr, c, true)) rotated.push_back(c);
+    return rotated;
+  }
+
+  // `T _sinC, _cosC` for a coordinate whose sin or cos the program uses, from the cache (see
+  // _trig); later terms read them. Explicit coordinates (always = false) only when the function
+  // being emitted needs them. Returns whether they were declared.
+  bool declare_trig(std::ostringstream& os, FunctionPrinter& pr, int c, bool always) {
+    if (trig_slot_[c] < 0) return false;
+    const auto needed = [&](int id) { return id >= 0 && (step_mode_ || in_position_[id]); };
+    if (!always && !needed(sin_of_[c]) && !needed(cos_of_[c])) return false;
+    const std::string s = "_sin" + idx(c), co = "_cos" + idx(c);
+    os << kIn << "T " << s << ", " << co << ";\n"
+       << kIn << "_trig(" << s << ", " << co << ", " << ref("q", c) << ", trig, "
+       << (local_.empty() ? idx(trig_slot_[c]) : "_s[" + idx(trig_slot_[c]) + "]") << ");\n";
+    if (sin_of_[c] >= 0) pr.bind(sin_of_[c], s);
+    if (cos_of_[c] >= 0) pr.bind(cos_of_[c], co);
+    return true;
+  }
+
+  // In a function that has the trig cache (motion_trig_): sin and cos, from the cache, of the
+  // coordinates block bi's rates read that are not yet in scope.
+  void declare_motion_trig(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                           bool velocity, bool acceleration) {
+    const BlockOuts& bo = blocks_[bi];
+    std::vector<int> outputs = bo.jbb;
+    for (const auto& [rc, o] : bo.tjac) outputs.push_back(o);
+    for (const auto& row : bo.coupling)
+      for (const auto& [c, o] : row) outputs.push_back(o);
+    if (velocity) outputs.insert(outputs.end(), bo.nu.begin(), bo.nu.end());
+    if (acceleration) outputs.insert(outputs.end(), bo.gamma.begin(), bo.gamma.end());
+    declare_needed_trig(os, pr, outputs);
+  }
+
+  // sin and cos, from the cache, of the coordinates that `outputs` read through sin or cos and
+  // whose values are not yet in scope (a repeated block's coordinates, or an earlier part's).
+  void declare_needed_trig(std::ostringstream& os, FunctionPrinter& pr,
+                           const std::vector<int>& outputs) {
+    std::vector<int> stack;
+    for (int o : outputs) stack.push_back(out(o));
+    std::set<int> seen, coords;
+    while (!stack.empty()) {
+      const int id = stack.back();
+      stack.pop_back();
+      if (id == Program::kZero || pr.named(id) || !seen.insert(id).second) continue;
+      const Node& n = prog_.nodes[id];
+      if (n.kind == OpKind::kSin || n.kind == OpKind::kCos) {
+        const Node& a = prog_.nodes[n.args[0]];
+        if (a.kind == OpKind::kInput && a.input.kind == InputKind::kQ) {
+          coords.insert(a.input.index);
+          continue;
+        }
+      }
+      for (int a : n.args) stack.push_back(a);
+    }
+    for (int c : coords) declare_trig(os, pr, c, true);
+  }
+
+  // q[c] = value, keeping the rotated sin and cos of q[c] current.
+  void update(std::ostringstream& os, const std::string& in,
+                     const std::vector<int>& rotated, int c, const std::string& value) {
+    const bool rotate = std::find(rotated.begin(), rotated.end(), c) != rotated.end();
+    const std::string q = ref("q", c);
+    if (rotate) os << in << "const T _old" << c << " = " << q << ";\n";
+    os << in << q << " = " << value << ";\n";
+    if (rotate)
+      os << in << "_rotate(_sin" << c << ", _cos" << c << ", " << q << " - _old" << c << ", " << q
+         << ");\n";
+  }
+
+  // Appends `coefficient * x` (a Phi_q output) to a sum's text, folding +-1; x empty: the
+  // coefficient alone.
+  void add_product(std::string& sum, FunctionPrinter& pr, int output, const std::string& x) {
+    const int id = out(output);
+    if (id == Program::kZero) return;
+    const Node& n = prog_.nodes[id];
+    if (x.empty()) {  // the coefficient alone
+      sum += (sum.empty() ? "" : " + ") + pr.atom_text(id);
+    } else if (n.kind == OpKind::kConst && (n.value == 1 || n.value == -1)) {
+      const bool minus = n.value == -1;
+      sum += sum.empty() ? (minus ? "-" + x : x) : (minus ? " - " : " + ") + x;
+    } else {
+      sum += (sum.empty() ? "" : " + ") + pr.atom_text(id) + "*" + x;
+    }
+  }
+
+  // `-(sum) / coefficient` for an assigned row's constant coefficient (an output).
+  std::string divide_negated(FunctionPrinter& pr, const std::string& sum, int output,
+                             bool negate) {
+    const Node& n = prog_.nodes[out(output)];
+    if (sum.empty()) return "T(0)";
+    const bool one = n.kind == OpKind::kConst && (n.value == 1 || n.value == -1);
+    const bool minus = negate != (one && n.value == -1);
+    const std::string body = minus ? "-(" + sum + ")" : "(" + sum + ")";
+    return one ? body : body + " / " + pr.atom_text(out(output));
+  }
+
+  std::map<int, std::vector<char>> tear_dependency(std::size_t bi) const {
+    return codegen::tear_dependency(st_.plans[bi], pos_tjac_[bi]);
+  }
+
+  // Sensitivities of the assigned coordinates to the tears (dq[c]/dq[tear j], from the
+  // assigned rows in order: the rows stay satisfied) and the tears' Jacobian (the Schur
+  // complement), printed as `prefix<j>_<c>` terms and the row-major text of the m x m matrix.
+  std::vector<std::string> schur(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                                 const std::map<std::pair<int, int>, int>& entries,
+                                 const std::string& in, const std::string& prefix) {
+    const BlockPlan& plan = st_.plans[bi];
+    const std::size_t m = plan.tears.size();
+    const auto dep = tear_dependency(bi);
+    for (const auto& [rc, o] : entries) pr.ensure(out(o), os, in);
+    const auto d_name = [&](std::size_t j, int c) {
+      return prefix + std::to_string(j) + "_" + idx(c);
+    };
+    // The sum over a row's block coordinates (but `skip`) of Phi_q * dq/dtear_j.
+    const auto row_sum = [&](int r, int skip, std::size_t j) {
+      std::string sum;
+      for (const auto& [rc, o] : entries) {
+        if (rc.first != r || rc.second == skip || !dep.at(rc.second)[j]) continue;
+        add_product(sum, pr, o, rc.second == plan.tears[j] ? "" : d_name(j, rc.second));
+      }
+      return sum;
+    };
+    for (std::size_t j = 0; j < m; ++j) {
+      for (std::size_t a = 0; a < plan.assigned.size(); ++a) {
+        const auto [r, c] = plan.assigned[a];
+        if (!dep.at(c)[j]) continue;
+        const std::string sum = row_sum(r, c, j);
+        os << in << "const T " << d_name(j, c) << " = "
+           << divide_negated(pr, sum, entries.at({r, c}), true) << ";\n";
+      }
+    }
+    std::vector<std::string> a;
+    for (int r : plan.residuals)
+      for (std::size_t j = 0; j < m; ++j) {
+        const std::string sum = row_sum(r, -1, j);
+        a.push_back(sum.empty() ? "T(0)" : sum);
+      }
+    return a;
+  }
+
+  // Newton on a torn block's tears: each pass assigns the other coordinates from the tears,
+  // then (unless converged) evaluates the residuals and the tears' Jacobian and updates them.
+  void torn_position(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                     const std::vector<int>& rotated) {
+    const BlockPlan& plan = st_.plans[bi];
+    const int m = static_cast<int>(plan.tears.size());
+    const int f = pos_first_[bi];
+    const int n_assigned = static_cast<int>(plan.assigned.size());
+    const std::string in = kIn, in2 = in + "  ", b = idx(static_cast<int>(bi));
+    newton_declare(os, bi, plan.tears);
+    os << in << "R _step" << b << " = 0;\n"
+       << in << "bool _stop" << b << " = false;\n"
+       << in << "for (int _it = 1;; ++_it) {\n";
+    pr.open_scope();
+    for (int a = 0; a < n_assigned; ++a) {
+      pr.ensure(out(f + a), os, in2);
+      update(os, in2, rotated, plan.assigned[a].second, pr.text(out(f + a)));
+    }
+    os << in2 << "if (_stop" << b << ") break;\n";
+    std::vector<std::string> r;
+    for (int i = 0; i < m; ++i) {
+      pr.ensure(out(f + n_assigned + i), os, in2);
+      r.push_back(pr.text(out(f + n_assigned + i)));
+    }
+    os << in2 << "T _r[" << m << "] = {" << join(r) << "};\n";
+    newton_solve(os, in2, bi, m, schur(os, pr, bi, pos_tjac_[bi], in2, "_d"));
+    os << in2 << "_step" << b << " = 0;\n" << in2 << "R _qs = 0;\n" << in2 << "bool _small = true;\n";
+    for (int i = 0; i < m; ++i) {
+      const int c = plan.tears[i];
+      update(os, in2, rotated, c, ref("q", c) + " - _r[" + idx(i) + "]");
+      os << in2 << "_step" << b << " = std::max(_step" << b << ", _mag(_r[" << i << "])"
+         << inv_scale(c) << ");\n";
+      step_criterion(os, in2, c, i);
+    }
+    os << in2 << "if (!_finite(_step" << b << ")) return _fail(report, 3, " << block_id(bi) << ", _it);\n";
+    linear_count(os, in2, b, "_step" + b);
+    newton_stop(os, in2, bi, m, {"_stop" + b + " = true;"});
+    pr.close_scope();
+    os << in << "}\n";
+    std::vector<int> rows;
+    for (int i = 0; i < m; ++i) rows.push_back(f + n_assigned + i);
+    newton_finish(os, pr, bi, rows, "_step" + b);
+  }
+
+  // Blocks [b0, b1); checks: end with the finite checks of qd and qdd.
+  void motion_body(std::ostringstream& os, FunctionPrinter& pr, bool velocity, bool acceleration,
+                   int b0, int b1, bool checks) {
+    const std::string in = kIn;
+    divisor_.assign(blocks_.size(), "");
+    // With repeated blocks each block is solved for velocity and then acceleration before the
+    // next (a repeated block's function does both): a block's gamma reads only its own and
+    // earlier blocks' qd and earlier blocks' qdd.
+    const bool interleave = !rolls_.empty();
+    for (std::size_t bi = b0; bi < static_cast<std::size_t>(b1); ++bi) {
+      const BlockOuts& bo = blocks_[bi];
+      const int k = static_cast<int>(st_.plans[bi].block.rows.size());
+      const std::string b = idx(static_cast<int>(bi));
+      os << in << "// " << block_label(bi) << ": " << block_comment(st_.plans[bi].block, "")
+         << "\n";
+      if (roll_of_[bi] >= 0) {
+        call_rolled(os, bi, motion_name(velocity, acceleration),
+                    motion_args(velocity, acceleration, false) + ", " +
+                        (motion_trig_ ? "trig" : "static_cast<T*>(nullptr)"),
+                    true);
+        continue;
+      }
+      if (motion_trig_) declare_motion_trig(os, pr, bi, velocity, acceleration);
+      if (st_.plans[bi].torn()) {
+        const int m = static_cast<int>(st_.plans[bi].tears.size());
+        factor(os, bi, m, schur(os, pr, bi, bo.tjac, in, "_D" + b + "_"));
+        if (velocity) solve_rows(os, pr, bi, bo.nu, "qd");
+        if (interleave && acceleration) solve_rows(os, pr, bi, bo.gamma, "qdd");
+        continue;
+      }
+      for (int id : bo.jbb) pr.ensure(out(id), os, in);
+      if (k == 1) {
+        const int id = out(bo.jbb[0]);
+        const Node& n = prog_.nodes[id];
+        if (n.kind == OpKind::kConst) {
+          divisor_[bi] = n.value == 1 ? "" : pr.atom_text(id);
+        } else {
+          factor(os, bi, 1, {pr.text(id)});
+          divisor_[bi] = "_a" + b;
+        }
+      } else {
+        std::vector<std::string> a;
+        for (int id : bo.jbb) a.push_back(pr.text(out(id)));
+        factor(os, bi, k, a);
+      }
+      if (velocity) solve_rows(os, pr, bi, bo.nu, "qd");
+      if (interleave && acceleration) solve_rows(os, pr, bi, bo.gamma, "qdd");
+    }
+    if (velocity && checks) finite_check(os, "qd");
+    if (acceleration) {
+      for (std::size_t bi = b0; bi < static_cast<std::size_t>(b1) && !interleave; ++bi)
+        solve_rows(os, pr, bi, blocks_[bi].gamma, "qdd");
+      if (checks) finite_check(os, "qdd");
+    }
+  }
+
+  void solve_rows(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                  const std::vector<int>& rhs, const char* var) {
+    const BlockOuts& bo = blocks_[bi];
+    const Block& blk = st_.plans[bi].block;
+    const int k = static_cast<int>(blk.rows.size());
+    const std::string in = kIn;
+    std::vector<std::string> texts;
+    for (int i = 0; i < k; ++i) {
+      const int rid = out(rhs[i]);
+      pr.ensure(rid, os, in);
+      for (const auto& [c, o] : bo.coupling[i]) pr.ensure(out(o), os, in);
+      std::string s = rid == Program::kZero ? "" : pr.text(rid);
+      for (const auto& [c, o] : bo.coupling[i]) {
+        const int id = out(o);
+        const Node& n = prog_.nodes[id];
+        const std::string x = ref(var, c);
+        if (n.kind == OpKind::kConst && (n.value == 1 || n.value == -1)) {
+          const bool minus = n.value == 1;
+          s += s.empty() ? (minus ? "-" + x : x) : (minus ? " - " : " + ") + x;
+        } else {
+          s += (s.empty() ? "-" : " - ") + pr.atom_text(id) + "*" + x;
+        }
+      }
+      texts.push_back(s.empty() ? "T(0)" : s);
+    }
+    if (st_.plans[bi].torn()) {
+      solve_torn_rows(os, pr, bi, texts, var);
+      return;
+    }
+    if (k == 1) {
+      const std::string& d = divisor_[bi];
+      os << in << ref(var, blk.cols[0]) << " = "
+         << (d.empty() ? texts[0] : "(" + texts[0] + ") / " + d) << ";\n";
+      return;
+    }
+    const std::string b = idx(static_cast<int>(bi));
+    os << in << "{\n"
+       << in << "  T _x[" << k << "] = {" << join(texts) << "};\n"
+       << in << "  _lu_solve<" << k << ">(_a" << b << ", _piv" << b << ", _x);\n";
+    for (int i = 0; i < k; ++i)
+      os << in << "  " << ref(var, blk.cols[i]) << " = _x[" << i << "];\n";
+    os << in << "}\n";
+  }
+
+  // A torn block's linear system (Phi_q x = rhs on the block): a particular solution with the
+  // tears at zero through the assigned rows, the tears from the Schur complement factored in
+  // motion_body, then the assigned coordinates corrected by their sensitivities.
+  void solve_torn_rows(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi,
+                       const std::vector<std::string>& texts, const char* var) {
+    const BlockPlan& plan = st_.plans[bi];
+    const Block& blk = plan.block;
+    const BlockOuts& bo = blocks_[bi];
+    const int m = static_cast<int>(plan.tears.size());
+    const std::string in = kIn, b = idx(static_cast<int>(bi));
+    const auto x = [&](int c) { return ref(var, c); };
+    const auto rhs = [&](int r) {
+      const auto it = std::lower_bound(blk.rows.begin(), blk.rows.end(), r);
+      return texts[it - blk.rows.begin()];
+    };
+    const auto is_tear = [&](int c) {
+      return std::find(plan.tears.begin(), plan.tears.end(), c) != plan.tears.end();
+    };
+    // rhs - sum of the row's non-tear block entries times x (other than `skip`).
+    const auto reduced = [&](int r, int skip) {
+      std::string sum;
+      for (const auto& [rc, o] : bo.tjac)
+        if (rc.first == r && rc.second != skip && !is_tear(rc.second))
+          add_product(sum, pr, o, x(rc.second));
+      const std::string t = rhs(r);
+      if (sum.empty()) return t;
+      return t == "T(0)" ? "-(" + sum + ")" : t + " - (" + sum + ")";
+    };
+    for (const auto& [r, c] : plan.assigned) {
+      const std::string s = reduced(r, c);
+      os << in << x(c) << " = " << divide_negated(pr, s == "T(0)" ? "" : s, bo.tjac.at({r, c}), false)
+         << ";\n";
+    }
+    std::vector<std::string> g;
+    for (int r : plan.residuals) g.push_back(reduced(r, -1));
+    if (m == 1) {
+      os << in << x(plan.tears[0]) << " = (" << g[0] << ") / _a" << b << ";\n";
+    } else {
+      os << in << "{\n"
+         << in << "  T _x[" << m << "] = {" << join(g) << "};\n"
+         << in << "  _lu_solve<" << m << ">(_a" << b << ", _piv" << b << ", _x);\n";
+      for (int j = 0; j < m; ++j) os << in << "  " << x(plan.tears[j]) << " = _x[" << j << "];\n";
+      os << in << "}\n";
+    }
+    const auto dep = tear_dependency(bi);
+    for (const auto& [r, c] : plan.assigned) {
+      std::string sum;
+      for (int j = 0; j < m; ++j)
+        if (dep.at(c)[j])
+          sum += (sum.empty() ? "" : " + ") + ("_D" + b + "_" + std::to_string(j) + "_" + idx(c)) +
+                 "*" + x(plan.tears[j]);
+      if (!sum.empty()) os << in << x(c) << " += " << sum << ";\n";
+    }
+  }
+
+  const SymbolTable& symbols_;
+  const Structure& st_;
+  std::vector<CoordinateKind> kinds_;  // per coordinate
+  std::vector<GiNaC::ex> outs_;       // the program's outputs before lowering
+  std::vector<Roll> rolls_;
+  std::vector<int> roll_of_, roll_member_;  // per block: its Roll and row there, or -1
+  std::vector<int> local_;            // a repeated block's function: coordinate -> table slot
+  int first_block_ = -1;              // a repeated block's function: the first block alike
+  std::vector<int> pos_first_;
+  std::vector<BlockOuts> blocks_;
+  Program prog_;
+  std::vector<int> level_;
+  std::vector<int> sin_of_, cos_of_;  // per coordinate: its named sin / cos node, or -1
+  std::vector<int> trig_slot_;        // per coordinate: its slot in the trig cache, or -1
+  int trig_slots_ = 0;
+  std::vector<char> in_position_;     // per node: read by a position output
+  bool step_mode_ = false;            // emitting solve_step (motion terms follow position)
+  bool motion_trig_ = false;          // the motion being emitted has the trig cache
+  // sin and cos of a coordinate are declared where first read (not where it is solved): with
+  // repeated blocks, whose functions solve coordinates the caller reads.
+  bool lazy_trig_ = false;
+  std::vector<std::map<std::pair<int, int>, int>> pos_tjac_;  // torn blocks' Phi_q outputs
+  int pos_end_ = 0;
+  std::vector<std::string> divisor_;
+  std::vector<std::pair<int, int>> ranges_;  // the parts' blocks [first, second); empty: one function
+};
+
+// ---- Kinetostatics (mechanism format 6.5, forces.hpp): Phi_q^T lambda = Q after a step.
+
+// Whether the mechanism carries anything for the force functions: a mass, an inertia or a
+// load (gravity alone acts on nothing).
+bool has_force_data(const ForceModel& f) {
+  for (std::size_t b = 0; b < f.symbolic.mass.size(); ++b)
+    if (!f.symbolic.mass[b].is_zero() || !f.symbolic.inertia[b].is_zero()) return true;
+  for (const auto& e : f.applied)
+    if (!e.is_zero()) return true;
+  return false;
+}
+
+// generalized_force, solve_forces and force_columns (with applied_force and the private
+// _force_geometry they share). Masses, inertias, centres of mass and the joints' points are
+// read from Params like the rest of the header (constants with --fold-params). The inertia
+// forces and the columns follow add_inertia_forces and columns_from_lambda (forces.hpp).
+void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
+                 const SymbolicModel& model, const ModelPrograms& programs,
+                 const EmitOptions& options) {
+  if (m.forces.loads.empty() && m.forces.bodies.empty()) return;
+  ForceModel f = derive_forces(m, symbols, model, m.forces);
+  if (!has_force_data(f)) return;
+  const auto fold = [&](GiNaC::ex e) {
+    return options.folded_params ? substitute_params(e, symbols, model.param_values) : e;
+  };
+  // The geometry the force functions read, as one program: per body with mass or inertia its
+  // m, J and A com; per distance driver its length; per joint with columns the global offset
+  // A s of the point its reaction is reported at.
+  std::vector<GiNaC::ex> geometry;
+  const auto rotated = [&](int body, const std::array<GiNaC::ex, 2>& s) {
+    if (body == kGround) return std::array<GiNaC::ex, 2>{fold(s[0]), fold(s[1])};
+    const GiNaC::ex phi = symbols.q(3 * body + 2);
+    return std::array<GiNaC::ex, 2>{fold(cos(phi) * s[0] - sin(phi) * s[1]),
+                                    fold(sin(phi) * s[0] + cos(phi) * s[1])};
+  };
+  const auto at = [&](int body, const std::array<GiNaC::ex, 2>& s) {
+    auto a = rotated(body, s);
+    if (body != kGround) {
+      a[0] += symbols.q(3 * body);
+      a[1] += symbols.q(3 * body + 1);
+    }
+    return a;
+  };
+  std::ostringstream inertia, columns;
+  const int nb = static_cast<int>(m.bodies.size());
+  for (int b = 0; b < nb; ++b) {
+    const GiNaC::ex mass = fold(f.symbolic.mass[b]), j = fold(f.symbolic.inertia[b]);
+    if (mass.is_zero() && j.is_zero()) continue;
+    const int g0 = static_cast<int>(geometry.size());
+    const auto a = rotated(b, f.symbolic.com[b]);
+    for (const GiNaC::ex& e : {mass, j, a[0], a[1]}) geometry.push_back(e);
+    const std::string x = idx(3 * b), y = idx(3 * b + 1), phi = idx(3 * b + 2);
+    const auto g = [&](int k) { return "g[" + idx(g0 + k) + "]"; };
+    inertia << "    {  // body '" << m.bodies[b].name << "': a_com = rdd + alpha (A com)^perp - "
+            << "omega^2 A com\n"
+            << "      const T w = qd[" << phi << "], wd = qdd[" << phi << "];\n"
+            << "      const T fx = -" << g(0) << " * (qdd[" << x << "] - wd * " << g(3)
+            << " - w * w * " << g(2) << ");\n"
+            << "      const T fy = -" << g(0) << " * (qdd[" << y << "] + wd * " << g(2)
+            << " - w * w * " << g(3) << ");\n"
+            << "      out[" << x << "] += fx;\n      out[" << y << "] += fy;\n"
+            << "      out[" << phi << "] += " << g(2) << " * fy - " << g(3) << " * fx - " << g(1)
+            << " * wd;\n    }\n";
+  }
+  std::map<std::pair<int, int>, int> entry;
+  for (std::size_t e = 0; e < programs.jac_rows.size(); ++e)
+    entry[{programs.jac_rows[e], programs.jac_cols[e]}] = static_cast<int>(e);
+  // -Phi_q^T lambda of constraint c at coordinate k, as text.
+  const auto reaction = [&](int c, int k) {
+    std::string s;
+    for (int r = f.row_begin[c]; r < f.row_begin[c + 1]; ++r)
+      if (const auto it = entry.find({r, k}); it != entry.end())
+        s += " - jac[" + idx(it->second) + "] * lambda[" + idx(r) + "]";
+    return s.empty() ? std::string() : "-" + s.substr(3);
+  };
+  const std::vector<std::string> names = force_columns(m);
+  int col = 0;
+  const int nj = static_cast<int>(m.joints.size());
+  for (std::size_t di = 0; di < m.drivers.size(); ++di) {
+    const Constraint& c = m.drivers[di];
+    const int k = nj + static_cast<int>(di), r0 = f.row_begin[k];
+    if (is_distance(c)) {
+      // Phi = d.d - f^2: the force along d is -lambda dPhi/dL = -2 lambda L.
+      const auto pj = at(c.j, f.symbolic.sj[k]), pi = at(c.i, f.symbolic.si[k]);
+      const GiNaC::ex dx = pj[0] - pi[0], dy = pj[1] - pi[1];
+      columns << "    out[" << col << "] = T(-2) * lambda[" << r0 << "] * g[" << geometry.size()
+              << "];  // " << names[col] << "\n";
+      geometry.push_back(fold(sqrt(dx * dx + dy * dy)));
+      ++col;
+    } else {
+      for (int r = r0; r < f.row_begin[k + 1]; ++r, ++col)
+        columns << "    out[" << col << "] = -lambda[" << r << "];  // " << names[col] << "\n";
+    }
+  }
+  for (int jn = 0; jn < nj; ++jn) {
+    const Constraint& c = m.joints[jn];
+    if (is_expression(c)) continue;
+    const bool on_j = c.j != kGround;
+    const int body = on_j ? c.j : c.i;
+    const auto a = rotated(body, on_j ? f.symbolic.sj[jn] : f.symbolic.si[jn]);
+    const std::string ax = "g[" + idx(static_cast<int>(geometry.size())) + "]",
+                      ay = "g[" + idx(static_cast<int>(geometry.size()) + 1) + "]";
+    geometry.push_back(a[0]);
+    geometry.push_back(a[1]);
+    const std::string name = names[col].substr(0, names[col].size() - 3);
+    const auto or_zero = [](const std::string& s) { return s.empty() ? "T(0)" : s; };
+    const std::string tz = reaction(jn, 3 * body + 2);
+    columns << "    {  // " << name << " on body '" << m.bodies[body].name << "'\n"
+            << "      const T fx = " << or_zero(reaction(jn, 3 * body)) << ";\n"
+            << "      const T fy = " << or_zero(reaction(jn, 3 * body + 1)) << ";\n"
+            << "      out[" << col << "] = fx;\n      out[" << col + 1 << "] = fy;\n"
+            << "      out[" << col + 2 << "] = " << (tz.empty() ? "-(" : tz + " - (") << ax
+            << " * fy - " << ay << " * fx);  // about the point\n";
+    if (c.kind->normal_force) {
+      // J.fn as normal_force (forces.hpp): t = A_i curve_i'(a) = -d(contact rows)/da.
+      const int a = m.coordinate_index(c.coordinates.at("coordinate_i")), r0 = f.row_begin[jn];
+      const auto minus_jac = [&](int r) {
+        const auto it = entry.find({r, a});
+        return it == entry.end() ? std::string("T(0)") : "-jac[" + idx(it->second) + "]";
+      };
+      columns << "      using std::sqrt;\n"
+              << "      const T tx = " << minus_jac(r0) << ", ty = " << minus_jac(r0 + 1) << ";\n"
+              << "      out[" << col + 3 << "] = (" << (on_j ? "fx" : "-fx") << " * ty - "
+              << (on_j ? "fy" : "-fy") << " * tx) / sqrt(tx * tx + ty * ty);  // normal force\n";
+    }
+    columns << "    }\n";
+    col += 3 + static_cast<int>(c.kind->normal_force);
+  }
+  std::vector<GiNaC::ex> applied;
+  for (const auto& e : f.applied) applied.push_back(fold(e));
+  if (geometry.empty()) geometry.push_back(0);  // out[1], so that the function reads `out`
+  const Program applied_program = lower(applied, symbols);
+  const Program geometry_program = lower(geometry, symbols);
+  const std::string ng = idx(std::max<int>(1, static_cast<int>(geometry.size())));
+  std::vector<std::string> quoted;
+  for (const auto& n : names) quoted.push_back("\"" + n + "\"");
+
+  os << "\n  // ---- Kinetostatics (mechanism format 6.5): driver efforts and joint reactions\n"
+     << "  // of the motion from M qdd + Phi_q^T lambda = Q^A, i.e. Phi_q^T lambda = Q with\n"
+     << "  // Q = Q^A + the inertia forces, solved through the blocks in reverse order. Usable\n"
+     << "  // straight after solve_step at the same t (feedforward efforts).\n"
+     << "  static constexpr bool has_forces = true;\n"
+     << "  // The columns of `kinegen analyze --forces`, in its order: each driver's effort(s),\n"
+     << "  // each joint's fx, fy (global) and tz about its point.\n"
+     << "  static constexpr int num_force_columns = " << names.size() << ";\n"
+     << "  static constexpr std::array<const char*, num_force_columns> force_column_names = {"
+     << join(quoted) << "};\n\n"
+     << "  // Q^A(q, qd, t): gravity and the loads (forces, torques, spring-dampers).\n";
+  emit_function(os, "applied_force", "nq", applied_program, symbols, true,
+                options.max_function_ops);
+  os << "\n private:\n"
+     << "  // What the force functions read besides Phi_q: per body with mass or inertia m, J and\n"
+     << "  // A com; per distance driver its length; per joint the offset A s of its point.\n";
+  emit_function(os, "_force_geometry", ng.c_str(), geometry_program, symbols, false,
+                options.max_function_ops);
+  os << "\n public:\n"
+     << "  // Q = Q^A + the inertia forces of the motion: -m a_com at each centre of mass\n"
+     << "  // (with the omega^2 term of an offset centre) and -J alpha. out[nq].\n"
+     << "  template <class T>\n"
+     << "  static void generalized_force(const T* q, const T* qd, [[maybe_unused]] const T* qdd,\n"
+     << "                                T t, const Params& p, T* out) noexcept {\n"
+     << "    applied_force(q, qd, t, p, out);\n"
+     << "    T g[" << ng << "];\n"
+     << "    _force_geometry(q, t, p, g);\n"
+     << inertia.str() << "  }\n\n"
+     << "  // Phi_q^T lambda = Q (generalized_force) at a solved q, qd, qdd: one LU per block,\n"
+     << "  // in reverse block order. lambda[nc]. Fails with status 2 (a singular or\n"
+     << "  // ill-conditioned block: a toggle position, where the efforts grow without bound)\n"
+     << "  // or 3 (not finite) and the block; report.rcond is the smallest block's.\n"
+     << "  template <class T, class U>\n"
+     << "  static BlockReport<_real<T>> solve_forces(const T* q, const T* qd, const T* qdd, T t,\n"
+     << "      const Params& p, T* lambda, const BasicBlockOptions<U>& options) noexcept {\n"
+     << "    T jac[jac_nnz], b[nq];\n"
+     << "    phi_q(q, t, p, jac);\n"
+     << "    generalized_force(q, qd, qdd, t, p, b);\n"
+     << "    return _block_transposed<_model>(jac, b, lambda, 1,\n"
+     << "                                     _options_as<_real<T>>(options));\n"
+     << "  }\n\n"
+     << "  // The force_column_names columns from lambda (solve_forces) at the same q and t. The\n"
+     << "  // reaction on the bodies is -Phi_q^T lambda; an effort is positive when it pushes its\n"
+     << "  // driven quantity up. out[num_force_columns].\n"
+     << "  template <class T>\n"
+     << "  static void force_columns(const T* q, T t, const Params& p, const T* lambda,\n"
+     << "                            T* out) noexcept {\n"
+     << "    T jac[jac_nnz], g[" << ng << "];\n"
+     << "    phi_q(q, t, p, jac);\n"
+     << "    _force_geometry(q, t, p, g);\n"
+     << columns.str() << "  }\n";
+}
+
+}  // namespace
+
+// The mechanism's outputs (format 6.4): values, rates, and accelerations as O_q qdd plus the
+// rest, from the programs the analysis runs. Nothing for a file without outputs.
+void emit_outputs(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
+                  const ModelPrograms& programs, int max_ops) {
+  const int n = programs.num_outputs;
+  os << "\n  // Outputs (in this order):";
+  for (int o = 0; o < n; ++o) os << (o ? "," : "") << " " << m.outputs[o].name;
+  os << ".\n  static constexpr int num_outputs = " << n << ";\n";
+  os << "  // Output values O(q, t)\n";
+  emit_function(os, "output_values", "num_outputs", programs.outputs, symbols, false, max_ops);
+  os << "\n  // Rates O_q qd + O_t, then accelerations at qdd = 0, then O_q (row-major)\n";
+  emit_function(os, "output_rates", "num_outputs * (2 + nq)", programs.output_rates, symbols, true,
+                max_ops);
+  os << "\n  // Value, velocity and acceleration of each output at a solved q, qd, qdd\n"
+     << "  // (exact time derivatives along the motion).\n"
+     << "  template <class T>\n"
+     << "  static void outputs(const T* q, const T* qd, const T* qdd, T t, const Params& p, "
+        "T* value,\n"
+     << "                      T* velocity, T* acceleration) noexcept {\n"
+     << "    std::array<T, num_outputs * (2 + nq)> r;\n"
+     << "    output_values(q, t, p, value);\n"
+     << "    output_rates(q, qd, t, p, r.data());\n"
+     << "    for (int o = 0; o < num_outputs; ++o) {\n"
+     << "      velocity[o] = r[o];\n"
+     << "      T a = r[num_outputs + o];\n"
+     << "      for (int k = 0; k < nq; ++k) a += r[2 * num_outputs + o * nq + k] * qdd[k];\n"
+     << "      acceleration[o] = a;\n"
+     << "    }\n"
+     << "  }\n";
+}
+
+std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
+                        const ModelPrograms& programs) {
+  return emit_header(m, symbols, model, programs, EmitOptions{});
+}
+
+std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
+                        const ModelPrograms& programs, const EmitOptions& options) {
+  check_header_names(m);  // a name the header cannot carry is refused here, with the reason
+  check_expansion_cost(m, model);  // before analyze_structure expands the equations
+  if (const auto why = namespace_conflict(options.name_space); !why.empty())
+    throw UsageError("--namespace: " + why);
+  const bool velocity = options.outputs != Outputs::kPosition;
+  const bool acceleration = options.outputs == Outputs::kAll;
+  const Structure st = options.block_solver && programs.nq == programs.nc
+                           ? analyze_structure(model, symbols)
+                           : Structure{};
+  std::string base = m.source;
+  if (const auto slash = base.find_last_of("/\\"); slash != std::string::npos)
+    base = base.substr(slash + 1);
+  base = safe_comment_text(base);
+
+  std::ostringstream os;
+  os << "// Generated by kinegen " << kVersion << " from " << base << ". Do not edit.\n"
+     << "// Regenerate with: kinegen generate " << base << " -o <dir>"
+     << (options.outputs == Outputs::kPosition   ? " --outputs position"
+         : options.outputs == Outputs::kVelocity ? " --outputs velocity"
+                                                 : "")
+     << (options.folded_params ? " --fold-params" : "") << "\n";
+  if (options.folded_params)
+    os << "// Parameters folded into constants (--fold-params): Params is kept for the same "
+          "API, but its members are ignored.\n";
+  os << "//\n"
+     << "// Planar Cartesian kinematics of mechanism '" << m.name << "': Phi(q, t) = 0 with\n"
+     << "// nu = -Phi_t and gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.\n"
+     << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include <limits>\n#include <type_traits>\n#include <utility>\n\n"
+     << "namespace " << options.name_space << " {\n\n";
+
+  os << "// Coordinates:";
+  // A line per body, then one for the extra coordinates (format 6.1).
+  const int body_coordinates = 3 * static_cast<int>(m.bodies.size());
+  for (int k = 0; k < programs.nq; ++k)
+    os << ((k < body_coordinates ? k % 3 == 0 : k == body_coordinates) ? "\n//  " : ",") << " q["
+       << k << "] = " << symbols.coord_name(k);
+  os << "\n// Constraint rows:\n";
+  for (int r = 0; r < programs.nc; ++r) {
+    const Constraint* c = model.rows[r].constraint;
+    if (model.rows[r].component > 0) continue;
+    const int n = c->equation_count();
+    // c->item is built from validated names and the constraint type only.
+    os << "//   " << (n == 1 ? std::to_string(r) : std::to_string(r) + "-" + std::to_string(r + n - 1))
+       << ": " << c->item << "\n";
+  }
+  os << "struct " << m.name << " {\n";
+  os << "  static constexpr int nq = " << programs.nq << ";\n";
+  os << "  static constexpr int nc = " << programs.nc << ";\n";
+  os << "  static constexpr int jac_nnz = " << programs.jac_rows.size() << ";\n";
+  std::vector<std::string> rows, cols, q0;
+  for (int r : programs.jac_rows) rows.push_back(std::to_string(r));
+  for (int c : programs.jac_cols) cols.push_back(std::to_string(c));
+  for (const auto& e : model.q0)
+    q0.push_back(format_double(to_double(substitute_params(e, symbols, model.param_values))));
+  os << "  static constexpr std::array<int, jac_nnz> jac_rows = {" << join(rows) << "};\n";
+  os << "  static constexpr std::array<int, jac_nnz> jac_cols = {" << join(cols) << "};\n";
+  os << "  // Initial estimates for the first position solve, from the mechanism file.\n";
+  os << "  static constexpr std::array<double, nq> q0 = {" << join(q0) << "};\n";
+  os << "  // A typical length of the mechanism; position tolerances scale with it.\n";
+  os << "  static constexpr double length_scale = " << format_double(model.length_scale) << ";\n";
+  {
+    std::vector<std::string> kinds, scales;
+    for (std::size_t k = 0; k < model.coordinate_kinds.size(); ++k) {
+      kinds.push_back(std::to_string(static_cast<int>(model.coordinate_kinds[k])));
+      scales.push_back(format_double(model.coordinate_scales[k]));
+    }
+    os << "  // What each coordinate measures (kinegen::CoordinateKind: 0 length, 1 angle, 2 scalar)\n"
+       << "  // and the size its tolerances scale with (a body's x and y: its joints' geometry).\n"
+       << "  static constexpr std::array<int, nq> coordinate_kinds = {" << join(kinds) << "};\n"
+       << "  static constexpr std::array<double, nq> coordinate_scales = {" << join(scales)
+       << "};\n\n";
+  }
+  os << "  struct Params {\n";
+  if (options.folded_params)
+    os << "    // Ignored: these values were folded into the code at generation.\n";
+  for (int k = 0; k < symbols.num_params(); ++k)
+    os << "    double " << symbols.param_name(k) << " = "
+       << format_double(model.param_values[k].to_double()) << ";\n";
+  for (std::size_t d = 0; d < m.drivers.size(); ++d) {
+    if (!m.drivers[d].law.input) continue;
+    const int k = static_cast<int>(d);
+    os << "    // Input driver " << m.drivers[d].name
+       << " (f: input): its value, rate and acceleration, set at run time\n"
+       << "    double " << input_member(m, k, 0) << " = 0, " << input_member(m, k, 1) << " = 0, "
+       << input_member(m, k, 2) << " = 0;\n";
+  }
+  os << "  };\n\n";
+
+  // Each output's constraint, for repeated constraints (roll_outputs).
+  const std::vector<int> row_group = constraint_groups(model);
+  std::vector<int> entry_group;
+  std::vector<GiNaC::ex> jac;
+  for (const auto& e : model.phi_q) {
+    entry_group.push_back(row_group[e.row]);
+    jac.push_back(e.value);
+  }
+  const int max_ops = options.max_function_ops, roll_min = options.roll_min;
+  const auto expression_kernels_at = static_cast<std::size_t>(os.tellp());
+  os << "  // Phi(q, t)\n";
+  emit_function_rolled_if(os, "phi", "nc", programs.phi, model.phi, row_group, symbols, false,
+                          max_ops, roll_min);
+  os << "\n  // Phi_q(q, t) at (jac_rows[k], jac_cols[k])\n";
+  emit_function_rolled_if(os, "phi_q", "jac_nnz", programs.phi_q, jac, entry_group, symbols,
+                          false, max_ops, roll_min);
+  if (velocity) {
+    os << "\n  // nu = -Phi_t\n";
+    emit_function_rolled_if(os, "nu", "nc", programs.nu, model.nu, row_group, symbols, false,
+                            max_ops, roll_min);
+  }
+  if (acceleration) {
+    os << "\n  // gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt\n";
+    emit_function_rolled_if(os, "gamma", "nc", programs.gamma, model.gamma, row_group, symbols,
+                            true, max_ops, roll_min);
+  }
+
+  if (programs.num_outputs > 0) emit_outputs(os, m, symbols, programs, max_ops);
+
+  os << "\n  // Which outputs were generated (kinegen generate --outputs).\n";
+  os << "  static constexpr bool has_velocity = " << (velocity ? "true" : "false") << ";\n";
+  os << "  static constexpr bool has_acceleration = " << (acceleration ? "true" : "false")
+     << ";\n";
+  os << "\n  // Block solver: Phi(q, t) = 0 in block-lower-triangular order (maximum matching, then\n"
+     << "  // strongly connected components). Each block reads only its own and earlier blocks'\n"
+     << "  // coordinates.\n";
+  os << "  static constexpr bool has_block_solver = " << (st.order.perfect ? "true" : "false")
+     << ";\n";
+  os << "  static constexpr int num_blocks = " << st.plans.size() << ";\n";
+  if (st.order.perfect) {
+    os << "  static constexpr int num_explicit_blocks = " << st.explicit_count() << ";\n";
+    os << "  static constexpr int max_block_size = " << st.largest_block() << ";\n";
+    os << "  // The largest system a Newton iteration solves (torn blocks: their tear variables).\n";
+    os << "  static constexpr int max_newton_size = " << st.largest_newton() << ";\n";
+    std::vector<std::string> iterated;
+    for (const BlockPlan& plan : st.plans)
+      if (plan.kind == BlockKind::kNewton)
+        for (int c : plan.torn() ? plan.tears : plan.block.cols) iterated.push_back(idx(c));
+    os << "  // The coordinates Newton iterates; the block solver computes the others from them, so\n"
+       << "  // only these need a good start (a predictor).\n"
+       << "  static constexpr int num_newton_coordinates = " << iterated.size() << ";\n"
+       << "  static constexpr std::array<int, num_newton_coordinates> newton_coordinates = {"
+       << join(iterated) << "};\n";
+    BlockEmitter blocks(model, symbols, st, options.max_function_ops, options.roll_min);
+    os << "  // Values in the optional sin/cos cache of solve_position and solve_step (3 per\n"
+       << "  // coordinate whose sin or cos the model uses).\n"
+       << "  static constexpr int trig_cache_size = " << blocks.trig_cache_size() << ";\n\n";
+    // The block functions first, so that only the kernels they call are emitted (before them).
+    std::ostringstream code;
+    blocks.emit_position(code);
+    if (velocity) {
+      code << "\n";
+      blocks.emit_motion(code, true, false);
+    }
+    if (acceleration) {
+      code << "\n";
+      blocks.emit_motion(code, false, true);
+      code << "\n";
+      blocks.emit_motion(code, true, true);
+      code << "\n";
+      blocks.emit_step(code);
+    }
+    blocks.emit_rolls(code, velocity, acceleration);
+    // Linear solves with Phi_q after a position solve (the block_linear kernel): parameter
+    // sensitivities and kinetostatics append their functions here.
+    std::ostringstream linear;
+    if (linear_blocks_supported(st)) {
+      emit_sensitivity(linear, symbols, model, options);
+      // The force functions take qdd, which only a header with the accelerations gives.
+      if (acceleration) emit_forces(linear, m, symbols, model, programs, options);
+    }
+    // The tables only where a function reads them (folded headers say has_sensitivity = false).
+    const std::string linear_code = linear.str();
+    if (linear_code.find("_block_forward<") != std::string::npos ||
+        linear_code.find("_block_transposed<") != std::string::npos)
+      emit_structure_tables(os, m.name, st, programs);
+    code << linear_code;
+    emit_kernels(os, code.str());
+    if (code.str().find("_trig(") != std::string::npos)
+      os << "  // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then cache.data().\n"
+         << "  template <class T>\n"
+         << "  using TrigCache = BasicTrigCache<T, trig_cache_size>;\n\n";
+    os << code.str();
+  }
+  os << "};\n\n}  // namespace " << options.name_space << "\n";
+  return with_input_members(with_expression_kernels(os.str(), expression_kernels_at), m);
+}
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,316 @@
+// Tables: a careful CSV reader and the two spline fits (see table.hpp).
+#include "kinegen/codegen/model/table.hpp"
+
+#include <cln/cln.h>
+
+#include <Eigen/SparseLU>
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/model/mechanism.hpp"
+#include "kinegen/kernels/spline.hpp"
+
+namespace kinegen::codegen {
+namespace {
+
+namespace fs = std::filesystem;
+
+[[noreturn]] void fail(const TableSource& src, const std::string& message) {
+  throw InputError(src.mechanism_file, src.item, src.loc, message);
+}
+
+// A whole field as a finite double, or false.
+bool parse_number(std::string field, double& out) {
+  const auto first = field.find_first_not_of(" \t");
+  const auto last = field.find_last_not_of(" \t\r");
+  if (first == std::string::npos) return false;
+  field = field.substr(first, last - first + 1);
+  char* end = nullptr;
+  errno = 0;
+  out = std::strtod(field.c_str(), &end);
+  return end == field.c_str() + field.size() && errno == 0;
+}
+
+// The file the path names, checked to stay inside the mechanism's folder when confined.
+fs::path resolve(const std::string& path, const TableSource& src) {
+  const fs::path base = fs::path(src.mechanism_file).parent_path();
+  const fs::path full = fs::path(path).is_absolute() ? fs::path(path) : base / path;
+  std::error_code ec;
+  if (!fs::exists(full, ec)) fail(src, "the table file '" + path + "' does not exist");
+  if (src.confine) {
+    const fs::path root = fs::weakly_canonical(base.empty() ? fs::path(".") : base, ec);
+    const fs::path target = fs::canonical(full, ec);
+    if (ec) fail(src, "cannot resolve the table file '" + path + "'");
+    const auto rel = target.lexically_relative(root);
+    if (rel.empty() || *rel.begin() == "..")
+      fail(src, "the table file '" + path +
+                    "' lies outside the mechanism's folder (by '..', an absolute path or a "
+                    "link); copy it next to the mechanism file");
+  }
+  if (!fs::is_regular_file(full, ec)) fail(src, "the table '" + path + "' is not a regular file");
+  return full;
+}
+
+// Solves A m = rhs for the spline's second derivatives (A sparse, banded or cyclic).
+std::vector<double> solve(const std::vector<Eigen::Triplet<double>>& entries,
+                          const Eigen::VectorXd& rhs) {
+  Eigen::SparseMatrix<double> a(rhs.size(), rhs.size());
+  a.setFromTriplets(entries.begin(), entries.end());
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
+  lu.compute(a);
+  const Eigen::VectorXd m = lu.solve(rhs);
+  return std::vector<double>(m.data(), m.data() + m.size());
+}
+
+std::deque<Spline>& tables() {
+  static std::deque<Spline> all;
+  return all;
+}
+
+std::mutex& tables_mutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+}  // namespace
+
+int register_table(const Spline& spline) {
+  std::lock_guard<std::mutex> lock(tables_mutex());
+  auto& all = tables();
+  for (std::size_t k = 0; k < all.size(); ++k) {
+    const Spline& s = all[k];
+    if (s.t == spline.t && s.y == spline.y && s.m == spline.m && s.periodic == spline.periodic &&
+        s.period == spline.period && s.rise == spline.rise)
+      return static_cast<int>(k);
+  }
+  if (all.size() >= 1000) throw std::length_error("more than 1000 tables in one process");
+  all.push_back(spline);
+  return static_cast<int>(all.size()) - 1;
+}
+
+const Spline& registered_table(int id) {
+  std::lock_guard<std::mutex> lock(tables_mutex());
+  return tables().at(
+      static_cast<std::size_t>(id));  // elements never move (a deque grown at its end)
+}
+
+GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::numeric& x) {
+  using GiNaC::numeric;
+  const auto exact = [](double v) {
+    return numeric(cln::rational(cln::the<cln::cl_R>(numeric(v).to_cl_N())));
+  };
+  numeric local = x.real();
+  numeric turns = 0;
+  if (s.periodic) {
+    const numeric p = exact(s.period);
+    turns = numeric(cln::floor1(cln::the<cln::cl_R>((local / p).to_cl_N())));
+    local = local - turns * p;
+  }
+  const double xd = local.to_double();
+  const int n = static_cast<int>(s.t.size());
+  const double slack = 8 * std::numeric_limits<double>::epsilon() *
+                       std::max(std::abs(s.t.front()), std::abs(s.t.back()));
+  if (!(xd >= s.t.front() - slack && xd <= s.t.back() + slack) || order < 0 || order > 2)
+    throw AnalysisError("t = " + std::to_string(x.real().to_double()) +
+                        " lies outside a table's range in the high-precision evaluation");
+  int lo = 0, hi = n - 1;
+  while (hi - lo > 1) {
+    const int mid = lo + (hi - lo) / 2;
+    (s.t[mid] <= xd ? lo : hi) = mid;
+  }
+  const numeric h = exact(s.t[lo + 1]) - exact(s.t[lo]);
+  const numeric a = (exact(s.t[lo + 1]) - local) / h, b = 1 - a;
+  const numeric yl = exact(s.y[lo]), yr = exact(s.y[lo + 1]);
+  const numeric ml = exact(s.m[lo]), mr = exact(s.m[lo + 1]);
+  numeric v;
+  if (order == 0)
+    v = a * yl + b * yr + ((a * a * a - a) * ml + (b * b * b - b) * mr) * h * h / 6;
+  else if (order == 1)
+    v = (yr - yl) / h + ((1 - 3 * a * a) * ml + (3 * b * b - 1) * mr) * h / 6;
+  else
+    v = a * ml + b * mr;
+  if (s.periodic && order == 0) v = v + exact(s.rise) * x.real() / exact(s.period);
+  if (s.periodic && order == 1) v = v + exact(s.rise) / exact(s.period);
+  return v;
+}
+
+namespace {
+bool covers(const Spline& s, double t) {
+  const double slack = 8 * std::numeric_limits<double>::epsilon() *
+                       std::max(std::abs(s.t.front()), std::abs(s.t.back()));
+  return s.periodic || (t >= s.t.front() - slack && t <= s.t.back() + slack);
+}
+}  // namespace
+
+TableCoverage table_coverage(const Mechanism& m) {
+  TableCoverage c;
+  for (const Constraint& d : m.drivers) {
+    if (d.law.table_id < 0) continue;
+    const Spline& s = registered_table(d.law.table_id);
+    if (s.periodic) continue;
+    c.lo = std::max(c.lo, s.t.front());
+    c.hi = std::min(c.hi, s.t.back());
+  }
+  return c;
+}
+
+std::string table_outside(const Mechanism& m, double t) {
+  for (const Constraint& d : m.drivers) {
+    if (d.law.table_id < 0) continue;
+    const Spline& s = registered_table(d.law.table_id);
+    if (covers(s, t)) continue;
+    return d.item + " table '" + d.law.table + "' (its t runs from " + format_number(s.t.front()) +
+           " to " + format_number(s.t.back()) +
+           "; a table is never extrapolated: give it a period or more rows)";
+  }
+  return "";
+}
+
+void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::string>>& inputs,
+                  bool required) {
+  std::set<std::string> given;
+  for (const auto& [name, path] : inputs) {
+    if (!given.insert(name).second) throw UsageError("--input " + name + " is given twice");
+    Constraint* driver = nullptr;
+    for (Constraint& d : m.drivers)
+      if (d.name == name && d.law.input) driver = &d;
+    if (!driver)
+      throw UsageError("--input " + name + ": " + m.source +
+                       " has no input driver (f: input) named '" + name + "'");
+    const TableSource src{m.source, driver->item + " --input " + name, driver->value.loc, false};
+    std::vector<double> t, v;
+    read_table(fs::absolute(path).string(), src, t, v);
+    driver->law.input = false;
+    driver->law.table = path;
+    driver->law.table_id = register_table(fit_not_a_knot(t, v));
+  }
+  if (!required) return;
+  for (const Constraint& d : m.drivers)
+    if (d.law.input)
+      throw UsageError(d.item + " is an input driver (f: input): give its values with --input " +
+                       d.name + "=FILE.csv (columns t,value)");
+}
+
+bool Spline::eval(double x, double* f) const {
+  const int n = static_cast<int>(t.size());
+  return periodic ? kernels::spline_eval_periodic(t.data(), y.data(), m.data(), n, period, rise,
+                                                  x, f)
+                  : kernels::spline_eval(t.data(), y.data(), m.data(), n, x, f);
+}
+
+void read_table(const std::string& path, const TableSource& src, std::vector<double>& t,
+                std::vector<double>& value) {
+  const fs::path file = resolve(path, src);
+  std::error_code ec;
+  const auto size = fs::file_size(file, ec);
+  if (ec) fail(src, "cannot read the table file '" + path + "'");
+  if (size > kMaxTableBytes)
+    fail(src, "the table file '" + path + "' is larger than " +
+                  std::to_string(kMaxTableBytes >> 20) + " MiB");
+  std::ifstream in(file, std::ios::binary);
+  if (!in) fail(src, "cannot open the table file '" + path + "'");
+  std::string line;
+  int row = 0;  // 1-based line in the CSV
+  bool header = false;
+  t.clear();
+  value.clear();
+  while (std::getline(in, line)) {
+    ++row;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;  // blank line
+    const auto comma = line.find(',');
+    const std::string where = "'" + path + "' line " + std::to_string(row);
+    if (comma == std::string::npos || line.find(',', comma + 1) != std::string::npos)
+      fail(src, "table " + where + " must have exactly two columns (t,value)");
+    double a = 0, b = 0;
+    const bool na = parse_number(line.substr(0, comma), a);
+    const bool nb = parse_number(line.substr(comma + 1), b);
+    if (!header) {  // the first non-blank line names the columns
+      if (na && nb)
+        fail(src, "table " + where + " must be a header row (for example 't,value')");
+      header = true;
+      continue;
+    }
+    if (!na || !nb) fail(src, "table " + where + " is not two numbers");
+    if (!std::isfinite(a) || !std::isfinite(b))
+      fail(src, "table " + where + " holds a value that is not finite");
+    if (!t.empty() && !(a > t.back()))
+      fail(src, "table " + where + ": t must increase strictly (" + format_number(a) + " follows " +
+                    format_number(t.back()) + ")");
+    if (t.size() >= kMaxTableRows)
+      fail(src, "table '" + path + "' has more than " + std::to_string(kMaxTableRows) + " rows");
+    t.push_back(a);
+    value.push_back(b);
+  }
+  if (!header) fail(src, "the table file '" + path + "' is empty");
+  if (t.size() < 4)
+    fail(src, "table '" + path + "' has " + std::to_string(t.size()) +
+                  " rows; a cubic spline needs at least 4");
+}
+
+Spline fit_not_a_knot(std::vector<double> t, std::vector<double> y) {
+  const int n = static_cast<int>(t.size());
+  std::vector<double> h(n - 1);
+  for (int i = 0; i + 1 < n; ++i) h[i] = t[i + 1] - t[i];
+  std::vector<Eigen::Triplet<double>> a;
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n);
+  // Not-a-knot: the third derivative is continuous at t[1] and t[n-2].
+  a.emplace_back(0, 0, h[1]);
+  a.emplace_back(0, 1, -(h[0] + h[1]));
+  a.emplace_back(0, 2, h[0]);
+  for (int i = 1; i + 1 < n; ++i) {
+    a.emplace_back(i, i - 1, h[i - 1]);
+    a.emplace_back(i, i, 2 * (h[i - 1] + h[i]));
+    a.emplace_back(i, i + 1, h[i]);
+    rhs[i] = 6 * ((y[i + 1] - y[i]) / h[i] - (y[i] - y[i - 1]) / h[i - 1]);
+  }
+  a.emplace_back(n - 1, n - 3, h[n - 2]);
+  a.emplace_back(n - 1, n - 2, -(h[n - 3] + h[n - 2]));
+  a.emplace_back(n - 1, n - 1, h[n - 3]);
+  Spline s;
+  s.m = solve(a, rhs);
+  s.t = std::move(t);
+  s.y = std::move(y);
+  return s;
+}
+
+Spline fit_periodic(std::vector<double> t, std::vector<double> y) {
+  const int n = static_cast<int>(t.size());
+  const int k = n - 1;  // unknowns m[0..k-1]; m[k] = m[0]
+  Spline s;
+  s.periodic = true;
+  s.period = t.back();
+  s.rise = y.back() - y.front();
+  for (int i = 0; i < n; ++i) y[i] -= s.rise * (t[i] / s.period);
+  y.back() = y.front();  // exactly, whatever the rounding of the trend
+  std::vector<double> h(k);
+  for (int i = 0; i < k; ++i) h[i] = t[i + 1] - t[i];
+  std::vector<Eigen::Triplet<double>> a;
+  Eigen::VectorXd rhs(k);
+  for (int i = 0; i < k; ++i) {
+    const int prev = (i + k - 1) % k;
+    const double hp = h[prev], hi = h[i];
+    const double yp = i == 0 ? y[k - 1] : y[i - 1];
+    a.emplace_back(i, prev, hp);
+    a.emplace_back(i, i, 2 * (hp + hi));
+    a.emplace_back(i, (i + 1) % k, hi);
+    rhs[i] = 6 * ((y[i + 1] - y[i]) / hi - (y[i] - yp) / hp);
+  }
+  s.m = solve(a, rhs);
+  s.m.push_back(s.m.front());
+  s.t = std::move(t);
+  s.y = std::move(y);
+  return s;
+}
+
+}  // namespace kinegen::codegen
