@@ -1,7 +1,7 @@
 // Block-solver kernel: the Newton policy, one set of decisions for every Newton loop in the
 // project: the generated blocks (and the in-process block interpreter that mirrors them), the
 // runtime's dense and sparse loop (solver.hpp) and the 40-digit CLN reference
-// (codegen/src/reference.cpp). See report.hpp for how kernel files are used.
+// (codegen/src/analysis/reference.cpp). See report.hpp for how kernel files are used.
 //
 // The decisions, each a function below:
 // - step criterion (_step_converged): the scaled update is at most tolerance + the rounding
