@@ -40,7 +40,8 @@ const std::vector<std::string> kHeaderMembers = {
     "has_forces", "num_force_columns", "force_column_names", "applied_force", "generalized_force",
     "solve_forces", "force_columns", "num_outputs", "output_values", "output_rates", "outputs",
     // the kernels (runtime/include/kinegen/kernels/) pasted into the struct
-    "BasicBlockOptions", "BasicTrigCache", "TrigCache", "kRoundingUlps",
+    "BasicBlockOptions", "BasicTrigCache", "TrigCache", "kRoundingUlps", "kLinearRatio",
+    "kLinearSteps",
     // namespaces and the runtime's Solver, which a struct of that name would hide
     "Solver", "models", "kinegen", "std"};
 
