@@ -163,10 +163,15 @@ struct slider_crank_lecture {
       return x.real();
     }
   }
-  // Whether a magnitude (|x|, never negative) is finite: false for infinity and NaN.
+  // Whether a magnitude (|x|, never negative) is finite: false for infinity and NaN. (Types
+  // without numeric_limits, as CLN's arbitrary-precision numbers: only NaN could fail.)
   template <class R>
   static bool _finite(const R& magnitude) noexcept {
-    return magnitude <= std::numeric_limits<R>::max();
+    if constexpr (std::numeric_limits<R>::is_specialized) {
+      return magnitude <= std::numeric_limits<R>::max();
+    } else {
+      return magnitude == magnitude;
+    }
   }
   template <int N, class T>
   static bool _all_finite(const T* v) noexcept {
@@ -477,19 +482,59 @@ struct slider_crank_lecture {
   // ---- end of kinegen kernel trig_cache
 
   // ---- kinegen kernel newton (kinegen/kernels/newton.hpp)
-  // Rounding allowance, in units of the scalar's epsilon: no Newton step or residual can get
-  // below the rounding of the terms it is made of (about 1 in scaled units: the mechanism's
-  // lengths) and of the coordinate itself (an angle of 6e6 rad is known to 1e-9 in double).
+  // Rounding allowance, in units of the scalar's epsilon (eps: std::numeric_limits, or the
+  // reference's 10^-digits): no Newton step or residual can get below the rounding of the
+  // terms it is made of (about 1 in scaled units: the mechanism's lengths) and of the
+  // coordinate itself (an angle of 6e6 rad is known to 1e-9 in double).
   static constexpr int kRoundingUlps = 64;
   template <class R>
-  static R _rounding(const R& magnitude) noexcept {
-    return R(kRoundingUlps) * std::numeric_limits<R>::epsilon() * (R(1) + magnitude);
+  static R _rounding(const R& magnitude,
+                     const R& eps = std::numeric_limits<R>::epsilon()) noexcept {
+    return R(kRoundingUlps) * eps * (R(1) + magnitude);
   }
   // The step criterion for one coordinate: dq is |Newton update| and q is |coordinate|, both
   // scaled (lengths divided by the length scale, angles in radians).
   template <class R>
-  static bool _step_converged(const R& dq, const R& q, const R& tolerance) noexcept {
-    return dq <= tolerance + _rounding(q);
+  static bool _step_converged(const R& dq, const R& q, const R& tolerance,
+                              const R& eps = std::numeric_limits<R>::epsilon()) noexcept {
+    return dq <= tolerance + _rounding(q, eps);
+  }
+  // The residual recheck: residual is a largest scaled |Phi|, terms the scaled magnitude of
+  // what its rows are made of (a block: the sum of its scaled |q|).
+  template <class R>
+  static bool _residual_converged(const R& residual, const R& terms, const R& tolerance,
+                                  const R& eps = std::numeric_limits<R>::epsilon()) noexcept {
+    return residual <= tolerance + _rounding(terms, eps);
+  }
+  // A linear step: more than 1 / kLinearRatio of the step before (previous: 0 when there was
+  // none). A solve with kLinearSteps of them converged linearly.
+  static constexpr int kLinearRatio = 4;
+  static constexpr int kLinearSteps = 8;
+  template <class R>
+  static int _linear_step(const R& step, const R& previous) noexcept {
+    return previous > R(0) && step * R(kLinearRatio) > previous;
+  }
+  // The condition below which a linearly converging solve counts as singular.
+  template <class R>
+  static bool _poorly_conditioned(const R& rcond, const R& min_rcond) noexcept {
+    using std::sqrt;
+    return !(rcond > sqrt(min_rcond));
+  }
+  // The verdict, in the order of kinegen::Status (0: converged). budget: a fixed iteration
+  // budget ran out; converged: the step criterion held; small: the residual recheck held;
+  // linear: the solve converged linearly (kLinearSteps); residual: the (scaled) residual, for
+  // the finite check.
+  template <class R>
+  static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
+                            const R& rcond, const R& min_rcond) noexcept {
+    using std::abs;
+    if (!_finite(abs(residual))) return 3;
+    // The iterations ran out: converging linearly onto a singular point, or not at all.
+    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
+    if (!small) return budget ? 5 : 4;
+    if (!(rcond > min_rcond)) return 2;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
+    return 0;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -516,40 +561,35 @@ struct slider_crank_lecture {
     return rcond * f;
   }
   // A Newton block's end, after its last iteration: converged says whether the step criterion
-  // held; residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum of its
-  // scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
+  // held; step is its last scaled step, linear_steps how many of its steps were linear
+  // (_linear_step); residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum
+  // of its scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
   // the last factorization. Records the block in r; false (r.status and r.block set) when the
   // block failed. signs: nullptr, or the caller's entry per block (0: record the sign; else a
   // change of sign is a jump to another assembly branch).
   template <class R>
   static bool _newton_end(BlockReport<R>& r, int block, int iterations, bool converged,
-                          const BasicBlockOptions<R>& o, const R& step, const R& residual,
-                          const R& q_sum, const R& rcond, int sign, signed char* signs) noexcept {
+                          const BasicBlockOptions<R>& o, const R& step, int linear_steps,
+                          const R& residual, const R& q_sum, const R& rcond, int sign,
+                          signed char* signs) noexcept {
     r.iterations = std::max(r.iterations, iterations);
     r.total_iterations += iterations;
     r.step = std::max(r.step, step);
     r.residual = std::max(r.residual, residual);
     r.rcond = std::min(r.rcond, rcond);
     const bool budget = o.fixed_iterations > 0 && iterations >= o.fixed_iterations;
-    const bool small = residual <= o.residual_tolerance + _rounding(q_sum);
-    if (small && (converged || budget) && rcond > o.min_rcond && !signs) return true;
-    return _newton_verdict(r, block, budget, converged, small, o, residual, rcond, sign, signs);
+    const bool small = _residual_converged(residual, q_sum, o.residual_tolerance);
+    const bool linear = linear_steps >= kLinearSteps;
+    if (small && (converged || budget) && rcond > o.min_rcond && !linear && !signs) return true;
+    return _newton_verdict(
+        r, block, _newton_status(budget, converged, small, linear, residual, rcond, o.min_rcond),
+        sign, signs);
   }
-  // The rest of _newton_end, apart so that the common path stays small.
+  // The rest of _newton_end, apart so that the common path stays small: the branch check.
   template <class R>
-  static bool _newton_verdict(BlockReport<R>& r, int block, bool budget, bool converged, bool small,
-                              const BasicBlockOptions<R>& o, const R& residual, const R& rcond,
-                              int sign, signed char* signs) noexcept {
-    int status = 0;
-    if (!_finite(residual)) {
-      status = 3;
-    } else if (!small) {
-      status = budget ? 5 : converged ? 4 : 1;
-    } else if (!budget && !converged) {
-      status = 1;
-    } else if (!(rcond > o.min_rcond)) {
-      status = 2;
-    } else if (signs) {
+  static bool _newton_verdict(BlockReport<R>& r, int block, int status, int sign,
+                              signed char* signs) noexcept {
+    if (status == 0 && signs) {
       if (signs[block] == 0)
         signs[block] = static_cast<signed char>(sign);
       else if (signs[block] != sign)
@@ -847,9 +887,9 @@ struct slider_crank_lecture {
     // Block 4: rows 3 -> q[5] (newton)
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
-    R _rmax4[1] = {}, _qs4 = 0, _rc4 = 1;
+    R _rmax4[1] = {}, _qs4 = 0, _rc4 = 1, _pv4 = 0;
     [[maybe_unused]] const R _cs4[1] = {R(1)};
-    int _n4 = 0, _sg4 = 1;
+    int _n4 = 0, _sg4 = 1, _nl4 = 0;
     bool _conv4 = false;
     R _st4 = 0;
     for (int _it = 1;; ++_it) {
@@ -868,6 +908,8 @@ struct slider_crank_lecture {
       _qs += _mag(q[5]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
       if (!_finite(_step)) return _fail(report, 3, 4, _it);
+      _nl4 += _linear_step(_step, _pv4);
+      _pv4 = _step;
       _conv4 = _small;
       if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||
           _it >= o.max_iterations) {
@@ -882,7 +924,7 @@ struct slider_crank_lecture {
     const R _res4 = _scaled_max<1>(_rr4, _rmax4);
     const R _cm4[1] = {std::max(std::max(std::max(_rmax4[0], _mag(T(1)) * R(coordinate_scales[1])), _mag(_cos2)), _mag(T(-1)) * R(coordinate_scales[4]))};
     _rc4 = _coupled_rcond<1>(_rc4, _rmax4, _cm4);
-    if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _res4, _qs4, _rc4, _sg4, block_signs))
+    if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _nl4, _res4, _qs4, _rc4, _sg4, block_signs))
       return report;
     // Block 5: rows 2 -> q[3] (explicit)
     const T _t1 = T(p.l)*_sin5;
@@ -1025,9 +1067,9 @@ struct slider_crank_lecture {
     // Block 4: rows 3 -> q[5] (newton)
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
-    R _rmax4[1] = {}, _qs4 = 0, _rc4 = 1;
+    R _rmax4[1] = {}, _qs4 = 0, _rc4 = 1, _pv4 = 0;
     [[maybe_unused]] const R _cs4[1] = {R(1)};
-    int _n4 = 0, _sg4 = 1;
+    int _n4 = 0, _sg4 = 1, _nl4 = 0;
     bool _conv4 = false;
     R _st4 = 0;
     for (int _it = 1;; ++_it) {
@@ -1046,6 +1088,8 @@ struct slider_crank_lecture {
       _qs += _mag(q[5]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
       if (!_finite(_step)) return _fail(report, 3, 4, _it);
+      _nl4 += _linear_step(_step, _pv4);
+      _pv4 = _step;
       _conv4 = _small;
       if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||
           _it >= o.max_iterations) {
@@ -1060,7 +1104,7 @@ struct slider_crank_lecture {
     const R _res4 = _scaled_max<1>(_rr4, _rmax4);
     const R _cm4[1] = {std::max(std::max(std::max(_rmax4[0], _mag(T(1)) * R(coordinate_scales[1])), _mag(_cos2)), _mag(T(-1)) * R(coordinate_scales[4]))};
     _rc4 = _coupled_rcond<1>(_rc4, _rmax4, _cm4);
-    if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _res4, _qs4, _rc4, _sg4, block_signs))
+    if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _nl4, _res4, _qs4, _rc4, _sg4, block_signs))
       return report;
     // Block 5: rows 2 -> q[3] (explicit)
     const T _t1 = T(p.l)*_sin5;

@@ -380,10 +380,15 @@ struct steering {
       return x.real();
     }
   }
-  // Whether a magnitude (|x|, never negative) is finite: false for infinity and NaN.
+  // Whether a magnitude (|x|, never negative) is finite: false for infinity and NaN. (Types
+  // without numeric_limits, as CLN's arbitrary-precision numbers: only NaN could fail.)
   template <class R>
   static bool _finite(const R& magnitude) noexcept {
-    return magnitude <= std::numeric_limits<R>::max();
+    if constexpr (std::numeric_limits<R>::is_specialized) {
+      return magnitude <= std::numeric_limits<R>::max();
+    } else {
+      return magnitude == magnitude;
+    }
   }
   template <int N, class T>
   static bool _all_finite(const T* v) noexcept {
@@ -694,19 +699,59 @@ struct steering {
   // ---- end of kinegen kernel trig_cache
 
   // ---- kinegen kernel newton (kinegen/kernels/newton.hpp)
-  // Rounding allowance, in units of the scalar's epsilon: no Newton step or residual can get
-  // below the rounding of the terms it is made of (about 1 in scaled units: the mechanism's
-  // lengths) and of the coordinate itself (an angle of 6e6 rad is known to 1e-9 in double).
+  // Rounding allowance, in units of the scalar's epsilon (eps: std::numeric_limits, or the
+  // reference's 10^-digits): no Newton step or residual can get below the rounding of the
+  // terms it is made of (about 1 in scaled units: the mechanism's lengths) and of the
+  // coordinate itself (an angle of 6e6 rad is known to 1e-9 in double).
   static constexpr int kRoundingUlps = 64;
   template <class R>
-  static R _rounding(const R& magnitude) noexcept {
-    return R(kRoundingUlps) * std::numeric_limits<R>::epsilon() * (R(1) + magnitude);
+  static R _rounding(const R& magnitude,
+                     const R& eps = std::numeric_limits<R>::epsilon()) noexcept {
+    return R(kRoundingUlps) * eps * (R(1) + magnitude);
   }
   // The step criterion for one coordinate: dq is |Newton update| and q is |coordinate|, both
   // scaled (lengths divided by the length scale, angles in radians).
   template <class R>
-  static bool _step_converged(const R& dq, const R& q, const R& tolerance) noexcept {
-    return dq <= tolerance + _rounding(q);
+  static bool _step_converged(const R& dq, const R& q, const R& tolerance,
+                              const R& eps = std::numeric_limits<R>::epsilon()) noexcept {
+    return dq <= tolerance + _rounding(q, eps);
+  }
+  // The residual recheck: residual is a largest scaled |Phi|, terms the scaled magnitude of
+  // what its rows are made of (a block: the sum of its scaled |q|).
+  template <class R>
+  static bool _residual_converged(const R& residual, const R& terms, const R& tolerance,
+                                  const R& eps = std::numeric_limits<R>::epsilon()) noexcept {
+    return residual <= tolerance + _rounding(terms, eps);
+  }
+  // A linear step: more than 1 / kLinearRatio of the step before (previous: 0 when there was
+  // none). A solve with kLinearSteps of them converged linearly.
+  static constexpr int kLinearRatio = 4;
+  static constexpr int kLinearSteps = 8;
+  template <class R>
+  static int _linear_step(const R& step, const R& previous) noexcept {
+    return previous > R(0) && step * R(kLinearRatio) > previous;
+  }
+  // The condition below which a linearly converging solve counts as singular.
+  template <class R>
+  static bool _poorly_conditioned(const R& rcond, const R& min_rcond) noexcept {
+    using std::sqrt;
+    return !(rcond > sqrt(min_rcond));
+  }
+  // The verdict, in the order of kinegen::Status (0: converged). budget: a fixed iteration
+  // budget ran out; converged: the step criterion held; small: the residual recheck held;
+  // linear: the solve converged linearly (kLinearSteps); residual: the (scaled) residual, for
+  // the finite check.
+  template <class R>
+  static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
+                            const R& rcond, const R& min_rcond) noexcept {
+    using std::abs;
+    if (!_finite(abs(residual))) return 3;
+    // The iterations ran out: converging linearly onto a singular point, or not at all.
+    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
+    if (!small) return budget ? 5 : 4;
+    if (!(rcond > min_rcond)) return 2;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
+    return 0;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -733,40 +778,35 @@ struct steering {
     return rcond * f;
   }
   // A Newton block's end, after its last iteration: converged says whether the step criterion
-  // held; residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum of its
-  // scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
+  // held; step is its last scaled step, linear_steps how many of its steps were linear
+  // (_linear_step); residual is the largest scaled |Phi| of its rows at the final q; q_sum the sum
+  // of its scaled |coordinates| (the residual's rounding grows with them); rcond and sign come from
   // the last factorization. Records the block in r; false (r.status and r.block set) when the
   // block failed. signs: nullptr, or the caller's entry per block (0: record the sign; else a
   // change of sign is a jump to another assembly branch).
   template <class R>
   static bool _newton_end(BlockReport<R>& r, int block, int iterations, bool converged,
-                          const BasicBlockOptions<R>& o, const R& step, const R& residual,
-                          const R& q_sum, const R& rcond, int sign, signed char* signs) noexcept {
+                          const BasicBlockOptions<R>& o, const R& step, int linear_steps,
+                          const R& residual, const R& q_sum, const R& rcond, int sign,
+                          signed char* signs) noexcept {
     r.iterations = std::max(r.iterations, iterations);
     r.total_iterations += iterations;
     r.step = std::max(r.step, step);
     r.residual = std::max(r.residual, residual);
     r.rcond = std::min(r.rcond, rcond);
     const bool budget = o.fixed_iterations > 0 && iterations >= o.fixed_iterations;
-    const bool small = residual <= o.residual_tolerance + _rounding(q_sum);
-    if (small && (converged || budget) && rcond > o.min_rcond && !signs) return true;
-    return _newton_verdict(r, block, budget, converged, small, o, residual, rcond, sign, signs);
+    const bool small = _residual_converged(residual, q_sum, o.residual_tolerance);
+    const bool linear = linear_steps >= kLinearSteps;
+    if (small && (converged || budget) && rcond > o.min_rcond && !linear && !signs) return true;
+    return _newton_verdict(
+        r, block, _newton_status(budget, converged, small, linear, residual, rcond, o.min_rcond),
+        sign, signs);
   }
-  // The rest of _newton_end, apart so that the common path stays small.
+  // The rest of _newton_end, apart so that the common path stays small: the branch check.
   template <class R>
-  static bool _newton_verdict(BlockReport<R>& r, int block, bool budget, bool converged, bool small,
-                              const BasicBlockOptions<R>& o, const R& residual, const R& rcond,
-                              int sign, signed char* signs) noexcept {
-    int status = 0;
-    if (!_finite(residual)) {
-      status = 3;
-    } else if (!small) {
-      status = budget ? 5 : converged ? 4 : 1;
-    } else if (!budget && !converged) {
-      status = 1;
-    } else if (!(rcond > o.min_rcond)) {
-      status = 2;
-    } else if (signs) {
+  static bool _newton_verdict(BlockReport<R>& r, int block, int status, int sign,
+                              signed char* signs) noexcept {
+    if (status == 0 && signs) {
       if (signs[block] == 0)
         signs[block] = static_cast<signed char>(sign);
       else if (signs[block] != sign)
@@ -1067,9 +1107,9 @@ struct steering {
     const T _t2 = -T(p.rj);
     const T _t3 = -_cos5;
     const T _t4 = -_sin5;
-    R _rmax4[2] = {}, _qs4 = 0, _rc4 = 1;
+    R _rmax4[2] = {}, _qs4 = 0, _rc4 = 1, _pv4 = 0;
     [[maybe_unused]] const R _cs4[2] = {R(coordinate_scales[3]), R(coordinate_scales[4])};
-    int _n4 = 0, _sg4 = 1;
+    int _n4 = 0, _sg4 = 1, _nl4 = 0;
     bool _conv4 = false;
     R _st4 = 0;
     for (int _it = 1;; ++_it) {
@@ -1098,6 +1138,8 @@ struct steering {
       _qs += _mag(q[4]) * R(1 / coordinate_scales[4]);
       _small &= _step_converged(_mag(_r[1]) * R(1 / coordinate_scales[4]), _mag(q[4]) * R(1 / coordinate_scales[4]), o.tolerance);
       if (!_finite(_step)) return _fail(report, 3, 4, _it);
+      _nl4 += _linear_step(_step, _pv4);
+      _pv4 = _step;
       _conv4 = _small;
       if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||
           _it >= o.max_iterations) {
@@ -1119,7 +1161,7 @@ struct steering {
     const R _res4 = _scaled_max<2>(_rr4, _rmax4);
     const R _cm4[2] = {std::max(std::max(std::max(_rmax4[0], _mag(_t4) * R(coordinate_scales[0])), _mag(_cos5) * R(coordinate_scales[1])), _mag(-_t11*_cos5 - _t13*_sin5)), std::max(std::max(std::max(std::max(_rmax4[1], _mag(_cos5) * R(coordinate_scales[0])), _mag(_sin5) * R(coordinate_scales[1])), _mag(T(p.rj))), _mag(_t14))};
     _rc4 = _coupled_rcond<2>(_rc4, _rmax4, _cm4);
-    if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _res4, _qs4, _rc4, _sg4, block_signs))
+    if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _nl4, _res4, _qs4, _rc4, _sg4, block_signs))
       return report;
     // Block 5: rows 5 -> q[6] (explicit)
     const T _t17 = -T(p.w);
@@ -1141,9 +1183,9 @@ struct steering {
     const T _t25 = -(_t24*_t24);
     T _sin8, _cos8;
     _trig(_sin8, _cos8, q[8], trig, 1);
-    R _rmax9[1] = {}, _qs9 = 0, _rc9 = 1;
+    R _rmax9[1] = {}, _qs9 = 0, _rc9 = 1, _pv9 = 0;
     [[maybe_unused]] const R _cs9[1] = {R(1)};
-    int _n9 = 0, _sg9 = 1;
+    int _n9 = 0, _sg9 = 1, _nl9 = 0;
     bool _conv9 = false;
     R _st9 = 0;
     for (int _it = 1;; ++_it) {
@@ -1170,6 +1212,8 @@ struct steering {
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[8]), o.tolerance);
       if (!_finite(_step)) return _fail(report, 3, 9, _it);
+      _nl9 += _linear_step(_step, _pv9);
+      _pv9 = _step;
       _conv9 = _small;
       if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||
           _it >= o.max_iterations) {
@@ -1198,14 +1242,14 @@ struct steering {
     const T _t48 = T(2)*T(p.a)*_sin5;
     const R _cm9[1] = {std::max(std::max(std::max(std::max(std::max(_rmax9[0], _mag(_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42) * R(coordinate_scales[3])), _mag(_t43 - T(2)*_t23*_cos8*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44) * R(coordinate_scales[4])), _mag(T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))), _mag(-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6]) * R(coordinate_scales[6])), _mag(_t47 - T(2)*T(p.arm)*_t20*_sin8 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7]) * R(coordinate_scales[7]))};
     _rc9 = _coupled_rcond<1>(_rc9, _rmax9, _cm9);
-    if (!_newton_end(report, 9, _n9, _conv9, o, _st9, _res9, _qs9, _rc9, _sg9, block_signs))
+    if (!_newton_end(report, 9, _n9, _conv9, o, _st9, _nl9, _res9, _qs9, _rc9, _sg9, block_signs))
       return report;
     // Block 10: rows 10 -> q[11] (newton)
     T _sin11, _cos11;
     _trig(_sin11, _cos11, q[11], trig, 2);
-    R _rmax10[1] = {}, _qs10 = 0, _rc10 = 1;
+    R _rmax10[1] = {}, _qs10 = 0, _rc10 = 1, _pv10 = 0;
     [[maybe_unused]] const R _cs10[1] = {R(1)};
-    int _n10 = 0, _sg10 = 1;
+    int _n10 = 0, _sg10 = 1, _nl10 = 0;
     bool _conv10 = false;
     R _st10 = 0;
     for (int _it = 1;; ++_it) {
@@ -1232,6 +1276,8 @@ struct steering {
       _qs += _mag(q[11]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[11]), o.tolerance);
       if (!_finite(_step)) return _fail(report, 3, 10, _it);
+      _nl10 += _linear_step(_step, _pv10);
+      _pv10 = _step;
       _conv10 = _small;
       if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||
           _it >= o.max_iterations) {
@@ -1252,7 +1298,7 @@ struct steering {
     const R _res10 = _scaled_max<1>(_rr10, _rmax10);
     const R _cm10[1] = {std::max(std::max(std::max(std::max(std::max(_rmax10[0], _mag(-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42) * R(coordinate_scales[3])), _mag(-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44) * R(coordinate_scales[4])), _mag(-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))), _mag(_t41 - T(2)*_t23*T(p.arm)*_sin11 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9]) * R(coordinate_scales[9])), _mag(_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10]) * R(coordinate_scales[10]))};
     _rc10 = _coupled_rcond<1>(_rc10, _rmax10, _cm10);
-    if (!_newton_end(report, 10, _n10, _conv10, o, _st10, _res10, _qs10, _rc10, _sg10, block_signs))
+    if (!_newton_end(report, 10, _n10, _conv10, o, _st10, _nl10, _res10, _qs10, _rc10, _sg10, block_signs))
       return report;
     if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
     return report;
@@ -1596,9 +1642,9 @@ struct steering {
     const T _t2 = -T(p.rj);
     const T _t3 = -_cos5;
     const T _t4 = -_sin5;
-    R _rmax4[2] = {}, _qs4 = 0, _rc4 = 1;
+    R _rmax4[2] = {}, _qs4 = 0, _rc4 = 1, _pv4 = 0;
     [[maybe_unused]] const R _cs4[2] = {R(coordinate_scales[3]), R(coordinate_scales[4])};
-    int _n4 = 0, _sg4 = 1;
+    int _n4 = 0, _sg4 = 1, _nl4 = 0;
     bool _conv4 = false;
     R _st4 = 0;
     for (int _it = 1;; ++_it) {
@@ -1627,6 +1673,8 @@ struct steering {
       _qs += _mag(q[4]) * R(1 / coordinate_scales[4]);
       _small &= _step_converged(_mag(_r[1]) * R(1 / coordinate_scales[4]), _mag(q[4]) * R(1 / coordinate_scales[4]), o.tolerance);
       if (!_finite(_step)) return _fail(report, 3, 4, _it);
+      _nl4 += _linear_step(_step, _pv4);
+      _pv4 = _step;
       _conv4 = _small;
       if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||
           _it >= o.max_iterations) {
@@ -1648,7 +1696,7 @@ struct steering {
     const R _res4 = _scaled_max<2>(_rr4, _rmax4);
     const R _cm4[2] = {std::max(std::max(std::max(_rmax4[0], _mag(_t4) * R(coordinate_scales[0])), _mag(_cos5) * R(coordinate_scales[1])), _mag(-_t11*_cos5 - _t13*_sin5)), std::max(std::max(std::max(std::max(_rmax4[1], _mag(_cos5) * R(coordinate_scales[0])), _mag(_sin5) * R(coordinate_scales[1])), _mag(T(p.rj))), _mag(_t14))};
     _rc4 = _coupled_rcond<2>(_rc4, _rmax4, _cm4);
-    if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _res4, _qs4, _rc4, _sg4, block_signs))
+    if (!_newton_end(report, 4, _n4, _conv4, o, _st4, _nl4, _res4, _qs4, _rc4, _sg4, block_signs))
       return report;
     // Block 5: rows 5 -> q[6] (explicit)
     const T _t17 = -T(p.w);
@@ -1670,9 +1718,9 @@ struct steering {
     const T _t25 = -(_t24*_t24);
     T _sin8, _cos8;
     _trig(_sin8, _cos8, q[8], trig, 1);
-    R _rmax9[1] = {}, _qs9 = 0, _rc9 = 1;
+    R _rmax9[1] = {}, _qs9 = 0, _rc9 = 1, _pv9 = 0;
     [[maybe_unused]] const R _cs9[1] = {R(1)};
-    int _n9 = 0, _sg9 = 1;
+    int _n9 = 0, _sg9 = 1, _nl9 = 0;
     bool _conv9 = false;
     R _st9 = 0;
     for (int _it = 1;; ++_it) {
@@ -1699,6 +1747,8 @@ struct steering {
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[8]), o.tolerance);
       if (!_finite(_step)) return _fail(report, 3, 9, _it);
+      _nl9 += _linear_step(_step, _pv9);
+      _pv9 = _step;
       _conv9 = _small;
       if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||
           _it >= o.max_iterations) {
@@ -1727,14 +1777,14 @@ struct steering {
     const T _t48 = T(2)*T(p.a)*_sin5;
     const R _cm9[1] = {std::max(std::max(std::max(std::max(std::max(_rmax9[0], _mag(_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42) * R(coordinate_scales[3])), _mag(_t43 - T(2)*_t23*_cos8*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44) * R(coordinate_scales[4])), _mag(T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))), _mag(-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6]) * R(coordinate_scales[6])), _mag(_t47 - T(2)*T(p.arm)*_t20*_sin8 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7]) * R(coordinate_scales[7]))};
     _rc9 = _coupled_rcond<1>(_rc9, _rmax9, _cm9);
-    if (!_newton_end(report, 9, _n9, _conv9, o, _st9, _res9, _qs9, _rc9, _sg9, block_signs))
+    if (!_newton_end(report, 9, _n9, _conv9, o, _st9, _nl9, _res9, _qs9, _rc9, _sg9, block_signs))
       return report;
     // Block 10: rows 10 -> q[11] (newton)
     T _sin11, _cos11;
     _trig(_sin11, _cos11, q[11], trig, 2);
-    R _rmax10[1] = {}, _qs10 = 0, _rc10 = 1;
+    R _rmax10[1] = {}, _qs10 = 0, _rc10 = 1, _pv10 = 0;
     [[maybe_unused]] const R _cs10[1] = {R(1)};
-    int _n10 = 0, _sg10 = 1;
+    int _n10 = 0, _sg10 = 1, _nl10 = 0;
     bool _conv10 = false;
     R _st10 = 0;
     for (int _it = 1;; ++_it) {
@@ -1761,6 +1811,8 @@ struct steering {
       _qs += _mag(q[11]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[11]), o.tolerance);
       if (!_finite(_step)) return _fail(report, 3, 10, _it);
+      _nl10 += _linear_step(_step, _pv10);
+      _pv10 = _step;
       _conv10 = _small;
       if ((o.fixed_iterations > 0 ? _it >= o.fixed_iterations : _small) ||
           _it >= o.max_iterations) {
@@ -1781,7 +1833,7 @@ struct steering {
     const R _res10 = _scaled_max<1>(_rr10, _rmax10);
     const R _cm10[1] = {std::max(std::max(std::max(std::max(std::max(_rmax10[0], _mag(-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42) * R(coordinate_scales[3])), _mag(-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44) * R(coordinate_scales[4])), _mag(-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))), _mag(_t41 - T(2)*_t23*T(p.arm)*_sin11 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9]) * R(coordinate_scales[9])), _mag(_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10]) * R(coordinate_scales[10]))};
     _rc10 = _coupled_rcond<1>(_rc10, _rmax10, _cm10);
-    if (!_newton_end(report, 10, _n10, _conv10, o, _st10, _res10, _qs10, _rc10, _sg10, block_signs))
+    if (!_newton_end(report, 10, _n10, _conv10, o, _st10, _nl10, _res10, _qs10, _rc10, _sg10, block_signs))
       return report;
     if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
     // Block 0: rows 0 -> q[0]

@@ -323,25 +323,99 @@ TEST_CASE("_newton_end: budget, inconsistency, condition and branch", "[kernels]
   const Newton::BasicBlockOptions<double> o;
   Newton::BlockReport<double> r;
   signed char signs[3] = {0, 0, 0};
-  CHECK(Newton::_newton_end(r, 1, 2, true, o, 1e-12, 1e-14, 2.0, 0.5, -1, signs));
+  CHECK(Newton::_newton_end(r, 1, 2, true, o, 1e-12, 0, 1e-14, 2.0, 0.5, -1, signs));
   CHECK(signs[1] == -1);
-  CHECK(Newton::_newton_end(r, 1, 2, true, o, 1e-12, 1e-14, 2.0, 0.5, -1, signs));
-  CHECK_FALSE(Newton::_newton_end(r, 1, 2, true, o, 1e-12, 1e-14, 2.0, 0.5, 1, signs));
+  CHECK(Newton::_newton_end(r, 1, 2, true, o, 1e-12, 0, 1e-14, 2.0, 0.5, -1, signs));
+  CHECK_FALSE(Newton::_newton_end(r, 1, 2, true, o, 1e-12, 0, 1e-14, 2.0, 0.5, 1, signs));
   CHECK(r.status == 6);
   CHECK(r.block == 1);
   Newton::BasicBlockOptions<double> fixed;
   fixed.fixed_iterations = 3;
   Newton::BlockReport<double> rf;
-  CHECK_FALSE(Newton::_newton_end(rf, 0, 3, false, fixed, 0.5, 2.2, 1.0, 0.5, 1, nullptr));
+  CHECK_FALSE(Newton::_newton_end(rf, 0, 3, false, fixed, 0.5, 0, 2.2, 1.0, 0.5, 1, nullptr));
   CHECK(rf.status == 5);
   CHECK(rf.residual == 2.2);
   Newton::BlockReport<double> ri;
-  CHECK_FALSE(Newton::_newton_end(ri, 0, 5, true, o, 1e-14, 1e-3, 1.0, 0.5, 1, nullptr));
+  CHECK_FALSE(Newton::_newton_end(ri, 0, 5, true, o, 1e-14, 0, 1e-3, 1.0, 0.5, 1, nullptr));
   CHECK(ri.status == 4);
   Newton::BlockReport<double> rs;
-  CHECK_FALSE(Newton::_newton_end(rs, 2, 5, true, o, 1e-14, 1e-15, 1.0, 1e-14, 1, nullptr));
+  CHECK_FALSE(Newton::_newton_end(rs, 2, 5, true, o, 1e-14, 0, 1e-15, 1.0, 1e-14, 1, nullptr));
   CHECK(rs.status == 2);
   CHECK(rs.rcond == 1e-14);
+}
+
+// Newton on f(x) = x^2 - c with the policy's decisions, as a 1 x 1 block whose row also holds
+// a coupling of size 1 (so that its condition is |f'| / max(|f'|, 1), as _coupled_rcond
+// measures a block within Phi_q). Returns the verdict's status and the iteration count.
+namespace {
+std::pair<int, int> newton_on_square(double c, double x) {
+  const Newton::BasicBlockOptions<double> o;
+  double step = 0;
+  bool converged = false;
+  int it = 0, linear = 0;
+  while (!converged && it < o.max_iterations) {
+    ++it;
+    const double dx = (x * x - c) / (2 * x);
+    x -= dx;
+    const double previous = step;
+    step = std::abs(dx);
+    linear += Newton::_linear_step(step, previous);
+    converged = Newton::_step_converged(step, std::abs(x), o.tolerance);
+  }
+  const double slope = std::abs(2 * x);
+  const double rcond = slope / std::max(slope, 1.0);
+  Newton::BlockReport<double> r;
+  const double residual = std::abs(x * x - c) / std::max(slope, 1.0);
+  Newton::_newton_end(r, 0, it, converged, o, step, linear, residual, std::abs(x), rcond, 1,
+                      nullptr);
+  return {r.status, it};
+}
+}  // namespace
+
+TEST_CASE("Newton policy: linear convergence onto a singular root is singular", "[kernels]") {
+  // A double root (c = 0, f' = 0 there): Newton halves the error each step, converging only
+  // linearly; the step criterion is met at a point whose condition is about the step.
+  const auto [s0, n0] = newton_on_square(0.0, 0.01);
+  CHECK(n0 > 20);
+  CHECK(s0 == 2);
+  // Simple roots, well and poorly conditioned (f' = 2 and 2e-3 at the root): quadratic, fine.
+  CHECK(newton_on_square(1.0, 1.3).first == 0);
+  CHECK(newton_on_square(1e-6, 1.0).first == 0);
+  // A root close to double (c = 1e-14, f' = 2e-7 there): Newton needs 23 halvings to get
+  // near it, and the condition there is below sqrt(min_rcond): singular as well.
+  CHECK(newton_on_square(1e-14, 1.0).first == 2);
+  // The rule alone: a quadratic step is not linear, a halving is; the first step is neither.
+  CHECK(Newton::_linear_step(1e-12, 1e-6) == 0);
+  CHECK(Newton::_linear_step(5e-11, 1e-10) == 1);
+  CHECK(Newton::_linear_step(5e-11, 0.0) == 0);
+  CHECK(Newton::_poorly_conditioned(1e-8, 1.8e-12));
+  CHECK_FALSE(Newton::_poorly_conditioned(1e-5, 1.8e-12));
+  // Well conditioned, linear or not: converged.
+  CHECK(Newton::_newton_status(false, true, true, true, 1e-15, 0.5, 1.8e-12) == 0);
+  CHECK(Newton::_newton_status(false, true, true, true, 1e-15, 1e-8, 1.8e-12) == 2);
+  // Out of iterations while converging linearly at poor condition: singular, not "slow".
+  CHECK(Newton::_newton_status(false, false, false, true, 1e-9, 1e-8, 1.8e-12) == 2);
+  CHECK(Newton::_newton_status(false, false, false, false, 1e-9, 1e-8, 1.8e-12) == 1);
+  // Poorly conditioned but not reached linearly: converged (a regular root whose condition
+  // only bounds the answer's sensitivity).
+  CHECK(Newton::_newton_status(false, true, true, false, 1e-15, 1e-8, 1.8e-12) == 0);
+}
+
+TEST_CASE("Newton policy: stalling, damping and a policy in another scalar's epsilon",
+          "[kernels]") {
+  CHECK(Newton::_stalled(1e-21, 1e-21, 1e-20));
+  CHECK_FALSE(Newton::_stalled(1e-21, 2e-21, 1e-20));  // still decreasing
+  CHECK_FALSE(Newton::_stalled(1e-19, 1e-19, 1e-20));  // above the floor
+  CHECK_FALSE(Newton::_stalled(1e-21, 0.0, 1e-20));    // first step
+  CHECK(Newton::_accept_step(0.5, 1.0, 0, 8));
+  CHECK_FALSE(Newton::_accept_step(2.0, 1.0, 0, 8));
+  CHECK(Newton::_accept_step(2.0, 1.0, 8, 8));  // halvings spent
+  CHECK_FALSE(Newton::_accept_step(std::numeric_limits<double>::quiet_NaN(), 1.0, 3, 8));
+  CHECK(Newton::_accept_step(2e-14, 1e-14, 0, 8));  // at the rounding floor: noise
+  // A policy in long double judged with double's epsilon equals double's.
+  const long double eps = std::numeric_limits<double>::epsilon();
+  CHECK(Newton::_step_converged(9.3e-10L, 6e6L, 1e-10L, eps));
+  CHECK_FALSE(Newton::_step_converged(9.3e-10L, 6e6L, 1e-10L));
 }
 
 // Generated headers paste the kernel files' text unchanged, and only the kernels they call.

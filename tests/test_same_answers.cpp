@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
+#include <memory>
 #include <kinegen/block_solver.hpp>
 #include <string>
 #include <vector>
@@ -113,6 +115,74 @@ void check_same(const std::string& path, const TimeGrid& grid, int* blocks_out =
 
 constexpr double kTurn = 6.283185307179586;
 
+// Model::solve_step (the generated kernels, with a sin/cos cache and the blocks' signs kept by
+// the caller, as kinegen::Solver keeps them) and BlockInterpreter::solve_step, fed the same
+// start at every time: each step's whole report (status, failing block, iterations, step,
+// residual, rcond) and q, qd, qdd must agree bit for bit, failed steps included. A step
+// starts from the last solved q moved along its qd (the same start for both); a failed step
+// is followed by one from the last solution. Returns each step's status.
+template <class Model>
+std::vector<int> check_same_reports(const CompiledModel& model, const typename Model::Params& p,
+                                    const std::vector<double>& times) {
+  kinegen::codegen::BlockInterpreter interp(model);
+  REQUIRE(static_cast<int>(interp.structure().plans.size()) == Model::num_blocks);
+  const typename Model::BlockOptions og;
+  const kinegen::codegen::BlockInterpreter::Options oi;
+  std::vector<double> trig(std::max(1, Model::trig_cache_size),
+                           std::numeric_limits<double>::quiet_NaN());
+  std::vector<signed char> signs(Model::num_blocks, 0);
+  constexpr int nq = Model::nq;
+  double good_q[nq], good_qd[nq] = {};
+  for (int c = 0; c < nq; ++c) good_q[c] = Model::q0[c];
+  double t_good = times.empty() ? 0 : times[0];
+  std::vector<int> statuses;
+  int mismatches = 0;
+  std::string first;
+  for (double t : times) {
+    double qg[nq], qdg[nq] = {}, qddg[nq] = {}, qi[nq], qdi[nq] = {}, qddi[nq] = {};
+    for (int c = 0; c < nq; ++c) qg[c] = qi[c] = good_q[c] + (t - t_good) * good_qd[c];
+    const auto rg = Model::solve_step(qg, t, p, qdg, qddg, og, trig.data(), signs.data());
+    const auto ri = interp.solve_step(qi, t, qdi, qddi, oi);
+    statuses.push_back(rg.status);
+    bool same = rg.status == ri.status && rg.block == ri.block &&
+                rg.iterations == ri.iterations && rg.total_iterations == ri.total_iterations &&
+                same_bits(rg.step, ri.step) && same_bits(rg.residual, ri.residual) &&
+                same_bits(rg.rcond, ri.rcond);
+    for (int c = 0; c < nq; ++c) {
+      same = same && same_bits(qg[c], qi[c]);
+      if (rg.status == 0) same = same && same_bits(qdg[c], qdi[c]) && same_bits(qddg[c], qddi[c]);
+    }
+    if (!same) {
+      ++mismatches;
+      if (first.empty())
+        first = "t = " + std::to_string(t) + ": status " + std::to_string(rg.status) + " / " +
+                std::to_string(ri.status) + ", block " + std::to_string(rg.block) + " / " +
+                std::to_string(ri.block) + ", iterations " + std::to_string(rg.iterations) +
+                " / " + std::to_string(ri.iterations) + ", rcond " + std::to_string(rg.rcond) +
+                " / " + std::to_string(ri.rcond);
+    }
+    if (rg.status == 0) {
+      std::copy(qg, qg + nq, good_q);
+      std::copy(qdg, qdg + nq, good_qd);
+      t_good = t;
+    }
+  }
+  INFO("first difference: " << first);
+  CHECK(mismatches == 0);
+  return statuses;
+}
+
+std::unique_ptr<CompiledModel> load(const std::string& path,
+                                    const std::vector<kinegen::codegen::ParamOverride>& o = {}) {
+  return CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) + "/" + path, o);
+}
+
+std::vector<double> grid_times(double t0, double t1, int steps) {
+  std::vector<double> times;
+  for (int k = 0; k <= steps; ++k) times.push_back(TimeGrid{t0, t1, steps}.at(k));
+  return times;
+}
+
 }  // namespace
 
 TEST_CASE("analyze and the generated Solver give the same bits on every example over a turn",
@@ -179,4 +249,68 @@ TEST_CASE("a guarded block whose coefficient vanishes beside its couplings fails
   CHECK_THROWS_WITH(
       kinegen::codegen::run_analysis(*model, {0, 1, 4}, [](const StateRow&) {}),
       Catch::Contains("at t = 0.25") && Catch::Contains("singular"));
+}
+
+TEST_CASE("the same reports, failed steps included: status, block, iterations, rcond",
+          "[same_answers]") {
+  namespace km = kinegen::models;
+  const int kOk = 0, kSingular = 2, kNonFinite = 3;
+  const auto count = [](const std::vector<int>& s, int status) {
+    return std::count(s.begin(), s.end(), status);
+  };
+  {
+    INFO("four_bar over a turn");
+    const auto model = load("examples/four_bar.yaml");
+    const auto s = check_same_reports<km::four_bar>(*model, {}, grid_times(0, kTurn, 120));
+    CHECK(count(s, kOk) == 121);
+  }
+  {
+    INFO("closed_chain_4 (torn blocks) over a turn");
+    const auto model = load("tests/mechanisms/closed_chain_4.yaml");
+    const auto s = check_same_reports<km::closed_chain_4>(*model, {}, grid_times(0, kTurn, 120));
+    CHECK(count(s, kOk) == 121);
+  }
+  {
+    // The scissor lift driven flat (w0 = l, dw = 0): each stage's angle solves cos = 1, a
+    // double root, onto which Newton converges only linearly; the Newton policy calls it
+    // singular (the block's condition there is about sqrt(eps)).
+    INFO("scissor_lift_3 with its bars flat");
+    const auto model = load("tests/mechanisms/scissor_lift_3.yaml", {{"w0", "1"}, {"dw", "0"}});
+    km::scissor_lift_3::Params p;
+    p.w0 = 1;
+    p.dw = 0;
+    const auto s = check_same_reports<km::scissor_lift_3>(*model, p, grid_times(0, 1, 4));
+    CHECK(count(s, kSingular) == 5);
+  }
+  {
+    // Driven past its reach (w = 0.85 + 0.2 sin t passes w = l = 1, bars flat, at t = 0.848):
+    // the steps before it solve, the ones past it fail.
+    INFO("scissor_lift_3 driven past its bars flat");
+    const auto model = load("tests/mechanisms/scissor_lift_3.yaml", {{"w0", "0.85"}});
+    km::scissor_lift_3::Params p;
+    p.w0 = 0.85;
+    const auto s = check_same_reports<km::scissor_lift_3>(*model, p, grid_times(0, 2, 40));
+    CHECK(count(s, kOk) > 10);
+    CHECK(count(s, kOk) < 41);
+  }
+  {
+    // A non-finite parameter (embedded code can set one; the command line refuses it): the
+    // interpreter reads the model's parameter vector, set here the same way.
+    INFO("four_bar with a NaN coupler length");
+    const auto model = load("examples/four_bar.yaml");
+    const int k = model->symbols().find_param("b");
+    REQUIRE(k >= 0);
+    const_cast<std::vector<double>&>(model->params())[k] = std::nan("");
+    km::four_bar::Params p;
+    p.b = std::nan("");
+    const auto s = check_same_reports<km::four_bar>(*model, p, grid_times(0, 1, 2));
+    CHECK(count(s, kNonFinite) == 3);
+  }
+  {
+    INFO("four_bar at t = NaN");
+    const auto model = load("examples/four_bar.yaml");
+    const auto s = check_same_reports<km::four_bar>(*model, {},
+                                                    {0.0, std::nan(""), 0.1});
+    CHECK(s == std::vector<int>{kOk, kNonFinite, kOk});
+  }
 }

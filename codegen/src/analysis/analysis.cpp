@@ -56,10 +56,22 @@ Eigen::MatrixXd jacobian_at(const CompiledModel& model, const Eigen::VectorXd& q
 
 // The constraints behind a (near-)singular Phi_q: rows that carry weight in the left singular
 // vectors of its smallest singular values (those within a factor 10 of the smallest, and
-// always the smallest), with the scaled condition estimate.
-std::string singular_rows(const CompiledModel& model, const Eigen::MatrixXd& jac) {
-  if (!jac.allFinite()) return "";
-  const Eigen::MatrixXd s = scaled_jacobian(model, jac);
+// always the smallest), with the scaled condition estimate. rows and cols: the submatrix to
+// look at (a failed block's: its rows depend on its own and earlier blocks' coordinates only,
+// so later blocks' unsolved values do not enter), or empty for all of Phi_q.
+std::string singular_rows(const CompiledModel& model, const Eigen::MatrixXd& jac,
+                          std::vector<int> rows = {}, std::vector<int> cols = {}) {
+  if (rows.empty())
+    for (int r = 0; r < jac.rows(); ++r) rows.push_back(r);
+  if (cols.empty())
+    for (int c = 0; c < jac.cols(); ++c) cols.push_back(c);
+  // Rows equilibrated over all of Phi_q (couplings to earlier blocks included, as the block
+  // solver's condition estimate measures a block).
+  const Eigen::MatrixXd full = scaled_jacobian(model, jac);
+  Eigen::MatrixXd s(rows.size(), cols.size());
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    for (std::size_t j = 0; j < cols.size(); ++j) s(i, j) = full(rows[i], cols[j]);
+  if (!s.allFinite()) return "";
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(s, Eigen::ComputeFullU);
   const Eigen::VectorXd sv = svd.singularValues();
   const double s_max = sv.size() ? sv(0) : 0.0;
@@ -71,12 +83,12 @@ std::string singular_rows(const CompiledModel& model, const Eigen::MatrixXd& jac
   for (int k = 0; k <= k_min; ++k)
     if (k == k_min || sv(k) <= 10 * s_min + 1e-14 * s_max)
       weight = weight.cwiseMax(svd.matrixU().col(k).cwiseAbs());
-  std::string rows;
+  std::string names;
   for (int r = 0; r < weight.size(); ++r)
-    if (weight[r] > 0.1) rows += (rows.empty() ? "" : "; ") + model.row_label(r);
+    if (weight[r] > 0.1) names += (names.empty() ? "" : "; ") + model.row_label(rows[r]);
   std::ostringstream os;
   os << " (condition estimate " << (s_min > 0 ? format_estimate(s_max / s_min) : "inf")
-     << "; involved: " << rows << ")";
+     << "; involved: " << names << ")";
   return os.str();
 }
 
@@ -345,7 +357,11 @@ void analyze(S& solver, const CompiledModel& model, const TimeGrid& grid,
     if (r.status == Status::kSingular) {
       if (!blocks)
         message += singular_diagnosis(model, solver, r);
-      else if (model.nq() <= kMaxDiagnosedNq)
+      else if (r.block >= 0) {  // the failed block's rows and columns: q is solved up to it
+        const Block& b = blocks->structure().plans[r.block].block;
+        if (static_cast<int>(b.cols.size()) <= kMaxDiagnosedNq)
+          message += singular_rows(model, jacobian_at(model, row.q, t), b.rows, b.cols);
+      } else if (model.nq() <= kMaxDiagnosedNq)
         message += singular_rows(model, jacobian_at(model, row.q, t));
       if (r.block >= 0 && blocks)
         message += "; block " + std::to_string(r.block) + " of the block solver";

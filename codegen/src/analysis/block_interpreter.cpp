@@ -82,6 +82,10 @@ struct BlockInterpreter::Run {
   std::vector<std::vector<int>> piv;
   std::vector<char> divide;  // per 1 x 1 block: whether its rates are divided by a[b][0]
   std::vector<std::map<int, std::vector<char>>> dependency;  // per torn block: tear_dependency
+  // Scratch of torn_schur, rates and torn_rates, kept from call to call so that a step
+  // allocates nothing once each has reached its largest size.
+  std::vector<double> schur, reduced_rhs;
+  std::vector<Sum> texts;
 
   explicit Run(const BlockInterpreter& interp)
       : it(interp),
@@ -176,14 +180,15 @@ struct BlockInterpreter::Run {
   }
 
   // schur: a torn block's sensitivities of its assigned coordinates to the tears (into dd) and
-  // the tears' Jacobian (row-major m x m), from the block's Phi_q entries.
-  std::vector<double> torn_schur(std::size_t bi, const std::map<std::pair<int, int>, int>& entries,
-                                 std::vector<std::vector<double>>& dd) {
+  // the tears' Jacobian (row-major m x m, into a), from the block's Phi_q entries.
+  void torn_schur(std::size_t bi, const std::map<std::pair<int, int>, int>& entries,
+                  std::vector<std::vector<double>>& dd, std::vector<double>& a) {
     const BlockPlan& plan = it.st_.plans[bi];
     const std::size_t m = plan.tears.size();
     const auto& dep = dependency[bi];
     for (const auto& [rc, o] : entries) out(o);
-    dd.assign(m, std::vector<double>(s.size(), 0.0));
+    dd.resize(m);
+    for (std::vector<double>& row : dd) row.assign(s.size(), 0.0);  // keeps its storage
     const auto row_sum = [&](int row, int skip, std::size_t j) {
       Sum sum;
       for_row(entries, row, [&](int col, int o) {
@@ -198,10 +203,9 @@ struct BlockInterpreter::Run {
     for (std::size_t j = 0; j < m; ++j)
       for (const auto& [row, col] : plan.assigned)
         if (dep.at(col)[j]) dd[j][col] = divide_negated(row_sum(row, col, j), entries.at({row, col}), true);
-    std::vector<double> a;
+    a.clear();
     for (int row : plan.residuals)
       for (std::size_t j = 0; j < m; ++j) a.push_back(row_sum(row, -1, j).value());
-    return a;
   }
 
   // solve_rows (and solve_torn_rows): block bi's rates, Phi_q x = nu (velocity) or gamma, less
@@ -212,7 +216,7 @@ struct BlockInterpreter::Run {
     const BlockRates& bo = it.bp_.rates[bi];
     const int k = static_cast<int>(blk.rows.size());
     const std::vector<int>& rhs = velocity ? bo.nu : bo.gamma;
-    std::vector<Sum> texts(k);
+    texts.assign(k, Sum());
     for (int i = 0; i < k; ++i) {
       Sum& sum = texts[i];
       if (node_of(rhs[i])) sum.add(out(rhs[i]), false);
@@ -270,7 +274,8 @@ struct BlockInterpreter::Run {
     };
     for (const auto& [row, col] : plan.assigned)
       x[col] = divide_negated(reduced(row, col), bo.tjac.at({row, col}), false);
-    std::vector<double> g;
+    std::vector<double>& g = reduced_rhs;
+    g.clear();
     for (int row : plan.residuals) g.push_back(reduced(row, -1).value());
     if (m == 1) {
       x[plan.tears[0]] = g[0] / a[bi][0];
@@ -397,8 +402,8 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
       constexpr int M = decltype(size)::value;
       double rmax[M], cs[M];
       for (int i = 0; i < M; ++i) cs[i] = length(cols[i]) ? scales[cols[i]] : 1.0;
-      double qs_end = 0, rc = 1, step_end = 0;
-      int n_end = 0, sign = 1;
+      double qs_end = 0, rc = 1, step_end = 0, prev = 0;
+      int n_end = 0, sign = 1, linear_steps = 0;
       bool conv = false, stop = false;
       const int n_assigned = static_cast<int>(plan.assigned.size());
       const int first_residual = f + n_assigned;
@@ -411,8 +416,8 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
         double res[M], jac[M * M];
         for (int i = 0; i < M; ++i) res[i] = r.out(first_residual + i);
         if (plan.torn()) {
-          const std::vector<double> schur = r.torn_schur(bi, bp_.torn_jacobian[bi], r.d[bi]);
-          std::copy(schur.begin(), schur.end(), jac);
+          r.torn_schur(bi, bp_.torn_jacobian[bi], r.d[bi], r.schur);
+          for (int i = 0; i < M * M; ++i) jac[i] = r.schur[i];
         } else {
           for (int i = 0; i < M * M; ++i) jac[i] = r.out(f + M + i);
         }
@@ -448,6 +453,8 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
           report = fail(3, block, iter);
           return false;
         }
+        linear_steps += K::_linear_step(step, prev);  // linear_count
+        prev = step;
         conv = small;
         if ((o.fixed_iterations > 0 ? iter >= o.fixed_iterations : small) ||
             iter >= o.max_iterations) {
@@ -490,8 +497,8 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
         }
       }
       if (coupled) rc = K::_coupled_rcond<M>(rc, rmax, cm);
-      return K::_newton_end(report, block, n_end, conv, o, step_end, residual, qs_end, rc, sign,
-                            signs_.data());
+      return K::_newton_end(report, block, n_end, conv, o, step_end, linear_steps, residual, qs_end,
+                            rc, sign, signs_.data());
     });
     if (!ok) return report;
   }
@@ -507,7 +514,7 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
     std::vector<double>& a = r.a[bi];
     std::vector<int>& piv = r.piv[bi];
     if (plan.torn()) {
-      a = r.torn_schur(bi, bo.tjac, r.d[bi]);
+      r.torn_schur(bi, bo.tjac, r.d[bi], a);
     } else if (k == 1) {
       const Node* n = r.node_of(bo.jbb[0]);
       a.assign(1, r.out(bo.jbb[0]));

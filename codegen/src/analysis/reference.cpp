@@ -14,6 +14,8 @@
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/model/table.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
+#include "kinegen/kernels/newton.hpp"
+#include "kinegen/solver.hpp"
 
 namespace kinegen::codegen {
 
@@ -450,11 +452,18 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
   const std::string& file = model.mechanism().source;
   const auto& sym = model.symbolic();
   const numeric ten = 10;
-  // Newton converges quadratically, so a step of 10^-(digits-5) leaves an error far below
-  // the working precision; near it, rounding noise of cond(Phi_q) 10^-digits could keep the
-  // step from falling further, so a step that stops decreasing below 10^-(digits/2) ends it.
+  // The Newton policy of the runtime (kernels/newton.hpp) with eps = 10^-digits. Newton
+  // converges quadratically, so a step of 10^-(digits-5) (plus the rounding allowance) leaves
+  // an error far below the working precision; near it, rounding noise of cond(Phi_q)
+  // 10^-digits could keep the step from falling further, so a step that stops decreasing
+  // below 10^-(digits/2) ends it (_stalled). The residual is then rechecked against
+  // 10^-(digits/2), as the double paths check 2^-(53/2). Phi_q's singularity is judged by the
+  // LU's pivots (no condition estimate here, so no linear-convergence rule).
+  using Newton = kernels::NewtonKernel;
+  const numeric eps = ten.power(-digits);
   const numeric tolerance = ten.power(-(digits - 5));
   const numeric stagnation = ten.power(-(digits / 2));
+  const numeric residual_tolerance = stagnation;
   const numeric pivot_ratio = ten.power(-(digits - 3));
   std::vector<numeric> inv_scale;  // per coordinate, as the runtime measures steps
   for (double scale : sym.coordinate_scales)
@@ -509,7 +518,7 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
       }
       row.t = t;
       // Position: Newton.
-      numeric last_step = -1;
+      numeric last_step = 0;  // 0: no step yet
       bool converged = false;
       int it = 1;
       for (; it <= kMaxIterations && !converged; ++it) {
@@ -518,20 +527,45 @@ void run_reference_analysis_exact(const CompiledModel& model, const TimeGrid& gr
           fail("position", "the constraint Jacobian Phi_q is singular");
         const Vector dq = lu.solve(f);
         numeric size = 0;
+        bool small = true;
         for (int k = 0; k < nq; ++k) {
           row.q[k] = row.q[k] - dq[k];
-          size = std::max(size, GiNaC::abs(dq[k] * inv_scale[k]));
+          const numeric d = GiNaC::abs(dq[k] * inv_scale[k]);
+          size = std::max(size, d);
+          small = small &&
+                  Newton::_step_converged(d, GiNaC::abs(row.q[k] * inv_scale[k]), tolerance, eps);
         }
-        converged =
-            size <= tolerance || (size <= stagnation && last_step >= 0 && size >= last_step);
+        converged = small || Newton::_stalled(size, last_step, stagnation);
         last_step = size;
       }
-      if (!converged)
+      row.newton_iterations = it - 1;
+      // The residual recheck, on the Jacobian the velocity and acceleration then share (rows
+      // scaled as on the double paths: by their largest |entry| times the column's scale).
+      const std::vector<numeric> a = jacobian(row.q, t);
+      numeric residual = 0;
+      if (converged) {
+        const Vector f = eval.phi(row.q, t);
+        for (int r = 0; r < nq; ++r) {
+          numeric size = 0, terms = 0;
+          for (int k = 0; k < nq; ++k) {
+            const numeric v = GiNaC::abs(a[r * nq + k]);
+            if (v.is_zero()) continue;
+            size = std::max(size, v / inv_scale[k]);
+            terms = terms + v * GiNaC::abs(row.q[k]);
+          }
+          if (size.is_zero()) size = 1;
+          residual = std::max(
+              residual, GiNaC::abs(f[r]) / size - Newton::_rounding(numeric(terms / size), eps));
+        }
+      }
+      const int status = Newton::_newton_status(false, converged, residual <= residual_tolerance,
+                                                false, residual, numeric(1), numeric(0));
+      if (status == static_cast<int>(Status::kMaxIterations))
         fail("position", "Newton iteration did not converge in " + std::to_string(kMaxIterations) +
                              " iterations; the mechanism may not assemble here");
-      row.newton_iterations = it - 1;
+      if (status != 0) fail("position", kinegen::to_string(static_cast<Status>(status)));
       // Velocity and acceleration share one factorization at the solved position.
-      if (!lu.factor(jacobian(row.q, t), nq, pivot_ratio))
+      if (!lu.factor(a, nq, pivot_ratio))
         fail("velocity", "the constraint Jacobian Phi_q is singular");
       row.qd = lu.solve(eval.nu(row.q, t));
       row.qdd = lu.solve(eval.gamma(row.q, row.qd, t));

@@ -1552,6 +1552,7 @@ class BlockEmitter {
         step_criterion(os, in2, c, i);
       }
       os << in2 << "if (!_finite(_step)) return _fail(report, 3, " << block_id(bi) << ", _it);\n";
+      linear_count(os, in2, bs, "_step");
       newton_stop(os, in2, bi, k, {"_st" + bs + " = _step;", "break;"});
       pr.close_scope();
       os << in << "}\n";
@@ -1604,9 +1605,10 @@ class BlockEmitter {
     std::vector<std::string> d;
     for (int c : cols)
       d.push_back(length_coordinate(c) ? "R(" + ref("coordinate_scales", c) + ")" : "R(1)");
-    os << kIn << "R _rmax" << b << "[" << k << "] = {}, _qs" << b << " = 0, _rc" << b << " = 1;\n"
+    os << kIn << "R _rmax" << b << "[" << k << "] = {}, _qs" << b << " = 0, _rc" << b << " = 1, _pv"
+       << b << " = 0;\n"
        << kIn << "[[maybe_unused]] const R _cs" << b << "[" << k << "] = {" << join(d) << "};\n"
-       << kIn << "int _n" << b << " = 0, _sg" << b << " = 1;\n"
+       << kIn << "int _n" << b << " = 0, _sg" << b << " = 1, _nl" << b << " = 0;\n"
        << kIn << "bool _conv" << b << " = false;\n";
   }
 
@@ -1625,6 +1627,13 @@ class BlockEmitter {
     os << in << "_qs += _mag(" << ref("q", c) << ")" << scale << ";\n"
        << in << "_small &= _step_converged(_mag(_r[" << i << "])" << scale << ", _mag("
        << ref("q", c) << ")" << scale << ", o.tolerance);\n";
+  }
+
+  // Counts the linear steps (the Newton policy's convergence-rate test) in _nl<b>.
+  void linear_count(std::ostringstream& os, const std::string& in, const std::string& b,
+                    const std::string& step) {
+    os << in << "_nl" << b << " += _linear_step(" << step << ", _pv" << b << ");\n"
+       << in << "_pv" << b << " = " << step << ";\n";
   }
 
   // The end of an iteration: stop when the step criterion holds (or the fixed budget is
@@ -1692,8 +1701,8 @@ class BlockEmitter {
          << kIn << "_rc" << b << " = _coupled_rcond<" << own.size() << ">(_rc" << b << ", _rmax" << b
          << ", _cm" << b << ");\n";
     os << kIn << "if (!_newton_end(report, " << block_id(bi) << ", _n" << b << ", _conv" << b
-       << ", o, " << step << ", _res" << b << ", _qs" << b << ", _rc" << b << ", _sg" << b
-       << ", block_signs))\n"
+       << ", o, " << step << ", _nl" << b << ", _res" << b << ", _qs" << b << ", _rc" << b
+       << ", _sg" << b << ", block_signs))\n"
        << kIn << "  return report;\n";
   }
 
@@ -2199,6 +2208,7 @@ class BlockEmitter {
       step_criterion(os, in2, c, i);
     }
     os << in2 << "if (!_finite(_step" << b << ")) return _fail(report, 3, " << block_id(bi) << ", _it);\n";
+    linear_count(os, in2, b, "_step" + b);
     newton_stop(os, in2, bi, m, {"_stop" + b + " = true;"});
     pr.close_scope();
     os << in << "}\n";

@@ -43,7 +43,8 @@ const std::vector<std::string> kHeaderMembers = {
     "StepFactors", "factor_begin", "step_factored", "block_tears", "tear_rows", "tear_cols",
     "tear_sens_begin",
     // the kernels (runtime/include/kinegen/kernels/) pasted into the struct
-    "BasicBlockOptions", "BasicTrigCache", "TrigCache", "kRoundingUlps",
+    "BasicBlockOptions", "BasicTrigCache", "TrigCache", "kRoundingUlps", "kLinearRatio",
+    "kLinearSteps",
     // namespaces and the runtime's Solver, which a struct of that name would hide
     "Solver", "models", "kinegen", "std"};
 

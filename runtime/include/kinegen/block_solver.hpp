@@ -161,7 +161,8 @@ double model_residual(const Scalar* q, Scalar t, const typename Model::Params& p
   double worst = 0;
   for (int r = 0; r < Model::nc; ++r) {
     const double size = row_size[r] > 0 ? row_size[r] : 1.0;
-    const double excess = (static_cast<double>(abs(phi[r])) - 16 * eps * terms[r]) / size;
+    const double excess = static_cast<double>(abs(phi[r])) / size -
+                          kernels::NewtonKernel::_rounding(terms[r] / size, eps);
     if (!(excess == excess)) return excess;  // NaN: not a solution
     worst = std::max(worst, excess);
   }

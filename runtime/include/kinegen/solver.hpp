@@ -69,9 +69,10 @@ struct Result {
 struct SolverOptions {
   // Newton stops when the step, each coordinate divided by its scale (coordinate_scale: a
   // body's x and y by its joints' geometry; angles in radians), is at most this (plus the rounding
-  // of the coordinate itself, 4 eps |q|, which no solver can beat: an angle of 6e6 rad is only
-  // known to about 1e-9). Convergence is quadratic, so the position is then accurate to far below
-  // it.
+  // of the coordinate itself, 64 eps (1 + |q|), which no solver can beat: an angle of 6e6 rad is
+  // only known to about 1e-9). Convergence is quadratic, so the position is then accurate to far
+  // below it. Converging only linearly (each step more than a quarter of the one before) with a
+  // condition estimate worse than sqrt(min_rcond) is a singular Phi_q (kernels/newton.hpp).
   double tolerance = 1e-10;
   int max_iterations = 30;
   // Phi_q counts as singular when the reciprocal of its scaled condition estimate is below this.
@@ -286,8 +287,10 @@ void solve_factored(WS& ws, VQ& x) {
   x = ws.col_scale.asDiagonal() * x;
 }
 
-// Largest |Phi_r| measured against the row's scale; the rounding of the row's terms
-// (eps |Phi_q row| |q|) is allowed on top, so huge angles are judged fairly.
+// Largest |Phi_r| measured against the row's scale, less the rounding allowance of the row's
+// terms (the Newton policy's, kernels/newton.hpp, on the scaled sum of |Phi_q entry| |q|), so
+// that huge angles are judged fairly: the residual recheck holds when it is at most
+// residual_tolerance. `rounding` receives the largest allowance.
 template <class WS, class V, class VQ>
 double scaled_residual(const WS& ws, const V& phi, const VQ& q, double& rounding) {
   using Real = typename Eigen::NumTraits<typename V::Scalar>::Real;
@@ -299,7 +302,7 @@ double scaled_residual(const WS& ws, const V& phi, const VQ& q, double& rounding
     double terms = 0;
     for (int k = 0; k < q.size(); ++k)
       terms += static_cast<double>(std::abs(ws.jac(r, k)) * std::abs(q[k]));
-    const double round = 16 * eps * terms * scale;
+    const double round = kernels::NewtonKernel::_rounding(terms * scale, eps);
     const double excess = static_cast<double>(std::abs(phi[r])) * scale - round;
     worst = std::max(worst, excess);
     rounding = std::max(rounding, round);
@@ -315,17 +318,24 @@ double residual_norm(const WS& ws, const V& phi) {
   return n;
 }
 
-// Damped Newton's method on Phi(q, t) = 0 from the q given (Gauss-Newton when redundant).
+// Damped Newton's method on Phi(q, t) = 0 from the q given (Gauss-Newton when redundant), with
+// the Newton policy of kernels/newton.hpp: the step criterion, the residual recheck, the
+// linear-convergence rule and the verdict are the block path's; the damping is this path's
+// own (SolverOptions::max_halvings; the blocks do not damp).
 template <class System, class WS, class VQ>
 Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
                 const SolverOptions& options) {
   using Scalar = typename System::Scalar;
+  using Newton = kernels::NewtonKernel;
   using std::abs;
   Result result;
   const double eps =
       static_cast<double>(std::numeric_limits<typename Eigen::NumTraits<Scalar>::Real>::epsilon());
   sys.phi(q.data(), t, ws.rhs.data());
-  for (int it = 1; it <= options.max_iterations; ++it) {
+  bool converged = false;
+  double step = 0;       // the last scaled step
+  int linear_steps = 0;  // steps that shrank by less than the policy's kLinearRatio
+  for (int it = 1; it <= options.max_iterations && !converged; ++it) {
     if (!all_finite(ws.rhs) || !all_finite(q)) {
       result.status = Status::kNonFinite;
       return result;
@@ -338,27 +348,23 @@ Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
     for (int h = 0;; ++h) {
       ws.q_trial = q - alpha * ws.dq;
       sys.phi(ws.q_trial.data(), t, ws.rhs_new.data());
-      const double new_norm = residual_norm(ws, ws.rhs_new);
-      if (h >= options.max_halvings || (std::isfinite(new_norm) && new_norm <= old_norm) ||
-          old_norm <= 1e3 * eps)
+      if (Newton::_accept_step(residual_norm(ws, ws.rhs_new), old_norm, h, options.max_halvings,
+                               eps))
         break;
       alpha /= Scalar(2);
     }
     q = ws.q_trial;
     ws.rhs = ws.rhs_new;
     ws.factored = false;  // q moved
-    // Scaled step: coordinates come as [x, y, phi] per body.
-    double step = 0;
+    const double previous = step;
+    step = 0;
     bool small = true;
     for (int k = 0; k < q.size(); ++k) {
-      const Scalar d = alpha * ws.dq[k] / ws.col_scale[k];
       const double scale_k = static_cast<double>(abs(ws.col_scale[k]));
-      step = std::max(step, static_cast<double>(abs(d)));
-      // The shared step criterion (kernels/newton.hpp), with the rounding allowance of Scalar.
-      using Real = typename Eigen::NumTraits<Scalar>::Real;
-      small = small && kernels::NewtonKernel::_step_converged(
-                           Real(static_cast<double>(abs(alpha * ws.dq[k])) / scale_k),
-                           Real(static_cast<double>(abs(q[k])) / scale_k), Real(options.tolerance));
+      const double d = static_cast<double>(abs(alpha * ws.dq[k])) / scale_k;
+      const double qk = static_cast<double>(abs(q[k])) / scale_k;
+      step = std::max(step, d);
+      small = small && Newton::_step_converged(d, qk, options.tolerance, eps);
     }
     result.iterations = it;
     result.step = step;
@@ -366,21 +372,17 @@ Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
       result.status = Status::kNonFinite;
       return result;
     }
-    if (small && alpha == Scalar(1)) {
-      double rounding = 0;
-      result.residual = scaled_residual(ws, ws.rhs, q, rounding);
-      if (result.residual <= options.residual_tolerance) return result;
-      // The step vanished yet Phi did not: a least-squares minimum that is not a solution
-      // (contradictory constraints), or a square system stuck at a fold. One more look decides.
-      if (step <= 1e-3 * options.tolerance + 4 * eps) {
-        result.status = Status::kInconsistent;
-        return result;
-      }
-    }
+    linear_steps += Newton::_linear_step(step, previous);
+    // A damped step is no evidence of convergence: only a full one ends the iteration.
+    converged = small && alpha == Scalar(1);
   }
   double rounding = 0;
   result.residual = scaled_residual(ws, ws.rhs, q, rounding);
-  result.status = Status::kMaxIterations;
+  const double rcond = result.condition > 0 ? 1 / result.condition : 0.0;
+  const bool linear = linear_steps >= Newton::kLinearSteps;
+  result.status = static_cast<Status>(
+      Newton::_newton_status(false, converged, result.residual <= options.residual_tolerance,
+                             linear, result.residual, rcond, options.min_rcond));
   return result;
 }
 

@@ -1,11 +1,11 @@
 // kinegen runtime: the sparse path of the analysis, for large models whose sizes are known only
 // at run time (the command line's in-process models).
 //
-// Same Newton iteration, scaling, convergence test and Result as the dense path in solver.hpp
-// (the algorithms there are reused; only the factorization differs): Phi_q is held as an
-// Eigen::SparseMatrix on its structural non-zeros, ordered once (COLAMD, analyzePattern at
-// construction) and factored with Eigen::SparseLU at each Newton iteration. Nothing of size
-// nq x nq is ever formed.
+// Same Newton iteration, scaling, Newton policy (kernels/newton.hpp) and Result as the dense
+// path in solver.hpp (the algorithms there are reused; only the factorization differs): Phi_q is
+// held as an Eigen::SparseMatrix on its structural non-zeros, ordered once (COLAMD, analyzePattern
+// at construction) and factored with Eigen::SparseLU at each Newton iteration. Nothing of size nq x
+// nq is ever formed.
 //
 // Allocation: the pattern, the ordering and the workspace vectors are allocated at
 // construction; SparseLU::factorize and SparseLU::solve allocate their own working storage on
@@ -211,7 +211,8 @@ double scaled_residual(SparseWorkspace<Scalar>& ws, const V& phi, const VQ& q, d
   rounding = 0;
   for (int r = 0; r < phi.size(); ++r) {
     const double scale = static_cast<double>(std::abs(ws.row_scale[r]));
-    const double round = 16 * eps * static_cast<double>(ws.row_work[r]) * scale;
+    const double round =
+        kernels::NewtonKernel::_rounding(static_cast<double>(ws.row_work[r]) * scale, eps);
     const double excess = static_cast<double>(std::abs(phi[r])) * scale - round;
     worst = std::max(worst, excess);
     rounding = std::max(rounding, round);

@@ -41,10 +41,15 @@ struct ReportKernel {
       return x.real();
     }
   }
-  // Whether a magnitude (|x|, never negative) is finite: false for infinity and NaN.
+  // Whether a magnitude (|x|, never negative) is finite: false for infinity and NaN. (Types
+  // without numeric_limits, as CLN's arbitrary-precision numbers: only NaN could fail.)
   template <class R>
   static bool _finite(const R& magnitude) noexcept {
-    return magnitude <= std::numeric_limits<R>::max();
+    if constexpr (std::numeric_limits<R>::is_specialized) {
+      return magnitude <= std::numeric_limits<R>::max();
+    } else {
+      return magnitude == magnitude;
+    }
   }
   template <int N, class T>
   static bool _all_finite(const T* v) noexcept {
