@@ -14,7 +14,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <complex>  // table_press.hpp's spline kernel calls std::real without including it
 #include <cstdio>
 #include <vector>
 

@@ -141,10 +141,15 @@ struct table_press {
   // ---- end of kinegen kernel motion_law
 
   // ---- kinegen kernel spline (kinegen/kernels/spline.hpp)
+  // The real part: x itself for a real scalar; for a complex one, real() found by argument
+  // lookup (so this header needs no <complex> of its own).
   template <class T>
   static auto _spline_re(const T& x) noexcept {
-    using std::real;
-    return real(x);
+    if constexpr (std::is_arithmetic_v<T>) {
+      return x;
+    } else {
+      return real(x);
+    }
   }
   // f[0..2] = S(x), S'(x), S''(x) on the knot interval that holds the real part of x. Returns
   // false (and leaves f alone) when x lies outside [t[0], t[n-1]] by more than a few ulps of
