@@ -1,0 +1,318 @@
+#include "printer.hpp"
+
+namespace kinegen::codegen::emit_detail {
+
+// Integers that double (and T(int) for float, through double) holds exactly.
+bool is_small_integer(const GiNaC::numeric& x) {
+  return x.is_integer() && GiNaC::abs(x) <= GiNaC::numeric(1L << 53);
+}
+
+std::string str(const GiNaC::numeric& x) {
+  std::ostringstream os;
+  os << x;
+  return os.str();
+}
+
+std::string safe_comment_text(const std::string& s) {
+  std::string out;
+  for (char ch : s)
+    out += (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '.' || ch == '-' ||
+            ch == '+')
+               ? ch
+               : '?';
+  return out;
+}
+
+// The Params members of input driver k (format 6.3, `f: input`): its value, rate and
+// acceleration, NAME, NAME_v and NAME_a.
+std::string input_member(const Mechanism& m, int driver, int order) {
+  static const char* const kSuffix[] = {"", "_v", "_a"};
+  return m.drivers.at(static_cast<std::size_t>(driver)).name + kSuffix[order];
+}
+
+// The members FunctionPrinter wrote as `p.@inK.O@`, named.
+std::string with_input_members(std::string header, const Mechanism& m) {
+  for (std::size_t p = header.find("p.@in"); p != std::string::npos; p = header.find("p.@in", p)) {
+    const std::size_t dot = header.find('.', p + 5), end = header.find('@', p + 5);
+    const int driver = std::stoi(header.substr(p + 5, dot - p - 5));
+    const int order = std::stoi(header.substr(dot + 1, end - dot - 1));
+    header.replace(p + 2, end + 1 - (p + 2), input_member(m, driver, order));
+  }
+  return header;
+}
+
+// A table's function as FunctionPrinter writes it, `_tbl@ID@` (ID its registry number), until
+// with_expression_kernels numbers the tables of the header from 0.
+std::string table_token(int id) { return "_tbl@" + std::to_string(id) + "@"; }
+
+// The std functions a program calls, for a using-declaration: unqualified calls then find
+// std's overloads for float, double and std::complex, and other scalar types by ADL.
+std::string std_functions(const Program& program) {
+  static const std::pair<OpKind, const char*> kFunctions[] = {
+      {OpKind::kAcos, "acos"}, {OpKind::kAsin, "asin"}, {OpKind::kAtan, "atan"},
+      {OpKind::kCos, "cos"},   {OpKind::kExp, "exp"},   {OpKind::kLog, "log"},
+      {OpKind::kPow, "pow"},   {OpKind::kSin, "sin"},   {OpKind::kSqrt, "sqrt"},
+      {OpKind::kTan, "tan"}};
+  std::string used;
+  for (const auto& [kind, fname] : kFunctions) {
+    bool uses = false;
+    for (const auto& n : program.nodes)
+      uses = uses || n.kind == kind ||
+             (kind == OpKind::kPow && n.kind == OpKind::kPowInt &&
+              std::abs(n.exponent) > kMaxUnrolledPower);
+    if (uses) used += std::string(used.empty() ? "" : ", ") + "std::" + fname;
+  }
+  return used;
+}
+
+// Splits `program` into parts of about max_ops operations or max_part_outputs outputs each
+// (partition.hpp; one output's terms are never split).
+std::vector<ProgramPart> split_program(const Program& program, int max_ops) {
+  const PartRanges ranges =
+      partition(program, max_ops, static_cast<int>(program.outputs.size()), [&](int o) {
+        return PartCost{{program.outputs[o]}, 0, 1};
+      });
+  std::vector<ProgramPart> parts;
+  std::vector<int> part_of(program.nodes.size(), -1);
+  std::vector<int> stack;
+  for (const auto& [first, last] : ranges) {
+    const int part = static_cast<int>(parts.size());
+    ProgramPart pp;
+    pp.first_output = first;
+    std::vector<int> members;
+    std::vector<int> outs;
+    for (int o = first; o < last; ++o) {
+      const int id = program.outputs[o];
+      outs.push_back(id);
+      if (id == Program::kZero || part_of[id] == part) continue;
+      stack.assign(1, id);
+      part_of[id] = part;
+      while (!stack.empty()) {
+        const int k = stack.back();
+        stack.pop_back();
+        members.push_back(k);
+        for (int a : program.nodes[k].args)
+          if (part_of[a] != part) {
+            part_of[a] = part;
+            stack.push_back(a);
+          }
+      }
+    }
+    std::sort(members.begin(), members.end());
+    std::vector<int> remap(program.nodes.size(), -1);
+    for (int k : members) {
+      remap[k] = static_cast<int>(pp.program.nodes.size());
+      Node n = program.nodes[k];
+      for (int& a : n.args) a = remap[a];
+      pp.program.nodes.push_back(std::move(n));
+    }
+    for (int id : outs) pp.program.outputs.push_back(id == Program::kZero ? id : remap[id]);
+    parts.push_back(std::move(pp));
+  }
+  return parts;
+}
+
+void emit_signature(std::ostringstream& os, const std::string& name, bool with_qd) {
+  os << "  template <class T>\n";
+  os << "  static void " << name << "([[maybe_unused]] const T* q,";
+  if (with_qd) os << " [[maybe_unused]] const T* qd,";
+  os << "\n      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {\n";
+}
+
+// One function, or when the program has more than max_ops operations or max_part_outputs
+// outputs (max_ops > 0), private parts that the function calls in order: g++ -O2 takes time
+// superlinear in a function's size.
+// out_index: the out index of each of the program's outputs (default: k); tail: code that ends
+// the public function.
+void emit_function(std::ostringstream& os, const char* name, const char* out_size,
+                   const Program& program, const SymbolTable& symbols, bool with_qd,
+                   int max_ops, const std::vector<int>* out_index, const std::string& tail) {
+  if (max_ops > 0 &&
+      (program.operation_count() > max_ops ||
+       static_cast<int>(program.outputs.size()) > max_part_outputs(max_ops))) {
+    const std::vector<ProgramPart> parts = split_program(program, max_ops);
+    os << " private:\n";
+    for (std::size_t k = 0; k < parts.size(); ++k) {
+      const Program& part = parts[k].program;
+      const int last = parts[k].first_output + static_cast<int>(part.outputs.size()) - 1;
+      emit_signature(os, "_" + std::string(name) + "_part" + std::to_string(k), with_qd);
+      if (out_index)
+        os << "    // outputs " << parts[k].first_output << ".." << last << " of the "
+           << program.outputs.size() << " not repeated; " << part.operation_count()
+           << " operations\n";
+      else
+        os << "    // out[" << parts[k].first_output << ".." << last << "]; "
+           << part.operation_count() << " operations\n";
+      if (const std::string used = std_functions(part); !used.empty())
+        os << "    using " << used << ";\n";
+      os << FunctionPrinter(part, symbols).body("    ", parts[k].first_output, out_index);
+      os << "  }\n";
+    }
+    os << "\n public:\n";
+    emit_signature(os, name, with_qd);
+    os << "    // out[" << out_size << "]; " << program.operation_count() << " operations in "
+       << parts.size() << " parts\n";
+    for (std::size_t k = 0; k < parts.size(); ++k)
+      os << "    _" << name << "_part" << k << "(q, " << (with_qd ? "qd, " : "") << "t, p, out);\n";
+    os << tail << "  }\n";
+    return;
+  }
+  os << "  template <class T>\n";
+  os << "  static void " << name << "([[maybe_unused]] const T* q,";
+  if (with_qd) os << " [[maybe_unused]] const T* qd,";
+  os << "\n      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {\n";
+  os << "    // out[" << out_size << "]; " << program.operation_count() << " operations\n";
+  if (const std::string used = std_functions(program); !used.empty())
+    os << "    using " << used << ";\n";
+  os << FunctionPrinter(program, symbols).body("    ", 0, out_index);
+  os << tail << "  }\n";
+}
+
+// Repeated pieces (blocks, constraints) are compared under a renaming of the coordinates they
+// read: the k-th coordinate of a piece's table becomes the model's k-th.
+
+// `static constexpr int name[rows][columns]`, a table of the repeated pieces (a row of zero
+// columns is stored as one 0, which nothing reads).
+void emit_table(std::ostringstream& os, const std::string& name,
+                const std::vector<std::vector<int>>& rows) {
+  os << "  static constexpr int " << name << "[" << rows.size() << "]["
+     << std::max<std::size_t>(1, rows[0].size()) << "] = {\n";
+  for (const auto& row : rows) {
+    std::vector<std::string> v;
+    for (int x : row) v.push_back(std::to_string(x));
+    os << "      {" << (v.empty() ? "0" : join(v)) << "},\n";
+  }
+  os << "  };\n";
+}
+
+// Adds the coordinates whose q or qd `e` reads to `read`.
+void add_coordinates_read(const GiNaC::ex& e, const SymbolTable& symbols, std::set<int>& read) {
+  for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it)
+    if (GiNaC::is_a<GiNaC::symbol>(*it)) {
+      const Input in = symbols.classify(*it);
+      if (in.kind == InputKind::kQ || in.kind == InputKind::kQd) read.insert(in.index);
+    }
+}
+
+// table[k] -> coordinate k, q and qd alike; one substitution, so the renaming is simultaneous.
+GiNaC::exmap table_renaming(const std::vector<int>& table, const SymbolTable& symbols) {
+  GiNaC::exmap rename;
+  for (std::size_t k = 0; k < table.size(); ++k) {
+    rename[symbols.q(table[k])] = symbols.q(static_cast<int>(k));
+    rename[symbols.qd(table[k])] = symbols.qd(static_cast<int>(k));
+  }
+  return rename;
+}
+
+// Equal printed keys should mean equal renamed expressions, but names could coincide: this
+// compares exactly.
+bool same_expressions(const std::vector<GiNaC::ex>& a, const std::vector<GiNaC::ex>& b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t k = 0; k < a.size(); ++k)
+    if (!a[k].is_equal(b[k])) return false;
+  return true;
+}
+
+RolledOutputs roll_outputs(const std::vector<GiNaC::ex>& exprs, const std::vector<int>& group,
+                           const SymbolTable& symbols, int roll_min) {
+  RolledOutputs ro;
+  std::map<int, std::vector<int>> members;  // group -> its outputs, in order
+  for (std::size_t k = 0; k < exprs.size(); ++k) members[group[k]].push_back(static_cast<int>(k));
+  std::map<std::string, std::vector<int>> alike;  // key -> groups
+  std::map<int, std::vector<int>> coords;
+  std::map<int, std::vector<GiNaC::ex>> renamed;
+  for (const auto& [g, outs] : members) {
+    std::set<int> read;
+    for (int k : outs) add_coordinates_read(exprs[k], symbols, read);
+    const std::vector<int> list(read.begin(), read.end());
+    const GiNaC::exmap rename = table_renaming(list, symbols);
+    std::ostringstream key;
+    key << outs.size() << " " << list.size();
+    for (int k : outs) {
+      renamed[g].push_back(exprs[k].subs(rename));
+      key << " " << renamed[g].back() << ";";
+    }
+    coords[g] = list;
+    alike[key.str()].push_back(g);
+  }
+  std::vector<char> rolled(exprs.size(), 0);
+  for (const auto& [key, groups] : alike) {
+    if (static_cast<int>(groups.size()) < roll_min) continue;
+    const int first = groups[0];
+    RolledOutputs::Class c;
+    for (int g : groups) {
+      if (coords[g].size() != coords[first].size() || !same_expressions(renamed[g], renamed[first]))
+        continue;
+      c.coords.push_back(coords[g]);
+      c.outs.push_back(members[g]);
+    }
+    if (static_cast<int>(c.outs.size()) < roll_min) continue;
+    for (const auto& outs : c.outs)
+      for (int k : outs) rolled[k] = 1;
+    std::vector<GiNaC::ex> first_exprs;
+    for (int k : members[first]) first_exprs.push_back(exprs[k]);
+    c.program = lower(first_exprs, symbols);
+    c.slot.assign(symbols.nq(), -1);
+    for (std::size_t j = 0; j < coords[first].size(); ++j)
+      c.slot[coords[first][j]] = static_cast<int>(j);
+    ro.classes.push_back(std::move(c));
+  }
+  std::vector<GiNaC::ex> rest;
+  for (std::size_t k = 0; k < exprs.size(); ++k)
+    if (!rolled[k]) {
+      rest.push_back(exprs[k]);
+      ro.rest_index.push_back(static_cast<int>(k));
+    }
+  ro.rest = lower(rest, symbols);
+  return ro;
+}
+
+// emit_function for outputs of which some are rolled (roll_outputs): each class's function and
+// tables (private), then the function, which evaluates the rest and loops over the classes.
+void emit_rolled_function(std::ostringstream& os, const char* name, const char* out_size,
+                          const RolledOutputs& ro, const SymbolTable& symbols, bool with_qd,
+                          int max_ops) {
+  os << " private:\n";
+  std::ostringstream tail;
+  for (std::size_t g = 0; g < ro.classes.size(); ++g) {
+    const RolledOutputs::Class& c = ro.classes[g];
+    const std::string f = "_" + std::string(name) + "_roll" + std::to_string(g);
+    os << "  // Repeated constraints (" << c.outs.size() << "): alike up to the coordinates they "
+       << "read (" << f << "_i,\n  // ascending) and where their outputs go (" << f << "_o).\n";
+    emit_table(os, f + "_i", c.coords);
+    emit_table(os, f + "_o", c.outs);
+    os << "  template <class T>\n"
+       << "  static void " << f << "([[maybe_unused]] const T* q,"
+       << (with_qd ? " [[maybe_unused]] const T* qd," : "") << "\n"
+       << "      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,\n"
+       << "      [[maybe_unused]] const int* _i, const int* _o) noexcept {\n";
+    if (const std::string used = std_functions(c.program); !used.empty())
+      os << "    using " << used << ";\n";
+    FunctionPrinter pr(c.program, symbols);
+    pr.read_through(&c.slot);
+    os << pr.body("    ", 0, nullptr, true) << "  }\n";
+    tail << "    for (int _m = 0; _m < " << c.outs.size() << "; ++_m)\n"
+         << "      " << f << "(q, " << (with_qd ? "qd, " : "") << "t, p, out, " << f << "_i[_m], "
+         << f << "_o[_m]);\n";
+  }
+  os << "\n public:\n";
+  emit_function(os, name, out_size, ro.rest, symbols, with_qd, max_ops, &ro.rest_index,
+                tail.str());
+}
+
+// emit_function, or emit_rolled_function when some constraints repeat (roll_min > 0).
+void emit_function_rolled_if(std::ostringstream& os, const char* name, const char* out_size,
+                             const Program& program, const std::vector<GiNaC::ex>& exprs,
+                             const std::vector<int>& group, const SymbolTable& symbols,
+                             bool with_qd, int max_ops, int roll_min) {
+  if (roll_min > 0) {
+    const RolledOutputs ro = roll_outputs(exprs, group, symbols, roll_min);
+    if (!ro.classes.empty()) {
+      emit_rolled_function(os, name, out_size, ro, symbols, with_qd, max_ops);
+      return;
+    }
+  }
+  emit_function(os, name, out_size, program, symbols, with_qd, max_ops);
+}
+
+}  // namespace kinegen::codegen::emit_detail
