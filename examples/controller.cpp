@@ -8,7 +8,8 @@
 // calls (default 1e6), the worst constraint residual, and the number of heap allocations
 // during the loop, counted by a replaced global operator new. Then the same loop on the
 // balanced four-bar (examples/forces/four_bar_balanced.yaml, with masses, gravity and a
-// spring) adds the feedforward motor torque of each tick (solve_forces, force_columns) and
+// spring) adds the feedforward motor torque of each tick (step(), then force_columns() reusing the
+// step's factors) and
 // prints its time and the torque's peak over a turn. Exits 1 if anything was allocated, a
 // solve failed, or the residual is out of bounds.
 //
@@ -61,13 +62,12 @@ bool feedforward(long calls, std::vector<long>& ns) {
   static_assert(std::string_view(Model::force_column_names[0]) == "motor.effort");
   const Model::Params params{};  // omega: one turn per second
   Solver solver(params);
-  const typename Model::template BasicBlockOptions<Scalar> force_options{};
   typename Solver::Vector q = solver.initial_estimate(), qd, qdd;
   if (!solver.position(q, Scalar(0)) || !solver.velocity(q, Scalar(0), qd) ||
       !solver.acceleration(q, qd, Scalar(0), qdd))
     return false;
   solver.options().fixed_iterations = 2;
-  Scalar lambda[Model::nc], columns[Model::num_force_columns];
+  typename Solver::ForceColumns columns;
   double peak = 0;
   long failures = 0;
   const long allocations_before = g_allocations;
@@ -75,13 +75,14 @@ bool feedforward(long calls, std::vector<long>& ns) {
     const long tick = k % static_cast<long>(kRate);
     const Scalar t = Scalar(tick) * kDt;
     const auto start = std::chrono::steady_clock::now();
-    if (tick == 0) q[2] -= Scalar(2 * M_PI);
-    q += kDt * qd + Scalar(0.5) * kDt * kDt * qdd;
-    const bool ok =
-        solver.position(q, t) && solver.velocity(q, t, qd) && solver.acceleration(q, qd, t, qdd) &&
-        Model::solve_forces(q.data(), qd.data(), qdd.data(), t, params, lambda, force_options)
-                .status == 0;
-    if (ok) Model::force_columns(q.data(), t, params, lambda, columns);
+    if (tick == 0) {  // the crank's angle back by a turn: the predictor starts again from here
+      q[2] -= Scalar(2 * M_PI);
+      solver.reset();
+      q += kDt * qd + Scalar(0.5) * kDt * kDt * qdd;
+    }
+    // step() solves q, qd and qdd and keeps its factors; force_columns at the same t and q
+    // reuses them (solve_forces factors nothing again).
+    const bool ok = solver.step(t, q, qd, qdd) && solver.force_columns(q, qd, qdd, t, columns);
     const auto stop = std::chrono::steady_clock::now();
     ns[static_cast<std::size_t>(k - 1)] =
         std::chrono::duration_cast<std::chrono::nanoseconds>(stop - start).count();
@@ -91,8 +92,8 @@ bool feedforward(long calls, std::vector<long>& ns) {
   const long allocations = g_allocations - allocations_before;
   std::sort(ns.begin(), ns.end());
   std::printf(
-      "  balanced four-bar with feedforward torque (kinematics + solve_forces + "
-      "force_columns):\n    median %ld ns, 99.9%% %ld ns, worst %ld ns; failures: %ld; "
+      "  balanced four-bar with feedforward torque (step + force_columns, the step's factors "
+      "reused):\n    median %ld ns, 99.9%% %ld ns, worst %ld ns; failures: %ld; "
       "peak |motor torque| %.6g N m; heap allocations: %ld\n",
       ns[ns.size() / 2], ns[std::min(ns.size() - 1, ns.size() * 999 / 1000)], ns.back(), failures,
       peak, allocations);
