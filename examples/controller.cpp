@@ -8,10 +8,9 @@
 // calls (default 1e6), the worst constraint residual, and the number of heap allocations
 // during the loop, counted by a replaced global operator new. Then the same loop on the
 // balanced four-bar (examples/forces/four_bar_balanced.yaml, with masses, gravity and a
-// spring) adds the feedforward motor torque of each tick (step(), then force_columns() reusing the
-// step's factors) and
-// prints its time and the torque's peak over a turn. Exits 1 if anything was allocated, a
-// solve failed, or the residual is out of bounds.
+// spring) adds the feedforward motor torque of each tick (step(), then force_columns() reusing
+// the step's factors) and prints its time and the torque's peak over a turn. Exits 1 if
+// anything was allocated, a solve failed, or the residual is out of bounds.
 //
 //   build/examples/controller_double [calls]
 #include <algorithm>
