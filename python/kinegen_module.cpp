@@ -194,28 +194,17 @@ class Mechanism {
     return translate(path_, [&] {
       const Eigen::VectorXd q = vector(q_arg, "q", model_->q0());
       const Eigen::VectorXd qd = vector(qd_arg, "qd", Eigen::VectorXd::Zero(nq));
-      kc::ModelEvaluator<double> ev(*model_);
-      Eigen::VectorXd phi(nc), nu(nc), gamma(nc);
-      Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(nc, nq);
-      ev.phi(q.data(), t, phi.data());
-      ev.jacobian(q.data(), t, jac);
-      ev.nu(q.data(), t, nu.data());
-      ev.gamma(q.data(), qd.data(), t, gamma.data());
+      const kc::EvalResult e = kc::evaluate(*model_, q, qd, t);
       py::array_t<double> j({nc, nq});
       for (int r = 0; r < nc; ++r)
-        for (int c = 0; c < nq; ++c) j.mutable_at(r, c) = jac(r, c);
+        for (int c = 0; c < nq; ++c) j.mutable_at(r, c) = e.phi_q(r, c);
       py::dict out;
-      out["phi"] = to_numpy(phi);
+      out["phi"] = to_numpy(e.phi);
       out["phi_q"] = j;
-      out["nu"] = to_numpy(nu);
-      out["gamma"] = to_numpy(gamma);
+      out["nu"] = to_numpy(e.nu);
+      out["gamma"] = to_numpy(e.gamma);
       // Outputs' values (format 6.4), as `kinegen eval` adds them.
-      if (const int n = model_->programs().num_outputs; n > 0) {
-        Eigen::VectorXd values(n);
-        kc::ProgramEvaluator<double> program(model_->programs().outputs);
-        program.run(q.data(), nullptr, t, model_->params().data(), values.data());
-        out["outputs"] = to_numpy(values);
-      }
+      if (e.outputs.size() > 0) out["outputs"] = to_numpy(e.outputs);
       return out;
     });
   }

@@ -39,27 +39,16 @@ int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
   const Eigen::VectorXd q = q_arg.empty() ? model->q0() : vector_arg(q_arg, nq, "--q");
   const Eigen::VectorXd qd =
       qd_arg.empty() ? Eigen::VectorXd::Zero(nq) : vector_arg(qd_arg, nq, "--qd");
-  kc::ModelEvaluator<double> eval(*model);
-  Eigen::VectorXd phi(nc), nu(nc), gamma(nc);
-  Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(nc, nq);
-  eval.phi(q.data(), t, phi.data());
-  eval.jacobian(q.data(), t, jac);
-  eval.nu(q.data(), t, nu.data());
-  eval.gamma(q.data(), qd.data(), t, gamma.data());
+  const kc::EvalResult e = kc::evaluate(*model, q, qd, t);
   std::string rows;
-  for (int r = 0; r < nc; ++r) rows += (r ? ", " : "") + json_array(jac.row(r).transpose());
+  for (int r = 0; r < nc; ++r) rows += (r ? ", " : "") + json_array(e.phi_q.row(r).transpose());
   // Outputs' values (format 6.4); a file without outputs keeps its v1 JSON.
-  std::string outputs;
-  if (model->programs().num_outputs > 0) {
-    Eigen::VectorXd values(model->programs().num_outputs);
-    kc::ProgramEvaluator<double> program(model->programs().outputs);
-    program.run(q.data(), nullptr, t, model->params().data(), values.data());
-    outputs = ", \"outputs\": " + json_array(values);
-  }
+  const std::string outputs =
+      e.outputs.size() > 0 ? ", \"outputs\": " + json_array(e.outputs) : std::string();
   kc::OutputFile out("-");
-  out.stream() << "{\"phi\": " << json_array(phi) << ", \"phi_q\": [" << rows
-               << "], \"nu\": " << json_array(nu) << ", \"gamma\": " << json_array(gamma) << outputs
-               << "}\n";
+  out.stream() << "{\"phi\": " << json_array(e.phi) << ", \"phi_q\": [" << rows
+               << "], \"nu\": " << json_array(e.nu) << ", \"gamma\": " << json_array(e.gamma)
+               << outputs << "}\n";
   out.commit();
   return 0;
 }

@@ -124,6 +124,15 @@ class ModelEvaluator {
   std::vector<T> jac_values_;
 };
 
+// What `kinegen eval` prints (and the Python module's eval returns): Phi, the dense Phi_q, nu
+// and gamma at (q, qd, t), and the outputs' values (format 6.4; empty without outputs).
+struct EvalResult {
+  Eigen::VectorXd phi, nu, gamma, outputs;
+  Eigen::MatrixXd phi_q;
+};
+EvalResult evaluate(const CompiledModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                    double t);
+
 // The runtime's view of a compiled model (sizes known at run time).
 class ProgramSystem {
  public:
