@@ -153,6 +153,7 @@ struct disc_cam {
     const T _t3 = cos(q[2]);
     const T _t4 = sin(q[6]);
 
+    // Output terms (7)
     out[0] = q[0];
     out[1] = q[1];
     out[2] = -q[3];
@@ -180,6 +181,7 @@ struct disc_cam {
     const T _t8 = sin(q[6]);
     const T _t9 = _t0*_motion_law(0, 1, _t1) - _t2*_motion_law(0, 1, _t3);
 
+    // Output terms (13)
     out[0] = T(1);
     out[1] = T(1);
     out[2] = T(-1);
@@ -234,6 +236,7 @@ struct disc_cam {
     const T _t15 = -_t4*_t9*_t5;
     const T _t16 = -_t4*_t6*_t10;
 
+    // Output terms (7)
     out[0] = T(0);
     out[1] = T(0);
     out[2] = T(0);
@@ -1438,6 +1441,7 @@ struct disc_cam {
     const T _t13 = _motion_law(0, 1, _t9);
     const T _t14 = T(1)/(T(p.b2)*T(p.b2));
 
+    // Output terms (49)
     out[0] = T(0);
     out[1] = T(0);
     out[2] = T(0);

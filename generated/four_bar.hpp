@@ -120,6 +120,7 @@ struct four_bar {
     const T _t1 = qd[5]*qd[5];
     const T _t2 = qd[8]*qd[8];
 
+    // Output terms (9)
     out[0] = T(0);
     out[1] = T(0);
     out[2] = -_t0*cos(q[2])*T(p.a);

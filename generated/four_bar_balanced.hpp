@@ -119,6 +119,7 @@ struct four_bar_balanced {
     const T _t1 = qd[5]*qd[5];
     const T _t2 = qd[8]*qd[8];
 
+    // Output terms (9)
     out[0] = T(0);
     out[1] = T(0);
     out[2] = -_t0*cos(q[2])*T(p.a);
@@ -1457,6 +1458,7 @@ struct four_bar_balanced {
     const T _t5 = T(1)/sqrt(_t4);
     const T _t6 = T(2)*(T(3) - T(20)*sqrt(_t4))*T(p.k) - (_t1*(T(p.c)*_t2*qd[8] - T(2)*qd[6]) - _t3*(_t0*T(p.c)*qd[8] + T(2)*qd[7]))*_t5;
 
+    // Output terms (9)
     out[0] = T(0);
     out[1] = T(-981)/T(250);
     out[2] = (T(-981)/T(500))*cos(q[2])*T(p.a);
@@ -1482,6 +1484,7 @@ struct four_bar_balanced {
     const T _t2 = cos(q[8]);
     const T _t3 = sin(q[8]);
 
+    // Output terms (20)
     out[0] = T(2)/T(5);
     out[1] = T(1)/T(2500);
     out[2] = (T(1)/T(2))*cos(q[2])*T(p.a);

@@ -58,6 +58,7 @@ struct planetary {
     const T _t2 = (T(p.r_sun)*q[2] + T(p.r_planet)*q[8])*_t1;
     const T _t3 = (T(3.141592653589793)*_t0 - T(p.r_planet)*q[8])*_t1;
 
+    // Output terms (9)
     out[0] = q[0];
     out[1] = q[1];
     out[2] = q[3];
@@ -87,6 +88,7 @@ struct planetary {
     const T _t8 = sin(_t7);
     const T _t9 = cos(_t7);
 
+    // Output terms (20)
     out[0] = T(1);
     out[1] = T(1);
     out[2] = T(1);
@@ -148,6 +150,7 @@ struct planetary {
     const T _t13 = sin(_t12);
     const T _t14 = cos(_t12);
 
+    // Output terms (9)
     out[0] = T(0);
     out[1] = T(0);
     out[2] = T(0);
@@ -1434,6 +1437,7 @@ struct planetary {
     const T _t19 = _t6 - _t3*q[8];
     const T _t20 = _t14 + (T(3.141592653589793) - q[8])*_t3;
 
+    // Output terms (27)
     out[0] = T(0);
     out[1] = T(0);
     out[2] = T(0);

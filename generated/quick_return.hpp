@@ -73,6 +73,7 @@ struct quick_return {
     const T _t0 = sin(q[5]);
     const T _t1 = cos(q[5]);
 
+    // Output terms (18)
     out[0] = T(1);
     out[1] = T(1);
     out[2] = T(1);
@@ -120,6 +121,7 @@ struct quick_return {
     const T _t1 = cos(q[5]);
     const T _t2 = sin(q[5]);
 
+    // Output terms (9)
     out[0] = T(0);
     out[1] = T(0);
     out[2] = T(0);

@@ -99,6 +99,7 @@ struct slider_crank {
     const T _t0 = qd[2]*qd[2];
     const T _t1 = qd[5]*qd[5];
 
+    // Output terms (6)
     out[0] = T(0);
     out[1] = T(0);
     out[2] = _t0*cos(q[2]) + _t1*T(p.l)*sin(q[5]);

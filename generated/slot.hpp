@@ -56,6 +56,7 @@ struct slot {
     const T _t1 = q[6]*q[6];
     const T _t2 = sin(q[5]);
 
+    // Output terms (7)
     out[0] = q[0] - T(p.d);
     out[1] = q[1];
     out[2] = q[3];
@@ -76,6 +77,7 @@ struct slot {
     const T _t1 = cos(q[5]);
     const T _t2 = sin(q[5]);
 
+    // Output terms (15)
     out[0] = T(1);
     out[1] = T(1);
     out[2] = T(1);
@@ -121,6 +123,7 @@ struct slot {
     const T _t4 = qd[5]*qd[5];
     const T _t5 = qd[2]*qd[2];
 
+    // Output terms (7)
     out[0] = T(0);
     out[1] = T(0);
     out[2] = T(0);
@@ -1322,6 +1325,7 @@ struct slot {
     // Intermediate terms (1)
     const T _t0 = q[6]*q[6];
 
+    // Output terms (28)
     out[0] = T(-1);
     out[1] = T(0);
     out[2] = T(0);

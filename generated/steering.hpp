@@ -82,6 +82,7 @@ struct steering {
     const T _t18 = -_t16*T(p.arm)*_t6 - q[9] + _t9*T(p.arm)*_t17 + _t4*T(p.a) + q[3];
     const T _t19 = _t2 - T(p.a)*_t1 + _t9*_t16*T(p.arm) + T(p.arm)*_t6*_t17 + q[10];
 
+    // Output terms (12)
     out[0] = q[0];
     out[1] = q[1];
     out[2] = q[5];
@@ -137,6 +138,7 @@ struct steering {
     const T _t31 = T(p.arm)*_t11*_t26;
     const T _t32 = _t5 - T(p.a)*_t0 + _t30 + _t31 + q[10];
 
+    // Output terms (31)
     out[0] = T(1);
     out[1] = T(1);
     out[2] = T(1);
@@ -231,6 +233,7 @@ struct steering {
     const T _t31 = _t0 - T(p.a)*_t4 + _t24 + _t26 + q[10];
     const T _t32 = _t28 - q[9] + _t29 + _t2*T(p.a) + q[3];
 
+    // Output terms (12)
     out[0] = T(0);
     out[1] = T(0);
     out[2] = T(0);
@@ -1912,61 +1915,9 @@ struct steering {
 
   // Phi_p(q, t): out[k * nc + r] = dPhi_r/dp_k (nc x num_params, column-major).
  private:
-  // Repeated constraints (20): alike up to the coordinates they read (_phi_p_roll0_i,
+  // Repeated constraints (25): alike up to the coordinates they read (_phi_p_roll0_i,
   // ascending) and where their outputs go (_phi_p_roll0_o).
-  static constexpr int _phi_p_roll0_i[20][1] = {
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-      {0},
-  };
-  static constexpr int _phi_p_roll0_o[20][1] = {
-      {2},
-      {9},
-      {10},
-      {11},
-      {14},
-      {21},
-      {22},
-      {26},
-      {33},
-      {34},
-      {38},
-      {47},
-      {50},
-      {59},
-      {62},
-      {71},
-      {74},
-      {83},
-      {86},
-      {95},
-  };
-  template <class T>
-  static void _phi_p_roll0([[maybe_unused]] const T* q,
-      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,
-      [[maybe_unused]] const int* _i, const int* _o) noexcept {
-    out[_o[0]] = T(0);
-  }
-  // Repeated constraints (25): alike up to the coordinates they read (_phi_p_roll1_i,
-  // ascending) and where their outputs go (_phi_p_roll1_o).
-  static constexpr int _phi_p_roll1_i[25][1] = {
+  static constexpr int _phi_p_roll0_i[25][1] = {
       {0},
       {0},
       {0},
@@ -1993,7 +1944,7 @@ struct steering {
       {0},
       {0},
   };
-  static constexpr int _phi_p_roll1_o[25][2] = {
+  static constexpr int _phi_p_roll0_o[25][2] = {
       {0, 1},
       {12, 13},
       {15, 16},
@@ -2021,11 +1972,63 @@ struct steering {
       {91, 92},
   };
   template <class T>
-  static void _phi_p_roll1([[maybe_unused]] const T* q,
+  static void _phi_p_roll0([[maybe_unused]] const T* q,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,
       [[maybe_unused]] const int* _i, const int* _o) noexcept {
     out[_o[0]] = T(0);
     out[_o[1]] = T(0);
+  }
+  // Repeated constraints (20): alike up to the coordinates they read (_phi_p_roll1_i,
+  // ascending) and where their outputs go (_phi_p_roll1_o).
+  static constexpr int _phi_p_roll1_i[20][1] = {
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+      {0},
+  };
+  static constexpr int _phi_p_roll1_o[20][1] = {
+      {2},
+      {9},
+      {10},
+      {11},
+      {14},
+      {21},
+      {22},
+      {26},
+      {33},
+      {34},
+      {38},
+      {47},
+      {50},
+      {59},
+      {62},
+      {71},
+      {74},
+      {83},
+      {86},
+      {95},
+  };
+  template <class T>
+  static void _phi_p_roll1([[maybe_unused]] const T* q,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,
+      [[maybe_unused]] const int* _i, const int* _o) noexcept {
+    out[_o[0]] = T(0);
   }
 
  public:
@@ -2069,6 +2072,7 @@ struct steering {
     const T _t31 = T(2)*_t29*_t2*T(p.arm);
     const T _t32 = T(2)*_t27*T(p.arm)*_t6;
 
+    // Output terms (26)
     out[3] = T(-1);
     out[4] = q[2] - q[5];
     out[5] = T(0);
@@ -2095,9 +2099,9 @@ struct steering {
     out[82] = _t28 + T(2)*_t24*(_t2*_t19 - _t17*_t6) + T(2)*_t21*(_t2*_t17 + _t6*_t19) + _t30;
     out[93] = T(2)*_t8*(_t10 + _t12) - T(2)*_t14*(_t4 + _t7) + _t31 + _t32;
     out[94] = T(2)*(_t22 + _t23)*_t21 - T(2)*_t24*(_t18 + _t20) + _t31 + _t32;
-    for (int _m = 0; _m < 20; ++_m)
-      _phi_p_roll0(q, t, p, out, _phi_p_roll0_i[_m], _phi_p_roll0_o[_m]);
     for (int _m = 0; _m < 25; ++_m)
+      _phi_p_roll0(q, t, p, out, _phi_p_roll0_i[_m], _phi_p_roll0_o[_m]);
+    for (int _m = 0; _m < 20; ++_m)
       _phi_p_roll1(q, t, p, out, _phi_p_roll1_i[_m], _phi_p_roll1_o[_m]);
   }
 

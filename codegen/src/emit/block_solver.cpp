@@ -18,6 +18,7 @@
 #include "kinegen/codegen/model/table.hpp"
 #include "kinegen/codegen/program/partition.hpp"
 #include "kinegen/codegen/structure/block_program.hpp"
+#include "kinegen/codegen/structure/solver_plan.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
 
 #include "printer.hpp"
@@ -58,28 +59,9 @@ FactorLayout factor_layout(const Structure& st) {
 // printed where first needed; those inside a Newton loop go out of scope with it.
 class BlockEmitter {
  public:
-  BlockEmitter(const SymbolicModel& model, const SymbolTable& symbols, const Structure& st,
-               int max_ops, int roll_min = 0)
-      : symbols_(symbols), st_(st), kinds_(model.coordinate_kinds) {
-    BlockProgram bp = build_block_program(model, symbols, st);
-    pos_first_ = std::move(bp.position_first);
-    pos_end_ = bp.position_end;
-    pos_tjac_ = std::move(bp.torn_jacobian);
-    blocks_ = std::move(bp.rates);
-    prog_ = std::move(bp.program);
-    level_ = std::move(bp.level);
-    sin_of_ = std::move(bp.sin_of);
-    cos_of_ = std::move(bp.cos_of);
-    trig_slot_ = std::move(bp.trig_slot);
-    trig_slots_ = bp.trig_slots;
-    in_position_ = std::move(bp.in_position);
-    outs_ = std::move(bp.exprs);
-    roll_of_.assign(st.plans.size(), -1);
-    roll_member_.assign(st.plans.size(), -1);
-    if (roll_min > 0) find_rolls(model, roll_min);
-    lazy_trig_ = !rolls_.empty();
-    if (max_ops > 0) split_blocks(max_ops);
-  }
+  BlockEmitter(const std::vector<CoordinateKind>& kinds, const SymbolTable& symbols,
+               const SolverPlan& plan)
+      : plan_(plan), symbols_(symbols), kinds_(kinds), lazy_trig_(!plan.repeated.empty()) {}
 
   int trig_cache_size() const { return 3 * trig_slots_; }
   // The functions of the repeated blocks and their coordinate tables (private members).
@@ -88,7 +70,7 @@ class BlockEmitter {
     if (rolls_.empty()) return;
     os << "\n private:\n";
     for (std::size_t g = 0; g < rolls_.size(); ++g) {
-      const Roll& r = rolls_[g];
+      const RepeatedBlocks& r = rolls_[g];
       const std::string name = "_roll" + idx(static_cast<int>(g));
       os << "\n  // Repeated blocks (" << r.blocks.size() << ", the first is block " << r.blocks[0]
          << "): alike up to the coordinates\n"
@@ -98,11 +80,17 @@ class BlockEmitter {
          << ".\n";
       emit_table(os, name + "_i", r.coords);
       if (!r.slots[0].empty()) emit_table(os, name + "_s", r.slots);
-      r.emitter->emit_rolled_position(os, name);
-      if (velocity) r.emitter->emit_rolled_motion(os, name, true, false);
+      // The first block's functions, reading coordinates through its table.
+      BlockEmitter e(kinds_, symbols_, *r.alone);
+      e.local_.assign(st_.order.col_block.size(), -1);
+      e.first_block_ = r.blocks[0];
+      for (std::size_t j = 0; j < r.coords[0].size(); ++j)
+        e.local_[r.coords[0][j]] = static_cast<int>(j);
+      e.emit_rolled_position(os, name);
+      if (velocity) e.emit_rolled_motion(os, name, true, false);
       if (acceleration) {
-        r.emitter->emit_rolled_motion(os, name, false, true);
-        r.emitter->emit_rolled_motion(os, name, true, true);
+        e.emit_rolled_motion(os, name, false, true);
+        e.emit_rolled_motion(os, name, true, true);
       }
     }
     os << "\n public:\n";
@@ -277,15 +265,6 @@ class BlockEmitter {
   // The public functions take options of any real type; the blocks compute in T's.
   static constexpr const char* kOptions =
       "    [[maybe_unused]] const BasicBlockOptions<R> o = _options_as<R>(options);\n";
-  // Repeated blocks emitted once (find_rolls).
-  struct Roll {
-    std::unique_ptr<Structure> st;          // the first block alone
-    std::unique_ptr<BlockEmitter> emitter;  // its functions, reading coordinates through _i
-    std::vector<int> blocks;                // the blocks, ascending
-    std::vector<std::vector<int>> coords;   // per block: its coordinate table
-    std::vector<std::vector<int>> slots;    // per block: its trig cache slots
-  };
-
   int out(int k) const { return prog_.outputs[k]; }
 
   // q[c] (or qd, qdd) as the function being emitted names it: through the coordinate table in
@@ -301,120 +280,6 @@ class BlockEmitter {
   }
   std::string block_id(std::size_t bi) const {
     return local_.empty() ? idx(static_cast<int>(bi)) : "_b";
-  }
-
-  // Every output block bi's functions read.
-  std::vector<int> block_outputs(std::size_t bi) const {
-    std::vector<int> ids;
-    const int end = bi + 1 < st_.plans.size() ? pos_first_[bi + 1] : pos_end_;
-    for (int o = pos_first_[bi]; o < end; ++o) ids.push_back(o);
-    const BlockOuts& bo = blocks_[bi];
-    ids.insert(ids.end(), bo.jbb.begin(), bo.jbb.end());
-    for (const auto& [rc, o] : bo.tjac) ids.push_back(o);
-    for (const auto& row : bo.coupling)
-      for (const auto& [c, o] : row) ids.push_back(o);
-    ids.insert(ids.end(), bo.nu.begin(), bo.nu.end());
-    ids.insert(ids.end(), bo.gamma.begin(), bo.gamma.end());
-    return ids;
-  }
-
-  // Newton blocks that are the same up to a renaming of the coordinates they read. A block's
-  // coordinate table lists its own coordinates (in order), then the others it reads (its
-  // expressions' q and qd, and the coordinates its rows couple to), ascending. Two blocks are
-  // alike when, with the k-th coordinate of each table renamed to the model's k-th (q and qd
-  // alike), their structure and every expression agree exactly. Classes of at least roll_min
-  // blocks are emitted once.
-  void find_rolls(const SymbolicModel& model, int roll_min) {
-    const int nb = static_cast<int>(st_.plans.size());
-    const int nq = static_cast<int>(st_.order.col_block.size());
-    std::map<std::string, std::vector<int>> groups;
-    std::vector<std::vector<int>> coords(nb);
-    std::vector<std::vector<GiNaC::ex>> renamed(nb);
-    for (int bi = 0; bi < nb; ++bi) {
-      const BlockPlan& plan = st_.plans[bi];
-      if (plan.kind != BlockKind::kNewton) continue;
-      const Block& b = plan.block;
-      const std::vector<int> ids = block_outputs(bi);
-      std::set<int> read;
-      for (int id : ids) add_coordinates_read(outs_[id], symbols_, read);
-      for (const auto& row : blocks_[bi].coupling)
-        for (const auto& [c, o] : row) read.insert(c);
-      std::vector<int> list = b.cols;
-      for (int c : read)
-        if (!std::binary_search(b.cols.begin(), b.cols.end(), c)) list.push_back(c);
-      std::map<int, int> slot;
-      for (std::size_t j = 0; j < list.size(); ++j) slot[list[j]] = static_cast<int>(j);
-      const GiNaC::exmap rename = table_renaming(list, symbols_);
-      const auto row_of = [&](int r) {
-        return std::lower_bound(b.rows.begin(), b.rows.end(), r) - b.rows.begin();
-      };
-      std::ostringstream key;
-      key << b.rows.size() << " " << list.size() << " t";
-      for (int c : plan.tears) key << " " << slot.at(c);
-      key << " r";
-      for (int r : plan.residuals) key << " " << row_of(r);
-      key << " a";
-      for (const auto& [r, c] : plan.assigned) key << " " << row_of(r) << ":" << slot.at(c);
-      key << " j";
-      for (const auto& [rc, o] : pos_tjac_[bi]) key << " " << row_of(rc.first) << ":" << slot.at(rc.second);
-      key << " c";
-      for (const auto& row : blocks_[bi].coupling) {
-        for (const auto& [c, o] : row) key << " " << slot.at(c);
-        key << " |";
-      }
-      key << " e";
-      for (int id : ids) {
-        renamed[bi].push_back(outs_[id].subs(rename));
-        key << " " << renamed[bi].back() << ";";
-      }
-      coords[bi] = list;
-      groups[key.str()].push_back(bi);
-    }
-    for (const auto& [key, members] : groups) {
-      if (static_cast<int>(members.size()) < roll_min) continue;
-      Roll r;
-      const int first = members[0];
-      std::vector<int> alike;
-      for (int bi : members)
-        if (same_expressions(renamed[bi], renamed[first])) alike.push_back(bi);
-      if (static_cast<int>(alike.size()) < roll_min) continue;
-      r.st = std::make_unique<Structure>();
-      Structure& sub = *r.st;
-      sub.order.perfect = true;
-      sub.order.blocks = {st_.plans[first].block};
-      sub.order.col_block.assign(nq, -1);
-      sub.order.row_block.assign(st_.order.row_block.size(), -1);
-      for (int c : st_.plans[first].block.cols) sub.order.col_block[c] = 0;
-      for (int row : st_.plans[first].block.rows) sub.order.row_block[row] = 0;
-      sub.plans = {st_.plans[first]};
-      r.emitter = std::make_unique<BlockEmitter>(model, symbols_, sub, 0, 0);
-      BlockEmitter& e = *r.emitter;
-      e.local_.assign(nq, -1);
-      e.first_block_ = first;
-      for (std::size_t j = 0; j < coords[first].size(); ++j)
-        e.local_[coords[first][j]] = static_cast<int>(j);
-      // The trig cache slots of each block's coordinates, in the order of e's slots.
-      std::vector<int> by_slot(e.trig_slots_, -1);
-      for (int c = 0; c < nq; ++c)
-        if (e.trig_slot_[c] >= 0) by_slot[e.trig_slot_[c]] = e.local_[c];
-      for (int bi : alike) {
-        std::vector<int> slots;
-        bool ok = true;
-        for (int j : by_slot) {
-          const int s = j < 0 ? -1 : trig_slot_[coords[bi][j]];
-          ok = ok && s >= 0;
-          slots.push_back(s);
-        }
-        if (!ok) continue;
-        roll_of_[bi] = static_cast<int>(rolls_.size());
-        roll_member_[bi] = static_cast<int>(r.blocks.size());
-        r.blocks.push_back(bi);
-        r.coords.push_back(coords[bi]);
-        r.slots.push_back(slots);
-      }
-      if (r.blocks.empty()) continue;
-      rolls_.push_back(std::move(r));
-    }
   }
 
   void emit_rolled_position(std::ostringstream& os, const std::string& name) {
@@ -462,116 +327,6 @@ class BlockEmitter {
     os << bi << ");\n" << kIn << "if (report.status != 0) return report;\n";
   }
 
-  // The parts of a split solver, cut once by partition(): runs of consecutive blocks
-  // (ranges_), and within a torn block whose assignments alone exceed the budget, runs of its
-  // assigned coordinates (torn_parts_). Later blocks read earlier blocks' coordinates from q
-  // (qd, qdd), so a run needs nothing from the runs before it but memory; its terms are its own.
-  void split_blocks(int max_ops) {
-    const int n = static_cast<int>(st_.plans.size());
-    torn_parts_.assign(n, {});
-    for (int bi = 0; bi < n; ++bi) {
-      const BlockPlan& plan = st_.plans[bi];
-      if (!plan.torn() || roll_of_[bi] >= 0) continue;
-      TornParts& tp = torn_parts_[bi];
-      const int f = pos_first_[bi], m = static_cast<int>(plan.tears.size());
-      const BlockOuts& bo = blocks_[bi];
-      const auto& rows = plan.block.rows;
-      // A position part assigns its coordinates (one store each) and, except in the last pass,
-      // their m sensitivities; a rates part computes the sensitivities again, or the qd or qdd
-      // of its coordinates (a store each and one more for the correction by the tears).
-      tp.position = partition(prog_, max_ops, static_cast<int>(plan.assigned.size()), [&](int a) {
-        PartCost c{{out(f + a)}, 0, 1 + m};
-        for (const auto& [rc, o] : row_entries(pos_tjac_[bi], plan.assigned[a].first))
-          c.nodes.push_back(out(o));
-        return c;
-      });
-      tp.rates = partition(prog_, max_ops, static_cast<int>(plan.assigned.size()), [&](int a) {
-        const int r = plan.assigned[a].first;
-        const std::size_t i = std::lower_bound(rows.begin(), rows.end(), r) - rows.begin();
-        PartCost c{{out(bo.nu[i]), out(bo.gamma[i])}, 0, m + 4};
-        for (const auto& [rc, o] : row_entries(bo.tjac, r)) c.nodes.push_back(out(o));
-        for (const auto& [col, o] : bo.coupling[i]) c.nodes.push_back(out(o));
-        return c;
-      });
-      if (tp.position.size() == 1 && tp.rates.size() == 1) {
-        tp = TornParts{};
-        continue;
-      }
-      tp.dependency = tear_dependency(bi);
-      tp.trig_first = static_cast<int>(torn_trig_.size());
-      for (int c : plan.block.cols)
-        if (trig_slot_[c] >= 0) {
-          tp.rotated.push_back(c);
-          torn_trig_.push_back({c, trig_slot_[c]});
-        }
-    }
-    torn_any_ = std::any_of(torn_parts_.begin(), torn_parts_.end(),
-                            [](const TornParts& tp) { return !tp.position.empty(); });
-    if (prog_.operation_count() <= max_ops && !torn_any_) return;
-    ranges_ = partition(prog_, max_ops, n, [&](int bi) {
-      if (roll_of_[bi] >= 0) return PartCost{{}, 4, 1};  // a call: a few statements, one store
-      // A split torn block: its Newton loop and its calls.
-      const TornParts& tp = torn_parts_[bi];
-      if (!tp.position.empty()) {
-        const int calls = static_cast<int>(tp.position.size() + 5 * tp.rates.size());
-        return PartCost{torn_host_outputs(bi), 4 * calls,
-                        calls + 3 * static_cast<int>(st_.plans[bi].tears.size())};
-      }
-      PartCost c;
-      for (int o : block_outputs(bi)) c.nodes.push_back(out(o));
-      // Stores count as in split_program: each coordinate is written to q, qd and qdd.
-      c.stores = 3 * static_cast<int>(st_.plans[bi].block.cols.size());
-      return c;
-    });
-  }
-
-  // A torn block split into parts (split_blocks): ranges of its assigned coordinates (indices
-  // into plan.assigned) for the parts of its Newton loop and of its rates; empty: not split.
-  struct TornParts {
-    PartRanges position, rates;
-    std::map<int, std::vector<char>> dependency;  // tear_dependency
-    // Its coordinates with a trig slot, whose sin and cos (rotated by the Newton updates) live
-    // in the caller's _sc from index 2 * trig_first on, for the parts and the rates.
-    std::vector<int> rotated;
-    int trig_first = 0;
-  };
-  bool torn_split(std::size_t bi) const {
-    return !torn_parts_.empty() && !torn_parts_[bi].position.empty();
-  }
-  // The entries of `entries` in row r, in order.
-  static std::vector<std::pair<std::pair<int, int>, int>> row_entries(
-      const std::map<std::pair<int, int>, int>& entries, int r) {
-    std::vector<std::pair<std::pair<int, int>, int>> row;
-    for (auto it = entries.lower_bound({r, std::numeric_limits<int>::min()});
-         it != entries.end() && it->first.first == r; ++it)
-      row.push_back(*it);
-    return row;
-  }
-  // What a split torn block's own functions (not its parts) read: the residual rows, their
-  // Phi_q entries and couplings, and their rates.
-  std::vector<int> torn_host_outputs(std::size_t bi, bool position = true,
-                                     bool rates = true) const {
-    const BlockPlan& plan = st_.plans[bi];
-    const BlockOuts& bo = blocks_[bi];
-    const auto& rows = plan.block.rows;
-    std::vector<int> ids;
-    const int f = pos_first_[bi] + static_cast<int>(plan.assigned.size());
-    for (std::size_t i = 0; i < plan.residuals.size(); ++i) {
-      const int r = plan.residuals[i];
-      const std::size_t ri = std::lower_bound(rows.begin(), rows.end(), r) - rows.begin();
-      if (position) {
-        ids.push_back(out(f + static_cast<int>(i)));
-        for (const auto& [rc, o] : row_entries(pos_tjac_[bi], r)) ids.push_back(out(o));
-      }
-      if (rates) {
-        for (const auto& [rc, o] : row_entries(bo.tjac, r)) ids.push_back(out(o));
-        ids.push_back(out(bo.nu[ri]));
-        ids.push_back(out(bo.gamma[ri]));
-      }
-      for (const auto& [c, o] : bo.coupling[ri]) ids.push_back(out(o));
-    }
-    return ids;
-  }
   // The extra argument of every part when torn blocks are split: the sin and cos of their
   // rotated coordinates (2 per row of _torn_trig), owned by the public function.
   std::string sc_arg(bool declare) const {
@@ -1278,7 +1033,11 @@ class BlockEmitter {
   }
 
   std::map<int, std::vector<char>> tear_dependency(std::size_t bi) const {
-    return codegen::tear_dependency(st_.plans[bi], pos_tjac_[bi]);
+    return plan_.tear_dependency(bi);
+  }
+  bool torn_split(std::size_t bi) const { return plan_.torn_split(bi); }
+  std::vector<int> torn_host_outputs(std::size_t bi, bool position, bool rates) const {
+    return plan_.torn_host_outputs(bi, position, rates);
   }
 
   // The name of dq[c]/dq[tear j] (c = plan.assigned[a].second) in the function being emitted.
@@ -1646,22 +1405,32 @@ class BlockEmitter {
             static_cast<int>(plan.assigned.size()));
   }
 
+  // The plan printed (structure stage), and names for its parts.
+  const SolverPlan& plan_;
   const SymbolTable& symbols_;
-  const Structure& st_;
   std::vector<CoordinateKind> kinds_;  // per coordinate
-  std::vector<GiNaC::ex> outs_;       // the program's outputs before lowering
-  std::vector<Roll> rolls_;
-  std::vector<int> roll_of_, roll_member_;  // per block: its Roll and row there, or -1
+  const Structure& st_ = plan_.structure;
+  const std::vector<GiNaC::ex>& outs_ = plan_.program.exprs;  // the outputs before lowering
+  const Program& prog_ = plan_.program.program;
+  const std::vector<int>& pos_first_ = plan_.program.position_first;
+  const int pos_end_ = plan_.program.position_end;
+  const std::vector<std::map<std::pair<int, int>, int>>& pos_tjac_ = plan_.program.torn_jacobian;
+  const std::vector<BlockOuts>& blocks_ = plan_.program.rates;
+  const std::vector<int>& level_ = plan_.program.level;
+  // Per coordinate: its named sin / cos node, or -1; its slot in the trig cache, or -1.
+  const std::vector<int>&sin_of_ = plan_.program.sin_of, &cos_of_ = plan_.program.cos_of;
+  const std::vector<int>& trig_slot_ = plan_.program.trig_slot;
+  const int trig_slots_ = plan_.program.trig_slots;
+  const std::vector<char>& in_position_ = plan_.program.in_position;  // per node
+  const std::vector<RepeatedBlocks>& rolls_ = plan_.repeated;
+  // Per block: its class of repeated blocks and its row there, or -1.
+  const std::vector<int>&roll_of_ = plan_.class_of, &roll_member_ = plan_.member_of;
+  const PartRanges& ranges_ = plan_.ranges;  // the parts' blocks; empty: one function
+  const std::vector<TornParts>& torn_parts_ = plan_.torn_parts;  // per block
+  const std::vector<std::vector<int>>& torn_trig_ = plan_.torn_trig;  // {coordinate, slot}
+  const bool torn_any_ = plan_.torn_any;  // some torn block is split
   std::vector<int> local_;            // a repeated block's function: coordinate -> table slot
   int first_block_ = -1;              // a repeated block's function: the first block alike
-  std::vector<int> pos_first_;
-  std::vector<BlockOuts> blocks_;
-  Program prog_;
-  std::vector<int> level_;
-  std::vector<int> sin_of_, cos_of_;  // per coordinate: its named sin / cos node, or -1
-  std::vector<int> trig_slot_;        // per coordinate: its slot in the trig cache, or -1
-  int trig_slots_ = 0;
-  std::vector<char> in_position_;     // per node: read by a position output
   bool step_mode_ = false;            // emitting solve_step (motion terms follow position)
   bool motion_trig_ = false;          // the motion being emitted has the trig cache
   bool step_factors_ = false;         // solve_step takes StepFactors (the header has forces)
@@ -1669,18 +1438,12 @@ class BlockEmitter {
   // sin and cos of a coordinate are declared where first read (not where it is solved): with
   // repeated blocks, whose functions solve coordinates the caller reads.
   bool lazy_trig_ = false;
-  std::vector<std::map<std::pair<int, int>, int>> pos_tjac_;  // torn blocks' Phi_q outputs
-  int pos_end_ = 0;
   std::vector<std::string> divisor_;
-  PartRanges ranges_;                  // the parts' blocks [first, second); empty: one function
-  std::vector<TornParts> torn_parts_;  // per block (split_blocks)
-  std::vector<std::vector<int>> torn_trig_;  // rows of _torn_trig: {coordinate, trig slot}
-  bool torn_any_ = false;                    // some torn block is split
 };
 
 BlockSolverPrinter::BlockSolverPrinter(const SymbolicModel& model, const SymbolTable& symbols,
-                                       const Structure& st, int max_ops, int roll_min)
-    : impl_(std::make_unique<BlockEmitter>(model, symbols, st, max_ops, roll_min)) {}
+                                       const SolverPlan& plan)
+    : impl_(std::make_unique<BlockEmitter>(model.coordinate_kinds, symbols, plan)) {}
 BlockSolverPrinter::~BlockSolverPrinter() = default;
 int BlockSolverPrinter::trig_cache_size() const { return impl_->trig_cache_size(); }
 void BlockSolverPrinter::keep_step_factors() { impl_->keep_step_factors(); }

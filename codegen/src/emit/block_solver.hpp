@@ -1,13 +1,14 @@
 // The emit stage's block solver: the solve_position, solve_velocity, solve_acceleration and
 // solve_step functions (and their parts and repeated blocks) printed from the structure
-// stage's BlockProgram, statement for statement what the in-process BlockInterpreter runs.
+// stage's SolverPlan (its BlockProgram, repeated blocks and parts), statement for statement
+// what the in-process BlockInterpreter runs.
 // Private to the emit stage; emit_cpp.cpp lays the header out around it.
 #pragma once
 
 #include <memory>
 #include <sstream>
 
-#include "kinegen/codegen/structure/structure.hpp"
+#include "kinegen/codegen/structure/solver_plan.hpp"
 #include "kinegen/codegen/symbolic/symbolic.hpp"
 
 namespace kinegen::codegen::emit_detail {
@@ -17,8 +18,9 @@ class BlockEmitter;
 // The block functions of one model, printed into the streams given.
 class BlockSolverPrinter {
  public:
-  BlockSolverPrinter(const SymbolicModel& model, const SymbolTable& symbols, const Structure& st,
-                     int max_ops, int roll_min);
+  // `plan` must outlive the printer.
+  BlockSolverPrinter(const SymbolicModel& model, const SymbolTable& symbols,
+                     const SolverPlan& plan);
   ~BlockSolverPrinter();
   int trig_cache_size() const;
   // solve_step keeps its factors for solve_forces (a header with forces).

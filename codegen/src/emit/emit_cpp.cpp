@@ -18,6 +18,7 @@
 #include "kinegen/codegen/model/table.hpp"
 #include "kinegen/codegen/program/partition.hpp"
 #include "kinegen/codegen/structure/block_program.hpp"
+#include "kinegen/codegen/structure/solver_plan.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
 
 #include "block_solver.hpp"
@@ -611,7 +612,9 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
        << "  static constexpr int num_newton_coordinates = " << iterated.size() << ";\n"
        << "  static constexpr std::array<int, num_newton_coordinates> newton_coordinates = {"
        << join(iterated) << "};\n";
-    BlockSolverPrinter blocks(model, symbols, st, options.max_function_ops, options.roll_min);
+    const SolverPlan plan =
+        plan_block_solver(model, symbols, st, options.max_function_ops, options.roll_min);
+    BlockSolverPrinter blocks(model, symbols, plan);
     os << "  // Values in the optional sin/cos cache of solve_position and solve_step (3 per\n"
        << "  // coordinate whose sin or cos the model uses).\n"
        << "  static constexpr int trig_cache_size = " << blocks.trig_cache_size() << ";\n\n";

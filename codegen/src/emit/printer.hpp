@@ -23,6 +23,7 @@
 #include "kinegen/codegen/emit/reserved_names.hpp"
 #include "kinegen/codegen/model/table.hpp"
 #include "kinegen/codegen/program/partition.hpp"
+#include "kinegen/codegen/program/repeated.hpp"
 #include "kinegen/codegen/structure/block_program.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
 
@@ -77,7 +78,9 @@ class FunctionPrinter {
       os << indent << "const T " << name << " = " << print(static_cast<int>(k)).text << ";\n";
       names_[k] = name;
     }
-    if (count > 0 && !p_.outputs.empty()) os << "\n";
+    // As SymForce does: the terms, then the outputs, each section headed with its size.
+    if (count > 0 && !p_.outputs.empty())
+      os << "\n" << indent << "// Output terms (" << p_.outputs.size() << ")\n";
     for (std::size_t o = 0; o < p_.outputs.size(); ++o) {
       const int id = p_.outputs[o];
       const int k = first_output + static_cast<int>(o);
@@ -295,18 +298,6 @@ std::string join(const Container& values) {
 // std's overloads for float, double and std::complex, and other scalar types by ADL.
 std::string std_functions(const Program& program);
 
-// A part of a program split for compile time: a contiguous range of outputs and every node they
-// read, in the program's order. Nodes keep their kind, arguments and `named` flags, so a part
-// evaluates each output exactly as the whole program does; terms shared with other parts are
-// recomputed.
-struct ProgramPart {
-  int first_output = 0;
-  Program program;
-};
-
-// Splits `program` into parts of about max_ops operations or max_part_outputs outputs each
-// (partition.hpp; one output's terms are never split).
-std::vector<ProgramPart> split_program(const Program& program, int max_ops);
 
 void emit_signature(std::ostringstream& os, const std::string& name, bool with_qd);
 
@@ -320,43 +311,12 @@ void emit_function(std::ostringstream& os, const char* name, const char* out_siz
                    int max_ops, const std::vector<int>* out_index = nullptr,
                    const std::string& tail = "");
 
-// Repeated pieces (blocks, constraints) are compared under a renaming of the coordinates they
-// read: the k-th coordinate of a piece's table becomes the model's k-th.
-
 // `static constexpr int name[rows][columns]`, a table of the repeated pieces (a row of zero
 // columns is stored as one 0, which nothing reads).
 void emit_table(std::ostringstream& os, const std::string& name,
                 const std::vector<std::vector<int>>& rows);
 
-// Adds the coordinates whose q or qd `e` reads to `read`.
-void add_coordinates_read(const GiNaC::ex& e, const SymbolTable& symbols, std::set<int>& read);
 
-// table[k] -> coordinate k, q and qd alike; one substitution, so the renaming is simultaneous.
-GiNaC::exmap table_renaming(const std::vector<int>& table, const SymbolTable& symbols);
-
-// Equal printed keys should mean equal renamed expressions, but names could coincide: this
-// compares exactly.
-bool same_expressions(const std::vector<GiNaC::ex>& a, const std::vector<GiNaC::ex>& b);
-
-// Section-4 functions with repeated constraints (EmitOptions::roll_min): the outputs of each
-// constraint form a group; groups alike up to the coordinates they read (with the k-th
-// coordinate read, ascending, renamed to the model's k-th, q and qd alike, every output is the
-// same expression) are evaluated by one function, in a loop over tables of their coordinates
-// and output indices. The rest is lowered and emitted as usual.
-struct RolledOutputs {
-  struct Class {
-    Program program;                       // the first group's outputs
-    std::vector<int> slot;                 // coordinate -> its slot in the first group's table
-    std::vector<std::vector<int>> coords;  // per group: coordinates read, ascending
-    std::vector<std::vector<int>> outs;    // per group: its out indices
-  };
-  std::vector<Class> classes;
-  Program rest;                 // the outputs of no class
-  std::vector<int> rest_index;  // their out indices
-};
-
-RolledOutputs roll_outputs(const std::vector<GiNaC::ex>& exprs, const std::vector<int>& group,
-                           const SymbolTable& symbols, int roll_min);
 
 // emit_function for outputs of which some are rolled (roll_outputs): each class's function and
 // tables (private), then the function, which evaluates the rest and loops over the classes.

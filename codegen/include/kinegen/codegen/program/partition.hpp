@@ -35,4 +35,17 @@ using PartRanges = std::vector<std::pair<int, int>>;
 PartRanges partition(const Program& program, int max_ops, int n,
                      const std::function<PartCost(int)>& cost);
 
+// A part of a program split for compile time: a contiguous range of outputs and every node they
+// read, in the program's order. Nodes keep their kind, arguments and `named` flags, so a part
+// evaluates each output exactly as the whole program does; terms shared with other parts are
+// recomputed.
+struct ProgramPart {
+  int first_output = 0;
+  Program program;
+};
+
+// Splits `program` into parts of about max_ops operations or max_part_outputs outputs each
+// (partition.hpp; one output's terms are never split).
+std::vector<ProgramPart> split_program(const Program& program, int max_ops);
+
 }  // namespace kinegen::codegen
