@@ -7,6 +7,13 @@
 
 namespace kinegen::codegen {
 
+std::vector<std::vector<int>> by_first_member(std::map<std::string, std::vector<int>> by_key) {
+  std::vector<std::vector<int>> classes;
+  for (auto& entry : by_key) classes.push_back(std::move(entry.second));
+  std::sort(classes.begin(), classes.end());  // disjoint and ascending: by their first members
+  return classes;
+}
+
 // Adds the coordinates whose q or qd `e` reads to `read`.
 void add_coordinates_read(const GiNaC::ex& e, const SymbolTable& symbols, std::set<int>& read) {
   for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it)
@@ -58,12 +65,7 @@ RolledOutputs roll_outputs(const std::vector<GiNaC::ex>& exprs, const std::vecto
     alike[key.str()].push_back(g);
   }
   std::vector<char> rolled(exprs.size(), 0);
-  // In the order of their first members: the printed keys order by GiNaC's hashes, which
-  // change from process to process (address-space layout randomization).
-  std::vector<std::vector<int>> classes;
-  for (auto& entry : alike) classes.push_back(std::move(entry.second));
-  std::sort(classes.begin(), classes.end());
-  for (const std::vector<int>& groups : classes) {
+  for (const std::vector<int>& groups : by_first_member(std::move(alike))) {
     if (static_cast<int>(groups.size()) < roll_min) continue;
     const int first = groups[0];
     RolledOutputs::Class c;

@@ -109,14 +109,7 @@ void find_repeated_blocks(SolverPlan& sp, const SymbolicModel& model, const Symb
     coords[bi] = list;
     groups[key.str()].push_back(bi);
   }
-  sp.class_of.assign(nb, -1);
-  sp.member_of.assign(nb, -1);
-  // In the order of their first members: the printed keys order by GiNaC's hashes, which
-  // change from process to process (address-space layout randomization).
-  std::vector<std::vector<int>> classes;
-  for (auto& entry : groups) classes.push_back(std::move(entry.second));
-  std::sort(classes.begin(), classes.end());
-  for (const std::vector<int>& members : classes) {
+  for (const std::vector<int>& members : by_first_member(std::move(groups))) {
     if (static_cast<int>(members.size()) < roll_min) continue;
     const int first = members[0];
     std::vector<int> alike;

@@ -7,7 +7,9 @@
 
 #include <ginac/ginac.h>
 
+#include <map>
 #include <set>
+#include <string>
 #include <vector>
 
 #include "kinegen/codegen/program/program.hpp"
@@ -24,6 +26,11 @@ GiNaC::exmap table_renaming(const std::vector<int>& table, const SymbolTable& sy
 // Equal printed keys should mean equal renamed expressions, but names could coincide: this
 // compares exactly.
 bool same_expressions(const std::vector<GiNaC::ex>& a, const std::vector<GiNaC::ex>& b);
+
+// The groups of pieces found under each printed key, in the order of their first members: the
+// printed keys order by GiNaC's hashes, which change from process to process (address-space
+// layout randomization), and the classes' order reaches the generated code.
+std::vector<std::vector<int>> by_first_member(std::map<std::string, std::vector<int>> by_key);
 
 // Section-4 functions with repeated constraints (EmitOptions::roll_min): the outputs of each
 // constraint form a group; groups alike up to the coordinates they read (with the k-th
