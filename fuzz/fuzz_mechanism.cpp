@@ -22,7 +22,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     auto model = kc::CompiledModel::from_mechanism(kc::parse_mechanism(text, "fuzz.yaml"));
     (void)kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
-                          model->programs());
+                          model->programs(), model->structure());
     // Evaluate once at q0 so the lowered programs run too.
     kc::ModelEvaluator<double> eval(*model);
     Eigen::VectorXd q = model->q0(), out(model->nc());

@@ -255,7 +255,8 @@ class Mechanism {
       kc::EmitOptions options;
       options.folded_params = fold_params;
       const std::string text =
-          kc::emit_header(m.mechanism(), m.symbols(), m.symbolic(), m.programs(), options);
+          kc::emit_header(m.mechanism(), m.symbols(), m.symbolic(), m.programs(),
+                          m.structure(), options);
       std::error_code ec;
       fs::create_directories(dir, ec);
       const fs::path target = fs::path(dir) / (m.mechanism().name + ".hpp");

@@ -465,21 +465,24 @@ void emit_outputs(std::ostringstream& os, const Mechanism& m, const SymbolTable&
 }
 
 std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
-                        const ModelPrograms& programs) {
-  return emit_header(m, symbols, model, programs, EmitOptions{});
+                        const ModelPrograms& programs, const EmitOptions& options) {
+  return emit_header(m, symbols, model, programs,
+                     options.block_solver && programs.nq == programs.nc
+                         ? analyze_structure(model, symbols)
+                         : Structure{},
+                     options);
 }
 
 std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
-                        const ModelPrograms& programs, const EmitOptions& options) {
+                        const ModelPrograms& programs, const Structure& structure,
+                        const EmitOptions& options) {
   check_header_names(m);  // a name the header cannot carry is refused here, with the reason
-  check_expansion_cost(m, model);  // before analyze_structure expands the equations
   if (const auto why = namespace_conflict(options.name_space); !why.empty())
     throw UsageError("--namespace: " + why);
   const bool velocity = options.outputs != Outputs::kPosition;
   const bool acceleration = options.outputs == Outputs::kAll;
-  const Structure st = options.block_solver && programs.nq == programs.nc
-                           ? analyze_structure(model, symbols)
-                           : Structure{};
+  static const Structure kNone;  // no block solver: the section-4 functions alone
+  const Structure& st = options.block_solver && programs.nq == programs.nc ? structure : kNone;
   std::string base = m.source;
   if (const auto slash = base.find_last_of("/\\"); slash != std::string::npos)
     base = base.substr(slash + 1);

@@ -7,6 +7,7 @@
 #include "kinegen/codegen/base/version.hpp"  // kVersion
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "kinegen/codegen/program/program.hpp"
+#include "kinegen/codegen/structure/structure.hpp"
 #include "kinegen/codegen/symbolic/symbolic.hpp"
 
 namespace kinegen::codegen {
@@ -43,10 +44,14 @@ struct EmitOptions {
 
 // The generated header's text. Only validated identifiers and numbers from the mechanism reach
 // it; the source file is named by its base name, with anything unusual replaced.
-std::string emit_header(const Mechanism& mechanism, const SymbolTable& symbols,
-                        const SymbolicModel& model, const ModelPrograms& programs);
+// `structure` is analyze_structure(model, symbols) for a square model, empty otherwise, as
+// CompiledModel::structure() holds it; the emitter prints it and does not analyze again.
 std::string emit_header(const Mechanism& mechanism, const SymbolTable& symbols,
                         const SymbolicModel& model, const ModelPrograms& programs,
-                        const EmitOptions& options);
+                        const Structure& structure, const EmitOptions& options = {});
+// The same, analyzing the structure itself (for callers that hold no Structure).
+std::string emit_header(const Mechanism& mechanism, const SymbolTable& symbols,
+                        const SymbolicModel& model, const ModelPrograms& programs,
+                        const EmitOptions& options = {});
 
 }  // namespace kinegen::codegen

@@ -152,8 +152,9 @@ class DigitsGuard {
 // The double value of a constant expression (no symbols left).
 double to_double(const GiNaC::ex& e);
 
-// generate expands equations to find the linear ones (structure.cpp): refuses, naming the
-// constraint, a row whose expansion would have too many terms ((a + b + ... + p9)^40).
+// The structure stage expands equations to find the linear ones (structure.cpp): refuses,
+// naming the constraint, a row whose expansion would have too many terms ((a + b + ... +
+// p9)^40). derive() calls it, so every command refuses such a model alike.
 void check_expansion_cost(const Mechanism& mechanism, const SymbolicModel& model);
 
 }  // namespace kinegen::codegen
