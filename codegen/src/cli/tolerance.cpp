@@ -8,7 +8,6 @@
 #include <vector>
 
 #include "cli.hpp"
-#include "kinegen/codegen/base/log.hpp"
 #include "kinegen/codegen/io/output_file.hpp"
 
 namespace kinegen::cli {
