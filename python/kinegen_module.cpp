@@ -24,7 +24,6 @@
 #include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
-#include "kinegen/codegen/base/log.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "kinegen/codegen/model/table.hpp"
 
@@ -312,8 +311,6 @@ class Mechanism {
 PYBIND11_MODULE(kinegen, m) {
   m.doc() = "kinegen: planar mechanism kinematics (the kinegen command line, in-process)";
   m.attr("__version__") = kc::kVersion;
-  // The stage progress lines of the command line are noise in a notebook.
-  kc::Log::global().set_verbosity(kc::Verbosity::kQuiet);
 
   const py::handle error = PyErr_NewExceptionWithDoc(
       "kinegen.Error", "Base of kinegen's errors; str() is the command line's error: line",

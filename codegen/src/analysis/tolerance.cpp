@@ -1,7 +1,5 @@
 #include "kinegen/codegen/analysis/tolerance.hpp"
 
-
-
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -9,7 +7,6 @@
 #include <set>
 
 #include "kinegen/codegen/analysis/sensitivity.hpp"
-#include "kinegen/codegen/base/log.hpp"
 
 namespace kinegen::codegen {
 
@@ -23,18 +20,6 @@ Eigen::VectorXd row_values(const StateRow& row) {
     v.segment<2>(row.q.size() + 2 * p) = row.points[p].r;
   return v;
 }
-
-// Silences the log (the per-sample stage lines and repeated warnings) for a scope.
-class QuietLog {
- public:
-  QuietLog() : saved_(Log::global().verbosity()) { Log::global().set_verbosity(Verbosity::kQuiet); }
-  ~QuietLog() { Log::global().set_verbosity(saved_); }
-  QuietLog(const QuietLog&) = delete;
-  QuietLog& operator=(const QuietLog&) = delete;
-
- private:
-  Verbosity saved_;
-};
 
 // A uniform draw in [-1, 1) from the 53 high bits: the same on every platform, unlike
 // std::uniform_real_distribution.
@@ -117,7 +102,6 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
   const std::size_t rows = result.t.size();
   std::vector<Eigen::VectorXd> mean(rows, Eigen::VectorXd::Zero(nqty)), m2 = mean, spread = mean;
   std::mt19937_64 rng(options.seed);
-  const QuietLog quiet;
   for (int s = 0; s < n; ++s) {
     std::vector<ParamOverride> overrides = options.overrides;
     std::string drawn;
@@ -127,6 +111,7 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
       drawn += (k ? ", " : "") + names[k] + " = " + format_number(v);
     }
     try {
+      // Default BuildOptions and AnalysisOptions: no progress, no warnings; a sample is silent.
       const auto sample = CompiledModel::from_mechanism(m, overrides);
       std::size_t r = 0;
       run_analysis(*sample, options.grid, [&](const StateRow& row) {

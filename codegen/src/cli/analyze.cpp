@@ -15,22 +15,33 @@
 
 namespace kinegen::cli {
 
-int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output,
-                int reference_digits, bool strict, const std::string& sensitivity_list,
-                bool with_forces, const std::string& solver) {
+namespace {
+
+struct Options {
+  double t0 = 0, t1 = 0;
+  int steps = 0;
+  std::string output;  // empty: standard output
+  int reference_digits = 0;
+  bool strict = false;
+  std::string sensitivity_list;
+  std::string solver = "block";
+  bool with_forces = false;
+};
+
+int run_analyze(const Common& c, const Options& o) {
   auto model = load(c);
   kc::require_driven(*model);
-  check_grid(t0, t1, steps);
-  if (reference_digits != 0 &&
-      (reference_digits < kc::kMinReferenceDigits || reference_digits > kc::kMaxReferenceDigits))
+  check_grid(o.t0, o.t1, o.steps);
+  if (o.reference_digits != 0 && (o.reference_digits < kc::kMinReferenceDigits ||
+                                  o.reference_digits > kc::kMaxReferenceDigits))
     throw kc::UsageError("--reference-digits must be between " +
                          std::to_string(kc::kMinReferenceDigits) + " and " +
                          std::to_string(kc::kMaxReferenceDigits));
   kc::SensitivityModel sensitivity;
-  if (!sensitivity_list.empty()) {
-    if (reference_digits != 0)
+  if (!o.sensitivity_list.empty()) {
+    if (o.reference_digits != 0)
       throw kc::UsageError("--sensitivity is not available with --reference-digits");
-    const auto names = kc::split_parameter_list(sensitivity_list);
+    const auto names = kc::split_parameter_list(o.sensitivity_list);
     // Naming a derived parameter treats it as overridden (spec 6.6).
     if (auto base = model->with_base_parameters(names)) model = std::move(base);
     sensitivity = kc::build_sensitivity(*model, names);
@@ -38,11 +49,11 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   // Forces: every input error (masses, loads) before any output.
   std::unique_ptr<kc::ForceModel> forces;
   std::vector<std::string> force_names;
-  if (with_forces) {
-    forces = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*model, t0));
+  if (o.with_forces) {
+    forces = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*model, o.t0));
     force_names = kc::force_columns(model->mechanism());
   }
-  kc::OutputFile file(output.empty() ? "-" : output);
+  kc::OutputFile file(o.output.empty() ? "-" : o.output);
   std::ostream& out = file.stream();
   out << kc::csv_header(model->mechanism(), force_names, sensitivity.names);
   int status = 0;
@@ -53,26 +64,26 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
       file.check();  // a full disk or a closed pipe ends the run now, not after it
       ++rows;
     };
-    if (reference_digits != 0 && forces) {
+    if (o.reference_digits != 0 && forces) {
       // The forces of the reference come from its own high-precision rows.
-      kc::ReferenceForces reference(*model, *forces, reference_digits);
-      kc::run_reference_analysis_exact(*model, {t0, t1, steps}, reference_digits,
+      kc::ReferenceForces reference(*model, *forces, o.reference_digits);
+      kc::run_reference_analysis_exact(*model, {o.t0, o.t1, o.steps}, o.reference_digits,
                                        [&](const kc::ReferenceRow& exact) {
                                          kc::StateRow row = kc::to_state_row(exact);
                                          for (const auto& v : reference.solve(exact))
                                            row.forces.push_back(v.to_double());
                                          sink(row);
                                        });
-    } else if (reference_digits != 0) {
-      kc::run_reference_analysis(*model, {t0, t1, steps}, reference_digits, sink);
+    } else if (o.reference_digits != 0) {
+      kc::run_reference_analysis(*model, {o.t0, o.t1, o.steps}, o.reference_digits, sink);
     } else {
       kc::AnalysisOptions options;
-      options.strict = strict;
-      options.block_solver = solver != "dense";
-      if (!sensitivity_list.empty()) options.sensitivity = &sensitivity;
+      options.strict = o.strict;
+      options.block_solver = o.solver != "dense";
+      if (!o.sensitivity_list.empty()) options.sensitivity = &sensitivity;
       options.forces = forces.get();
       options.warn = [](const std::string& w) { std::cerr << "warning: " << one_line(w) << "\n"; };
-      kc::run_analysis(*model, {t0, t1, steps}, sink, options);
+      kc::run_analysis(*model, {o.t0, o.t1, o.steps}, sink, options);
     }
   } catch (const kc::AnalysisError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
@@ -81,6 +92,38 @@ int run_analyze(const Common& c, double t0, double t1, int steps, const std::str
   // Nothing solved: a file is left as it was; standard output gets the header, as before.
   if (rows > 0 || status == 0 || !file.replaces_target()) file.commit();
   return status;
+}
+
+}  // namespace
+
+Subcommand add_analyze(CLI::App& app, Common& common) {
+  const auto o = std::make_shared<Options>();
+  auto* analyze = app.add_subcommand("analyze", "Position, velocity and acceleration over time");
+  add_common(analyze, common);
+  analyze->add_option("--t0", o->t0, "Start time")->required();
+  analyze->add_option("--t1", o->t1, "End time")->required();
+  analyze->add_option("--steps", o->steps, "Number of steps N (N + 1 rows)")->required();
+  analyze->add_option("-o,--output", o->output, "CSV file (default: standard output)");
+  analyze->add_option("--reference-digits", o->reference_digits,
+                      "Solve in CLN arithmetic with N decimal digits (20 to 1000) instead of "
+                      "double: the high-precision reference");
+  analyze->add_flag("--strict", o->strict,
+                    "Redundant constraints are an error (exit 2), not a warning");
+  analyze
+      ->add_option("--sensitivity", o->sensitivity_list,
+                   "Add d(C)/d(p) columns for these parameters (comma-separated), after all "
+                   "others")
+      ->type_name("P1,P2,...");
+  analyze
+      ->add_option("--solver", o->solver,
+                   "block (default): block by block, as generated code solves, with the same "
+                   "numbers; dense: Newton on all of Phi_q (sparse LU above 48 coordinates), "
+                   "an independent cross-check. Redundant models always take the dense path")
+      ->check(CLI::IsMember({"block", "dense"}));
+  analyze->add_flag("--forces", o->with_forces,
+                    "Add the drivers' efforts and the joints' reactions (masses, gravity and "
+                    "forces in the file): D.effort, J.fx, J.fy, J.tz columns");
+  return {analyze, [&common, o] { return run_analyze(common, *o); }};
 }
 
 }  // namespace kinegen::cli

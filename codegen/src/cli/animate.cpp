@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <iostream>
+#include <memory>
 #include <string>
 
 #include "cli.hpp"
@@ -12,7 +13,15 @@
 
 namespace kinegen::cli {
 
-int run_animate(const Common& c, kc::AnimateOptions options, const std::string& output) {
+namespace {
+
+struct Options {
+  kc::AnimateOptions animate;
+  std::string output;
+};
+
+int run_animate(const Common& c, const Options& o) {
+  kc::AnimateOptions options = o.animate;
   check_grid(options.grid.t0, options.grid.t1, options.grid.steps);
   options.warn = [](const std::string& w) { std::cerr << "warning: " << one_line(w) << "\n"; };
   if (!std::isfinite(options.duration) || options.duration < 0)
@@ -25,11 +34,30 @@ int run_animate(const Common& c, kc::AnimateOptions options, const std::string& 
     svg = kc::animate_svg(*model, options);
     stage.done(std::to_string(svg.size() / 1024) + " KiB of SVG");
   }
-  kc::OutputFile out(output);
+  kc::OutputFile out(o.output);
   out.stream() << svg;
   out.commit();
-  kc::Log::global().info("wrote " + output);
+  kc::Log::global().info("wrote " + o.output);
   return 0;
+}
+
+}  // namespace
+
+Subcommand add_animate(CLI::App& app, Common& common) {
+  const auto o = std::make_shared<Options>();
+  kc::AnimateOptions& a = o->animate;
+  auto* animate = app.add_subcommand("animate", "Draw the mechanism moving over an analysis (SVG)");
+  add_common(animate, common);
+  animate->add_option("--t0", a.grid.t0, "Start time")->required();
+  animate->add_option("--t1", a.grid.t1, "End time")->required();
+  animate->add_option("--steps", a.grid.steps, "Number of steps N (N + 1 frames)")->required();
+  animate->add_option("-o,--output", o->output, "SVG file")->required();
+  animate->add_option("--frame", a.frame, "Draw only frame K (0..N), not animated");
+  animate->add_option("--width", a.width, "Width in pixels (default 800)");
+  animate->add_flag("--forces", a.forces,
+                    "Draw each joint's reaction force as an arrow (needs masses or loads)");
+  animate->add_option("--duration", a.duration, "Seconds per pass (default: t1 - t0)");
+  return {animate, [&common, o] { return run_animate(common, *o); }};
 }
 
 }  // namespace kinegen::cli

@@ -5,6 +5,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <iostream>
+#include <memory>
 #include <string>
 
 #include "cli.hpp"
@@ -30,9 +31,13 @@ std::string printf_text(const char* format, ...) {
   return buf;
 }
 
-}  // namespace
+struct Options {
+  kc::CheckOptions check;
+  bool structure = false;
+};
 
-int run_check(const Common& c, const kc::CheckOptions& options, bool structure) {
+int run_check(const Common& c, const Options& o) {
+  const kc::CheckOptions& options = o.check;
   if (!(std::abs(options.turns) <= kMaxCheckTurns) || !(std::abs(options.t) <= kMaxCheckTurns))
     throw kc::UsageError("--turns and --t must be within +-" + kc::format_number(kMaxCheckTurns) +
                          ": beyond it the inputs' rounding makes the bounds meaningless");
@@ -40,7 +45,7 @@ int run_check(const Common& c, const kc::CheckOptions& options, bool structure) 
   if (options.samples < 1) throw kc::UsageError("--samples must be at least 1");
   kc::OutputFile file("-");
   std::ostream& out = file.stream();
-  if (structure) out << kc::jacobian_structure(*model) << "\n";
+  if (o.structure) out << kc::jacobian_structure(*model) << "\n";
   const auto rows = kc::check_derivatives(*model, options);
   out << printf_text("%-7s %-20s %12s %12s %10s  %s\n", "block", "method", "max abs", "max rel",
                      "bound", "result");
@@ -62,6 +67,22 @@ int run_check(const Common& c, const kc::CheckOptions& options, bool structure) 
     return kExitFailed;
   }
   return 0;
+}
+
+}  // namespace
+
+Subcommand add_check(CLI::App& app, Common& common) {
+  const auto o = std::make_shared<Options>();
+  auto* check = app.add_subcommand("check", "Compare Phi_q, nu and gamma with numeric derivatives");
+  add_common(check, common);
+  check->add_option("--samples", o->check.samples, "Random configurations (default 5)");
+  check->add_option("--seed", o->check.seed, "Random seed (default 1)");
+  check->add_option("--t", o->check.t, "Time around which to sample (default 0)");
+  check->add_flag("--structure", o->structure, "Also print the structure of Phi_q");
+  check->add_option("--turns", o->check.turns,
+                    "Shift every angle by 2 pi K: check after many revolutions (default 0)");
+  check->add_option("--digits", o->check.digits, "Decimal digits of the CLN method (default 40)");
+  return {check, [&common, o] { return run_check(common, *o); }};
 }
 
 }  // namespace kinegen::cli

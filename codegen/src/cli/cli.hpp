@@ -1,6 +1,7 @@
-// The cli stage: the `kinegen` command line, one file per subcommand (generate.cpp,
-// analyze.cpp, animate.cpp, tolerance.cpp, eval.cpp, check.cpp) and main.cpp (options,
-// dispatch, errors).
+// The cli stage: the `kinegen` command line. Each subcommand's file (generate.cpp, analyze.cpp,
+// eval.cpp, check.cpp, animate.cpp, tolerance.cpp) registers its options (add_<name>) and runs
+// it; main.cpp holds the global flags, the parse, the dispatch, the mapping of errors to exit
+// statuses, and the helpers declared here.
 //
 // Takes: argv. Gives: an exit status (0 success, 1 the analysis or a check failed, 2 invalid
 // input or usage), files written atomically (io/output_file.hpp), one `error:` line per error.
@@ -13,10 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis/check.hpp"
 #include "kinegen/codegen/analysis/compiled_model.hpp"
-#include "kinegen/codegen/analysis/tolerance.hpp"
-#include "kinegen/codegen/io/animate.hpp"
 
 namespace kinegen::cli {
 
@@ -53,18 +51,21 @@ void add_common(CLI::App* cmd, Common& c);
 // or progress is off.
 std::function<void(int, int)> terminal_progress(const std::string& what);
 
-// The subcommands, one file each.
-int run_generate(const Common& c, const std::string& dir, const std::string& outputs,
-                 bool fold_params, int max_function_ops, int roll_min,
-                 const std::string& name_space);
-int run_animate(const Common& c, kc::AnimateOptions options, const std::string& output);
-int run_analyze(const Common& c, double t0, double t1, int steps, const std::string& output,
-                int reference_digits, bool strict, const std::string& sensitivity_list,
-                bool with_forces, const std::string& solver);
-int run_tolerance(const Common& c, kc::ToleranceOptions options,
-                  const std::vector<std::string>& tol, const std::string& output);
-int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
-             const std::vector<double>& qd_arg);
-int run_check(const Common& c, const kc::CheckOptions& options, bool structure);
+// A subcommand registered on the app. main runs `run` after the parse when `*command` is set:
+// inside its try/catch, which turns exceptions into `error:` lines and exit statuses (a CLI11
+// callback would run inside parse(), outside it).
+struct Subcommand {
+  CLI::App* command;
+  std::function<int()> run;
+};
+
+// Each registers its subcommand and options on `app`; the options live as long as `run`.
+// `common` must outlive it too.
+Subcommand add_generate(CLI::App& app, Common& common);
+Subcommand add_analyze(CLI::App& app, Common& common);
+Subcommand add_eval(CLI::App& app, Common& common);
+Subcommand add_check(CLI::App& app, Common& common);
+Subcommand add_animate(CLI::App& app, Common& common);
+Subcommand add_tolerance(CLI::App& app, Common& common);
 
 }  // namespace kinegen::cli

@@ -1,6 +1,7 @@
 // `kinegen eval`: Phi, Phi_q, nu, gamma (and the outputs' values) at one q, qd, t as JSON.
 #include <Eigen/Dense>
 #include <cmath>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -30,16 +31,18 @@ Eigen::VectorXd vector_arg(const std::vector<double>& values, int n, const char*
   return Eigen::Map<const Eigen::VectorXd>(values.data(), n);
 }
 
-}  // namespace
+struct Options {
+  double t = 0;
+  std::vector<double> q, qd;  // empty: q0, zeros
+};
 
-int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
-             const std::vector<double>& qd_arg) {
+int run_eval(const Common& c, const Options& o) {
   const auto model = load(c, {}, false);
   const int nq = model->nq(), nc = model->nc();
-  const Eigen::VectorXd q = q_arg.empty() ? model->q0() : vector_arg(q_arg, nq, "--q");
+  const Eigen::VectorXd q = o.q.empty() ? model->q0() : vector_arg(o.q, nq, "--q");
   const Eigen::VectorXd qd =
-      qd_arg.empty() ? Eigen::VectorXd::Zero(nq) : vector_arg(qd_arg, nq, "--qd");
-  const kc::EvalResult e = kc::evaluate(*model, q, qd, t);
+      o.qd.empty() ? Eigen::VectorXd::Zero(nq) : vector_arg(o.qd, nq, "--qd");
+  const kc::EvalResult e = kc::evaluate(*model, q, qd, o.t);
   std::string rows;
   for (int r = 0; r < nc; ++r) rows += (r ? ", " : "") + json_array(e.phi_q.row(r).transpose());
   // Outputs' values (format 6.4); a file without outputs keeps its v1 JSON.
@@ -51,6 +54,22 @@ int run_eval(const Common& c, double t, const std::vector<double>& q_arg,
                << outputs << "}\n";
   out.commit();
   return 0;
+}
+
+}  // namespace
+
+Subcommand add_eval(CLI::App& app, Common& common) {
+  const auto o = std::make_shared<Options>();
+  auto* eval = app.add_subcommand("eval", "Print Phi, Phi_q, nu and gamma as JSON");
+  add_common(eval, common);
+  eval->add_option("--t", o->t, "Time (default 0)");
+  eval->add_option("--q", o->q, "Coordinates (default: q0)")
+      ->delimiter(',')
+      ->allow_extra_args(false);
+  eval->add_option("--qd", o->qd, "Velocities (default: zeros)")
+      ->delimiter(',')
+      ->allow_extra_args(false);
+  return {eval, [&common, o] { return run_eval(common, *o); }};
 }
 
 }  // namespace kinegen::cli

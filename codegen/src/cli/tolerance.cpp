@@ -2,21 +2,30 @@
 // tolerances, optionally with a Monte Carlo check.
 #include "kinegen/codegen/analysis/tolerance.hpp"
 
+#include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "cli.hpp"
-#include "kinegen/codegen/base/log.hpp"
 #include "kinegen/codegen/io/output_file.hpp"
 
 namespace kinegen::cli {
 
-int run_tolerance(const Common& c, kc::ToleranceOptions options,
-                  const std::vector<std::string>& tol, const std::string& output) {
+namespace {
+
+struct Options {
+  kc::ToleranceOptions tolerance;
+  std::vector<std::string> tol;  // NAME=DELTA
+  std::string output;            // empty: no CSV
+};
+
+int run_tolerance(const Common& c, const Options& o) {
+  kc::ToleranceOptions options = o.tolerance;
   options.overrides = parse_overrides(c.params);
   auto model = load(c);
   kc::require_driven(*model);
-  options.tolerances = kc::parse_tolerances(tol);
+  options.tolerances = kc::parse_tolerances(o.tol);
   {
     // A derived parameter with a tolerance varies on its own (spec 6.6).
     std::vector<std::string> names;
@@ -28,12 +37,36 @@ int run_tolerance(const Common& c, kc::ToleranceOptions options,
   kc::OutputFile summary("-");
   summary.stream() << kc::tolerance_summary(result, options);
   summary.commit();
-  if (!output.empty()) {
-    kc::OutputFile out(output);
+  if (!o.output.empty()) {
+    kc::OutputFile out(o.output);
     out.stream() << kc::tolerance_csv(result);
     out.commit();
   }
   return 0;
+}
+
+}  // namespace
+
+Subcommand add_tolerance(CLI::App& app, Common& common) {
+  const auto o = std::make_shared<Options>();
+  kc::ToleranceOptions& t = o->tolerance;
+  auto* tolerance = app.add_subcommand(
+      "tolerance", "Worst-case and RSS deviations of the positions from parameter tolerances");
+  add_common(tolerance, common);
+  tolerance->add_option("--tol", o->tol, "A parameter's tolerance: NAME=DELTA (repeatable)")
+      ->type_name("NAME=DELTA")
+      ->required();
+  tolerance->add_option("--t0", t.grid.t0, "Start time")->required();
+  tolerance->add_option("--t1", t.grid.t1, "End time")->required();
+  tolerance->add_option("--steps", t.grid.steps, "Number of steps N (N + 1 rows)")->required();
+  tolerance
+      ->add_option("--monte-carlo", t.monte_carlo,
+                   "Also N >= 2 analyses with parameters drawn uniformly in [p - DELTA, "
+                   "p + DELTA]")
+      ->check(CLI::Range(2, std::numeric_limits<int>::max()));
+  tolerance->add_option("--seed", t.seed, "Monte Carlo seed (default 1)");
+  tolerance->add_option("-o,--output", o->output, "CSV file of the per-row figures");
+  return {tolerance, [&common, o] { return run_tolerance(common, *o); }};
 }
 
 }  // namespace kinegen::cli
