@@ -7,15 +7,6 @@
 
 namespace kinegen::codegen {
 
-std::vector<GiNaC::ex> derive_phi_p(const SymbolicModel& model, const SymbolTable& symbols,
-                                    const std::vector<int>& params) {
-  std::vector<GiNaC::ex> out;
-  out.reserve(model.phi.size() * params.size());
-  for (int p : params)
-    for (const auto& row : model.phi) out.push_back(row.diff(symbols.param(p)));
-  return out;
-}
-
 std::vector<std::string> split_parameter_list(const std::string& list) {
   std::vector<std::string> names;
   std::size_t begin = 0;
@@ -63,12 +54,7 @@ SensitivityModel build_sensitivity(const CompiledModel& model,
                       to_double(substitute_params(y.diff(symbols.param(p)), symbols, values)));
     s.point_ds.push_back(std::move(ds));
   }
-  const SymbolicModel& sym = model.symbolic();
-  std::vector<GiNaC::ex> output_p;
-  for (int p : s.params)
-    for (const auto& o : sym.output_values) output_p.push_back(o.diff(symbols.param(p)));
-  output_p.insert(output_p.end(), sym.output_q.begin(), sym.output_q.end());
-  s.output_p = lower(output_p, symbols);
+  s.output_p = lower(derive_output_p(model.symbolic(), symbols, s.params), symbols);
   return s;
 }
 

@@ -11,8 +11,6 @@
 #include <set>
 #include <sstream>
 
-#include "kinegen/codegen/analysis/forces.hpp"
-#include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "kinegen/codegen/emit/embedded_kernels.hpp"
 #include "kinegen/codegen/emit/reserved_names.hpp"
 #include "kinegen/codegen/model/table.hpp"

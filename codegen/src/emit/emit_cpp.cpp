@@ -11,8 +11,7 @@
 #include <set>
 #include <sstream>
 
-#include "kinegen/codegen/analysis/forces.hpp"
-#include "kinegen/codegen/analysis/sensitivity.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/emit/embedded_kernels.hpp"
 #include "kinegen/codegen/emit/reserved_names.hpp"
 #include "kinegen/codegen/model/table.hpp"
@@ -20,6 +19,8 @@
 #include "kinegen/codegen/structure/block_program.hpp"
 #include "kinegen/codegen/structure/solver_plan.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
+#include "kinegen/codegen/symbolic/forces.hpp"
+#include "kinegen/codegen/symbolic/sensitivity.hpp"
 
 #include "block_solver.hpp"
 #include "printer.hpp"
@@ -236,7 +237,8 @@ void emit_sensitivity(std::ostringstream& os, const SymbolTable& symbols,
      << "  }\n";
 }
 
-// ---- Kinetostatics (mechanism format 6.5, forces.hpp): Phi_q^T lambda = Q after a step.
+// ---- Kinetostatics (mechanism format 6.5, symbolic/forces.hpp): Phi_q^T lambda = Q after a
+// step.
 
 // Whether the mechanism carries anything for the force functions: a mass, an inertia or a
 // load (gravity alone acts on nothing).
@@ -251,7 +253,8 @@ bool has_force_data(const ForceModel& f) {
 // generalized_force, solve_forces and force_columns (with applied_force and the private
 // _force_geometry they share). Masses, inertias, centres of mass and the joints' points are
 // read from Params like the rest of the header (constants with --fold-params). The inertia
-// forces and the columns follow add_inertia_forces and columns_from_lambda (forces.hpp).
+// forces and the columns follow add_inertia_forces and columns_from_lambda, the analysis'
+// numeric templates (analysis/forces.hpp), printed instead of evaluated.
 void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
                  const SymbolicModel& model, const ModelPrograms& programs,
                  const EmitOptions& options) {
@@ -350,7 +353,7 @@ void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
             << "      out[" << col + 2 << "] = " << (tz.empty() ? "-(" : tz + " - (") << ax
             << " * fy - " << ay << " * fx);  // about the point\n";
     if (c.kind->normal_force) {
-      // J.fn as normal_force (forces.hpp): t = A_i curve_i'(a) = -d(contact rows)/da.
+      // J.fn as normal_force (analysis/forces.hpp): t = A_i curve_i'(a) = -d(contact rows)/da.
       const int a = m.coordinate_index(c.coordinates.at("coordinate_i")), r0 = f.row_begin[jn];
       const auto minus_jac = [&](int r) {
         const auto it = entry.find({r, a});

@@ -15,11 +15,9 @@
 #include <set>
 #include <sstream>
 
-#include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/base/format.hpp"
-#include "kinegen/codegen/emit/emit_cpp.hpp"
-#include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "kinegen/codegen/emit/embedded_kernels.hpp"
+#include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "kinegen/codegen/emit/reserved_names.hpp"
 #include "kinegen/codegen/model/table.hpp"
 #include "kinegen/codegen/program/partition.hpp"

@@ -34,7 +34,7 @@ struct StateRow {
   // x then y, x np); empty otherwise.
   Eigen::MatrixXd dq_dp, dpoints_dp;
   Eigen::MatrixXd doutputs_dp;  // outputs x np
-  // With AnalysisOptions::forces: the force columns (forces.hpp, force_columns order).
+  // With AnalysisOptions::forces: the force columns (force_columns order, symbolic/forces.hpp).
   std::vector<double> forces;
 };
 

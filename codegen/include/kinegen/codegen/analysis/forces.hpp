@@ -1,14 +1,12 @@
-// Kinetostatics (mechanism format 6.5): driver efforts and joint reactions of a kinematically
-// driven motion, from M qdd + Phi_q^T lambda = Q^A with the centre-of-mass kinematics written
-// out, i.e. Phi_q^T lambda = Q with Q = Q^A + the inertia forces of the motion.
+// Kinetostatics (mechanism format 6.5), the numeric half: driver efforts and joint reactions of
+// a kinematically driven motion, from M qdd + Phi_q^T lambda = Q^A with the centre-of-mass
+// kinematics written out, i.e. Phi_q^T lambda = Q with Q = Q^A + the inertia forces of the
+// motion.
 //
-// Takes: the mechanism, its mass data and loads (ForceSpec), the symbol table and symbolic
-// model. Gives: ForceModel (the applied generalized force Q^A(q, qd, t) as expressions, the
-// bodies' mass data evaluated) and, per solved row (q, qd, qdd at t), lambda, the efforts and
-// the reactions in the spec's columns, units, signs and points.
+// Takes: a CompiledModel and the ForceModel of symbolic/forces.hpp (Q^A as expressions, the
+// bodies' mass data evaluated). Gives: per solved row (q, qd, qdd at t), lambda, the efforts
+// and the reactions in the spec's columns, units, signs and points.
 #pragma once
-
-#include <ginac/ginac.h>
 
 #include <Eigen/Dense>
 #include <array>
@@ -21,31 +19,10 @@
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "kinegen/codegen/program/program.hpp"
+#include "kinegen/codegen/symbolic/forces.hpp"
 #include "kinegen/kernels/report.hpp"
 
 namespace kinegen::codegen {
-
-// Which rule a constraint follows for its effort and reaction columns (its kind says).
-bool is_distance(const Constraint& c);
-bool is_expression(const Constraint& c);
-
-// The numbers of the mass data and of the joints' points, in a scalar type T: double for the
-// analysis, GiNaC::numeric for the 40-digit reference.
-template <class T>
-struct ForceData {
-  std::vector<T> mass, inertia;              // per body
-  std::vector<std::array<T, 2>> com;         // per body, local
-  std::vector<std::array<T, 2>> si, sj;      // per joint and driver (constraints() order)
-};
-
-struct ForceModel {
-  std::vector<GiNaC::ex> applied;  // Q^A(q, qd, t), nq: gravity and the loads
-  Program applied_program;
-  ForceData<GiNaC::ex> exact;      // parameters substituted, exact where they are
-  ForceData<double> numbers;       // the same in double
-  ForceData<GiNaC::ex> symbolic;   // the same with the parameters as symbols (generated code)
-  std::vector<int> row_begin;      // rows of constraint c: [row_begin[c], row_begin[c + 1])
-};
 
 // Adds the inertia forces of the motion to Q: -m a_com at each centre of mass (a_com with the
 // omega^2 term of an offset centre) and -J alpha.
@@ -132,29 +109,17 @@ void columns_from_lambda(const Mechanism& m, const ForceModel& f, const ForceDat
   }
 }
 
-// Builds Q^A and evaluates the mass data. Throws InputError for negative or non-finite mass
-// data, unknown bodies, expressions that are not allowed (velocities) or not finite.
+// derive_forces (symbolic/forces.hpp) on the pieces a CompiledModel holds.
 ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec);
-// The same from the pieces a CompiledModel holds (the emitter has these).
-ForceModel derive_forces(const Mechanism& mechanism, const SymbolTable& symbols,
-                         const SymbolicModel& model, const ForceSpec& spec);
 // The same for the mechanism's own masses, gravity and loads.
 inline ForceModel derive_forces(const CompiledModel& model) {
   return derive_forces(model, model.mechanism().forces);
 }
 
-// Whether the file gives anything derive_forces reads beyond the defaults (a mass, inertia
-// or centre of mass other than "0", gravity, a load): without, there is nothing to check.
-bool has_force_input(const ForceSpec& spec);
-
 // What `analyze --forces` needs, checked first: UsageError for a redundant model (more
 // equations than coordinates), whose reactions are not unique, naming the equations that are
 // redundant where it assembles at t0; derive_forces' InputErrors.
 ForceModel forces_for_analysis(const CompiledModel& model, double t0 = 0);
-
-// Column names added by `analyze --forces`: every driver's effort(s), then every joint's
-// reaction (fx, fy, tz), in file order.
-std::vector<std::string> force_columns(const Mechanism& mechanism);
 
 // The singularity rule of the force solve, one for the in-process and the generated paths:
 // Phi_q^T counts as singular where the reciprocal of its scaled condition estimate is at most
@@ -172,6 +137,9 @@ class ForceSolver {
  public:
   ForceSolver(const CompiledModel& model, const ForceModel& forces,
               double min_rcond = force_min_rcond<double>());
+  // applied_ points into applied_program_.
+  ForceSolver(const ForceSolver&) = delete;
+  ForceSolver& operator=(const ForceSolver&) = delete;
 
   // Returns false when Phi_q^T is singular by force_min_rcond's rule, or lambda is not finite
   // (then `columns` is NaN).
@@ -190,6 +158,7 @@ class ForceSolver {
   const CompiledModel* model_;
   const ForceModel* forces_;
   ModelEvaluator<double> eval_;
+  Program applied_program_;  // Q^A lowered
   ProgramEvaluator<double> applied_;
   std::vector<double> params_;
   Eigen::MatrixXd jac_;

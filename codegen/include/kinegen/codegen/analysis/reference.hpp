@@ -86,7 +86,7 @@ void run_reference_analysis(const CompiledModel& model, const TimeGrid& grid, in
 struct ForceModel;
 
 // `analyze --forces` on the reference: Phi_q^T lambda = Q solved in the reference's precision
-// at each high-precision row, the columns in force_columns order (forces.hpp).
+// at each high-precision row, the columns in force_columns order (symbolic/forces.hpp).
 class ReferenceForces {
  public:
   ReferenceForces(const CompiledModel& model, const ForceModel& forces, int digits);

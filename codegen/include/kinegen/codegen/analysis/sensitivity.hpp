@@ -1,9 +1,8 @@
-// Parameter sensitivities of the solved position (spec 6.6): Phi_p from the same symbolic model,
-// dq/dp = -Phi_q^-1 Phi_p with the factorization of Phi_q at the converged q (run_analysis does
-// the solve), and for the named points dC/dp = C_q dq/dp + dC/dp|explicit.
+// Parameter sensitivities of the solved position (spec 6.6), the numeric half: Phi_p and the
+// outputs' dO/dp (symbolic/sensitivity.hpp) lowered, dq/dp = -Phi_q^-1 Phi_p with the
+// factorization of Phi_q at the converged q (run_analysis does the solve), and for the named
+// points dC/dp = C_q dq/dp + dC/dp|explicit.
 #pragma once
-
-#include <ginac/ginac.h>
 
 #include <Eigen/Dense>
 #include <string>
@@ -11,13 +10,9 @@
 
 #include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/program/program.hpp"
+#include "kinegen/codegen/symbolic/sensitivity.hpp"
 
 namespace kinegen::codegen {
-
-// dPhi/dp for each parameter index in `params`, symbolic: output k * nc + r is dPhi_r/dp_k.
-// Beside derive(): the same Phi, differentiated by parameter symbols instead of coordinates.
-std::vector<GiNaC::ex> derive_phi_p(const SymbolicModel& model, const SymbolTable& symbols,
-                                    const std::vector<int>& params);
 
 // What run_analysis needs to add sensitivities to each row.
 struct SensitivityModel {
@@ -26,7 +21,8 @@ struct SensitivityModel {
   Program phi_p;                   // nc * np outputs, as derive_phi_p orders them
   // d s'/dp of each named point's local offset, evaluated: point_ds[k][point].
   std::vector<std::vector<Eigen::Vector2d>> point_ds;
-  // The outputs' explicit dO/dp (np x outputs, parameter-major), then O_q (outputs x nq).
+  // The outputs' explicit dO/dp (np x outputs, parameter-major), then O_q (outputs x nq), as
+  // derive_output_p orders them.
   Program output_p;
 };
 

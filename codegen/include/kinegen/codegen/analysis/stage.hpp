@@ -3,11 +3,13 @@
 // Takes: a CompiledModel (compiled_model.hpp: owns the model, symbolic, program and structure
 // stages' results, built from a file or a Mechanism) and a TimeGrid with options. Gives:
 // StateRows (run_analysis: t, q, qd, qdd, points, outputs, and on request sensitivities and
-// forces), by the same block program the generated Solver runs (BlockInterpreter) or by the
-// dense or sparse Newton on all of Phi_q; ReferenceRows in CLN arithmetic (reference.hpp);
-// CheckRows of the derivatives against independent truths (check.hpp); tolerance figures
-// (tolerance.hpp). Throws AnalysisError (exit 1). The evaluator (evaluator.hpp) runs a
-// Program on any scalar type in the order the emitted C++ computes it. Next: io.
+// forces: the symbolic stage's ForceModel and parameter derivatives evaluated, forces.hpp and
+// sensitivity.hpp), by the same block program the generated Solver runs (BlockInterpreter) or
+// by the dense or sparse Newton on all of Phi_q; ReferenceRows in CLN arithmetic
+// (reference.hpp); CheckRows of the derivatives against independent truths (check.hpp);
+// tolerance figures (tolerance.hpp). Throws AnalysisError (exit 1). The evaluator
+// (evaluator.hpp) runs a Program on any scalar type in the order the emitted C++ computes it.
+// Next: io.
 #pragma once
 
 #include "kinegen/codegen/analysis/analysis.hpp"

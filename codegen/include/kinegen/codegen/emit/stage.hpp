@@ -2,7 +2,8 @@
 //
 // Takes: the Mechanism, SymbolTable, SymbolicModel and ModelPrograms (the stages before it) and
 // EmitOptions; from them the Structure and BlockProgram (structure stage), the force and
-// sensitivity expressions. Gives: one self-contained C++ header per mechanism as a
+// sensitivity expressions (symbolic stage: symbolic/forces.hpp, symbolic/sensitivity.hpp;
+// nothing from the analysis stage). Gives: one self-contained C++ header per mechanism as a
 // std::string (emit_header, spec section 4), carrying the block-solver kernels it calls
 // (runtime/include/kinegen/kernels/, embedded at build time). reserved_names.hpp: the names a
 // header cannot carry (spec 6.1), checked before emitting.
