@@ -40,7 +40,7 @@ int run_generate(const Common& c, const Options& o) {
   options.roll_min = o.roll_min;
   options.name_space = o.name_space;
   const std::string text = kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
-                                           model->programs(), options);
+                                           model->programs(), model->structure(), options);
   stage.done(std::to_string(text.size() / 1024) + " KiB");
   std::error_code ec;
   fs::create_directories(o.dir, ec);
