@@ -17,6 +17,7 @@
 #include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/tolerance.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/model/mechanism.hpp"
 #include "support/run_command.hpp"
 
 namespace {
@@ -71,6 +72,54 @@ TEST_CASE("tolerance without Monte Carlo: the figures follow from the sensitivit
   }
   const std::string csv = cg::tolerance_csv(r);
   CHECK(csv.rfind("t,crank.x.worst,crank.x.rss,crank.y.worst", 0) == 0);
+}
+
+TEST_CASE("tolerance covers the extra coordinates (format 6.1)", "[tolerance]") {
+  // The disc cam's roller centre stays on the y axis, so its pitch angle u equals the cam
+  // angle t whatever the base radius: du/dRb = 0; the follower rides at y = Rb + r + s(t):
+  // d(follower.y)/dRb = 1. Before u was listed, the figures ran one quantity short and the
+  // Monte Carlo read past its rows (a different garbage number on every run).
+  const auto model =
+      cg::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) + "/examples/cams/disc_cam.yaml");
+  cg::ToleranceOptions options;
+  options.tolerances = cg::parse_tolerances({"Rb=1e-4"});
+  options.grid = {0, 2 * std::acos(-1.0), 12};
+  options.monte_carlo = 20;
+  options.seed = 3;
+  const auto r = cg::tolerance_analysis(*model, options);
+  REQUIRE(r.quantities.size() == 3 * 2 + 1);
+  const std::size_t follower_y = 4, u = 6;
+  REQUIRE(r.quantities[follower_y] == "follower.y");
+  REQUIRE(r.quantities[u] == "u");
+  for (std::size_t row = 0; row < r.t.size(); ++row) {
+    INFO("t = " << r.t[row]);
+    CHECK(std::abs(r.worst[row][follower_y] - 1e-4) <= 1e-15);
+    CHECK(r.worst[row][u] <= 1e-15);
+    CHECK(r.mc_spread[row][u] <= 1e-12);
+    CHECK(r.mc_spread[row][follower_y] <= 1e-4 * (1 + 1e-9));
+    CHECK(r.mc_spread[row][follower_y] >= 0.5e-4);  // 20 uniform draws: P(all < 1/2) = 2^-20
+    for (std::size_t q = 0; q < r.quantities.size(); ++q) CHECK(std::isfinite(r.mc_std[row][q]));
+  }
+}
+
+TEST_CASE("tolerance passes the nominal analysis' warnings on", "[tolerance]") {
+  // A redundant (consistent) model is analyzed with a warning, in tolerance as in analyze.
+  std::ifstream in(std::string(KINEGEN_SOURCE_DIR) + "/tests/stability/double_parallelogram.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string yaml = text.str();
+  yaml.replace(yaml.find("bodies:"), 7, "parameters:\n  w: 1\nbodies:");
+  yaml.replace(yaml.find("f: \"t\""), 6, "f: \"w*t\"");
+  const auto model = cg::CompiledModel::from_mechanism(cg::parse_mechanism(yaml, "dp.yaml"));
+  cg::ToleranceOptions options;
+  options.tolerances = cg::parse_tolerances({"w=1e-3"});
+  options.grid = {0.2, 1, 4};
+  std::vector<std::string> warnings;
+  options.warn = [&](const std::string& w) { warnings.push_back(w); };
+  const auto r = cg::tolerance_analysis(*model, options);
+  REQUIRE(r.t.size() == 5);
+  REQUIRE_FALSE(warnings.empty());
+  CHECK(warnings[0].find("redundant") != std::string::npos);
 }
 
 TEST_CASE("tolerance: hostile input", "[tolerance]") {

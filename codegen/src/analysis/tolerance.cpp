@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <random>
 #include <set>
+#include <stdexcept>
 
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 
@@ -75,6 +76,7 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
   const Mechanism& m = model.mechanism();
   for (const auto& b : m.bodies)
     for (const char* c : {".x", ".y", ".phi"}) result.quantities.push_back(b.name + c);
+  for (const auto& c : m.coordinates) result.quantities.push_back(c.name);  // format 6.1
   for (const auto& p : m.points)
     for (const char* c : {".x", ".y"}) result.quantities.push_back(p.name + c);
   const std::size_t nqty = result.quantities.size();
@@ -82,9 +84,14 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
   std::vector<Eigen::VectorXd> nominal;
   AnalysisOptions analysis;
   analysis.sensitivity = &sensitivity;
+  analysis.warn = options.warn;
   run_analysis(
       model, options.grid,
       [&](const StateRow& row) {
+        // Eigen checks no sizes in a release build: a quantity list that missed a coordinate
+        // would read and write past the rows.
+        if (row.dq_dp.rows() + row.dpoints_dp.rows() != static_cast<Eigen::Index>(nqty))
+          throw std::logic_error("tolerance: the quantities do not match the analysis rows");
         Eigen::MatrixXd d(nqty, names.size());
         d << row.dq_dp, row.dpoints_dp;
         const Eigen::MatrixXd scaled = d * delta.asDiagonal();  // dC/dp delta per parameter

@@ -82,7 +82,7 @@ int run_analyze(const Common& c, const Options& o) {
       options.block_solver = o.solver != "dense";
       if (!o.sensitivity_list.empty()) options.sensitivity = &sensitivity;
       options.forces = forces.get();
-      options.warn = [](const std::string& w) { std::cerr << "warning: " << one_line(w) << "\n"; };
+      options.warn = warning_sink();
       kc::run_analysis(*model, {o.t0, o.t1, o.steps}, sink, options);
     }
   } catch (const kc::AnalysisError& e) {

@@ -51,6 +51,10 @@ void add_common(CLI::App* cmd, Common& c);
 // or progress is off.
 std::function<void(int, int)> terminal_progress(const std::string& what);
 
+// A run's warnings (AnalysisOptions::warn), as the log's `warning:` lines: one line each,
+// silenced by --quiet like every other warning.
+std::function<void(const std::string&)> warning_sink();
+
 // A subcommand registered on the app. main runs `run` after the parse when `*command` is set:
 // inside its try/catch, which turns exceptions into `error:` lines and exit statuses (a CLI11
 // callback would run inside parse(), outside it).

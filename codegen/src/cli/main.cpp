@@ -91,6 +91,10 @@ std::function<void(int, int)> terminal_progress(const std::string& what) {
   };
 }
 
+std::function<void(const std::string&)> warning_sink() {
+  return [](const std::string& w) { kc::Log::global().warning(one_line(w)); };
+}
+
 }  // namespace kinegen::cli
 
 int main(int argc, char** argv) {

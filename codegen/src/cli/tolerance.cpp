@@ -33,6 +33,7 @@ int run_tolerance(const Common& c, const Options& o) {
     if (auto base = model->with_base_parameters(names)) model = std::move(base);
   }
   options.progress = terminal_progress("Monte Carlo");
+  options.warn = warning_sink();
   const auto result = kc::tolerance_analysis(*model, options);
   kc::OutputFile summary("-");
   summary.stream() << kc::tolerance_summary(result, options);

@@ -36,9 +36,13 @@ struct ToleranceOptions {
   std::vector<ParamOverride> overrides;
   // Called after each Monte Carlo sample (done, total).
   std::function<void(int, int)> progress;
+  // Receives the nominal analysis' warnings (AnalysisOptions::warn); the samples' are not
+  // repeated.
+  std::function<void(const std::string&)> warn;
 };
 
-// The quantities are every body's x, y, phi and every point's x, y, in CSV order.
+// The quantities are every body's x, y, phi, every extra coordinate (format 6.1) and every
+// point's x, y, in CSV order.
 struct ToleranceResult {
   std::vector<std::string> quantities;
   std::vector<double> t;                        // rows
