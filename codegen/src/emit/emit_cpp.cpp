@@ -502,7 +502,8 @@ void emit_banner(std::ostringstream& os, const Mechanism& m, const EmitOptions& 
   os << "//\n"
      << "// Planar Cartesian kinematics of mechanism '" << m.name << "': Phi(q, t) = 0 with\n"
      << "// nu = -Phi_t and gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.\n"
-     << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include <limits>\n#include <type_traits>\n#include <utility>\n\n"
+     << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include "
+        "<limits>\n#include <type_traits>\n#include <utility>\n\n"
      << "namespace " << options.name_space << " {\n\n";
 }
 
@@ -522,8 +523,9 @@ void emit_model_tables(std::ostringstream& os, const Mechanism& m, const SymbolT
     if (model.rows[r].component > 0) continue;
     const int n = c->equation_count();
     // c->item is built from validated names and the constraint type only.
-    os << "//   " << (n == 1 ? std::to_string(r) : std::to_string(r) + "-" + std::to_string(r + n - 1))
-       << ": " << c->item << "\n";
+    os << "//   "
+       << (n == 1 ? std::to_string(r) : std::to_string(r) + "-" + std::to_string(r + n - 1)) << ": "
+       << c->item << "\n";
   }
   os << "struct " << m.name << " {\n";
   os << "  static constexpr int nq = " << programs.nq << ";\n";
@@ -546,7 +548,8 @@ void emit_model_tables(std::ostringstream& os, const Mechanism& m, const SymbolT
       kinds.push_back(std::to_string(static_cast<int>(model.coordinate_kinds[k])));
       scales.push_back(format_double(model.coordinate_scales[k]));
     }
-    os << "  // What each coordinate measures (kinegen::CoordinateKind: 0 length, 1 angle, 2 scalar)\n"
+    os << "  // What each coordinate measures (kinegen::CoordinateKind: 0 length, 1 angle, 2 "
+          "scalar)\n"
        << "  // and the size its tolerances scale with (a body's x and y: its joints' geometry).\n"
        << "  static constexpr std::array<int, nq> coordinate_kinds = {" << join(kinds) << "};\n"
        << "  static constexpr std::array<double, nq> coordinate_scales = {" << join(scales)
@@ -593,8 +596,8 @@ void emit_constraint_functions(std::ostringstream& os, const SymbolTable& symbol
   emit_function_rolled_if(os, "phi", "nc", programs.phi, model.phi, row_group, symbols, false,
                           max_ops, roll_min);
   os << "\n  // Phi_q(q, t) at (jac_rows[k], jac_cols[k])\n";
-  emit_function_rolled_if(os, "phi_q", "jac_nnz", programs.phi_q, jac, entry_group, symbols,
-                          false, max_ops, roll_min);
+  emit_function_rolled_if(os, "phi_q", "jac_nnz", programs.phi_q, jac, entry_group, symbols, false,
+                          max_ops, roll_min);
   if (velocity) {
     os << "\n  // nu = -Phi_t\n";
     emit_function_rolled_if(os, "nu", "nc", programs.nu, model.nu, row_group, symbols, false,
@@ -612,8 +615,7 @@ void emit_output_flags(std::ostringstream& os, const EmitOptions& options) {
   const bool velocity = has_velocity(options), acceleration = has_acceleration(options);
   os << "\n  // Which outputs were generated (kinegen generate --outputs).\n";
   os << "  static constexpr bool has_velocity = " << (velocity ? "true" : "false") << ";\n";
-  os << "  static constexpr bool has_acceleration = " << (acceleration ? "true" : "false")
-     << ";\n";
+  os << "  static constexpr bool has_acceleration = " << (acceleration ? "true" : "false") << ";\n";
 }
 
 // The block solver: its structure constants, the block functions printed from the solver plan,
@@ -623,7 +625,8 @@ void emit_block_solver(std::ostringstream& os, const Mechanism& m, const SymbolT
                        const SymbolicModel& model, const ModelPrograms& programs,
                        const Structure& st, const EmitOptions& options) {
   const bool velocity = has_velocity(options), acceleration = has_acceleration(options);
-  os << "\n  // Block solver: Phi(q, t) = 0 in block-lower-triangular order (maximum matching, then\n"
+  os << "\n  // Block solver: Phi(q, t) = 0 in block-lower-triangular order (maximum matching, "
+        "then\n"
      << "  // strongly connected components). Each block reads only its own and earlier blocks'\n"
      << "  // coordinates.\n";
   os << "  static constexpr bool has_block_solver = " << (st.order.perfect ? "true" : "false")
@@ -632,13 +635,15 @@ void emit_block_solver(std::ostringstream& os, const Mechanism& m, const SymbolT
   if (st.order.perfect) {
     os << "  static constexpr int num_explicit_blocks = " << st.explicit_count() << ";\n";
     os << "  static constexpr int max_block_size = " << st.largest_block() << ";\n";
-    os << "  // The largest system a Newton iteration solves (torn blocks: their tear variables).\n";
+    os << "  // The largest system a Newton iteration solves (torn blocks: their tear "
+          "variables).\n";
     os << "  static constexpr int max_newton_size = " << st.largest_newton() << ";\n";
     std::vector<std::string> iterated;
     for (const BlockPlan& plan : st.plans)
       if (plan.kind == BlockKind::kNewton)
         for (int c : plan.torn() ? plan.tears : plan.block.cols) iterated.push_back(idx(c));
-    os << "  // The coordinates Newton iterates; the block solver computes the others from them, so\n"
+    os << "  // The coordinates Newton iterates; the block solver computes the others from them, "
+          "so\n"
        << "  // only these need a good start (a predictor).\n"
        << "  static constexpr int num_newton_coordinates = " << iterated.size() << ";\n"
        << "  static constexpr std::array<int, num_newton_coordinates> newton_coordinates = {"
@@ -686,7 +691,8 @@ void emit_block_solver(std::ostringstream& os, const Mechanism& m, const SymbolT
     code << linear_code;
     emit_kernels(os, code.str());
     if (code.str().find("_trig(") != std::string::npos)
-      os << "  // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then cache.data().\n"
+      os << "  // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then "
+            "cache.data().\n"
          << "  template <class T>\n"
          << "  using TrigCache = BasicTrigCache<T, trig_cache_size>;\n\n";
     os << code.str();
