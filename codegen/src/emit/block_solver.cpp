@@ -289,8 +289,7 @@ class BlockEmitter {
        << "      [[maybe_unused]] signed char* block_signs, const int* _i,\n"
        << "      [[maybe_unused]] const int* _s, [[maybe_unused]] int _b) noexcept {\n"
        << kIn << "using R [[maybe_unused]] = _real<T>;\n";
-    if (const std::string used = std_functions(prog_); !used.empty())
-      os << kIn << "using " << used << ";\n";
+    if (!used_.empty()) os << kIn << "using " << used_ << ";\n";
     FunctionPrinter pr(prog_, symbols_);
     pr.read_through(&local_);
     position_body(os, pr, 0, 1);
@@ -305,8 +304,7 @@ class BlockEmitter {
        << "      [[maybe_unused]] T* trig, const int* _i, [[maybe_unused]] const int* _s,\n"
        << "      [[maybe_unused]] int _b) noexcept {\n"
        << kIn << "using R [[maybe_unused]] = _real<T>;\n";
-    if (const std::string used = std_functions(prog_); !used.empty())
-      os << kIn << "using " << used << ";\n";
+    if (!used_.empty()) os << kIn << "using " << used_ << ";\n";
     FunctionPrinter pr(prog_, symbols_);
     pr.read_through(&local_);
     motion_trig_ = true;
@@ -382,8 +380,7 @@ class BlockEmitter {
        << "  template <class T>\n"
        << "  static BlockReport<_real<T>> " << name << "_part" << k << "(" << params << ") noexcept {\n"
        << kIn << "using R [[maybe_unused]] = _real<T>;\n";
-    if (const std::string used = std_functions(prog_); !used.empty())
-      os << kIn << "using " << used << ";\n";
+    if (!used_.empty()) os << kIn << "using " << used_ << ";\n";
   }
 
   void emit_position_parts(std::ostringstream& os) {
@@ -422,8 +419,7 @@ class BlockEmitter {
 
   void prologue(std::ostringstream& os) {
     os << kIn << "using R = _real<T>;\n";
-    if (const std::string used = std_functions(prog_); !used.empty())
-      os << kIn << "using " << used << ";\n";
+    if (!used_.empty()) os << kIn << "using " << used_ << ";\n";
     os << kOptions << kIn << "BlockReport<R> report;\n";
   }
 
@@ -885,115 +881,133 @@ class BlockEmitter {
          << "  // the values live in _sc, 2 per row.\n";
       emit_table(os, "_torn_trig", torn_trig_);
     }
-    const std::string used = std_functions(prog_);
     for (std::size_t bi = 0; bi < torn_parts_.size(); ++bi) {
       if (!torn_split(bi)) continue;
-      const TornParts& tp = torn_parts_[bi];
-      const BlockPlan& plan = st_.plans[bi];
-      const BlockOuts& bo = blocks_[bi];
-      const int f = pos_first_[bi];
-      const std::string b = idx(static_cast<int>(bi)), in = kIn;
-      const auto row_of = [&](int r) {
-        const auto& rows = plan.block.rows;
-        return std::lower_bound(rows.begin(), rows.end(), r) - rows.begin();
-      };
-      const auto part = [&](const std::string& kind, std::size_t k,
-                            const std::pair<int, int>& range, const std::string& what,
-                            const std::string& params,
-                            const std::function<void(FunctionPrinter&)>& body) {
-        os << "  // Block " << b << ", assigned coordinates " << range.first << " to "
-           << range.second - 1 << ": " << what << ".\n"
-           << "  template <class T>\n"
-           << "  static void _torn" << b << "_" << kind << "_part" << k << "(" << params
-           << ") noexcept {\n";
-        if (!used.empty()) os << in << "using " << used << ";\n";
-        FunctionPrinter pr(prog_, symbols_);
-        body(pr);
-        os << "  }\n";
-      };
-      const std::string common =
-          "[[maybe_unused]] T t, [[maybe_unused]] const Params& p,\n"
-          "      [[maybe_unused]] T* trig, [[maybe_unused]] T* _sc";
-      for (std::size_t k = 0; k < tp.position.size(); ++k) {
-        const auto [a0, a1] = tp.position[k];
-        part("position", k, tp.position[k], "their values, then their sensitivities (_d)",
-             "T* q, " + common +
-                 ",\n      [[maybe_unused]] T* _d, [[maybe_unused]] bool _derivatives",
-             [&, a0 = a0, a1 = a1](FunctionPrinter& pr) {
-               std::vector<int> nodes, updated;
-               for (int a = a0; a < a1; ++a) {
-                 nodes.push_back(out(f + a));
-                 updated.push_back(plan.assigned[a].second);
-                 for (const auto& [rc, o] : row_entries(pos_tjac_[bi], plan.assigned[a].first))
-                   nodes.push_back(out(o));
-               }
-               torn_trig(os, pr, bi, nodes, updated);
-               for (int a = a0; a < a1; ++a) {
-                 pr.ensure(out(f + a), os, in);
-                 update(os, in, tp.rotated, plan.assigned[a].second, pr.text(out(f + a)));
-               }
-               os << in << "if (!_derivatives) return;\n";
-               for (int a = a0; a < a1; ++a)
-                 for (const auto& [rc, o] : row_entries(pos_tjac_[bi], plan.assigned[a].first))
-                   pr.ensure(out(o), os, in);
-               sensitivities(os, pr, bi, pos_tjac_[bi], tp.dependency, in,
-                             sensitivity_array(bi, "_d"), "", a0, a1);
-             });
-      }
-      for (std::size_t k = 0; k < tp.rates.size() && (velocity || acceleration); ++k) {
-        const auto [a0, a1] = tp.rates[k];
-        part("sensitivities", k, tp.rates[k], "their sensitivities to the tears (_D)",
-             "[[maybe_unused]] const T* q, " + common + ", T* _D",
-             [&, a0 = a0, a1 = a1](FunctionPrinter& pr) {
-               std::vector<int> nodes;
-               for (int a = a0; a < a1; ++a)
-                 for (const auto& [rc, o] : row_entries(bo.tjac, plan.assigned[a].first))
-                   nodes.push_back(out(o));
-               torn_trig(os, pr, bi, nodes, {});
-               for (int id : nodes) pr.ensure(id, os, in);
-               sensitivities(os, pr, bi, bo.tjac, tp.dependency, in, sensitivity_array(bi, "_D"),
-                             "", a0, a1);
-             });
-        part("correct", k, tp.rates[k], "x += their sensitivities times the tears' x",
-             "const T* _D, T* x", [&, a0 = a0, a1 = a1](FunctionPrinter&) {
-               correct(os, bi, tp.dependency, sensitivity_array(bi, "_D"), "x", a0, a1);
-             });
-        for (const bool acc : {false, true}) {
-          if (acc ? !acceleration : !velocity) continue;
-          const char* var = acc ? "qdd" : "qd";
-          part(
-              var, k, tp.rates[k], std::string("their ") + var + " with the tears' at zero",
-              std::string(acc ? "[[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,\n      "
-                              : "[[maybe_unused]] const T* q, ") +
-                  common + ", T* " + var,
-              [&, a0 = a0, a1 = a1, acc, var](FunctionPrinter& pr) {
-                const std::vector<int>& rhs = acc ? bo.gamma : bo.nu;
-                std::vector<int> nodes;
-                for (int a = a0; a < a1; ++a) {
-                  const int r = plan.assigned[a].first;
-                  nodes.push_back(out(rhs[row_of(r)]));
-                  for (const auto& [c, o] : bo.coupling[row_of(r)]) nodes.push_back(out(o));
-                  for (const auto& [rc, o] : row_entries(bo.tjac, r)) nodes.push_back(out(o));
-                }
-                torn_trig(os, pr, bi, nodes, {});
-                for (int a = a0; a < a1; ++a) {
-                  const auto [r, c] = plan.assigned[a];
-                  const std::string text = rate_rhs(os, pr, bi, rhs, var, row_of(r));
-                  const std::string s = reduced_rhs(pr, bi, text, r, c, var);
-                  os << in << ref(var, c) << " = "
-                     << divide_negated(pr, s == "T(0)" ? "" : s, bo.tjac.at({r, c}), false)
-                     << ";\n";
-                }
-              });
-        }
-      }
+      for (std::size_t k = 0; k < torn_parts_[bi].position.size(); ++k)
+        emit_torn_position_part(os, bi, k);
+      for (std::size_t k = 0; k < torn_parts_[bi].rates.size() && (velocity || acceleration); ++k)
+        emit_torn_rate_parts(os, bi, k, velocity, acceleration);
     }
     os << "\n public:\n";
   }
 
+  // The parameters every part of a split torn block takes after its first.
+  static constexpr const char* kTornPartParams =
+      "[[maybe_unused]] T t, [[maybe_unused]] const Params& p,\n"
+      "      [[maybe_unused]] T* trig, [[maybe_unused]] T* _sc";
+
+  // One part function of torn block bi: `_torn<b>_<kind>_part<k>(params)`, its body printed by
+  // `body` over the assigned coordinates `range`.
+  void emit_torn_part(std::ostringstream& os, std::size_t bi, const std::string& kind,
+                      std::size_t k, const std::pair<int, int>& range, const std::string& what,
+                      const std::string& params,
+                      const std::function<void(FunctionPrinter&)>& body) {
+    os << "  // Block " << idx(static_cast<int>(bi)) << ", assigned coordinates " << range.first
+       << " to " << range.second - 1 << ": " << what << ".\n"
+       << "  template <class T>\n"
+       << "  static void _torn" << idx(static_cast<int>(bi)) << "_" << kind << "_part" << k << "("
+       << params << ") noexcept {\n";
+    if (!used_.empty()) os << kIn << "using " << used_ << ";\n";
+    FunctionPrinter pr(prog_, symbols_);
+    body(pr);
+    os << "  }\n";
+  }
+
+  // Part k of torn block bi's position: its assigned coordinates' values, then (when asked)
+  // their sensitivities to the tears, for the Newton loop's Schur complement.
+  void emit_torn_position_part(std::ostringstream& os, std::size_t bi, std::size_t k) {
+    const TornParts& tp = torn_parts_[bi];
+    const BlockPlan& plan = st_.plans[bi];
+    const int f = pos_first_[bi];
+    const std::string in = kIn;
+    const auto [a0, a1] = tp.position[k];
+    emit_torn_part(
+        os, bi, "position", k, tp.position[k], "their values, then their sensitivities (_d)",
+        std::string("T* q, ") + kTornPartParams +
+            ",\n      [[maybe_unused]] T* _d, [[maybe_unused]] bool _derivatives",
+        [&, a0 = a0, a1 = a1](FunctionPrinter& pr) {
+          std::vector<int> nodes, updated;
+          for (int a = a0; a < a1; ++a) {
+            nodes.push_back(out(f + a));
+            updated.push_back(plan.assigned[a].second);
+            for (const auto& [rc, o] : row_entries(pos_tjac_[bi], plan.assigned[a].first))
+              nodes.push_back(out(o));
+          }
+          torn_trig(os, pr, bi, nodes, updated);
+          for (int a = a0; a < a1; ++a) {
+            pr.ensure(out(f + a), os, in);
+            update(os, in, tp.rotated, plan.assigned[a].second, pr.text(out(f + a)));
+          }
+          os << in << "if (!_derivatives) return;\n";
+          for (int a = a0; a < a1; ++a)
+            for (const auto& [rc, o] : row_entries(pos_tjac_[bi], plan.assigned[a].first))
+              pr.ensure(out(o), os, in);
+          sensitivities(os, pr, bi, pos_tjac_[bi], tp.dependency, in, sensitivity_array(bi, "_d"),
+                        "", a0, a1);
+        });
+  }
+
+  // Part k of torn block bi's rates: the sensitivities to the tears (_D), the correction
+  // x += _D x_tears, and qd and qdd with the tears' at zero.
+  void emit_torn_rate_parts(std::ostringstream& os, std::size_t bi, std::size_t k, bool velocity,
+                            bool acceleration) {
+    const TornParts& tp = torn_parts_[bi];
+    const BlockPlan& plan = st_.plans[bi];
+    const BlockOuts& bo = blocks_[bi];
+    const std::string in = kIn;
+    const auto row_of = [&](int r) {
+      const auto& rows = plan.block.rows;
+      return std::lower_bound(rows.begin(), rows.end(), r) - rows.begin();
+    };
+    const auto [a0, a1] = tp.rates[k];
+    emit_torn_part(os, bi, "sensitivities", k, tp.rates[k], "their sensitivities to the tears (_D)",
+                   std::string("[[maybe_unused]] const T* q, ") + kTornPartParams + ", T* _D",
+                   [&, a0 = a0, a1 = a1](FunctionPrinter& pr) {
+                     std::vector<int> nodes;
+                     for (int a = a0; a < a1; ++a)
+                       for (const auto& [rc, o] : row_entries(bo.tjac, plan.assigned[a].first))
+                         nodes.push_back(out(o));
+                     torn_trig(os, pr, bi, nodes, {});
+                     for (int id : nodes) pr.ensure(id, os, in);
+                     sensitivities(os, pr, bi, bo.tjac, tp.dependency, in,
+                                   sensitivity_array(bi, "_D"), "", a0, a1);
+                   });
+    emit_torn_part(os, bi, "correct", k, tp.rates[k], "x += their sensitivities times the tears' x",
+                   "const T* _D, T* x", [&, a0 = a0, a1 = a1](FunctionPrinter&) {
+                     correct(os, bi, tp.dependency, sensitivity_array(bi, "_D"), "x", a0, a1);
+                   });
+    for (const bool acc : {false, true}) {
+      if (acc ? !acceleration : !velocity) continue;
+      const char* var = acc ? "qdd" : "qd";
+      emit_torn_part(
+          os, bi, var, k, tp.rates[k], std::string("their ") + var + " with the tears' at zero",
+          std::string(acc ? "[[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,\n      "
+                          : "[[maybe_unused]] const T* q, ") +
+              kTornPartParams + ", T* " + var,
+          [&, a0 = a0, a1 = a1, acc, var](FunctionPrinter& pr) {
+            const std::vector<int>& rhs = acc ? bo.gamma : bo.nu;
+            std::vector<int> nodes;
+            for (int a = a0; a < a1; ++a) {
+              const int r = plan.assigned[a].first;
+              nodes.push_back(out(rhs[row_of(r)]));
+              for (const auto& [c, o] : bo.coupling[row_of(r)]) nodes.push_back(out(o));
+              for (const auto& [rc, o] : row_entries(bo.tjac, r)) nodes.push_back(out(o));
+            }
+            torn_trig(os, pr, bi, nodes, {});
+            for (int a = a0; a < a1; ++a) {
+              const auto [r, c] = plan.assigned[a];
+              const std::string text = rate_rhs(os, pr, bi, rhs, var, row_of(r));
+              const std::string s = reduced_rhs(pr, bi, text, r, c, var);
+              os << in << ref(var, c) << " = "
+                 << divide_negated(pr, s == "T(0)" ? "" : s, bo.tjac.at({r, c}), false) << ";\n";
+            }
+          });
+    }
+  }
+
   // q[c] = value, keeping the rotated sin and cos of q[c] current.
-  void update(std::ostringstream& os, const std::string& in,
-                     const std::vector<int>& rotated, int c, const std::string& value) {
+  void update(std::ostringstream& os, const std::string& in, const std::vector<int>& rotated, int c,
+              const std::string& value) {
     const bool rotate = std::find(rotated.begin(), rotated.end(), c) != rotated.end();
     const std::string q = ref("q", c);
     if (rotate) os << in << "const T _old" << c << " = " << q << ";\n";
@@ -1410,6 +1424,8 @@ class BlockEmitter {
   const Structure& st_ = plan_.structure;
   const std::vector<GiNaC::ex>& outs_ = plan_.program.exprs;  // the outputs before lowering
   const Program& prog_ = plan_.program.program;
+  // The std functions the program calls, for each function's `using std::sin, ...;`.
+  const std::string used_ = std_functions(prog_);
   const std::vector<int>& pos_first_ = plan_.program.position_first;
   const int pos_end_ = plan_.program.position_end;
   const std::vector<std::map<std::pair<int, int>, int>>& pos_tjac_ = plan_.program.torn_jacobian;
