@@ -13,6 +13,7 @@
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/model/table.hpp"
+#include "kinegen/codegen/program/canonical_key.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
 #include "kinegen/kernels/newton.hpp"
 #include "kinegen/solver.hpp"
@@ -75,7 +76,8 @@ namespace {
 
 class TapeBuilder {
  public:
-  TapeBuilder(const HighPrecisionEvaluator& owner, const CompiledModel& model) : owner_(owner) {
+  TapeBuilder(const HighPrecisionEvaluator& owner, const CompiledModel& model)
+      : owner_(owner), keys_(model.symbols()) {
     const SymbolTable& s = model.symbols();
     for (int k = 0; k < s.nq(); ++k) {
       vars_[s.q(k)] = k;
@@ -97,9 +99,27 @@ class TapeBuilder {
       if (it == vars_.end()) throw std::logic_error("a symbol without a value: " + str(e));
       n.op = Op::kVar;
       n.var = it->second;
-    } else if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
-      n.op = GiNaC::is_a<GiNaC::add>(e) ? Op::kAdd : Op::kMul;
-      for (std::size_t k = 0; k < e.nops(); ++k) n.args.push_back(compile(e.op(k), tape));
+    } else if (GiNaC::is_a<GiNaC::add>(e)) {
+      // GiNaC's operand order comes from hashes that mix in addresses, so it varies between
+      // processes, and with it the rounding: sums and products are evaluated in the canonical
+      // order and sign convention of the lowering (program/canonical_key.hpp) instead, so the
+      // reference gives the same digits every run.
+      n.op = Op::kAdd;
+      for (const ex& operand : keys_.canonical_sum(e)) n.args.push_back(compile(operand, tape));
+    } else if (GiNaC::is_a<GiNaC::mul>(e)) {
+      n.op = Op::kMul;
+      const CanonicalKey::Product p = keys_.canonical_product(e);
+      if (p.coefficient != 1 || p.factors.size() < 2)
+        n.args.push_back(compile(p.coefficient, tape));
+      for (const ex& f : p.factors) n.args.push_back(compile(f, tape));
+      if (n.args.size() == 1) return memo_[e] = n.args[0];
+    } else if (keys_.is_flipped_power(e)) {
+      // One process may hold u^2 and another (-u)^2: both become the same form.
+      const CanonicalKey::Factor c = keys_.canonical_factor(e);
+      const int node = compile(c.form, tape);
+      if (!c.negated) return memo_[e] = node;
+      n.op = Op::kMul;
+      n.args = {compile(ex(-1), tape), node};
     } else if (GiNaC::is_a<GiNaC::power>(e)) {
       const ex expo = e.op(1);
       n.args.push_back(compile(e.op(0), tape));
@@ -146,6 +166,7 @@ class TapeBuilder {
     return os.str();
   }
   const HighPrecisionEvaluator& owner_;
+  CanonicalKey keys_;
   std::map<ex, int, GiNaC::ex_is_less> vars_, memo_;
 };
 

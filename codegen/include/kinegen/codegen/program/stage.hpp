@@ -6,8 +6,10 @@
 // end prints or runs these nodes in this order, so all round alike. Next: the structure stage,
 // the emitter and the in-process evaluator. Also gives partition (partition.hpp): the one rule
 // that cuts a sequence of generated code (outputs, blocks, a torn block's assignments) into
-// parts of bounded size, for compile time.
+// parts of bounded size, for compile time, and CanonicalKey (canonical_key.hpp): the order
+// independent of GiNaC's hashes that the lowering and the high-precision reference share.
 #pragma once
 
+#include "kinegen/codegen/program/canonical_key.hpp"
 #include "kinegen/codegen/program/partition.hpp"
 #include "kinegen/codegen/program/program.hpp"
