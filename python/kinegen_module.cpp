@@ -281,11 +281,7 @@ class Mechanism {
   // Every coordinate, the bodies' x, y, phi and then the extra ones (format 6.1), as the
   // CSV's position columns name them.
   std::vector<std::string> coordinates() const {
-    std::vector<std::string> names;
-    for (const auto& b : model_->mechanism().bodies)
-      for (const char* c : {".x", ".y", ".phi"}) names.push_back(b.name + c);
-    for (const auto& c : model_->mechanism().coordinates) names.push_back(c.name);
-    return names;
+    return kc::coordinate_labels(model_->mechanism());
   }
 
   py::dict parameters() const {

@@ -210,6 +210,23 @@ TEST_CASE("animate: usage errors write nothing", "[animate]") {
   CHECK(fs::exists(svg_file));
 }
 
+TEST_CASE("animate: the analysis' warnings, silenced by --quiet", "[animate]") {
+  // One of the double parallelogram's 13 equations is redundant: analyzed with a warning.
+  const fs::path dir = scratch("warnings");
+  const std::string mech =
+      std::string(KINEGEN_SOURCE_DIR) + "/tests/stability/double_parallelogram.yaml";
+  const std::string svg = (dir / "dp.svg").string();
+  const auto r = run_command(
+      {KINEGEN_EXE, "animate", mech, "--t0", "0.2", "--t1", "1", "--steps", "4", "-o", svg});
+  INFO(r.err);
+  CHECK(r.exit_code == 0);
+  CHECK(r.err.find("warning: ") != std::string::npos);
+  const auto q = run_command({KINEGEN_EXE, "animate", mech, "--t0", "0.2", "--t1", "1",
+                              "--steps", "4", "-q", "-o", svg});
+  CHECK(q.exit_code == 0);
+  CHECK(q.err.empty());
+}
+
 namespace {
 
 // The rows of a CSV file as numbers, after its header (returned in `header`).

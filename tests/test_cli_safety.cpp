@@ -370,6 +370,11 @@ TEST_CASE("item 11: costly exact powers and derivative growth are refused at the
     CHECK(r2.exit_code == 2);
     CHECK(r2.err.find("p.yaml:38: joints[2] (expression): expanded") != std::string::npos);
   }
+  // With the parameters folded the equation is (y_rod + c)^40 - c^40: 41 terms, generated.
+  const auto folded = run_to({"generate", mech.string(), "-o", dir.string(), "--fold-params"},
+                             "/dev/null", dir, 20, rlim_t(1) << 30);
+  INFO(folded.err);
+  CHECK(folded.exit_code == 0);
   // Ordinary powers still work.
   write_text(mech, replaced(base, "f: \"omega*t\"", "f: \"omega*t + 0.001*sin(t)^3*2^(1/3)\""));
   CHECK(run_kinegen({"eval", mech.string()}).exit_code == 0);

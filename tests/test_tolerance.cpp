@@ -77,23 +77,33 @@ TEST_CASE("tolerance without Monte Carlo: the figures follow from the sensitivit
 TEST_CASE("tolerance covers the extra coordinates (format 6.1)", "[tolerance]") {
   // The disc cam's roller centre stays on the y axis, so its pitch angle u equals the cam
   // angle t whatever the base radius: du/dRb = 0; the follower rides at y = Rb + r + s(t):
-  // d(follower.y)/dRb = 1. Before u was listed, the figures ran one quantity short and the
-  // Monte Carlo read past its rows (a different garbage number on every run).
-  const auto model =
-      cg::CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) + "/examples/cams/disc_cam.yaml");
+  // d(follower.y)/dRb = 1, and so does a point R on the follower. Before u was listed, the
+  // figures ran one quantity short and the Monte Carlo read past its rows (a different garbage
+  // number on every run).
+  std::ifstream in(std::string(KINEGEN_SOURCE_DIR) + "/examples/cams/disc_cam.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string yaml = text.str();
+  yaml.replace(yaml.find("outputs:"), 8,
+               "points:\n  - {name: R, body: follower, s: [0.002, 0.01]}\noutputs:");
+  const auto model = cg::CompiledModel::from_mechanism(cg::parse_mechanism(yaml, "cam.yaml"));
   cg::ToleranceOptions options;
   options.tolerances = cg::parse_tolerances({"Rb=1e-4"});
   options.grid = {0, 2 * std::acos(-1.0), 12};
   options.monte_carlo = 20;
   options.seed = 3;
   const auto r = cg::tolerance_analysis(*model, options);
-  REQUIRE(r.quantities.size() == 3 * 2 + 1);
-  const std::size_t follower_y = 4, u = 6;
+  REQUIRE(r.quantities.size() == 3 * 2 + 1 + 2);
+  const std::size_t follower_y = 4, u = 6, rx = 7, ry = 8;
   REQUIRE(r.quantities[follower_y] == "follower.y");
   REQUIRE(r.quantities[u] == "u");
+  REQUIRE(r.quantities[rx] == "R.x");
+  REQUIRE(r.quantities[ry] == "R.y");
   for (std::size_t row = 0; row < r.t.size(); ++row) {
     INFO("t = " << r.t[row]);
     CHECK(std::abs(r.worst[row][follower_y] - 1e-4) <= 1e-15);
+    CHECK(std::abs(r.worst[row][ry] - 1e-4) <= 1e-15);
+    CHECK(r.worst[row][rx] <= 1e-15);  // the follower does not turn or move sideways
     CHECK(r.worst[row][u] <= 1e-15);
     CHECK(r.mc_spread[row][u] <= 1e-12);
     CHECK(r.mc_spread[row][follower_y] <= 1e-4 * (1 + 1e-9));

@@ -625,7 +625,8 @@ std::string csv_row(const StateRow& row, int num_bodies) {
   for (const auto& o : row.outputs)
     for (double v : o) s += "," + format_number(v);
   for (double f : row.forces) s += "," + format_number(f);
-  // Sensitivities: per parameter, the bodies' x, y, phi, the points' x, y, the outputs (6.6).
+  // Sensitivities: per parameter, every coordinate (the bodies' x, y, phi, the extra ones),
+  // the points' x, y, the outputs (6.6), as sensitivity_columns names them.
   for (int k = 0; k < row.dq_dp.cols(); ++k) {
     for (int i = 0; i < row.dq_dp.rows(); ++i) s += "," + format_number(row.dq_dp(i, k));
     for (int i = 0; i < row.dpoints_dp.rows(); ++i) s += "," + format_number(row.dpoints_dp(i, k));

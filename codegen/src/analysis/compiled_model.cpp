@@ -93,6 +93,9 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
       for (auto& e : *list) fold(e);
     stage.done("");
   }
+  // The structure stage expands single-equation blocks to find the linear ones: a row whose
+  // expansion would explode is refused here, once, for every command and path.
+  check_expansion_cost(mechanism_, symbolic_);
   {
     ProgressStage stage(options.progress, "lowering to straight-line code");
     programs_ = lower_model(symbolic_, *symbols_, mechanism_.nq());

@@ -95,18 +95,20 @@ void output_sensitivities(const CompiledModel& model, const SensitivityModel& se
       doutputs(o, k) = values[k * n + o] + o_q.row(o).dot(dq_dp.col(k)) + 0.0;  // -0 prints as 0
 }
 
+std::vector<std::string> position_quantities(const Mechanism& m) {
+  std::vector<std::string> quantities = coordinate_labels(m);
+  for (const auto& p : m.points)
+    for (const char* c : {".x", ".y"}) quantities.push_back(p.name + c);
+  return quantities;
+}
+
 std::vector<std::string> sensitivity_columns(const Mechanism& m,
                                              const std::vector<std::string>& names) {
+  std::vector<std::string> quantities = position_quantities(m);
+  for (const auto& o : m.outputs) quantities.push_back(o.name);
   std::vector<std::string> columns;
-  for (const auto& p : names) {
-    const auto add = [&](const std::string& c) { columns.push_back("d(" + c + ")/d(" + p + ")"); };
-    for (const auto& b : m.bodies)
-      for (const char* c : {".x", ".y", ".phi"}) add(b.name + c);
-    for (const auto& q : m.coordinates) add(q.name);
-    for (const auto& pt : m.points)
-      for (const char* c : {".x", ".y"}) add(pt.name + c);
-    for (const auto& o : m.outputs) add(o.name);
-  }
+  for (const auto& p : names)
+    for (const auto& c : quantities) columns.push_back("d(" + c + ")/d(" + p + ")");
   return columns;
 }
 

@@ -74,11 +74,7 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
 
   ToleranceResult result;
   const Mechanism& m = model.mechanism();
-  for (const auto& b : m.bodies)
-    for (const char* c : {".x", ".y", ".phi"}) result.quantities.push_back(b.name + c);
-  for (const auto& c : m.coordinates) result.quantities.push_back(c.name);  // format 6.1
-  for (const auto& p : m.points)
-    for (const char* c : {".x", ".y"}) result.quantities.push_back(p.name + c);
+  result.quantities = position_quantities(m);
   const std::size_t nqty = result.quantities.size();
 
   std::vector<Eigen::VectorXd> nominal;

@@ -23,7 +23,7 @@ struct Options {
 int run_animate(const Common& c, const Options& o) {
   kc::AnimateOptions options = o.animate;
   check_grid(options.grid.t0, options.grid.t1, options.grid.steps);
-  options.warn = [](const std::string& w) { std::cerr << "warning: " << one_line(w) << "\n"; };
+  options.warn = warning_sink();
   if (!std::isfinite(options.duration) || options.duration < 0)
     throw kc::UsageError("--duration must be a finite number of seconds (0: t1 - t0)");
   const auto model = load(c);

@@ -39,6 +39,8 @@ int run_generate(const Common& c, const Options& o) {
   options.max_function_ops = o.max_function_ops;
   options.roll_min = o.roll_min;
   options.name_space = o.name_space;
+  // A name the header cannot carry is refused before the structure is analyzed.
+  kc::check_header_names(model->mechanism());
   const std::string text = kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
                                            model->programs(), model->structure(), options);
   stage.done(std::to_string(text.size() / 1024) + " KiB");

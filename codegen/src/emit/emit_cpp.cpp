@@ -10,6 +10,7 @@
 #include <memory>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/emit/embedded_kernels.hpp"
@@ -274,13 +275,14 @@ class ForceCode {
 
   // generalized_force, solve_forces and force_columns, with applied_force and the private
   // _force_geometry they share.
-  void print(std::ostringstream& os) {
+  void print(std::ostringstream& os) const {
     std::vector<GiNaC::ex> applied;
     for (const auto& e : f_.applied) applied.push_back(fold(e));
-    if (geometry_.empty()) geometry_.push_back(0);  // out[1], so that the function reads `out`
+    std::vector<GiNaC::ex> geometry = geometry_;
+    if (geometry.empty()) geometry.push_back(0);  // out[1], so that the function reads `out`
     const Program applied_program = lower(applied, symbols_);
-    const Program geometry_program = lower(geometry_, symbols_);
-    const std::string ng = idx(std::max<int>(1, static_cast<int>(geometry_.size())));
+    const Program geometry_program = lower(geometry, symbols_);
+    const std::string ng = idx(static_cast<int>(geometry.size()));
     std::vector<std::string> quoted;
     for (const auto& n : names_) quoted.push_back("\"" + n + "\"");
     const int max_ops = options_.max_function_ops;
@@ -661,9 +663,10 @@ void emit_output_flags(std::ostringstream& os, const EmitOptions& options) {
   os << "  static constexpr bool has_acceleration = " << (acceleration ? "true" : "false") << ";\n";
 }
 
-// The block solver: its structure constants, the block functions printed from the solver plan,
-// then the linear solves that reuse its blocks (sensitivities, forces), the kernels that those
-// functions call and nothing else, and the sin/cos cache type.
+// The block solver: its structure constants; then the tables the linear solves read, the kernels
+// that the functions below call and nothing else, the sin/cos cache type, and the functions:
+// the step's factors, the block functions printed from the solver plan, and the linear solves
+// that reuse its blocks (sensitivities, forces).
 void emit_block_solver(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
                        const SymbolicModel& model, const ModelPrograms& programs,
                        const Structure& st, const EmitOptions& options) {
@@ -752,6 +755,17 @@ std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const Sy
     throw UsageError("--namespace: " + why);
   static const Structure kNone;  // no block solver: the section-4 functions alone
   const Structure& st = options.block_solver && programs.nq == programs.nc ? structure : kNone;
+  if (st.order.perfect) {
+    // The caller's Structure must be this model's: its blocks cover every row and coordinate.
+    std::size_t rows = 0, cols = 0;
+    for (const Block& b : st.order.blocks) {
+      rows += b.rows.size();
+      cols += b.cols.size();
+    }
+    if (rows != static_cast<std::size_t>(programs.nc) ||
+        cols != static_cast<std::size_t>(programs.nq) || st.plans.size() != st.order.blocks.size())
+      throw std::logic_error("emit_header: the Structure is not this model's");
+  }
   std::ostringstream os;
   emit_banner(os, m, options);
   emit_model_tables(os, m, symbols, model, programs);

@@ -669,4 +669,12 @@ Mechanism load_mechanism(const std::string& path) {
   return parse_mechanism(text.str(), path);
 }
 
+std::vector<std::string> coordinate_labels(const Mechanism& m) {
+  std::vector<std::string> labels;
+  for (const auto& b : m.bodies)
+    for (const char* c : {".x", ".y", ".phi"}) labels.push_back(b.name + c);
+  for (const auto& c : m.coordinates) labels.push_back(c.name);
+  return labels;
+}
+
 }  // namespace kinegen::codegen

@@ -1153,9 +1153,6 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
       model.rows.push_back({c, static_cast<int>(k)});
     }
   }
-  // The structure stage expands single-equation blocks to find the linear ones; a row whose
-  // expansion would explode is refused here, once, for every command and path.
-  check_expansion_cost(m, model);
   const int nc = static_cast<int>(model.phi.size());
 
   // Every derivative's size is estimated before it is computed (tree_size); one too large, or

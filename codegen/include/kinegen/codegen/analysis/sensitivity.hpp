@@ -51,6 +51,10 @@ void output_sensitivities(const CompiledModel& model, const SensitivityModel& se
                           const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
                           Eigen::MatrixXd& doutputs);
 
+// The positions that sensitivities and tolerances report, in CSV order: coordinate_labels,
+// then each point's `P.x, P.y`.
+std::vector<std::string> position_quantities(const Mechanism& mechanism);
+
 // The CSV column names the sensitivities add, in order: for each parameter, for each body
 // `d(B.x)/d(p)`, `d(B.y)/d(p)`, `d(B.phi)/d(p)`, then for each point `d(P.x)/d(p)`,
 // `d(P.y)/d(p)`, then for each output `d(O)/d(p)`.

@@ -1,7 +1,8 @@
 // The emit stage: the C++ back end.
 //
-// Takes: the Mechanism, SymbolTable, SymbolicModel and ModelPrograms (the stages before it) and
-// EmitOptions; from them the Structure and BlockProgram (structure stage), the force and
+// Takes: the Mechanism, SymbolTable, SymbolicModel and ModelPrograms (the stages before it), the
+// caller's Structure (CompiledModel::structure(); analyzed here only for callers without one)
+// and EmitOptions; from them the SolverPlan and BlockProgram (structure stage), the force and
 // sensitivity expressions (symbolic stage: symbolic/forces.hpp, symbolic/sensitivity.hpp;
 // nothing from the analysis stage). Gives: one self-contained C++ header per mechanism as a
 // std::string (emit_header, spec section 4), carrying the block-solver kernels it calls

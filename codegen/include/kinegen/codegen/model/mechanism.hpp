@@ -176,6 +176,10 @@ Mechanism load_mechanism(const std::string& path);
 // The same from text in memory (`source` names it in messages).
 Mechanism parse_mechanism(const std::string& yaml_text, const std::string& source);
 
+// Every coordinate's name as the CSV's position columns give it, in q's order: each body's
+// `B.x, B.y, B.phi`, then the extra coordinates (format 6.1) by name.
+std::vector<std::string> coordinate_labels(const Mechanism& mechanism);
+
 // Whether `name` may become a C++ identifier in generated code: a C identifier, not a C++
 // keyword, and not a reserved form (leading underscore, or "__" anywhere).
 bool is_valid_identifier(const std::string& name);

@@ -154,7 +154,8 @@ double to_double(const GiNaC::ex& e);
 
 // The structure stage expands equations to find the linear ones (structure.cpp): refuses,
 // naming the constraint, a row whose expansion would have too many terms ((a + b + ... +
-// p9)^40). derive() calls it, so every command refuses such a model alike.
+// p9)^40). CompiledModel calls it on the Phi the structure stage gets (after --fold-params), so
+// every command refuses such a model alike.
 void check_expansion_cost(const Mechanism& mechanism, const SymbolicModel& model);
 
 }  // namespace kinegen::codegen
