@@ -21,8 +21,6 @@
 #include "kinegen/codegen/structure/block_program.hpp"
 #include "kinegen/codegen/structure/solver_plan.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
-#include "kinegen/codegen/symbolic/forces.hpp"
-#include "kinegen/codegen/symbolic/sensitivity.hpp"
 #include "printer.hpp"
 #include "sections.hpp"
 
