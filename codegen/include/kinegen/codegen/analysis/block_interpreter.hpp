@@ -60,6 +60,7 @@ class BlockInterpreter {
 
  private:
   struct Run;
+  struct Step;  // one solve_step's blocks (block_interpreter.cpp)
   const CompiledModel& model_;
   const Structure& st_;
   BlockProgram bp_;
