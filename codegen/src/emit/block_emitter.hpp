@@ -42,7 +42,9 @@ class BlockEmitter {
  public:
   BlockEmitter(const std::vector<CoordinateKind>& kinds, const SymbolTable& symbols,
                const SolverPlan& plan)
-      : plan_(plan), symbols_(symbols), kinds_(kinds), lazy_trig_(!plan.repeated.empty()) {}
+      : plan_(plan), symbols_(symbols), kinds_(kinds), lazy_trig_(!plan.repeated.empty()) {
+    index_sc();
+  }
   int trig_cache_size() const { return 3 * trig_slots_; }
   // The functions of the repeated blocks and their coordinate tables (private members).
   void emit_rolls(std::ostringstream& os, bool velocity, bool acceleration);
@@ -88,11 +90,16 @@ class BlockEmitter {
   // The extra argument of every part when torn blocks are split: the sin and cos of their
   // rotated coordinates (2 per row of _torn_trig), owned by the public function.
   std::string sc_arg(bool declare) const {
-    if (!torn_any_) return "";
+    if (!uses_sc()) return "";
     return declare ? ",\n      [[maybe_unused]] T* _sc" : ", _sc";
   }
-  // The public function's _sc; with fill, their sin and cos at q (no cache: a solve of the rates
-  // alone evaluates them, as the whole function does).
+  // Whether the functions pass _sc: some torn block is split, or the solver is split into
+  // parts (without repeated blocks), whose sin and cos pass between the parts in _sc as the
+  // whole function keeps them in its variables.
+  bool uses_sc() const { return torn_any_ || !split_trig_.empty(); }
+  // The place of each coordinate's sin and cos in _sc (split_trig_, and the split torn
+  // blocks' rows of _torn_trig before them), or -1.
+  void index_sc();
   void declare_sc(std::ostringstream& os, bool fill);
   static std::string motion_name(bool velocity, bool acceleration) {
     return velocity && acceleration ? "solve_velocity_acceleration"
@@ -198,6 +205,12 @@ class BlockEmitter {
   void declare_needed_trig(std::ostringstream& os, FunctionPrinter& pr,
                            const std::vector<int>& outputs);
   // The coordinates whose sin or cos the trees of `nodes` read and that are not yet in scope.
+  // sin and cos of a coordinate another block solved: bound to _sc where they are there
+  // (sc_ready_), else as declare_trig (in a split solver: into _sc, for the parts after).
+  void trig_of(std::ostringstream& os, FunctionPrinter& pr, int c);
+  // In a part of a split solver: the sin and cos in _sc of the coordinates earlier parts
+  // solved that block bi's position reads.
+  void bind_earlier_trig(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi);
   std::set<int> trig_read(FunctionPrinter& pr, const std::vector<int>& nodes) const;
   // In a split torn block's functions: `T& _sinC = _sc[..]` (and _cosC) for its coordinates
   // that `nodes` read or that are `updated`, then sin and cos from the cache of the other
@@ -336,6 +349,14 @@ class BlockEmitter {
   // repeated blocks, whose functions solve coordinates the caller reads.
   bool lazy_trig_ = false;
   std::vector<std::string> divisor_;
+  // A split solver's sin and cos in _sc (uses_sc): per coordinate its index there, or -1;
+  // the rows {coordinate, trig slot} of _split_trig (after the torn blocks' rows); while
+  // parts are emitted, whether a coordinate's values are in _sc already, and which the
+  // position parts leave there.
+  std::vector<int> sc_index_;
+  bool split_sc_ = false;  // a split solver without repeated blocks: sin and cos pass in _sc
+  std::vector<std::vector<int>> split_trig_;
+  std::vector<char> sc_ready_, sc_in_position_;
 };
 
 }  // namespace kinegen::codegen::emit_detail

@@ -24,6 +24,7 @@ void BlockEmitter::position_body(std::ostringstream& os, FunctionPrinter& pr, in
       call_rolled(os, bi, "position", "q, t, p, o, report, trig, block_signs", true);
       continue;
     }
+    bind_earlier_trig(os, pr, bi);
     if (plan.torn()) {
       std::vector<std::string> tears;
       for (int c : plan.tears) tears.push_back("q[" + idx(c) + "]");

@@ -282,12 +282,37 @@ void BlockEmitter::call_rolled(std::ostringstream& os, std::size_t bi, const std
 // The public function's _sc; with fill, their sin and cos at q (no cache: a solve of the rates
 // alone evaluates them, as the whole function does).
 void BlockEmitter::declare_sc(std::ostringstream& os, bool fill) {
-  if (!torn_any_) return;
-  os << kIn << "T _sc[" << std::max<std::size_t>(2, 2 * torn_trig_.size()) << "];\n";
+  if (!uses_sc()) return;
+  os << kIn << "T _sc[" << std::max<std::size_t>(2, 2 * (torn_trig_.size() + split_trig_.size()))
+     << "];\n";
   if (fill && !torn_trig_.empty())
     os << kIn << "for (int _k = 0; _k < " << torn_trig_.size() << "; ++_k)\n"
        << kIn << "  _trig(_sc[2 * _k], _sc[2 * _k + 1], q[_torn_trig[_k][0]], "
        << "static_cast<T*>(nullptr), 0);\n";
+  if (fill && !split_trig_.empty()) {
+    const std::string at =
+        torn_trig_.empty() ? "2 * _k" : idx(2 * static_cast<int>(torn_trig_.size())) + " + 2 * _k";
+    os << kIn << "for (int _k = 0; _k < " << split_trig_.size() << "; ++_k)\n"
+       << kIn << "  _trig(_sc[" << at << "], _sc[" << at << " + 1], q[_split_trig[_k][0]], "
+       << "static_cast<T*>(nullptr), 0);\n";
+  }
+}
+
+void BlockEmitter::index_sc() {
+  const int nq = static_cast<int>(trig_slot_.size());
+  sc_index_.assign(nq, -1);
+  for (std::size_t bi = 0; bi < torn_parts_.size(); ++bi) {
+    const TornParts& tp = torn_parts_[bi];
+    for (std::size_t i = 0; i < tp.rotated.size(); ++i)
+      sc_index_[tp.rotated[i]] = 2 * (tp.trig_first + static_cast<int>(i));
+  }
+  if (ranges_.empty() || !rolls_.empty()) return;
+  split_sc_ = true;
+  for (int c = 0; c < nq; ++c) {
+    if (trig_slot_[c] < 0 || sc_index_[c] >= 0) continue;
+    sc_index_[c] = 2 * static_cast<int>(torn_trig_.size() + split_trig_.size());
+    split_trig_.push_back({c, trig_slot_[c]});
+  }
 }
 
 // The arguments of a motion part: the public function's, then the report.
@@ -332,6 +357,7 @@ void BlockEmitter::part_header(std::ostringstream& os, const std::string& name, 
 
 void BlockEmitter::emit_position_parts(std::ostringstream& os) {
   os << "\n private:\n";
+  sc_ready_.assign(trig_slot_.size(), 0);
   for (std::size_t k = 0; k < ranges_.size(); ++k) {
     part_header(os, "_solve_position", k,
                 "T* q, [[maybe_unused]] T t, [[maybe_unused]] const Params& p,\n"
@@ -343,11 +369,14 @@ void BlockEmitter::emit_position_parts(std::ostringstream& os) {
     position_body(os, pr, ranges_[k].first, ranges_[k].second);
     os << kIn << "return report;\n  }\n";
   }
+  sc_in_position_ = sc_ready_;
   os << "\n public:\n";
 }
 
 void BlockEmitter::emit_motion_parts(std::ostringstream& os, bool velocity, bool acceleration) {
   os << "\n private:\n";
+  // The rates start from what the position left in _sc (the whole function's variables).
+  sc_ready_ = sc_in_position_;
   for (std::size_t k = 0; k < ranges_.size(); ++k) {
     const bool save = parts_save(velocity, acceleration);
     part_header(os, "_" + motion_name(velocity, acceleration), k,

@@ -15,12 +15,18 @@ namespace kinegen::codegen::emit_detail {
 // The private functions of the split torn blocks (split_blocks), called in order from the
 // blocks' Newton loops and rates: each takes a run of the assigned coordinates.
 void BlockEmitter::emit_torn_parts(std::ostringstream& os, bool velocity, bool acceleration) {
-  if (!torn_any_) return;
+  if (!uses_sc()) return;
   os << "\n private:\n";
   if (!torn_trig_.empty()) {
     os << "  // Split torn blocks' coordinates with rotated sin and cos: {q index, trig slot};\n"
        << "  // the values live in _sc, 2 per row.\n";
     emit_table(os, "_torn_trig", torn_trig_);
+  }
+  if (!split_trig_.empty()) {
+    os << "  // The other coordinates with a trig slot, {q index, trig slot}: their sin and cos\n"
+       << "  // pass between the parts in _sc, 2 per row after _torn_trig's, as the whole\n"
+       << "  // function keeps them in its variables.\n";
+    emit_table(os, "_split_trig", split_trig_);
   }
   for (std::size_t bi = 0; bi < torn_parts_.size(); ++bi) {
     if (!torn_split(bi)) continue;
@@ -45,6 +51,9 @@ void BlockEmitter::emit_torn_part(std::ostringstream& os, std::size_t bi, const 
      << params << ") noexcept {\n";
   if (!used_.empty()) os << kIn << "using " << used_ << ";\n";
   FunctionPrinter pr(prog_, symbols_);
+  // Called from the position and from each rate function: only what the position left in
+  // _sc is there for certain.
+  if (split_sc_) sc_ready_ = sc_in_position_;
   body(pr);
   os << "  }\n";
 }

@@ -30,8 +30,15 @@ bool BlockEmitter::declare_trig(std::ostringstream& os, FunctionPrinter& pr, int
   const auto needed = [&](int id) { return id >= 0 && (step_mode_ || in_position_[id]); };
   if (!always && !needed(sin_of_[c]) && !needed(cos_of_[c])) return false;
   const std::string s = "_sin" + idx(c), co = "_cos" + idx(c);
-  os << kIn << "T " << s << ", " << co << ";\n"
-     << kIn << "_trig(" << s << ", " << co << ", " << ref("q", c) << ", trig, "
+  if (sc_index_[c] >= 0 && split_sc_) {
+    // In a split solver: in _sc, for the parts after this one.
+    os << kIn << "[[maybe_unused]] T& " << s << " = _sc[" << sc_index_[c] << "];\n"
+       << kIn << "[[maybe_unused]] T& " << co << " = _sc[" << sc_index_[c] + 1 << "];\n";
+    sc_ready_[c] = 1;
+  } else {
+    os << kIn << "T " << s << ", " << co << ";\n";
+  }
+  os << kIn << "_trig(" << s << ", " << co << ", " << ref("q", c) << ", trig, "
      << (local_.empty() ? idx(trig_slot_[c]) : "_s[" + idx(trig_slot_[c]) + "]") << ");\n";
   if (sin_of_[c] >= 0) pr.bind(sin_of_[c], s);
   if (cos_of_[c] >= 0) pr.bind(cos_of_[c], co);
@@ -58,7 +65,7 @@ void BlockEmitter::declare_needed_trig(std::ostringstream& os, FunctionPrinter& 
                                        const std::vector<int>& outputs) {
   std::vector<int> nodes;
   for (int o : outputs) nodes.push_back(out(o));
-  for (int c : trig_read(pr, nodes)) declare_trig(os, pr, c, true);
+  for (int c : trig_read(pr, nodes)) trig_of(os, pr, c);
 }
 
 // The coordinates whose sin or cos the trees of `nodes` read and that are not yet in scope.
@@ -99,7 +106,7 @@ void BlockEmitter::torn_trig(std::ostringstream& os, FunctionPrinter& pr, std::s
     if (sin_of_[c] >= 0) pr.bind(sin_of_[c], "_sin" + idx(c));
     if (cos_of_[c] >= 0) pr.bind(cos_of_[c], "_cos" + idx(c));
   }
-  for (int c : trig_read(pr, nodes)) declare_trig(os, pr, c, true);
+  for (int c : trig_read(pr, nodes)) trig_of(os, pr, c);
 }
 
 // A split torn block's own code (its Newton loop, or its rates): sin and cos (in the
@@ -113,11 +120,40 @@ void BlockEmitter::torn_host_trig(std::ostringstream& os, FunctionPrinter& pr, s
        << tp.trig_first + static_cast<int>(tp.rotated.size()) << "; ++_k)\n"
        << kIn << "  _trig(_sc[2 * _k], _sc[2 * _k + 1], q[_torn_trig[_k][0]], trig, "
        << "_torn_trig[_k][1]);\n";
+  if (position && !sc_ready_.empty())
+    for (int c : tp.rotated) sc_ready_[c] = 1;
   const std::vector<int> host = torn_host_outputs(bi, position, !position);
   torn_trig(os, pr, bi, host, st_.plans[bi].tears);
   if (position)
     for (int id : host)
       pr.ensure(id, os, kIn, [&](int n) { return level_[n] < static_cast<int>(bi); });
+}
+
+void BlockEmitter::trig_of(std::ostringstream& os, FunctionPrinter& pr, int c) {
+  if (sc_index_[c] < 0 || !split_sc_ || !sc_ready_[c]) {
+    declare_trig(os, pr, c, true);
+    return;
+  }
+  const std::string s = "_sin" + idx(c), co = "_cos" + idx(c);
+  os << kIn << "[[maybe_unused]] T& " << s << " = _sc[" << sc_index_[c] << "];\n"
+     << kIn << "[[maybe_unused]] T& " << co << " = _sc[" << sc_index_[c] + 1 << "];\n";
+  if (sin_of_[c] >= 0) pr.bind(sin_of_[c], s);
+  if (cos_of_[c] >= 0) pr.bind(cos_of_[c], co);
+}
+
+void BlockEmitter::bind_earlier_trig(std::ostringstream& os, FunctionPrinter& pr, std::size_t bi) {
+  if (!split_sc_) return;
+  const Block& b = st_.plans[bi].block;
+  const int f = pos_first_[bi];
+  const int end = bi + 1 < st_.plans.size() ? pos_first_[bi + 1] : pos_end_;
+  std::vector<int> nodes;
+  for (int o = f; o < end; ++o) nodes.push_back(out(o));
+  for (const auto& [rc, o] : pos_tjac_[bi]) nodes.push_back(out(o));
+  for (const auto& row : blocks_[bi].coupling)
+    for (const auto& [col, o] : row) nodes.push_back(out(o));
+  for (int o : blocks_[bi].jbb) nodes.push_back(out(o));
+  for (int c : trig_read(pr, nodes))
+    if (sc_ready_[c] && !std::binary_search(b.cols.begin(), b.cols.end(), c)) trig_of(os, pr, c);
 }
 
 }  // namespace kinegen::codegen::emit_detail
