@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 #include <limits>
 #include <memory>
 #include <kinegen/block_solver.hpp>
@@ -18,6 +20,8 @@
 #include "cam_flat.hpp"
 #include "cam_roller.hpp"
 #include "closed_chain_4.hpp"
+#include "closed_chain_4_split.hpp"
+#include "closed_chain_masses_split.hpp"
 #include "crank_gravity.hpp"
 #include "disc_cam.hpp"
 #include "drag_link.hpp"
@@ -25,8 +29,10 @@
 #include "far_point.hpp"
 #include "four_bar.hpp"
 #include "four_bar_balanced.hpp"
+#include "fourbar_chain_3_split.hpp"
 #include "gear_pair.hpp"
 #include "guarded_slider.hpp"
+#include "guarded_slider_split.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/block_interpreter.hpp"
 #include "kinegen/codegen/analysis/compiled_model.hpp"
@@ -36,6 +42,7 @@
 #include "press.hpp"
 #include "quick_return.hpp"
 #include "scissor_lift_3.hpp"
+#include "scissor_lift_3_split.hpp"
 #include "slider_crank.hpp"
 #include "slider_crank_lecture.hpp"
 #include "slider_driven.hpp"
@@ -313,4 +320,43 @@ TEST_CASE("the same reports, failed steps included: status, block, iterations, r
                                                     {0.0, std::nan(""), 0.1});
     CHECK(s == std::vector<int>{kOk, kNonFinite, kOk});
   }
+}
+
+namespace {
+
+// Whether the generated header <name>.hpp of the split test headers (tests/CMakeLists.txt,
+// --max-function-ops 8) really has its block solver in parts.
+bool split_solver(const std::string& name) {
+  std::ifstream in(std::string(KINEGEN_SPLIT_DIR) + "/" + name + ".hpp");
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str().find("_solve_position_part1(") != std::string::npos &&
+         text.str().find("_solve_velocity_acceleration_part1(") != std::string::npos;
+}
+
+}  // namespace
+
+// Headers split into parts (kinegen generate --max-function-ops 8) pass the sin and cos of
+// every solved coordinate from part to part in _sc, as the whole function keeps them in its
+// variables: they give analyze's bits too (Newton chains, torn and guarded blocks, forces).
+TEST_CASE("split headers give the same bits as analyze", "[same_answers][split]") {
+  namespace km = kinegen::models;
+  for (const char* name : {"fourbar_chain_3_split", "scissor_lift_3_split", "closed_chain_4_split",
+                           "guarded_slider_split", "closed_chain_masses_split"}) {
+    INFO(name);
+    CHECK(split_solver(name));
+  }
+  const TimeGrid turn{0, kTurn, 200};
+  check_same<km::fourbar_chain_3_split>("tests/mechanisms/fourbar_chain_3.yaml", turn);
+  check_same<km::scissor_lift_3_split>("tests/mechanisms/scissor_lift_3.yaml", {0, 1, 100});
+  check_same<km::closed_chain_4_split>("tests/mechanisms/closed_chain_4.yaml", turn);
+  check_same<km::guarded_slider_split>("tests/mechanisms/guarded_slider.yaml", {0, 1, 100});
+  check_same<km::closed_chain_masses_split>("tests/mechanisms/closed_chain_masses.yaml", turn);
+  // Whole reports too, with the cache and the blocks' signs kept from step to step.
+  const auto chain = load("tests/mechanisms/fourbar_chain_3.yaml");
+  CHECK(check_same_reports<km::fourbar_chain_3_split>(*chain, {}, grid_times(0, kTurn, 120)) ==
+        std::vector<int>(121, 0));
+  const auto torn = load("tests/mechanisms/closed_chain_4.yaml");
+  CHECK(check_same_reports<km::closed_chain_4_split>(*torn, {}, grid_times(0, kTurn, 120)) ==
+        std::vector<int>(121, 0));
 }

@@ -67,7 +67,7 @@ struct BlockInterpreter::Run {
   std::vector<double> values;
   std::vector<char> valid;
   std::vector<int> stack;
-  std::vector<int> trig_coordinate;  // per node: the coordinate whose sin / cos it is, or -1
+  std::vector<int> trig_coordinate;        // per node: the coordinate whose sin / cos it is, or -1
   std::vector<std::vector<int>> at_level;  // per block: the nodes of that level
   std::vector<double> s, c;                // per coordinate: the bound sin and cos
   std::vector<char> rotated;               // per coordinate: its sin and cos are rotated
@@ -142,8 +142,8 @@ struct BlockInterpreter::Run {
             ready = false;
           }
         if (!ready) continue;
-        values[k] = ProgramEvaluator<double>::node_value(prog.nodes, k, values.data(), q, qd, t,
-                                                         params);
+        values[k] =
+            ProgramEvaluator<double>::node_value(prog.nodes, k, values.data(), q, qd, t, params);
       }
       valid[k] = 1;
       stack.pop_back();
@@ -202,7 +202,8 @@ struct BlockInterpreter::Run {
     };
     for (std::size_t j = 0; j < m; ++j)
       for (const auto& [row, col] : plan.assigned)
-        if (dep.at(col)[j]) dd[j][col] = divide_negated(row_sum(row, col, j), entries.at({row, col}), true);
+        if (dep.at(col)[j])
+          dd[j][col] = divide_negated(row_sum(row, col, j), entries.at({row, col}), true);
     a.clear();
     for (int row : plan.residuals)
       for (std::size_t j = 0; j < m; ++j) a.push_back(row_sum(row, -1, j).value());
@@ -321,194 +322,208 @@ void BlockInterpreter::reset() {
   signs_.assign(st_.plans.size(), 0);
 }
 
-BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, double* qd,
-                                                      double* qdd, const Options& o) {
-  Run& r = *run_;
-  std::fill(r.valid.begin(), r.valid.end(), 0);
-  std::fill(r.rotated.begin(), r.rotated.end(), 0);
-  r.q = q;
-  r.qd = qd;
-  r.t = t;
-  r.params = model_.params().data();
-  const int nq = model_.nq();
-  const auto& scales = model_.symbolic().coordinate_scales;
-  const auto& kinds = model_.symbolic().coordinate_kinds;
-  const auto length = [&](int col) { return kinds[col] != CoordinateKind::kAngle; };
+// One solve_step: the position blocks (position_body in step mode: every cached sin and cos
+// is bound), then the blocks' factors for the rates (motion_body), as the header's statements.
+// A function returning false has put the failure in `report`.
+struct BlockInterpreter::Step {
+  Step(BlockInterpreter& in, double* q, const Options& o)
+      : in(in),
+        r(*in.run_),
+        q(q),
+        o(o),
+        scales(in.model_.symbolic().coordinate_scales),
+        kinds(in.model_.symbolic().coordinate_kinds) {}
+
+  bool length(int col) const { return kinds[col] != CoordinateKind::kAngle; }
   // |x| in the coordinate's units: `_mag(x) * R(1 / coordinate_scales[c])`, or radians.
-  const auto scaled = [&](double x, int col) {
+  double scaled(double x, int col) const {
     return length(col) ? std::abs(x) * (1 / scales[col]) : std::abs(x);
-  };
+  }
   // |output o| as an entry of Phi_q's column col, scaled: `_mag(x) * R(coordinate_scales[c])`.
-  const auto scaled_entry = [&](int col, int o) {
-    return length(col) ? std::abs(r.out(o)) * scales[col] : std::abs(r.out(o));
-  };
-  Report report;
-  const auto fail = [&](int status, int block, int iterations = 0) {
-    return K::_fail(report, status, block, iterations);
-  };
+  double scaled_entry(int col, int output) {
+    return length(col) ? std::abs(r.out(output)) * scales[col] : std::abs(r.out(output));
+  }
+  bool fail(int status, int block, int iterations = 0) {
+    report = K::_fail(report, status, block, iterations);
+    return false;
+  }
   // _trig: the coordinate's sin and cos from the cache (declare_trig).
-  const auto bind_trig = [&](int col) {
-    const int slot = bp_.trig_slot[col];
+  bool bind_trig(int col) {
+    const int slot = in.bp_.trig_slot[col];
     if (slot < 0) return false;
-    K::_trig(r.s[col], r.c[col], q[col], trig_.data(), slot);
+    K::_trig(r.s[col], r.c[col], q[col], in.trig_.data(), slot);
     return true;
-  };
+  }
   // update: q[c] = value, rotating its sin and cos.
-  const auto update = [&](int col, double v) {
+  void update(int col, double v) {
     const double old = q[col];
     q[col] = v;
     if (r.rotated[col]) K::_rotate(r.s[col], r.c[col], q[col] - old, q[col]);
-  };
+  }
 
-  phase_ = Phase::kPosition;
-  // ---- Position (position_body in step mode: every cached sin and cos is bound).
-  for (std::size_t bi = 0; bi < st_.plans.size(); ++bi) {
-    const BlockPlan& plan = st_.plans[bi];
+  // Block bi's position.
+  bool position(std::size_t bi) {
+    const BlockPlan& plan = in.st_.plans[bi];
     const Block& b = plan.block;
-    const int f = bp_.position_first[bi];
-    const int block = static_cast<int>(bi);
+    const int f = in.bp_.position_first[bi];
     if (plan.kind == BlockKind::kExplicit) {
       q[b.cols[0]] = r.out(f);
       bind_trig(b.cols[0]);
-      continue;
+      return true;
     }
-    if (plan.kind == BlockKind::kExplicitGuarded) {
-      const double coefficient = r.out(f);
-      if (!(std::abs(coefficient) > 0))
-        return fail(std::abs(coefficient) == 0 ? 2 : 3, block);
-      q[b.cols[0]] = -(r.out(f + 1)) / coefficient;
-      bind_trig(b.cols[0]);
-      // guarded_condition: the coefficient against its row's couplings, at the solved q.
-      const BlockRates& bo = bp_.rates[bi];
-      const int col = b.cols[0];
-      bool coupled = false;
-      for (const auto& [c, o] : bo.coupling[0]) coupled |= r.node_of(o) != nullptr;
-      if (coupled && r.node_of(bo.jbb[0])) {
-        const double own = scaled_entry(col, bo.jbb[0]);
-        double m = own;
-        for (const auto& [c, o] : bo.coupling[0])
-          if (r.node_of(o)) m = std::max(m, scaled_entry(c, o));
-        const double rc = own / m;
-        if (!(rc > o.min_rcond)) return fail(2, block);
-        report.rcond = std::min(report.rcond, rc);
-      }
-      continue;
-    }
+    if (plan.kind == BlockKind::kExplicitGuarded) return guarded(bi);
     for (int col : b.cols)
       if (bind_trig(col)) r.rotated[col] = 1;
-    const std::vector<int>& cols = plan.torn() ? plan.tears : b.cols;
-    const int m = static_cast<int>(cols.size());
-    const bool ok = with_size(m, [&](auto size) {
-      constexpr int M = decltype(size)::value;
-      double rmax[M], cs[M];
-      for (int i = 0; i < M; ++i) cs[i] = length(cols[i]) ? scales[cols[i]] : 1.0;
-      double qs_end = 0, rc = 1, step_end = 0, prev = 0;
-      int n_end = 0, sign = 1, linear_steps = 0;
-      bool conv = false, stop = false;
-      const int n_assigned = static_cast<int>(plan.assigned.size());
-      const int first_residual = f + n_assigned;
-      for (int iter = 1;; ++iter) {
-        r.invalidate_level(bi);
-        if (plan.torn()) {
-          for (int j = 0; j < n_assigned; ++j) update(plan.assigned[j].second, r.out(f + j));
-          if (stop) break;
-        }
-        double res[M], jac[M * M];
-        for (int i = 0; i < M; ++i) res[i] = r.out(first_residual + i);
-        if (plan.torn()) {
-          r.torn_schur(bi, bp_.torn_jacobian[bi], r.d[bi], r.schur);
-          for (int i = 0; i < M * M; ++i) jac[i] = r.schur[i];
-        } else {
-          for (int i = 0; i < M * M; ++i) jac[i] = r.out(f + M + i);
-        }
-        // newton_solve
-        int piv[M];
-        if constexpr (M == 1) {
-          const double a = jac[0];
-          if (!(std::abs(a) > 0)) {
-            report = fail(std::abs(a) == 0 ? 2 : 3, block, iter);
-            return false;
-          }
-          rmax[0] = std::abs(a) * cs[0];
-          res[0] /= a;
-        } else {
-          K::_row_max<M>(jac, cs, rmax);
-          const double ratio = K::_lu_factor<M>(jac, piv);
-          if (!(ratio > o.singular_pivot_ratio)) {
-            report = fail(ratio == ratio ? 2 : 3, block, iter);
-            return false;
-          }
-          K::_lu_solve<M>(jac, piv, res);
-        }
-        double step = 0, qs = 0;
-        bool small = true;
-        for (int i = 0; i < M; ++i) {
-          const int col = cols[i];
-          update(col, q[col] - res[i]);
-          step = std::max(step, scaled(res[i], col));
-          qs += scaled(q[col], col);
-          small &= K::_step_converged(scaled(res[i], col), scaled(q[col], col), o.tolerance);
-        }
-        if (!K::_finite(step)) {
-          report = fail(3, block, iter);
-          return false;
-        }
-        linear_steps += K::_linear_step(step, prev);  // linear_count
-        prev = step;
-        conv = small;
-        if ((o.fixed_iterations > 0 ? iter >= o.fixed_iterations : small) ||
-            iter >= o.max_iterations) {
-          n_end = iter;
-          qs_end = qs;
-          if constexpr (M == 1) {
-            sign = jac[0] < 0 ? -1 : 1;
-          } else {
-            rc = K::_lu_rcond<M>(jac, piv, rmax, cs);
-            sign = K::_lu_det_sign<M>(jac, piv);
-          }
-          step_end = step;
-          if (!plan.torn()) break;
-          stop = true;  // a torn block assigns from the final tears first
-        }
-      }
-      // newton_finish: the residual rows at the final q.
-      r.invalidate_level(bi);
-      double rr[M];
-      for (int i = 0; i < M; ++i) rr[i] = std::abs(r.out(first_residual + i));
-      const double residual = K::_scaled_max<M>(rr, rmax);
-      // The condition within all of Phi_q (newton_finish, _coupled_rcond).
-      const BlockRates& bo = bp_.rates[bi];
-      const std::vector<int>& own = plan.torn() ? plan.residuals : b.rows;
-      bool coupled = false;
-      double cm[M];
-      for (int i = 0; i < M; ++i) {
-        const auto& coupling =
-            bo.coupling[std::lower_bound(b.rows.begin(), b.rows.end(), own[i]) - b.rows.begin()];
-        cm[i] = rmax[i];
-        for_row(bp_.torn_jacobian[bi], own[i], [&](int col, int o) {
-          if (!r.node_of(o)) return;
-          cm[i] = std::max(cm[i], scaled_entry(col, o));
-          coupled = true;
-        });
-        for (const auto& [col, o] : coupling) {
-          if (!r.node_of(o)) continue;
-          cm[i] = std::max(cm[i], scaled_entry(col, o));
-          coupled = true;
-        }
-      }
-      if (coupled) rc = K::_coupled_rcond<M>(rc, rmax, cm);
-      return K::_newton_end(report, block, n_end, conv, o, step_end, linear_steps, residual, qs_end,
-                            rc, sign, signs_.data());
-    });
-    if (!ok) return report;
+    const int m = static_cast<int>((plan.torn() ? plan.tears : b.cols).size());
+    return with_size(m, [&](auto size) { return newton<decltype(size)::value>(bi); });
   }
-  if (!all_finite(q, nq)) return fail(3, -1);
 
-  phase_ = Phase::kVelocity;
-  // ---- Velocity and acceleration (motion_body, the trig cache's values still bound).
-  for (std::size_t bi = 0; bi < st_.plans.size(); ++bi) {
-    const BlockPlan& plan = st_.plans[bi];
-    const BlockRates& bo = bp_.rates[bi];
+  // A guarded block: q = -b / c, then guarded_condition: the coefficient against its row's
+  // couplings, at the solved q.
+  bool guarded(std::size_t bi) {
+    const Block& b = in.st_.plans[bi].block;
+    const int f = in.bp_.position_first[bi];
+    const int block = static_cast<int>(bi);
+    const double coefficient = r.out(f);
+    if (!(std::abs(coefficient) > 0)) return fail(std::abs(coefficient) == 0 ? 2 : 3, block);
+    q[b.cols[0]] = -(r.out(f + 1)) / coefficient;
+    bind_trig(b.cols[0]);
+    const BlockRates& bo = in.bp_.rates[bi];
+    const int col = b.cols[0];
+    bool coupled = false;
+    for (const auto& [c, out] : bo.coupling[0]) coupled |= r.node_of(out) != nullptr;
+    if (coupled && r.node_of(bo.jbb[0])) {
+      const double own = scaled_entry(col, bo.jbb[0]);
+      double m = own;
+      for (const auto& [c, out] : bo.coupling[0])
+        if (r.node_of(out)) m = std::max(m, scaled_entry(c, out));
+      const double rc = own / m;
+      if (!(rc > o.min_rcond)) return fail(2, block);
+      report.rcond = std::min(report.rcond, rc);
+    }
+    return true;
+  }
+
+  // What a Newton loop leaves for newton_finish.
+  template <int M>
+  struct NewtonEnd {
+    double rmax[M], qs = 0, rc = 1, step = 0;
+    int n = 0, sign = 1, linear_steps = 0;
+    bool conv = false;
+  };
+
+  // A Newton (or torn) block of M unknowns: the loop, then newton_finish.
+  template <int M>
+  bool newton(std::size_t bi) {
+    const BlockPlan& plan = in.st_.plans[bi];
+    const std::vector<int>& cols = plan.torn() ? plan.tears : plan.block.cols;
+    const int f = in.bp_.position_first[bi];
+    const int block = static_cast<int>(bi);
+    NewtonEnd<M> end;
+    double cs[M];
+    for (int i = 0; i < M; ++i) cs[i] = length(cols[i]) ? scales[cols[i]] : 1.0;
+    double prev = 0;
+    bool stop = false;
+    const int n_assigned = static_cast<int>(plan.assigned.size());
+    const int first_residual = f + n_assigned;
+    for (int iter = 1;; ++iter) {
+      r.invalidate_level(bi);
+      if (plan.torn()) {
+        for (int j = 0; j < n_assigned; ++j) update(plan.assigned[j].second, r.out(f + j));
+        if (stop) break;
+      }
+      double res[M], jac[M * M];
+      for (int i = 0; i < M; ++i) res[i] = r.out(first_residual + i);
+      if (plan.torn()) {
+        r.torn_schur(bi, in.bp_.torn_jacobian[bi], r.d[bi], r.schur);
+        for (int i = 0; i < M * M; ++i) jac[i] = r.schur[i];
+      } else {
+        for (int i = 0; i < M * M; ++i) jac[i] = r.out(f + M + i);
+      }
+      // newton_solve
+      int piv[M];
+      if constexpr (M == 1) {
+        const double a = jac[0];
+        if (!(std::abs(a) > 0)) return fail(std::abs(a) == 0 ? 2 : 3, block, iter);
+        end.rmax[0] = std::abs(a) * cs[0];
+        res[0] /= a;
+      } else {
+        K::_row_max<M>(jac, cs, end.rmax);
+        const double ratio = K::_lu_factor<M>(jac, piv);
+        if (!(ratio > o.singular_pivot_ratio)) return fail(ratio == ratio ? 2 : 3, block, iter);
+        K::_lu_solve<M>(jac, piv, res);
+      }
+      double step = 0, qs = 0;
+      bool small = true;
+      for (int i = 0; i < M; ++i) {
+        const int col = cols[i];
+        update(col, q[col] - res[i]);
+        step = std::max(step, scaled(res[i], col));
+        qs += scaled(q[col], col);
+        small &= K::_step_converged(scaled(res[i], col), scaled(q[col], col), o.tolerance);
+      }
+      if (!K::_finite(step)) return fail(3, block, iter);
+      end.linear_steps += K::_linear_step(step, prev);  // linear_count
+      prev = step;
+      end.conv = small;
+      if ((o.fixed_iterations > 0 ? iter >= o.fixed_iterations : small) ||
+          iter >= o.max_iterations) {
+        end.n = iter;
+        end.qs = qs;
+        if constexpr (M == 1) {
+          end.sign = jac[0] < 0 ? -1 : 1;
+        } else {
+          end.rc = K::_lu_rcond<M>(jac, piv, end.rmax, cs);
+          end.sign = K::_lu_det_sign<M>(jac, piv);
+        }
+        end.step = step;
+        if (!plan.torn()) break;
+        stop = true;  // a torn block assigns from the final tears first
+      }
+    }
+    return newton_finish<M>(bi, end);
+  }
+
+  // newton_finish: the residual rows at the final q, the condition within all of Phi_q
+  // (_coupled_rcond) and the verdict (_newton_end).
+  template <int M>
+  bool newton_finish(std::size_t bi, NewtonEnd<M>& end) {
+    const BlockPlan& plan = in.st_.plans[bi];
+    const Block& b = plan.block;
+    const int first_residual = in.bp_.position_first[bi] + static_cast<int>(plan.assigned.size());
+    r.invalidate_level(bi);
+    double rr[M];
+    for (int i = 0; i < M; ++i) rr[i] = std::abs(r.out(first_residual + i));
+    const double residual = K::_scaled_max<M>(rr, end.rmax);
+    const BlockRates& bo = in.bp_.rates[bi];
+    const std::vector<int>& own = plan.torn() ? plan.residuals : b.rows;
+    bool coupled = false;
+    double cm[M];
+    for (int i = 0; i < M; ++i) {
+      const auto& coupling =
+          bo.coupling[std::lower_bound(b.rows.begin(), b.rows.end(), own[i]) - b.rows.begin()];
+      cm[i] = end.rmax[i];
+      for_row(in.bp_.torn_jacobian[bi], own[i], [&](int col, int out) {
+        if (!r.node_of(out)) return;
+        cm[i] = std::max(cm[i], scaled_entry(col, out));
+        coupled = true;
+      });
+      for (const auto& [col, out] : coupling) {
+        if (!r.node_of(out)) continue;
+        cm[i] = std::max(cm[i], scaled_entry(col, out));
+        coupled = true;
+      }
+    }
+    if (coupled) end.rc = K::_coupled_rcond<M>(end.rc, end.rmax, cm);
+    return K::_newton_end(report, static_cast<int>(bi), end.n, end.conv, o, end.step,
+                          end.linear_steps, residual, end.qs, end.rc, end.sign, in.signs_.data());
+  }
+
+  // Block bi's factors for the rates (a 1 x 1 block's divisor, an LU, a torn block's Schur
+  // complement), then its velocity.
+  bool rates(std::size_t bi, double* qd) {
+    const BlockPlan& plan = in.st_.plans[bi];
+    const BlockRates& bo = in.bp_.rates[bi];
     const int k = static_cast<int>(plan.block.rows.size());
     const int block = static_cast<int>(bi);
     std::vector<double>& a = r.a[bi];
@@ -522,7 +537,7 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
       if (n->kind != OpKind::kConst && !(std::abs(a[0]) > 0))
         return fail(std::abs(a[0]) == 0 ? 2 : 3, block);
       r.rates(bi, qd, true);
-      continue;
+      return true;
     } else {
       a.resize(k * k);
       for (int i = 0; i < k * k; ++i) a[i] = r.out(bo.jbb[i]);
@@ -533,17 +548,47 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
       r.divide[bi] = 1;
       if (!(std::abs(a[0]) > 0)) return fail(std::abs(a[0]) == 0 ? 2 : 3, block);
     } else {
-      const double ratio =
-          with_size(m, [&](auto size) { return K::_lu_factor<decltype(size)::value>(a.data(), piv.data()); });
+      const double ratio = with_size(
+          m, [&](auto size) { return K::_lu_factor<decltype(size)::value>(a.data(), piv.data()); });
       if (!(ratio > o.singular_pivot_ratio)) return fail(ratio == ratio ? 2 : 3, block);
     }
     r.rates(bi, qd, true);
+    return true;
   }
-  if (!all_finite(qd, nq)) return fail(3, -1);
+
+  BlockInterpreter& in;
+  Run& r;
+  double* q;
+  const Options& o;
+  const std::vector<double>& scales;
+  const std::vector<CoordinateKind>& kinds;
+  Report report;
+};
+
+BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, double* qd, double* qdd,
+                                                      const Options& o) {
+  Run& r = *run_;
+  std::fill(r.valid.begin(), r.valid.end(), 0);
+  std::fill(r.rotated.begin(), r.rotated.end(), 0);
+  r.q = q;
+  r.qd = qd;
+  r.t = t;
+  r.params = model_.params().data();
+  const int nq = model_.nq();
+  Step step(*this, q, o);
+  phase_ = Phase::kPosition;
+  for (std::size_t bi = 0; bi < st_.plans.size(); ++bi)
+    if (!step.position(bi)) return step.report;
+  if (!all_finite(q, nq)) return K::_fail(step.report, 3, -1);
+  phase_ = Phase::kVelocity;
+  // Velocity and acceleration (motion_body, the trig cache's values still bound).
+  for (std::size_t bi = 0; bi < st_.plans.size(); ++bi)
+    if (!step.rates(bi, qd)) return step.report;
+  if (!all_finite(qd, nq)) return K::_fail(step.report, 3, -1);
   phase_ = Phase::kAcceleration;
   for (std::size_t bi = 0; bi < st_.plans.size(); ++bi) r.rates(bi, qdd, false);
-  if (!all_finite(qdd, nq)) return fail(3, -1);
-  return report;
+  if (!all_finite(qdd, nq)) return K::_fail(step.report, 3, -1);
+  return step.report;
 }
 
 }  // namespace kinegen::codegen

@@ -62,43 +62,20 @@ struct Sample {
   double t;
 };
 
-}  // namespace
-
-std::vector<CheckRow> check_derivatives(const CompiledModel& model, const CheckOptions& options) {
-  if (options.samples < 1) throw UsageError("--samples must be at least 1");
-  if (!std::isfinite(options.turns) || !std::isfinite(options.t))
-    throw UsageError("--turns and --t must be finite");
-  if (options.digits < kMinReferenceDigits || options.digits > kMaxReferenceDigits)
-    throw UsageError("--digits must be between " + std::to_string(kMinReferenceDigits) + " and " +
-                     std::to_string(kMaxReferenceDigits));
-  const int nq = model.nq(), nc = model.nc();
-  const int nnz = static_cast<int>(model.programs().jac_rows.size());
+// Near q0: lengths by a tenth of the mechanism's size, angles by up to half a radian, then
+// every angle turned `turns` times; qd of the coordinates' sizes per unit time. `growth`: the
+// largest max(s_k, |q_k|) / s_k (and |t|) over them, for the bounds.
+std::vector<Sample> draw_samples(const CompiledModel& model, const CheckOptions& options,
+                                 double& growth) {
+  const int nq = model.nq();
   const auto& sym = model.symbolic();
   const auto size_of = [&](int k) { return sym.coordinate_scales[k]; };
   const auto is_angle = [&](int k) { return sym.coordinate_kinds[k] == CoordinateKind::kAngle; };
-  ModelEvaluator<double> real(model);
-  ModelEvaluator<Complex> cplx(model);
-  HighPrecisionEvaluator exact(model, options.digits);
-
-  // The values under test: the candidate's where given, else the model's program.
-  CheckCandidate cand = options.candidate;
-  if (!cand.phi_q_values)
-    cand.phi_q_values = [&](const double* q, double t, double* out) {
-      real.phi_q_values(q, t, out);
-    };
-  if (!cand.nu) cand.nu = [&](const double* q, double t, double* out) { real.nu(q, t, out); };
-  if (!cand.gamma)
-    cand.gamma = [&](const double* q, const double* qd, double t, double* out) {
-      real.gamma(q, qd, t, out);
-    };
-
-  // Near q0: lengths by a tenth of the mechanism's size, angles by up to half a radian, then
-  // every angle turned `turns` times; qd of the coordinates' sizes per unit time.
   std::mt19937 rng(options.seed);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   const VectorXd q0 = model.q0();
   std::vector<Sample> samples;
-  double growth = 1;
+  growth = 1;
   const TableCoverage coverage = table_coverage(model.mechanism());
   constexpr double kInf = std::numeric_limits<double>::infinity();
   for (int s = 0; s < options.samples; ++s) {
@@ -117,106 +94,181 @@ std::vector<CheckRow> check_derivatives(const CompiledModel& model, const CheckO
     growth = std::max(growth, std::abs(x.t));
     samples.push_back(x);
   }
+  return samples;
+}
 
-  const double cs_bound = kComplexStepFactor * kEps * growth;
-  const double fd1_bound = kFirstDifferenceFactor * std::pow(kEps * growth, 2.0 / 3.0);
-  const double fd2_bound = kSecondDifferenceFactor * std::sqrt(kEps * growth);
-  const double cln_bound = kClnFactor * kEps * growth;
-  const std::string cln = "cln-" + std::to_string(options.digits);
-  Accumulator jac_cs{{"phi_q", "complex-step", 0, 0, cs_bound}};
-  Accumulator jac_fd{{"phi_q", "central-difference", 0, 0, fd1_bound}};
-  Accumulator jac_hp{{"phi_q", cln, 0, 0, cln_bound}};
-  Accumulator nu_cs{{"nu", "complex-step", 0, 0, cs_bound}};
-  Accumulator nu_fd{{"nu", "central-difference", 0, 0, fd1_bound}};
-  Accumulator nu_hp{{"nu", cln, 0, 0, cln_bound}};
-  Accumulator gamma_cs{{"gamma", "complex-step", 0, 0, cs_bound}};
-  Accumulator gamma_fd{{"gamma", "central-difference", 0, 0, fd2_bound}};
-  Accumulator gamma_hp{{"gamma", cln, 0, 0, cln_bound}};
+// The candidate's phi_q, nu and gamma at each sample against the complex step, central
+// differences and CLN, one accumulator per function and method.
+class DerivativeChecker {
+ public:
+  DerivativeChecker(const CompiledModel& model, const CheckOptions& options, double growth)
+      : model_(model),
+        nq_(model.nq()),
+        nc_(model.nc()),
+        nnz_(static_cast<int>(model.programs().jac_rows.size())),
+        real_(model),
+        cplx_(model),
+        exact_(model, options.digits),
+        cand_(options.candidate),
+        growth_(growth),
+        f_(nc_),
+        fp_(nc_),
+        fm_(nc_),
+        nu_(nc_),
+        gamma_(nc_),
+        jac_values_(nnz_),
+        qc_(nq_),
+        fc_(nc_),
+        nuc_(nc_),
+        jac_(nc_, nq_),
+        jacc_(nc_, nq_) {
+    // The values under test: the candidate's where given, else the model's program.
+    if (!cand_.phi_q_values)
+      cand_.phi_q_values = [this](const double* q, double t, double* out) {
+        real_.phi_q_values(q, t, out);
+      };
+    if (!cand_.nu)
+      cand_.nu = [this](const double* q, double t, double* out) { real_.nu(q, t, out); };
+    if (!cand_.gamma)
+      cand_.gamma = [this](const double* q, const double* qd, double t, double* out) {
+        real_.gamma(q, qd, t, out);
+      };
+    const double cs_bound = kComplexStepFactor * kEps * growth;
+    const double fd1_bound = kFirstDifferenceFactor * std::pow(kEps * growth, 2.0 / 3.0);
+    const double fd2_bound = kSecondDifferenceFactor * std::sqrt(kEps * growth);
+    const double cln_bound = kClnFactor * kEps * growth;
+    const std::string cln = "cln-" + std::to_string(options.digits);
+    jac_cs_ = {{"phi_q", "complex-step", 0, 0, cs_bound}};
+    jac_fd_ = {{"phi_q", "central-difference", 0, 0, fd1_bound}};
+    jac_hp_ = {{"phi_q", cln, 0, 0, cln_bound}};
+    nu_cs_ = {{"nu", "complex-step", 0, 0, cs_bound}};
+    nu_fd_ = {{"nu", "central-difference", 0, 0, fd1_bound}};
+    nu_hp_ = {{"nu", cln, 0, 0, cln_bound}};
+    gamma_cs_ = {{"gamma", "complex-step", 0, 0, cs_bound}};
+    gamma_fd_ = {{"gamma", "central-difference", 0, 0, fd2_bound}};
+    gamma_hp_ = {{"gamma", cln, 0, 0, cln_bound}};
+  }
 
-  const auto& rows = model.programs().jac_rows;
-  const auto& cols = model.programs().jac_cols;
-  VectorXd f(nc), fp(nc), fm(nc), nu(nc), gamma(nc), jac_values(nnz);
-  Eigen::VectorXcd qc(nq), fc(nc), nuc(nc);
-  MatrixXd jac(nc, nq);
-  Eigen::MatrixXcd jacc(nc, nq);
+  void check(const Sample& x) {
+    const auto& rows = model_.programs().jac_rows;
+    const auto& cols = model_.programs().jac_cols;
+    cand_.phi_q_values(x.q.data(), x.t, jac_values_.data());
+    jac_.setZero();
+    for (int e = 0; e < nnz_; ++e) jac_(rows[e], cols[e]) = jac_values_[e];
+    cand_.nu(x.q.data(), x.t, nu_.data());
+    cand_.gamma(x.q.data(), x.qd.data(), x.t, gamma_.data());
+    check_phi_q(x.q, x.t);
+    check_nu(x.q, x.t);
+    check_gamma(x.q, x.qd, x.t);
+    check_cln(x.q, x.qd, x.t);
+  }
 
-  for (const Sample& x : samples) {
-    const VectorXd& q = x.q;
-    const VectorXd& qd = x.qd;
-    const double t = x.t;
-    cand.phi_q_values(q.data(), t, jac_values.data());
-    jac.setZero();
-    for (int e = 0; e < nnz; ++e) jac(rows[e], cols[e]) = jac_values[e];
-    cand.nu(q.data(), t, nu.data());
-    cand.gamma(q.data(), qd.data(), t, gamma.data());
+  std::vector<CheckRow> rows() const {
+    return {jac_cs_.row, jac_fd_.row,   jac_hp_.row,   nu_cs_.row,   nu_fd_.row,
+            nu_hp_.row,  gamma_cs_.row, gamma_fd_.row, gamma_hp_.row};
+  }
 
-    // Phi_q, column by column (every entry, so a structural zero that is not one shows).
-    for (int k = 0; k < nq; ++k) {
-      qc = q.cast<Complex>();
-      qc[k] += Complex(0, kComplexStep);
-      cplx.phi(qc.data(), Complex(t), fc.data());
+ private:
+  double size_of(int k) const { return model_.symbolic().coordinate_scales[k]; }
+
+  // Phi_q, column by column (every entry, so a structural zero that is not one shows).
+  void check_phi_q(const VectorXd& q, double t) {
+    for (int k = 0; k < nq_; ++k) {
+      qc_ = q.cast<Complex>();
+      qc_[k] += Complex(0, kComplexStep);
+      cplx_.phi(qc_.data(), Complex(t), fc_.data());
       const double s = size_of(k);
       const double h = s * std::cbrt(kEps * std::max(s, std::abs(q[k])) / s);
       VectorXd qp = q, qm = q;
       qp[k] += h;
       qm[k] -= h;
-      real.phi(qp.data(), t, fp.data());
-      real.phi(qm.data(), t, fm.data());
-      for (int r = 0; r < nc; ++r) {
-        jac_cs.add(jac(r, k), fc[r].imag() / kComplexStep);
+      real_.phi(qp.data(), t, fp_.data());
+      real_.phi(qm.data(), t, fm_.data());
+      for (int r = 0; r < nc_; ++r) {
+        jac_cs_.add(jac_(r, k), fc_[r].imag() / kComplexStep);
         // The steps actually taken, after rounding q +- h.
-        jac_fd.add(jac(r, k), (fp[r] - fm[r]) / (qp[k] - qm[k]));
+        jac_fd_.add(jac_(r, k), (fp_[r] - fm_[r]) / (qp[k] - qm[k]));
       }
-    }
-    // nu = -Phi_t.
-    {
-      cplx.phi(q.cast<Complex>().eval().data(), Complex(t, kComplexStep), fc.data());
-      const double h = std::cbrt(kEps * std::max(1.0, std::abs(t)));
-      const double tp = t + h, tm = t - h;
-      real.phi(q.data(), tp, fp.data());
-      real.phi(q.data(), tm, fm.data());
-      for (int r = 0; r < nc; ++r) {
-        nu_cs.add(nu[r], -fc[r].imag() / kComplexStep);
-        nu_fd.add(nu[r], -(fp[r] - fm[r]) / (tp - tm));
-      }
-    }
-    // gamma = -d2/ds2 Phi(q + s qd, t + s) at s = 0. The complex step differentiates
-    // dPhi/ds = Phi_q qd - nu once more; the central difference takes Phi twice.
-    {
-      qc = q.cast<Complex>() + Complex(0, kComplexStep) * qd.cast<Complex>();
-      const Complex tc(t, kComplexStep);
-      jacc.setZero();
-      cplx.jacobian(qc.data(), tc, jacc);
-      cplx.nu(qc.data(), tc, nuc.data());
-      const Eigen::VectorXcd dphi_ds = jacc * qd.cast<Complex>() - nuc;
-      const double h = std::pow(kEps * growth, 0.25);
-      real.phi(q.data(), t, f.data());
-      const VectorXd qp = q + h * qd, qm = q - h * qd;
-      real.phi(qp.data(), t + h, fp.data());
-      real.phi(qm.data(), t - h, fm.data());
-      for (int r = 0; r < nc; ++r) {
-        gamma_cs.add(gamma[r], -dphi_ds[r].imag() / kComplexStep);
-        gamma_fd.add(gamma[r], -(fp[r] - 2 * f[r] + fm[r]) / (h * h));
-      }
-    }
-    // The symbolic expressions themselves, in CLN arithmetic at the same (exact) inputs.
-    {
-      HighPrecisionEvaluator::Vector qx, qdx;
-      for (int k = 0; k < nq; ++k) {
-        qx.push_back(exact_numeric(q[k]));
-        qdx.push_back(exact_numeric(qd[k]));
-      }
-      const GiNaC::numeric tx = exact_numeric(t);
-      const auto jac_ref = exact.phi_q_values(qx, tx);
-      for (int e = 0; e < nnz; ++e) jac_hp.add(jac_values[e], jac_ref[e].to_double());
-      const auto nu_ref = exact.nu(qx, tx);
-      for (int r = 0; r < nc; ++r) nu_hp.add(nu[r], nu_ref[r].to_double());
-      const auto gamma_ref = exact.gamma(qx, qdx, tx);
-      for (int r = 0; r < nc; ++r) gamma_hp.add(gamma[r], gamma_ref[r].to_double());
     }
   }
-  return {jac_cs.row, jac_fd.row,   jac_hp.row,   nu_cs.row,   nu_fd.row,
-          nu_hp.row,  gamma_cs.row, gamma_fd.row, gamma_hp.row};
+
+  // nu = -Phi_t.
+  void check_nu(const VectorXd& q, double t) {
+    cplx_.phi(q.cast<Complex>().eval().data(), Complex(t, kComplexStep), fc_.data());
+    const double h = std::cbrt(kEps * std::max(1.0, std::abs(t)));
+    const double tp = t + h, tm = t - h;
+    real_.phi(q.data(), tp, fp_.data());
+    real_.phi(q.data(), tm, fm_.data());
+    for (int r = 0; r < nc_; ++r) {
+      nu_cs_.add(nu_[r], -fc_[r].imag() / kComplexStep);
+      nu_fd_.add(nu_[r], -(fp_[r] - fm_[r]) / (tp - tm));
+    }
+  }
+
+  // gamma = -d2/ds2 Phi(q + s qd, t + s) at s = 0. The complex step differentiates
+  // dPhi/ds = Phi_q qd - nu once more; the central difference takes Phi twice.
+  void check_gamma(const VectorXd& q, const VectorXd& qd, double t) {
+    qc_ = q.cast<Complex>() + Complex(0, kComplexStep) * qd.cast<Complex>();
+    const Complex tc(t, kComplexStep);
+    jacc_.setZero();
+    cplx_.jacobian(qc_.data(), tc, jacc_);
+    cplx_.nu(qc_.data(), tc, nuc_.data());
+    const Eigen::VectorXcd dphi_ds = jacc_ * qd.cast<Complex>() - nuc_;
+    const double h = std::pow(kEps * growth_, 0.25);
+    real_.phi(q.data(), t, f_.data());
+    const VectorXd qp = q + h * qd, qm = q - h * qd;
+    real_.phi(qp.data(), t + h, fp_.data());
+    real_.phi(qm.data(), t - h, fm_.data());
+    for (int r = 0; r < nc_; ++r) {
+      gamma_cs_.add(gamma_[r], -dphi_ds[r].imag() / kComplexStep);
+      gamma_fd_.add(gamma_[r], -(fp_[r] - 2 * f_[r] + fm_[r]) / (h * h));
+    }
+  }
+
+  // The symbolic expressions themselves, in CLN arithmetic at the same (exact) inputs.
+  void check_cln(const VectorXd& q, const VectorXd& qd, double t) {
+    HighPrecisionEvaluator::Vector qx, qdx;
+    for (int k = 0; k < nq_; ++k) {
+      qx.push_back(exact_numeric(q[k]));
+      qdx.push_back(exact_numeric(qd[k]));
+    }
+    const GiNaC::numeric tx = exact_numeric(t);
+    const auto jac_ref = exact_.phi_q_values(qx, tx);
+    for (int e = 0; e < nnz_; ++e) jac_hp_.add(jac_values_[e], jac_ref[e].to_double());
+    const auto nu_ref = exact_.nu(qx, tx);
+    for (int r = 0; r < nc_; ++r) nu_hp_.add(nu_[r], nu_ref[r].to_double());
+    const auto gamma_ref = exact_.gamma(qx, qdx, tx);
+    for (int r = 0; r < nc_; ++r) gamma_hp_.add(gamma_[r], gamma_ref[r].to_double());
+  }
+
+  const CompiledModel& model_;
+  const int nq_, nc_, nnz_;
+  ModelEvaluator<double> real_;
+  ModelEvaluator<Complex> cplx_;
+  HighPrecisionEvaluator exact_;
+  CheckCandidate cand_;
+  const double growth_;
+  Accumulator jac_cs_, jac_fd_, jac_hp_, nu_cs_, nu_fd_, nu_hp_, gamma_cs_, gamma_fd_, gamma_hp_;
+  VectorXd f_, fp_, fm_, nu_, gamma_, jac_values_;
+  Eigen::VectorXcd qc_, fc_, nuc_;
+  MatrixXd jac_;
+  Eigen::MatrixXcd jacc_;
+};
+
+}  // namespace
+
+std::vector<CheckRow> check_derivatives(const CompiledModel& model, const CheckOptions& options) {
+  if (options.samples < 1) throw UsageError("--samples must be at least 1");
+  if (!std::isfinite(options.turns) || !std::isfinite(options.t))
+    throw UsageError("--turns and --t must be finite");
+  if (options.digits < kMinReferenceDigits || options.digits > kMaxReferenceDigits)
+    throw UsageError("--digits must be between " + std::to_string(kMinReferenceDigits) + " and " +
+                     std::to_string(kMaxReferenceDigits));
+  double growth = 1;
+  const std::vector<Sample> samples = draw_samples(model, options, growth);
+  DerivativeChecker checker(model, options, growth);
+  for (const Sample& x : samples) checker.check(x);
+  return checker.rows();
 }
 
 std::string jacobian_structure(const CompiledModel& model) {

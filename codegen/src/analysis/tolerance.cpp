@@ -52,6 +52,61 @@ std::vector<Tolerance> parse_tolerances(const std::vector<std::string>& items) {
   return out;
 }
 
+namespace {
+
+// Monte Carlo (options.monte_carlo samples, each parameter uniform in +-delta): the spread
+// and standard deviation of each quantity's deviation from the `nominal` motion.
+void monte_carlo(const CompiledModel& model, const ToleranceOptions& options,
+                 const std::vector<std::string>& names, const std::vector<int>& index,
+                 const Eigen::VectorXd& delta, const std::vector<Eigen::VectorXd>& nominal,
+                 ToleranceResult& result) {
+  const int n = options.monte_carlo;
+  const Mechanism& m = model.mechanism();
+  const std::size_t nqty = result.quantities.size();
+  const std::size_t rows = result.t.size();
+  std::vector<Eigen::VectorXd> mean(rows, Eigen::VectorXd::Zero(nqty)), m2 = mean, spread = mean;
+  std::mt19937_64 rng(options.seed);
+  for (int s = 0; s < n; ++s) {
+    std::vector<ParamOverride> overrides = options.overrides;
+    std::string drawn;
+    for (std::size_t k = 0; k < names.size(); ++k) {
+      const double v = model.params()[index[k]] + delta[k] * symmetric_unit(rng);
+      overrides.push_back({names[k], format_number(v)});
+      drawn += (k ? ", " : "") + names[k] + " = " + format_number(v);
+    }
+    try {
+      // Default BuildOptions and AnalysisOptions: no progress, no warnings; a sample is silent.
+      const auto sample = CompiledModel::from_mechanism(m, overrides);
+      std::size_t r = 0;
+      run_analysis(*sample, options.grid, [&](const StateRow& row) {
+        // Welford's update of the deviations from the nominal motion.
+        const Eigen::VectorXd dev = row_values(row) - nominal[r];
+        const Eigen::VectorXd step = dev - mean[r];
+        mean[r] += step / (s + 1);
+        m2[r] += step.cwiseProduct(dev - mean[r]);
+        spread[r] = spread[r].cwiseMax(dev.cwiseAbs());
+        ++r;
+      });
+    } catch (const AnalysisError& e) {
+      // The file first, as in every message; then which sample, then what failed.
+      std::string what = e.what();
+      const std::string file = m.source + ": ";
+      if (what.rfind(file, 0) == 0) what = what.substr(file.size());
+      throw AnalysisError(file + "Monte Carlo sample " + std::to_string(s + 1) + " (" + drawn +
+                          "): " + what);
+    }
+    if (options.progress) options.progress(s + 1, n);
+  }
+  for (std::size_t r = 0; r < rows; ++r) {
+    const Eigen::VectorXd sd = (m2[r] / (n - 1)).cwiseSqrt();
+    result.mc_spread.emplace_back(spread[r].data(), spread[r].data() + nqty);
+    result.mc_std.emplace_back(sd.data(), sd.data() + nqty);
+  }
+  result.samples = n;
+}
+
+}  // namespace
+
 ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOptions& options) {
   if (options.tolerances.empty()) throw UsageError("tolerance needs at least one --tol NAME=DELTA");
   if (options.monte_carlo < 0 || options.monte_carlo == 1)
@@ -100,48 +155,8 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
       },
       analysis);
 
-  const int n = options.monte_carlo;
-  if (n == 0) return result;
-  const std::size_t rows = result.t.size();
-  std::vector<Eigen::VectorXd> mean(rows, Eigen::VectorXd::Zero(nqty)), m2 = mean, spread = mean;
-  std::mt19937_64 rng(options.seed);
-  for (int s = 0; s < n; ++s) {
-    std::vector<ParamOverride> overrides = options.overrides;
-    std::string drawn;
-    for (std::size_t k = 0; k < names.size(); ++k) {
-      const double v = model.params()[index[k]] + delta[k] * symmetric_unit(rng);
-      overrides.push_back({names[k], format_number(v)});
-      drawn += (k ? ", " : "") + names[k] + " = " + format_number(v);
-    }
-    try {
-      // Default BuildOptions and AnalysisOptions: no progress, no warnings; a sample is silent.
-      const auto sample = CompiledModel::from_mechanism(m, overrides);
-      std::size_t r = 0;
-      run_analysis(*sample, options.grid, [&](const StateRow& row) {
-        // Welford's update of the deviations from the nominal motion.
-        const Eigen::VectorXd dev = row_values(row) - nominal[r];
-        const Eigen::VectorXd step = dev - mean[r];
-        mean[r] += step / (s + 1);
-        m2[r] += step.cwiseProduct(dev - mean[r]);
-        spread[r] = spread[r].cwiseMax(dev.cwiseAbs());
-        ++r;
-      });
-    } catch (const AnalysisError& e) {
-      // The file first, as in every message; then which sample, then what failed.
-      std::string what = e.what();
-      const std::string file = m.source + ": ";
-      if (what.rfind(file, 0) == 0) what = what.substr(file.size());
-      throw AnalysisError(file + "Monte Carlo sample " + std::to_string(s + 1) + " (" + drawn +
-                          "): " + what);
-    }
-    if (options.progress) options.progress(s + 1, n);
-  }
-  for (std::size_t r = 0; r < rows; ++r) {
-    const Eigen::VectorXd sd = (m2[r] / (n - 1)).cwiseSqrt();
-    result.mc_spread.emplace_back(spread[r].data(), spread[r].data() + nqty);
-    result.mc_std.emplace_back(sd.data(), sd.data() + nqty);
-  }
-  result.samples = n;
+  if (options.monte_carlo == 0) return result;
+  monte_carlo(model, options, names, index, delta, nominal, result);
   return result;
 }
 

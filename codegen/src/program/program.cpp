@@ -52,7 +52,7 @@ class Lowerer {
     if (GiNaC::is_a<GiNaC::numeric>(e) || GiNaC::is_a<GiNaC::constant>(e)) return constant(e);
     if (GiNaC::is_a<GiNaC::symbol>(e)) {
       Node n;
-    n.kind = OpKind::kInput;
+      n.kind = OpKind::kInput;
       n.input = symbols_.classify(e);
       return add(std::move(n));
     }
@@ -83,33 +83,7 @@ class Lowerer {
       n.kind = OpKind::kMul;
       n.args = {lower(ex(-1)), node};
     } else if (GiNaC::is_a<GiNaC::power>(e)) {
-      const ex base = e.op(0), exponent = e.op(1);
-      const int b = lower(base);
-      if (GiNaC::is_a<GiNaC::numeric>(exponent)) {
-        const GiNaC::numeric x = GiNaC::ex_to<GiNaC::numeric>(exponent);
-        if (x.is_integer()) {
-          n.kind = OpKind::kPowInt;
-          n.args = {b};
-          n.exponent = x.to_int();
-        } else if (x == GiNaC::numeric(1, 2) || x == GiNaC::numeric(-1, 2)) {
-          // x^(-1/2) = 1 / sqrt(x): a sqrt and a reciprocal, both exact to rounding.
-          n.kind = OpKind::kSqrt;
-          n.args = {b};
-          if (x.is_negative()) {
-            Node inv;
-            inv.kind = OpKind::kPowInt;
-            inv.args = {fold_or_add(std::move(n), GiNaC::sqrt(base))};
-            inv.exponent = -1;
-            return fold_or_add(std::move(inv), e);
-          }
-        } else {
-          n.kind = OpKind::kPow;
-          n.args = {b, lower(exponent)};
-        }
-      } else {
-        n.kind = OpKind::kPow;
-        n.args = {b, lower(exponent)};
-      }
+      return lower_power(e, std::move(n));
     } else if (is_motion_law(e, n.law, n.order)) {
       n.kind = OpKind::kMotionLaw;
       n.args = {lower(e.op(2))};
@@ -135,6 +109,38 @@ class Lowerer {
     } else {
       throw std::logic_error("unsupported expression class: " +
                              std::string(GiNaC::ex_to<GiNaC::basic>(e).class_name()));
+    }
+    return fold_or_add(std::move(n), e);
+  }
+
+  // A power: an integer exponent, a square root (and its reciprocal) or pow.
+  int lower_power(const ex& e, Node n) {
+    const ex base = e.op(0), exponent = e.op(1);
+    const int b = lower(base);
+    if (GiNaC::is_a<GiNaC::numeric>(exponent)) {
+      const GiNaC::numeric x = GiNaC::ex_to<GiNaC::numeric>(exponent);
+      if (x.is_integer()) {
+        n.kind = OpKind::kPowInt;
+        n.args = {b};
+        n.exponent = x.to_int();
+      } else if (x == GiNaC::numeric(1, 2) || x == GiNaC::numeric(-1, 2)) {
+        // x^(-1/2) = 1 / sqrt(x): a sqrt and a reciprocal, both exact to rounding.
+        n.kind = OpKind::kSqrt;
+        n.args = {b};
+        if (x.is_negative()) {
+          Node inv;
+          inv.kind = OpKind::kPowInt;
+          inv.args = {fold_or_add(std::move(n), GiNaC::sqrt(base))};
+          inv.exponent = -1;
+          return fold_or_add(std::move(inv), e);
+        }
+      } else {
+        n.kind = OpKind::kPow;
+        n.args = {b, lower(exponent)};
+      }
+    } else {
+      n.kind = OpKind::kPow;
+      n.args = {b, lower(exponent)};
     }
     return fold_or_add(std::move(n), e);
   }

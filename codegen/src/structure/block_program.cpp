@@ -20,6 +20,43 @@ std::map<int, std::vector<char>> tear_dependency(
   return dep;
 }
 
+namespace {
+
+// Per node of the lowered program: its level (the last block it reads), whether the position
+// reads it; per coordinate: its sin and cos nodes and its trig cache slot.
+void index_nodes(BlockProgram& bp, const Structure& st) {
+  const Program& prog = bp.program;
+  bp.level.assign(prog.nodes.size(), -1);
+  for (std::size_t k = 0; k < prog.nodes.size(); ++k) {
+    const Node& n = prog.nodes[k];
+    if (n.kind == OpKind::kInput && n.input.kind == InputKind::kQ)
+      bp.level[k] = st.order.col_block[n.input.index];
+    for (int a : n.args) bp.level[k] = std::max(bp.level[k], bp.level[a]);
+  }
+  // sin and cos nodes of each coordinate, for the rotation update in Newton loops.
+  const int nq = static_cast<int>(st.order.col_block.size());
+  bp.sin_of.assign(nq, -1);
+  bp.cos_of.assign(nq, -1);
+  for (std::size_t k = 0; k < prog.nodes.size(); ++k) {
+    const Node& n = prog.nodes[k];
+    if (n.kind != OpKind::kSin && n.kind != OpKind::kCos) continue;
+    const Node& a = prog.nodes[n.args[0]];
+    if (a.kind != OpKind::kInput || a.input.kind != InputKind::kQ) continue;
+    (n.kind == OpKind::kSin ? bp.sin_of : bp.cos_of)[a.input.index] = static_cast<int>(k);
+  }
+  bp.trig_slot.assign(nq, -1);
+  for (int c = 0; c < nq; ++c)
+    if (bp.sin_of[c] >= 0 || bp.cos_of[c] >= 0) bp.trig_slot[c] = bp.trig_slots++;
+  bp.in_position.assign(prog.nodes.size(), 0);
+  for (int o = 0; o < bp.position_end; ++o)
+    if (bp.output(o) != Program::kZero) bp.in_position[bp.output(o)] = 1;
+  for (int k = static_cast<int>(prog.nodes.size()) - 1; k >= 0; --k)
+    if (bp.in_position[k])
+      for (int a : prog.nodes[k].args) bp.in_position[a] = 1;
+}
+
+}  // namespace
+
 BlockProgram build_block_program(const SymbolicModel& model, const SymbolTable& symbols,
                                  const Structure& st) {
   BlockProgram bp;
@@ -38,7 +75,9 @@ BlockProgram build_block_program(const SymbolicModel& model, const SymbolTable& 
     bp.position_first.push_back(static_cast<int>(outs.size()));
     const Block& b = plan.block;
     switch (plan.kind) {
-      case BlockKind::kExplicit: add(-plan.rest / plan.coefficient); break;
+      case BlockKind::kExplicit:
+        add(-plan.rest / plan.coefficient);
+        break;
       case BlockKind::kExplicitGuarded:
         add(plan.coefficient);
         add(plan.rest);
@@ -86,34 +125,7 @@ BlockProgram build_block_program(const SymbolicModel& model, const SymbolTable& 
     bp.rates.push_back(bo);
   }
   bp.program = lower(outs, symbols);
-  const Program& prog = bp.program;
-  bp.level.assign(prog.nodes.size(), -1);
-  for (std::size_t k = 0; k < prog.nodes.size(); ++k) {
-    const Node& n = prog.nodes[k];
-    if (n.kind == OpKind::kInput && n.input.kind == InputKind::kQ)
-      bp.level[k] = st.order.col_block[n.input.index];
-    for (int a : n.args) bp.level[k] = std::max(bp.level[k], bp.level[a]);
-  }
-  // sin and cos nodes of each coordinate, for the rotation update in Newton loops.
-  const int nq = static_cast<int>(st.order.col_block.size());
-  bp.sin_of.assign(nq, -1);
-  bp.cos_of.assign(nq, -1);
-  for (std::size_t k = 0; k < prog.nodes.size(); ++k) {
-    const Node& n = prog.nodes[k];
-    if (n.kind != OpKind::kSin && n.kind != OpKind::kCos) continue;
-    const Node& a = prog.nodes[n.args[0]];
-    if (a.kind != OpKind::kInput || a.input.kind != InputKind::kQ) continue;
-    (n.kind == OpKind::kSin ? bp.sin_of : bp.cos_of)[a.input.index] = static_cast<int>(k);
-  }
-  bp.trig_slot.assign(nq, -1);
-  for (int c = 0; c < nq; ++c)
-    if (bp.sin_of[c] >= 0 || bp.cos_of[c] >= 0) bp.trig_slot[c] = bp.trig_slots++;
-  bp.in_position.assign(prog.nodes.size(), 0);
-  for (int o = 0; o < bp.position_end; ++o)
-    if (bp.output(o) != Program::kZero) bp.in_position[bp.output(o)] = 1;
-  for (int k = static_cast<int>(prog.nodes.size()) - 1; k >= 0; --k)
-    if (bp.in_position[k])
-      for (int a : prog.nodes[k].args) bp.in_position[a] = 1;
+  index_nodes(bp, st);
   return bp;
 }
 

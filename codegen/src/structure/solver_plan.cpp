@@ -58,6 +58,49 @@ std::vector<int> SolverPlan::torn_host_outputs(std::size_t b, bool position, boo
 
 namespace {
 
+// Block bi's structure with its coordinate table's slots for the coordinates (its size
+// `list_size`): its rows, tears, residuals, assignments, torn Jacobian entries and
+// couplings, the part of a repeated block's key before its expressions.
+std::string shape_key(const SolverPlan& sp, int bi, std::size_t list_size,
+                      const std::map<int, int>& slot) {
+  const BlockPlan& plan = sp.structure.plans[bi];
+  const BlockProgram& bp = sp.program;
+  const Block& b = plan.block;
+  const auto row_of = [&](int r) {
+    return std::lower_bound(b.rows.begin(), b.rows.end(), r) - b.rows.begin();
+  };
+  std::ostringstream key;
+  key << b.rows.size() << " " << list_size << " t";
+  for (int c : plan.tears) key << " " << slot.at(c);
+  key << " r";
+  for (int r : plan.residuals) key << " " << row_of(r);
+  key << " a";
+  for (const auto& [r, c] : plan.assigned) key << " " << row_of(r) << ":" << slot.at(c);
+  key << " j";
+  for (const auto& [rc, o] : bp.torn_jacobian[bi])
+    key << " " << row_of(rc.first) << ":" << slot.at(rc.second);
+  key << " c";
+  for (const auto& row : bp.rates[bi].coupling) {
+    for (const auto& [c, o] : row) key << " " << slot.at(c);
+    key << " |";
+  }
+  return key.str();
+}
+
+// The structure of a model with block `first` of st alone (for a repeated block's functions).
+Structure single_block(const Structure& st, int first) {
+  const int nq = static_cast<int>(st.order.col_block.size());
+  Structure sub;
+  sub.order.perfect = true;
+  sub.order.blocks = {st.plans[first].block};
+  sub.order.col_block.assign(nq, -1);
+  sub.order.row_block.assign(st.order.row_block.size(), -1);
+  for (int c : st.plans[first].block.cols) sub.order.col_block[c] = 0;
+  for (int row : st.plans[first].block.rows) sub.order.row_block[row] = 0;
+  sub.plans = {st.plans[first]};
+  return sub;
+}
+
 // The classes of repeated Newton blocks (RepeatedBlocks) of at least roll_min members.
 void find_repeated_blocks(SolverPlan& sp, const SymbolicModel& model, const SymbolTable& symbols,
                           int roll_min) {
@@ -83,24 +126,8 @@ void find_repeated_blocks(SolverPlan& sp, const SymbolicModel& model, const Symb
     std::map<int, int> slot;
     for (std::size_t j = 0; j < list.size(); ++j) slot[list[j]] = static_cast<int>(j);
     const GiNaC::exmap rename = table_renaming(list, symbols);
-    const auto row_of = [&](int r) {
-      return std::lower_bound(b.rows.begin(), b.rows.end(), r) - b.rows.begin();
-    };
     std::ostringstream key;
-    key << b.rows.size() << " " << list.size() << " t";
-    for (int c : plan.tears) key << " " << slot.at(c);
-    key << " r";
-    for (int r : plan.residuals) key << " " << row_of(r);
-    key << " a";
-    for (const auto& [r, c] : plan.assigned) key << " " << row_of(r) << ":" << slot.at(c);
-    key << " j";
-    for (const auto& [rc, o] : bp.torn_jacobian[bi])
-      key << " " << row_of(rc.first) << ":" << slot.at(rc.second);
-    key << " c";
-    for (const auto& row : bp.rates[bi].coupling) {
-      for (const auto& [c, o] : row) key << " " << slot.at(c);
-      key << " |";
-    }
+    key << shape_key(sp, bi, list.size(), slot);
     key << " e";
     for (int id : ids) {
       renamed[bi].push_back(bp.exprs[id].subs(rename));
@@ -116,14 +143,7 @@ void find_repeated_blocks(SolverPlan& sp, const SymbolicModel& model, const Symb
     for (int bi : members)
       if (same_expressions(renamed[bi], renamed[first])) alike.push_back(bi);
     if (static_cast<int>(alike.size()) < roll_min) continue;
-    Structure sub;
-    sub.order.perfect = true;
-    sub.order.blocks = {st.plans[first].block};
-    sub.order.col_block.assign(nq, -1);
-    sub.order.row_block.assign(st.order.row_block.size(), -1);
-    for (int c : st.plans[first].block.cols) sub.order.col_block[c] = 0;
-    for (int row : st.plans[first].block.rows) sub.order.row_block[row] = 0;
-    sub.plans = {st.plans[first]};
+    const Structure sub = single_block(st, first);
     RepeatedBlocks r;
     r.alone = std::make_shared<const SolverPlan>(plan_block_solver(model, symbols, sub, 0, 0));
     const BlockProgram& alone = r.alone->program;

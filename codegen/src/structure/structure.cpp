@@ -75,6 +75,33 @@ bool perfect_matching(const Graph& g, int nrows, int ncols, std::vector<int>& ma
   return true;
 }
 
+// The next tear: the unknown found in most rows that cannot be solved for it (a coefficient
+// that is not a non-zero number), then in most rows not yet used.
+int choose_tear(const std::vector<char>& known, const std::vector<char>& used,
+                const std::vector<std::vector<int>>& row_cols,
+                const std::vector<std::vector<char>>& solvable,
+                const std::vector<std::vector<int>>& col_rows) {
+  const int k = static_cast<int>(known.size());
+  int best = -1;
+  long best_score = -1;
+  for (int j = 0; j < k; ++j) {
+    if (known[j]) continue;
+    long hard = 0, all = 0;
+    for (int i : col_rows[j]) {
+      if (used[i]) continue;
+      ++all;
+      for (std::size_t a = 0; a < row_cols[i].size(); ++a)
+        if (row_cols[i][a] == j && !solvable[i][a]) ++hard;
+    }
+    const long score = hard * (k + 1) + all;
+    if (score > best_score) {
+      best_score = score;
+      best = j;
+    }
+  }
+  return best;
+}
+
 // Tearing of a Newton block (greedy, as in Modelica tools): assign every row that has one
 // unknown coordinate left and is linear in it with a constant coefficient; when none is left,
 // make one unknown a tear variable (the one found in most rows that cannot be solved for it,
@@ -130,23 +157,7 @@ void tear_block(BlockPlan& plan, const SymbolicModel& model, const SymbolTable& 
       }
     }
     if (n_known == k) break;
-    int best = -1;
-    long best_score = -1;
-    for (int j = 0; j < k; ++j) {
-      if (known[j]) continue;
-      long hard = 0, all = 0;
-      for (int i : col_rows[j]) {
-        if (used[i]) continue;
-        ++all;
-        for (std::size_t a = 0; a < row_cols[i].size(); ++a)
-          if (row_cols[i][a] == j && !solvable[i][a]) ++hard;
-      }
-      const long score = hard * (k + 1) + all;
-      if (score > best_score) {
-        best_score = score;
-        best = j;
-      }
-    }
+    const int best = choose_tear(known, used, row_cols, solvable, col_rows);
     tears.push_back(best);
     make_known(best);
     ++n_known;

@@ -80,6 +80,48 @@ class Builder {
   const std::vector<GiNaC::numeric>& values_;
 };
 
+// A load's generalized forces, added to `applied`.
+void add_load(const Builder& b, const Load& load, std::vector<ex>& applied) {
+  switch (load.kind) {
+    case Load::Kind::kForce: {
+      const Vec fv = b.vec(load.f, Scope::kDriver, load.item + " f");
+      b.add_force(applied, load.body, b.vec(load.s, Scope::kGeometry, load.item + " s"), fv.x,
+                  fv.y);
+      break;
+    }
+    case Load::Kind::kTorque:
+      b.add_torque(applied, load.body, b.parse(load.value, Scope::kDriver, load.item));
+      break;
+    case Load::Kind::kSpringDamper: {
+      const Vec si = b.vec(load.si, Scope::kGeometry, load.item + " si");
+      const Vec sj = b.vec(load.sj, Scope::kGeometry, load.item + " sj");
+      const Vec pi = b.point(load.i, si), pj = b.point(load.j, sj);
+      const ex dx = pj.x - pi.x, dy = pj.y - pi.y;
+      const ex length = sqrt(dx * dx + dy * dy);
+      const ex rate = (dx * b.time_derivative(dx) + dy * b.time_derivative(dy)) / length;
+      const ex tension =
+          b.parse(load.stiffness, Scope::kGeometry, load.item + " stiffness") *
+              (length - b.parse(load.length0, Scope::kGeometry, load.item + " length0")) +
+          b.parse(load.damping, Scope::kGeometry, load.item + " damping") * rate +
+          b.parse(load.preload, Scope::kGeometry, load.item + " preload");
+      // Tension pulls the points together: along -d on j, along +d on i.
+      b.add_force(applied, load.j, sj, -tension * dx / length, -tension * dy / length);
+      b.add_force(applied, load.i, si, tension * dx / length, tension * dy / length);
+      break;
+    }
+    case Load::Kind::kRotationalSpringDamper: {
+      const ex torque = -(b.parse(load.stiffness, Scope::kGeometry, load.item + " stiffness") *
+                              (b.angle(load.j) - b.angle(load.i) -
+                               b.parse(load.angle0, Scope::kGeometry, load.item + " angle0")) +
+                          b.parse(load.damping, Scope::kGeometry, load.item + " damping") *
+                              (b.rate(load.j) - b.rate(load.i)));
+      b.add_torque(applied, load.j, torque);
+      b.add_torque(applied, load.i, -torque);
+      break;
+    }
+  }
+}
+
 }  // namespace
 
 ForceModel derive_forces(const Mechanism& m, const SymbolTable& s, const SymbolicModel& model,
@@ -107,46 +149,7 @@ ForceModel derive_forces(const Mechanism& m, const SymbolTable& s, const Symboli
     f.symbolic.com.push_back({com.x, com.y});
     b.add_force(f.applied, k, com, mass * g.x, mass * g.y);
   }
-  for (const Load& load : spec.loads) {
-    switch (load.kind) {
-      case Load::Kind::kForce: {
-        const Vec fv = b.vec(load.f, Scope::kDriver, load.item + " f");
-        b.add_force(f.applied, load.body, b.vec(load.s, Scope::kGeometry, load.item + " s"), fv.x,
-                    fv.y);
-        break;
-      }
-      case Load::Kind::kTorque:
-        b.add_torque(f.applied, load.body, b.parse(load.value, Scope::kDriver, load.item));
-        break;
-      case Load::Kind::kSpringDamper: {
-        const Vec si = b.vec(load.si, Scope::kGeometry, load.item + " si");
-        const Vec sj = b.vec(load.sj, Scope::kGeometry, load.item + " sj");
-        const Vec pi = b.point(load.i, si), pj = b.point(load.j, sj);
-        const ex dx = pj.x - pi.x, dy = pj.y - pi.y;
-        const ex length = sqrt(dx * dx + dy * dy);
-        const ex rate = (dx * b.time_derivative(dx) + dy * b.time_derivative(dy)) / length;
-        const ex tension =
-            b.parse(load.stiffness, Scope::kGeometry, load.item + " stiffness") *
-                (length - b.parse(load.length0, Scope::kGeometry, load.item + " length0")) +
-            b.parse(load.damping, Scope::kGeometry, load.item + " damping") * rate +
-            b.parse(load.preload, Scope::kGeometry, load.item + " preload");
-        // Tension pulls the points together: along -d on j, along +d on i.
-        b.add_force(f.applied, load.j, sj, -tension * dx / length, -tension * dy / length);
-        b.add_force(f.applied, load.i, si, tension * dx / length, tension * dy / length);
-        break;
-      }
-      case Load::Kind::kRotationalSpringDamper: {
-        const ex torque = -(b.parse(load.stiffness, Scope::kGeometry, load.item + " stiffness") *
-                                (b.angle(load.j) - b.angle(load.i) -
-                                 b.parse(load.angle0, Scope::kGeometry, load.item + " angle0")) +
-                            b.parse(load.damping, Scope::kGeometry, load.item + " damping") *
-                                (b.rate(load.j) - b.rate(load.i)));
-        b.add_torque(f.applied, load.j, torque);
-        b.add_torque(f.applied, load.i, -torque);
-        break;
-      }
-    }
-  }
+  for (const Load& load : spec.loads) add_load(b, load, f.applied);
   for (const Load& load : spec.loads)
     for (const Expr* e :
          {&load.stiffness, &load.damping, &load.length0, &load.preload, &load.angle0})

@@ -2,7 +2,7 @@
 // the way the generated solve_step runs it, statement for statement, with the same kernels
 // (runtime/include/kinegen/kernels/, compiled here rather than pasted), so that `kinegen
 // analyze` and a generated kinegen::Solver give the same q, qd and qdd bit for bit. Every
-// arithmetic step mirrors a line that emit_cpp.cpp's BlockEmitter prints; the two change
+// arithmetic step mirrors a line that emit/block_emitter.hpp's BlockEmitter prints; the two change
 // together (tests/test_same_answers.cpp compares them on every example).
 //
 // What the bits depend on, and so what is mirrored: the order of each sum and product (node
@@ -60,6 +60,7 @@ class BlockInterpreter {
 
  private:
   struct Run;
+  struct Step;  // one solve_step's blocks (block_interpreter.cpp)
   const CompiledModel& model_;
   const Structure& st_;
   BlockProgram bp_;

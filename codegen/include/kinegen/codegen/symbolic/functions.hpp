@@ -2,7 +2,7 @@
 // GiNaC's reader and in generated C++ as std::<name>), the operation the program stage lowers
 // it to, its value in CLN arithmetic (the reference) and, in apply_function below, in the std
 // arithmetic of the evaluator's scalar types. GiNaC's function of the same name is the one the
-// parser builds (symbolic.cpp takes it from GiNaC's reader table by this name).
+// parser builds (symbol_table.cpp takes it from GiNaC's reader table by this name).
 //
 // The motion laws (cycloidal, ...) are apart: each is one GiNaC function kinegen_law(law,
 // order, x), the order-th derivative of the law, so that differentiating stays in the family.
@@ -86,7 +86,7 @@ bool is_motion_law(const GiNaC::ex& e, int& law, int& order);
 // current Digits, the polynomials stay exact). Clamped on the real part, like the kernel.
 GiNaC::numeric motion_law_high_precision(int law, int order, const GiNaC::numeric& x);
 
-// The parser's readers of the laws' names, one argument each (symbolic.cpp).
+// The parser's readers of the laws' names, one argument each (symbol_table.cpp).
 void add_motion_law_readers(GiNaC::prototype_table& table);
 
 // Drivers in pieces (format 6.3): kinegen_select(c, lo, hi) is lo while the real part of c is

@@ -1,0 +1,81 @@
+// Loader (loader.hpp): the forces: section (format 6.5): gravity, masses and loads.
+#include <algorithm>
+#include <cctype>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <unordered_set>
+#include <vector>
+
+#include "loader.hpp"
+
+namespace kinegen::codegen::model_detail {
+
+// Applied loads (format 6.5). Defaults beyond the spec's: s, si, sj [0, 0]; damping 0;
+// rotational angle0 0.
+void Loader::read_forces(const YAML::Node& node, Mechanism& m) {
+  if (node.IsNull()) return;
+  if (!node.IsSequence()) fail("forces", loc_of(node), "expected a list of loads");
+  struct Kind {
+    const char* name;
+    Load::Kind kind;
+    std::vector<std::string> required, optional;
+  };
+  static const Kind kKinds[] = {
+      {"force", Load::Kind::kForce, {"body", "f"}, {"s"}},
+      {"torque", Load::Kind::kTorque, {"body", "value"}, {}},
+      {"spring_damper",
+       Load::Kind::kSpringDamper,
+       {"i", "j", "stiffness", "length0"},
+       {"si", "sj", "damping", "preload"}},
+      {"rotational_spring_damper",
+       Load::Kind::kRotationalSpringDamper,
+       {"i", "j", "stiffness"},
+       {"damping", "angle0"}},
+  };
+  for (std::size_t k = 0; k < node.size(); ++k) {
+    const YAML::Node f = node[k];
+    std::string item = "forces[" + std::to_string(k) + "]";
+    if (!f.IsMap()) fail(item, loc_of(f), "expected a mapping with a 'type'");
+    if (!f["type"] || !f["type"].IsScalar()) fail(item, loc_of(f), "missing key 'type'");
+    const std::string type_name = f["type"].Scalar();
+    const Kind* kind = nullptr;
+    for (const auto& kk : kKinds)
+      if (type_name == kk.name) kind = &kk;
+    if (!kind)
+      fail(item, loc_of(f["type"]),
+           "unknown load type '" + type_name +
+               "' (expected one of: force, torque, spring_damper, rotational_spring_damper)");
+    Load load;
+    load.kind = kind->kind;
+    load.loc = loc_of(f);
+    item += " (" + type_name + ")";
+    if (f["name"]) {
+      load.name = name_of(f["name"], item);
+      item = "forces[" + std::to_string(k) + "] '" + load.name + "' (" + type_name + ")";
+    }
+    load.item = item;
+    check_keys(f, item, kind->required, kind->optional);
+    const Expr zero{"0", load.loc};
+    load.s = load.si = load.sj = Vec2{zero, zero};
+    load.damping = load.preload = load.angle0 = zero;
+    if (f["body"]) load.body = body_ref(f["body"], m, item, false);
+    if (f["i"]) load.i = body_ref(f["i"], m, item, true);
+    if (f["j"]) load.j = body_ref(f["j"], m, item, true);
+    if (f["i"] && load.i == load.j) fail(item, loc_of(f["j"]), "i and j must be different bodies");
+    if (f["s"]) load.s = vec2_of(f["s"], item + " s");
+    if (f["si"]) load.si = vec2_of(f["si"], item + " si");
+    if (f["sj"]) load.sj = vec2_of(f["sj"], item + " sj");
+    if (f["f"]) load.f = vec2_of(f["f"], item + " f");
+    if (f["value"]) load.value = expr_of(f["value"], item + " value");
+    if (f["stiffness"]) load.stiffness = expr_of(f["stiffness"], item + " stiffness");
+    if (f["damping"]) load.damping = expr_of(f["damping"], item + " damping");
+    if (f["length0"]) load.length0 = expr_of(f["length0"], item + " length0");
+    if (f["preload"]) load.preload = expr_of(f["preload"], item + " preload");
+    if (f["angle0"]) load.angle0 = expr_of(f["angle0"], item + " angle0");
+    m.forces.loads.push_back(std::move(load));
+  }
+}
+
+}  // namespace kinegen::codegen::model_detail

@@ -1,0 +1,84 @@
+// What the symbolic stage's source files share (symbol_table.cpp, cost.cpp,
+// equation_context.cpp, driver_law.cpp, derive.cpp): the bounds on exact arithmetic, the
+// checks of a parsed value, and the drivers' laws. Private to the stage.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/model/mechanism.hpp"
+#include "kinegen/codegen/symbolic/symbolic.hpp"
+
+namespace kinegen::codegen::symbolic_detail {
+
+// Digits of the evaluation that rounds a constant to double once (to_double, parameter_values).
+constexpr long kEvalDigits = 40;
+
+// Bounded cost (cost.cpp). GiNaC evaluates exact numbers eagerly (2^(2^40) is computed while the
+// text is read, until GMP gives up and aborts the process), and derivatives of long products grow
+// with the square of their length. Both are bounded before the work is done.
+
+// The estimated size of one derivative, and of all of a model's together (a 1000-body chain's
+// are about N; hostile products of 300 factors reach 1e7 and more).
+constexpr double kMaxDerivativeSize = 2e5;
+constexpr double kMaxDerivedSize = 5e7;
+// Terms of an expanded equation (check_expansion_cost).
+constexpr double kMaxExpandedTerms = 1e5;
+
+// The cost of exact arithmetic exceeds a limit; the message says which.
+struct CostError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// v with 6 significant digits, for the limits' messages.
+std::string short_value(long double v);
+
+// Cleans GiNaC's messages of their source-location suffixes.
+std::string clean_message(const std::string& what);
+
+// Refuses (CostError) a text whose powers would be too costly to read exactly, before GiNaC
+// reads it.
+void check_text_cost(const std::string& text);
+
+// Exact powers that the parameters' values would make too costly (see check_power).
+void check_cost(const Mechanism& m, const SymbolTable& s, const std::vector<GiNaC::numeric>& values,
+                const GiNaC::ex& value, const Expr& e, const std::string& item);
+
+// Derivatives: the size (leaves and operators of the expression tree) that d e / d x would have,
+// estimated from e without building it, so a derivative too large to be worth computing is
+// refused before it takes minutes and gigabytes. The product rule makes d(f1 ... fn) about n
+// times the size of the product, and every function's derivative repeats its argument.
+struct TreeSize {
+  double size = 0, derivative = 0;
+  bool depends = false;
+};
+
+TreeSize tree_size(const GiNaC::ex& e, const GiNaC::ex& x);
+
+// Where row `component` of a constraint is written: its equation, a driver's f, or the item.
+SourceLoc row_loc(const Constraint& c, int component);
+
+// A constant of the geometry, checked to evaluate to a finite number.
+void check_finite(const Mechanism& m, const SymbolTable& s,
+                  const std::vector<GiNaC::numeric>& values, const GiNaC::ex& value, const Expr& e,
+                  const std::string& item);
+// e parsed as geometry (numbers and parameters) and checked finite.
+GiNaC::ex geometry_value(const Mechanism& m, const SymbolTable& s,
+                         const std::vector<GiNaC::numeric>& values, const Expr& e,
+                         const std::string& item);
+// An expression in t or q with the parameters put in: no division by zero appears, and every
+// number in it is finite (1e999 * t is not).
+void check_defined_value(const Mechanism& m, const SymbolTable& s,
+                         const std::vector<GiNaC::numeric>& values, const GiNaC::ex& value,
+                         const Expr& e, const std::string& item);
+
+// A driver's law in pieces, with a period, from a table or an input (format 6.3), as one
+// expression in t (driver_law.cpp); a jump in f' or f'' is added to `warnings` when given.
+GiNaC::ex driver_law(const Constraint& c, const Mechanism& m, const SymbolTable& s,
+                     const std::vector<GiNaC::numeric>& values, std::vector<std::string>* warnings);
+// The warnings of every driver's law.
+std::vector<std::string> driver_law_warnings(const Mechanism& m, const SymbolTable& s,
+                                             const std::vector<GiNaC::numeric>& values);
+
+}  // namespace kinegen::codegen::symbolic_detail
