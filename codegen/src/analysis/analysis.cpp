@@ -54,13 +54,15 @@ Eigen::MatrixXd jacobian_at(const CompiledModel& model, const Eigen::VectorXd& q
   return jac;
 }
 
+}  // namespace
+
 // The constraints behind a (near-)singular Phi_q: rows that carry weight in the left singular
 // vectors of its smallest singular values (those within a factor 10 of the smallest, and
 // always the smallest), with the scaled condition estimate. rows and cols: the submatrix to
 // look at (a failed block's: its rows depend on its own and earlier blocks' coordinates only,
 // so later blocks' unsolved values do not enter), or empty for all of Phi_q.
 std::string singular_rows(const CompiledModel& model, const Eigen::MatrixXd& jac,
-                          std::vector<int> rows = {}, std::vector<int> cols = {}) {
+                          std::vector<int> rows, std::vector<int> cols) {
   if (rows.empty())
     for (int r = 0; r < jac.rows(); ++r) rows.push_back(r);
   if (cols.empty())
@@ -91,6 +93,8 @@ std::string singular_rows(const CompiledModel& model, const Eigen::MatrixXd& jac
      << "; involved: " << names << ")";
   return os.str();
 }
+
+namespace {
 
 // The constraints furthest from being satisfied at q, for messages about failed assembly: the
 // largest residual and every row within a factor 10 of it.

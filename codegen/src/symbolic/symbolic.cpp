@@ -15,6 +15,7 @@
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/model/table.hpp"
+#include "kinegen/codegen/symbolic/forces.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
 
 namespace kinegen::codegen {
@@ -391,11 +392,11 @@ bool scope_allows(Scope scope, InputKind kind) {
     case InputKind::kParam:
       return scope != Scope::kConstant;
     case InputKind::kQ:
-      return scope == Scope::kJoint || scope == Scope::kDriver;
+      return scope == Scope::kJoint || scope == Scope::kDriver || scope == Scope::kLoad;
     case InputKind::kT:
-      return scope == Scope::kDriverTime || scope == Scope::kDriver;
+      return scope == Scope::kDriverTime || scope == Scope::kDriver || scope == Scope::kLoad;
     case InputKind::kQd:
-      return false;
+      return scope == Scope::kLoad;
   }
   return false;
 }
@@ -411,6 +412,7 @@ const char* scope_hint(Scope scope) {
     case Scope::kDriverTime:
       return "f may use only t and the parameters";
     case Scope::kDriver:
+    case Scope::kLoad:
       return "not allowed here";
   }
   return "";
@@ -422,7 +424,8 @@ std::string velocity_hint(const std::string& item) {
     return "outputs are functions of the coordinates, t and the parameters; an output's rate "
            "is its NAME.v column";
   if (item.rfind("forces[", 0) == 0)
-    return "loads may not use velocities; velocity-dependent loads come from the damper types";
+    return "only a force's f and a torque's value may use velocities (xd_<body>, yd_<body>, "
+           "phid_<body>, <name>_d); a spring-damper's damping gives its own";
   return "expressions may not use velocities; they follow from the positions";
 }
 
@@ -452,6 +455,13 @@ SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& ove
   // Velocities are known by name only to be refused with a message of their own (scope_allows
   // admits them nowhere), not as an unknown symbol.
   for (int k = 0; k < nq(); ++k) names_[coord_names_[k] + "_dot"] = qd_[k];
+  // The names loads use (format 7.2): xd_<body>, yd_<body>, phid_<body>, <coordinate>_d.
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    const char* const kRates[] = {"xd_", "yd_", "phid_"};
+    for (int c = 0; c < 3; ++c) names_[kRates[c] + m.bodies[b].name] = qd_[3 * b + c];
+  }
+  for (std::size_t c = 0; c < m.coordinates.size(); ++c)
+    names_[m.coordinates[c].name + "_d"] = qd_[3 * m.bodies.size() + c];
   // Parameters in file order, each seeing only the earlier ones: a value that reads another
   // parameter makes a derived one (unless --param overrides it, which drops the formula).
   params_.reserve(m.parameters.size());
@@ -541,7 +551,7 @@ ex SymbolTable::parse(const Expr& expr, Scope scope, const std::string& item) co
     if (GiNaC::is_a<GiNaC::symbol>(*it)) {
       const Input role = classify(*it);
       const std::string name = GiNaC::ex_to<GiNaC::symbol>(*it).get_name();
-      if (role.kind == InputKind::kQd)
+      if (role.kind == InputKind::kQd && !scope_allows(scope, role.kind))
         throw InputError(
             source_, item, expr.loc,
             "'" + expr.text + "' uses the velocity '" + name + "': " + velocity_hint(item));
@@ -556,6 +566,18 @@ ex SymbolTable::parse(const Expr& expr, Scope scope, const std::string& item) co
     }
   }
   return e;
+}
+
+void SymbolTable::define(const std::string& name, const ex& value) {
+  names_.emplace(name, value);
+}
+
+int SymbolTable::define_extra(const std::string& name) {
+  const int k = static_cast<int>(extra_.size());
+  extra_.emplace_back(name);
+  roles_.emplace(extra_.back(), Input{InputKind::kParam, num_params() + k});
+  names_[name] = extra_.back();
+  return k;
 }
 
 Input SymbolTable::classify(const ex& symbol) const {
@@ -1139,6 +1161,25 @@ void check_expansion_cost(const Mechanism& m, const SymbolicModel& model) {
   }
 }
 
+namespace {
+// The quantity each free coordinate measures (format 7.1): its row of Phi with the input at
+// 0, g(q) - z for the angle and position types, |d|^2 - z^2 for distance; and its rate.
+void derive_free_values(const Mechanism& m, const SymbolTable& s, SymbolicModel& model) {
+  for (int d : m.free_drivers()) {
+    const Constraint& c = m.drivers[d];
+    ex g;
+    for (std::size_t r = 0; r < model.rows.size(); ++r)
+      if (model.rows[r].constraint == &c) g = model.phi[r];
+    g = g.subs(kinegen_input(d, 0, s.t()) == 0);
+    if (is_distance(c)) g = sqrt(g);
+    ex rate = 0;
+    for (int k = 0; k < s.nq(); ++k) rate += g.diff(s.q(k)) * s.qd(k);
+    model.free_values.push_back(g);
+    model.free_rates.push_back(rate);
+  }
+}
+}  // namespace
+
 SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
                      const std::vector<ParamOverride>& overrides) {
   SymbolicModel model;
@@ -1154,6 +1195,7 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
     }
   }
   const int nc = static_cast<int>(model.phi.size());
+  derive_free_values(m, s, model);
 
   // Every derivative's size is estimated before it is computed (tree_size); one too large, or
   // a model whose derivatives together are, is refused with the constraint it comes from.

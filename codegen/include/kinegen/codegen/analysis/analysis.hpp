@@ -88,6 +88,12 @@ struct AnalysisOptions {
 Eigen::MatrixXd scaled_jacobian(const CompiledModel& model, const Eigen::MatrixXd& jac,
                                 Eigen::VectorXd* row_scale = nullptr);
 
+// The constraints behind a (near-)singular Phi_q, for messages: " (condition estimate C;
+// involved: LABEL; LABEL)", the rows with weight in the left singular vectors of the smallest
+// singular values of the scaled jac. rows and cols: the submatrix to look at, or empty for all.
+std::string singular_rows(const CompiledModel& model, const Eigen::MatrixXd& jac,
+                          std::vector<int> rows = {}, std::vector<int> cols = {});
+
 // The equations of a model with more equations than coordinates that depend on earlier ones
 // (file order) at q, t, named by row_label and joined by "; "; empty when none do.
 std::string redundant_constraints(const CompiledModel& model, const Eigen::VectorXd& q, double t);
