@@ -317,12 +317,18 @@ drivers:
              Catch::Contains("body 'crank' mass line 3") && Catch::Contains("must not be negative"));
   CHECK_THAT(load_error(kBase + "forces:\n  - {type: force, body: rod, f: [1, 0]}\n"),
              Catch::Contains("forces[0] (force) line 9") && Catch::Contains("unknown body 'rod'"));
-  CHECK_THAT(load_error(kBase + "forces:\n  - {type: force, body: crank, f: [\"xd_crank\", 0]}\n"),
-             Catch::Contains("forces[0] (force) f line 9"));
-  CHECK_THAT(
-      load_error(kBase + "forces:\n  - {type: torque, body: crank, value: \"phi_crank_dot\"}\n"),
-      Catch::Contains("forces[0] (torque) line 9") &&
-          Catch::Contains("uses the velocity 'phi_crank_dot'") && Catch::Contains("damper types"));
+  // Format 7.2: a force's f and a torque's value may use velocities; a spring's constants may
+  // not.
+  CHECK(load_error(kBase + "forces:\n  - {type: force, body: crank, f: [\"-0.5*xd_crank\", 0]}\n") ==
+        "no error");
+  CHECK(load_error(kBase + "forces:\n  - {type: torque, body: crank, value: \"-phid_crank\"}\n") ==
+        "no error");
+  CHECK_THAT(load_error(kBase +
+                        "forces:\n  - {type: spring_damper, i: ground, j: crank, stiffness: "
+                        "\"phid_crank\", length0: 1}\n"),
+             Catch::Contains("forces[0] (spring_damper) stiffness line 9") &&
+                 Catch::Contains("uses the velocity 'phi_crank_dot'") &&
+                 Catch::Contains("damping gives its own"));
   CHECK_THAT(load_error(kBase + "forces:\n  - {type: spring_damper, i: ground, j: crank, "
                                 "stiffness: \"1/0\", length0: 1}\n"),
              Catch::Contains("forces[0] (spring_damper)") && Catch::Contains("stiffness line 9"));
@@ -414,7 +420,7 @@ TEST_CASE("bad masses and loads are input errors for every command, not only wit
   // Each file is kBase and one bad line after it; the message names the item.
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"forces:\n  - {type: force, body: crank, f: [\"nosuch\", 0]}\n", "unknown symbol 'nosuch'"},
-      {"forces:\n  - {type: torque, body: crank, value: \"xd_crank\"}\n", "forces[0] (torque)"},
+      {"forces:\n  - {type: torque, body: crank, value: \"xd_nosuch\"}\n", "forces[0] (torque)"},
       {"forces:\n  - {type: spring_damper, i: ground, j: crank, stiffness: \"1/0\", "
        "length0: 1}\n",
        "stiffness"},

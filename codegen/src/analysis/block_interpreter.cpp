@@ -75,6 +75,7 @@ struct BlockInterpreter::Run {
   const double* qd = nullptr;
   double t = 0;
   const double* params = nullptr;
+  const double* inputs = nullptr;
   // A torn block's sensitivities of its assigned coordinates to its tears, per block:
   // d[j][c] (the emitter's _D<b>_<j>_<c>), and its factored Schur complement.
   std::vector<std::vector<std::vector<double>>> d;
@@ -142,8 +143,8 @@ struct BlockInterpreter::Run {
             ready = false;
           }
         if (!ready) continue;
-        values[k] =
-            ProgramEvaluator<double>::node_value(prog.nodes, k, values.data(), q, qd, t, params);
+        values[k] = ProgramEvaluator<double>::node_value(prog.nodes, k, values.data(), q, qd, t,
+                                                         params, inputs);
       }
       valid[k] = 1;
       stack.pop_back();
@@ -574,6 +575,7 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
   r.qd = qd;
   r.t = t;
   r.params = model_.params().data();
+  r.inputs = inputs_;
   const int nq = model_.nq();
   Step step(*this, q, o);
   phase_ = Phase::kPosition;

@@ -16,7 +16,7 @@ std::unique_ptr<CompiledModel> CompiledModel::from_file(const std::string& path,
   stage.done(std::to_string(mechanism.bodies.size()) + " bodies, " +
              std::to_string(mechanism.nq()) + " coordinates, " + std::to_string(mechanism.nc()) +
              " equations");
-  apply_inputs(mechanism, options.inputs, options.inputs_required);
+  apply_inputs(mechanism, options.inputs, options.inputs_required, options.free_as_state);
   return from_mechanism(std::move(mechanism), overrides, options);
 }
 
@@ -72,6 +72,14 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
     symbolic_ = derive(mechanism_, *symbols_, overrides);
     stage.done("Phi_q: " + std::to_string(symbolic_.phi_q.size()) + " structural non-zeros");
   }
+  // Loads may read a free coordinate's value Z and rate Z_d (format 7.2).
+  const std::vector<int> free = mechanism_.free_drivers();
+  for (std::size_t k = 0; k < free.size(); ++k) {
+    const std::string& name = mechanism_.drivers[free[k]].name;
+    symbols_->define(name, symbolic_.free_values[k]);
+    symbols_->define(name + "_d", symbolic_.free_rates[k]);
+  }
+  derive_stop_when(mechanism_, *symbols_, symbolic_, force_columns(mechanism_));
   // The masses, gravity and loads are input like the rest: checked whenever the model is
   // compiled, so a bad load is an error for every command, not only with --forces.
   if (has_force_input(mechanism_.forces)) {

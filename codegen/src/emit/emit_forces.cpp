@@ -46,7 +46,7 @@ class ForceCode {
     for (int b = 0; b < static_cast<int>(m.bodies.size()); ++b) add_inertia(b);
     const int nj = static_cast<int>(m.joints.size());
     for (std::size_t d = 0; d < m.drivers.size(); ++d)
-      add_driver_columns(m.drivers[d], nj + static_cast<int>(d));
+      if (!m.drivers[d].free) add_driver_columns(m.drivers[d], nj + static_cast<int>(d));
     for (int j = 0; j < nj; ++j)
       if (!is_expression(m.joints[j])) add_joint_columns(m.joints[j], j);
   }

@@ -41,7 +41,7 @@ Mechanism Loader::load(const YAML::Node& root) {
   if (!root.IsMap()) fail("file", loc_of(root), "the top level must be a mapping of keys");
   check_keys(root, "file", {"name"},
              {"parameters", "definitions", "bodies", "coordinates", "joints", "drivers", "points",
-              "outputs", "gravity", "forces"});
+              "outputs", "gravity", "forces", "free", "stop_when"});
   Mechanism m;
   m.source = source_;
   m.name = name_of(root["name"], "name");
@@ -61,6 +61,8 @@ Mechanism Loader::load(const YAML::Node& root) {
     m.forces.gravity_loc = loc_of(root["gravity"]);
   }
   if (root["forces"]) read_forces(root["forces"], m);
+  read_constraints(root["free"], "free", true, m);
+  if (root["stop_when"]) m.stop_when = expr_of(root["stop_when"], "stop_when");
   check_unique_names(m);
   return m;
 }

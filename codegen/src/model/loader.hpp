@@ -64,6 +64,7 @@ class Loader {
   int body_ref(const YAML::Node& node, const Mechanism& m, const std::string& item,
                bool allow_ground);
   void read_constraints(const YAML::Node& node, const std::string& list, bool driver, Mechanism& m);
+  static bool has_value_key(const ConstraintKind& kind);
   // A driver's kValue key is `f`, its f(t), and always required.
   static std::string key_name(const KeySpec& k, bool driver) {
     return driver && k.kind == KeyKind::kValue ? "f" : k.name;

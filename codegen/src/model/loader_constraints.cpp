@@ -25,20 +25,26 @@ void Loader::read_constraints(const YAML::Node& node, const std::string& list, b
     if (!c.IsMap()) fail(item, loc_of(c), "expected a mapping with a 'type'");
     if (!c["type"] || !c["type"].IsScalar()) fail(item, loc_of(c), "missing key 'type'");
     const std::string type_name = c["type"].Scalar();
+    const bool free = list == "free";
+    // A free item measures one quantity: a driver type with a value (not `expression`).
+    const auto allowed_kind = [&](const ConstraintKind* t) {
+      return free ? t->driver && t->rows == 1 && has_value_key(*t)
+                  : (driver ? t->driver : t->joint);
+    };
     const ConstraintKind* kind = find_constraint_kind(type_name);
-    if (!kind || !(driver ? kind->driver : kind->joint)) {
+    if (!kind || !allowed_kind(kind)) {
       std::string allowed;
       for (const ConstraintKind* t : constraint_kinds())
-        if (driver ? t->driver : t->joint)
-          allowed += (allowed.empty() ? "" : ", ") + std::string(t->name);
+        if (allowed_kind(t)) allowed += (allowed.empty() ? "" : ", ") + std::string(t->name);
       fail(item, loc_of(c["type"]),
-           "unknown " + std::string(driver ? "driver" : "joint") + " type '" + type_name +
-               "' (expected one of: " + allowed + ")");
+           "unknown " + std::string(free ? "free" : driver ? "driver" : "joint") + " type '" +
+               type_name + "' (expected one of: " + allowed + ")");
     }
     Constraint con;
     con.kind = kind;
     con.is_driver = driver;
     con.loc = loc_of(c);
+    if (free) con.free.emplace();
     item += " (" + type_name + ")";
     if (c["name"]) {
       con.name = name_of(c["name"], item);
@@ -46,8 +52,16 @@ void Loader::read_constraints(const YAML::Node& node, const std::string& list, b
     }
     con.item = item;
     read_keys(c, *kind, item, m, con);
+    // A free coordinate's value, rate and acceleration are run-time inputs named after it
+    // (its CSV columns Z, Z.v, Z.a; generated Params members).
+    if (free && con.name.empty()) con.name = "free" + std::to_string(k);
     (driver ? m.drivers : m.joints).push_back(std::move(con));
   }
+}
+
+bool Loader::has_value_key(const ConstraintKind& kind) {
+  return std::any_of(kind.keys.begin(), kind.keys.end(),
+                     [](const KeySpec& k) { return k.kind == KeyKind::kValue; });
 }
 
 // The keys of `kind` from `c` into `con`: bodies first (then i != j), the rest in the
@@ -61,6 +75,13 @@ void Loader::read_keys(const YAML::Node& c, const ConstraintKind& kind, const st
     has_law = has_law || (driver && k.kind == KeyKind::kValue);
     (k.required && !(driver && k.kind == KeyKind::kValue) ? required : optional)
         .push_back(key_name(k, driver));
+  }
+  if (con.free) {
+    // Written like a driver without f (format 7.1): value0 and v0 instead.
+    std::erase(optional, std::string("f"));
+    optional.push_back("value0");
+    optional.push_back("v0");
+    has_law = false;
   }
   if (has_law) {
     optional.push_back("period");
@@ -99,7 +120,12 @@ void Loader::read_key(const YAML::Node& c, const KeySpec& k, const std::string& 
       con.vectors[key] = node ? vec2_of(node, item + " " + key) : Vec2{fallback, fallback};
       break;
     case KeyKind::kValue:
-      if (driver) {
+      if (con.free) {
+        if (c["value0"]) con.free->value0 = expr_of(c["value0"], item + " value0");
+        if (c["v0"]) con.free->v0 = expr_of(c["v0"], item + " v0");
+        con.law.input = true;
+        con.value = Expr{"0", con.loc};
+      } else if (driver) {
         read_law(c, item, con);
       } else {
         con.value = node ? expr_of(node, item + " " + key) : fallback;

@@ -79,6 +79,13 @@ std::vector<const Constraint*> Mechanism::constraints() const {
   return all;
 }
 
+std::vector<int> Mechanism::free_drivers() const {
+  std::vector<int> out;
+  for (std::size_t k = 0; k < drivers.size(); ++k)
+    if (drivers[k].free) out.push_back(static_cast<int>(k));
+  return out;
+}
+
 std::optional<int> Mechanism::find_body(const std::string& name) const {
   for (std::size_t k = 0; k < bodies.size(); ++k)
     if (bodies[k].name == name) return static_cast<int>(k);

@@ -178,28 +178,38 @@ std::string table_outside(const Mechanism& m, double t) {
 }
 
 void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::string>>& inputs,
-                  bool required) {
+                  bool required, bool free_as_state) {
   std::set<std::string> given;
   for (const auto& [name, path] : inputs) {
     if (!given.insert(name).second) throw UsageError("--input " + name + " is given twice");
     Constraint* driver = nullptr;
     for (Constraint& d : m.drivers)
-      if (d.name == name && d.law.input) driver = &d;
+      if (d.name == name && d.law.input && !(d.free && free_as_state)) driver = &d;
     if (!driver)
       throw UsageError("--input " + name + ": " + m.source +
-                       " has no input driver (f: input) named '" + name + "'");
+                       " has no input driver (f: input) named '" + name + "'" +
+                       (free_as_state ? " (a free coordinate's motion is the simulation's)" : ""));
     const TableSource src{m.source, driver->item + " --input " + name, driver->value.loc, false};
     std::vector<double> t, v;
     read_table(fs::absolute(path).string(), src, t, v);
     driver->law.input = false;
+    driver->free.reset();  // a free coordinate given its motion is a prescribed driver
     driver->law.table = path;
     driver->law.table_id = register_table(fit_not_a_knot(t, v));
   }
   if (!required) return;
-  for (const Constraint& d : m.drivers)
+  for (const Constraint& d : m.drivers) {
+    if (d.free && free_as_state) continue;
+    if (d.free)
+      throw UsageError(d.item +
+                       " is a free coordinate (format 7.1), moved by the forces: `kinegen "
+                       "simulate` finds its motion; to prescribe it here, give its values with "
+                       "--input " +
+                       d.name + "=FILE.csv (columns t,value)");
     if (d.law.input)
       throw UsageError(d.item + " is an input driver (f: input): give its values with --input " +
                        d.name + "=FILE.csv (columns t,value)");
+  }
 }
 
 bool Spline::eval(double x, double* f) const {

@@ -11,6 +11,8 @@
 #include <stdexcept>
 
 #include "kinegen/codegen/constraints/registry.hpp"
+#include "kinegen/codegen/symbolic/forces.hpp"
+#include "kinegen/codegen/symbolic/functions.hpp"
 #include "symbolic_detail.hpp"
 
 namespace kinegen::codegen {
@@ -310,6 +312,23 @@ void derive_scales(const Mechanism& m, const SymbolTable& s, const Builder& buil
   }
 }
 
+// The quantity each free coordinate measures (format 7.1): its row of Phi with the input at
+// 0, g(q) - z for the angle and position types, |d|^2 - z^2 for distance; and its rate.
+void derive_free_values(const Mechanism& m, const SymbolTable& s, SymbolicModel& model) {
+  for (int d : m.free_drivers()) {
+    const Constraint& c = m.drivers[d];
+    ex g;
+    for (std::size_t r = 0; r < model.rows.size(); ++r)
+      if (model.rows[r].constraint == &c) g = model.phi[r];
+    g = g.subs(kinegen_input(d, 0, s.t()) == 0);
+    if (is_distance(c)) g = sqrt(g);
+    ex rate = 0;
+    for (int k = 0; k < s.nq(); ++k) rate += g.diff(s.q(k)) * s.qd(k);
+    model.free_values.push_back(g);
+    model.free_rates.push_back(rate);
+  }
+}
+
 }  // namespace
 
 SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
@@ -326,6 +345,7 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
       model.rows.push_back({c, static_cast<int>(k)});
     }
   }
+  derive_free_values(m, s, model);
   derive_rates(m, s, model);
   derive_geometry(m, s, builder, model);
   derive_outputs(m, s, model);

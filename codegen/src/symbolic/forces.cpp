@@ -80,18 +80,21 @@ class Builder {
   const std::vector<GiNaC::numeric>& values_;
 };
 
-// A load's generalized forces, added to `applied`.
-void add_load(const Builder& b, const Load& load, std::vector<ex>& applied) {
+// A load's generalized forces, added to Q^A, and its part of the potential (springs) or of
+// Q^nc (the rest: force and torque loads, dampers).
+void add_load(const Builder& b, const Load& load, ForceModel& f) {
   switch (load.kind) {
     case Load::Kind::kForce: {
-      const Vec fv = b.vec(load.f, Scope::kDriver, load.item + " f");
-      b.add_force(applied, load.body, b.vec(load.s, Scope::kGeometry, load.item + " s"), fv.x,
-                  fv.y);
+      const Vec fv = b.vec(load.f, Scope::kLoad, load.item + " f");
+      const Vec at = b.vec(load.s, Scope::kGeometry, load.item + " s");
+      for (auto* q : {&f.applied, &f.nonconservative}) b.add_force(*q, load.body, at, fv.x, fv.y);
       break;
     }
-    case Load::Kind::kTorque:
-      b.add_torque(applied, load.body, b.parse(load.value, Scope::kDriver, load.item));
+    case Load::Kind::kTorque: {
+      const ex tz = b.parse(load.value, Scope::kLoad, load.item);
+      for (auto* q : {&f.applied, &f.nonconservative}) b.add_torque(*q, load.body, tz);
       break;
+    }
     case Load::Kind::kSpringDamper: {
       const Vec si = b.vec(load.si, Scope::kGeometry, load.item + " si");
       const Vec sj = b.vec(load.sj, Scope::kGeometry, load.item + " sj");
@@ -99,24 +102,31 @@ void add_load(const Builder& b, const Load& load, std::vector<ex>& applied) {
       const ex dx = pj.x - pi.x, dy = pj.y - pi.y;
       const ex length = sqrt(dx * dx + dy * dy);
       const ex rate = (dx * b.time_derivative(dx) + dy * b.time_derivative(dy)) / length;
-      const ex tension =
-          b.parse(load.stiffness, Scope::kGeometry, load.item + " stiffness") *
-              (length - b.parse(load.length0, Scope::kGeometry, load.item + " length0")) +
-          b.parse(load.damping, Scope::kGeometry, load.item + " damping") * rate +
-          b.parse(load.preload, Scope::kGeometry, load.item + " preload");
+      const ex stiffness = b.parse(load.stiffness, Scope::kGeometry, load.item + " stiffness");
+      const ex stretch = length - b.parse(load.length0, Scope::kGeometry, load.item + " length0");
+      const ex preload = b.parse(load.preload, Scope::kGeometry, load.item + " preload");
+      const ex damping = b.parse(load.damping, Scope::kGeometry, load.item + " damping") * rate;
+      const ex tension = stiffness * stretch + damping + preload;
       // Tension pulls the points together: along -d on j, along +d on i.
-      b.add_force(applied, load.j, sj, -tension * dx / length, -tension * dy / length);
-      b.add_force(applied, load.i, si, tension * dx / length, tension * dy / length);
+      b.add_force(f.applied, load.j, sj, -tension * dx / length, -tension * dy / length);
+      b.add_force(f.applied, load.i, si, tension * dx / length, tension * dy / length);
+      b.add_force(f.nonconservative, load.j, sj, -damping * dx / length, -damping * dy / length);
+      b.add_force(f.nonconservative, load.i, si, damping * dx / length, damping * dy / length);
+      f.potential += stiffness * stretch * stretch / 2 + preload * length;
       break;
     }
     case Load::Kind::kRotationalSpringDamper: {
-      const ex torque = -(b.parse(load.stiffness, Scope::kGeometry, load.item + " stiffness") *
-                              (b.angle(load.j) - b.angle(load.i) -
-                               b.parse(load.angle0, Scope::kGeometry, load.item + " angle0")) +
-                          b.parse(load.damping, Scope::kGeometry, load.item + " damping") *
-                              (b.rate(load.j) - b.rate(load.i)));
-      b.add_torque(applied, load.j, torque);
-      b.add_torque(applied, load.i, -torque);
+      const ex stiffness = b.parse(load.stiffness, Scope::kGeometry, load.item + " stiffness");
+      const ex twist = b.angle(load.j) - b.angle(load.i) -
+                       b.parse(load.angle0, Scope::kGeometry, load.item + " angle0");
+      const ex damping = b.parse(load.damping, Scope::kGeometry, load.item + " damping") *
+                         (b.rate(load.j) - b.rate(load.i));
+      const ex torque = -(stiffness * twist + damping);
+      b.add_torque(f.applied, load.j, torque);
+      b.add_torque(f.applied, load.i, -torque);
+      b.add_torque(f.nonconservative, load.j, -damping);
+      b.add_torque(f.nonconservative, load.i, damping);
+      f.potential += stiffness * twist * twist / 2;
       break;
     }
   }
@@ -130,6 +140,8 @@ ForceModel derive_forces(const Mechanism& m, const SymbolTable& s, const Symboli
   ForceModel f;
   const int nb = static_cast<int>(m.bodies.size());
   f.applied.assign(s.nq(), ex(0));
+  f.nonconservative.assign(s.nq(), ex(0));
+  f.potential = 0;
   const Vec g = b.vec(spec.gravity, Scope::kGeometry, "gravity");
   b.number(spec.gravity.x, "gravity", false);
   b.number(spec.gravity.y, "gravity", false);
@@ -148,8 +160,10 @@ ForceModel derive_forces(const Mechanism& m, const SymbolTable& s, const Symboli
     f.symbolic.inertia.push_back(b.parse(bm.inertia, Scope::kGeometry, item + " inertia"));
     f.symbolic.com.push_back({com.x, com.y});
     b.add_force(f.applied, k, com, mass * g.x, mass * g.y);
+    const Vec r = b.point(k, com);
+    f.potential -= mass * (g.x * r.x + g.y * r.y);
   }
-  for (const Load& load : spec.loads) add_load(b, load, f.applied);
+  for (const Load& load : spec.loads) add_load(b, load, f);
   for (const Load& load : spec.loads)
     for (const Expr* e :
          {&load.stiffness, &load.damping, &load.length0, &load.preload, &load.angle0})
@@ -199,6 +213,7 @@ std::vector<std::string> force_columns(const Mechanism& m) {
   std::vector<std::string> names;
   for (std::size_t d = 0; d < m.drivers.size(); ++d) {
     const Constraint& c = m.drivers[d];
+    if (c.free) continue;  // moved by the forces: no actuator, no effort
     const std::string base = label(c, "driver", static_cast<int>(d));
     if (!c.kind->reaction) {
       for (int e = 0; e < c.equation_count(); ++e)

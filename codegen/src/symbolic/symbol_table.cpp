@@ -83,11 +83,11 @@ bool scope_allows(Scope scope, InputKind kind) {
     case InputKind::kParam:
       return scope != Scope::kConstant;
     case InputKind::kQ:
-      return scope == Scope::kJoint || scope == Scope::kDriver;
+      return scope == Scope::kJoint || scope == Scope::kDriver || scope == Scope::kLoad;
     case InputKind::kT:
-      return scope == Scope::kDriverTime || scope == Scope::kDriver;
+      return scope == Scope::kDriverTime || scope == Scope::kDriver || scope == Scope::kLoad;
     case InputKind::kQd:
-      return false;
+      return scope == Scope::kLoad;
   }
   return false;
 }
@@ -103,6 +103,7 @@ const char* scope_hint(Scope scope) {
     case Scope::kDriverTime:
       return "f may use only t and the parameters";
     case Scope::kDriver:
+    case Scope::kLoad:
       return "not allowed here";
   }
   return "";
@@ -114,7 +115,8 @@ std::string velocity_hint(const std::string& item) {
     return "outputs are functions of the coordinates, t and the parameters; an output's rate "
            "is its NAME.v column";
   if (item.rfind("forces[", 0) == 0)
-    return "loads may not use velocities; velocity-dependent loads come from the damper types";
+    return "only a force's f and a torque's value may use velocities (xd_<body>, yd_<body>, "
+           "phid_<body>, <name>_d); a spring-damper's damping gives its own";
   return "expressions may not use velocities; they follow from the positions";
 }
 
@@ -162,6 +164,13 @@ SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& ove
   // Velocities are known by name only to be refused with a message of their own (scope_allows
   // admits them nowhere), not as an unknown symbol.
   for (int k = 0; k < nq(); ++k) names_[coord_names_[k] + "_dot"] = qd_[k];
+  // The names loads use (format 7.2): xd_<body>, yd_<body>, phid_<body>, <coordinate>_d.
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    const char* const kRates[] = {"xd_", "yd_", "phid_"};
+    for (int c = 0; c < 3; ++c) names_[kRates[c] + m.bodies[b].name] = qd_[3 * b + c];
+  }
+  for (std::size_t c = 0; c < m.coordinates.size(); ++c)
+    names_[m.coordinates[c].name + "_d"] = qd_[3 * m.bodies.size() + c];
   // Parameters in file order, each seeing only the earlier ones: a value that reads another
   // parameter makes a derived one (unless --param overrides it, which drops the formula).
   params_.reserve(m.parameters.size());
@@ -251,7 +260,7 @@ ex SymbolTable::parse(const Expr& expr, Scope scope, const std::string& item) co
     if (GiNaC::is_a<GiNaC::symbol>(*it)) {
       const Input role = classify(*it);
       const std::string name = GiNaC::ex_to<GiNaC::symbol>(*it).get_name();
-      if (role.kind == InputKind::kQd)
+      if (role.kind == InputKind::kQd && !scope_allows(scope, role.kind))
         throw InputError(
             source_, item, expr.loc,
             "'" + expr.text + "' uses the velocity '" + name + "': " + velocity_hint(item));
@@ -266,6 +275,18 @@ ex SymbolTable::parse(const Expr& expr, Scope scope, const std::string& item) co
     }
   }
   return e;
+}
+
+void SymbolTable::define(const std::string& name, const ex& value) {
+  names_.emplace(name, value);
+}
+
+int SymbolTable::define_extra(const std::string& name) {
+  const int k = static_cast<int>(extra_.size());
+  extra_.emplace_back(name);
+  roles_.emplace(extra_.back(), Input{InputKind::kParam, num_params() + k});
+  names_[name] = extra_.back();
+  return k;
 }
 
 Input SymbolTable::classify(const ex& symbol) const {

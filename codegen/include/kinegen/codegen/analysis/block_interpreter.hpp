@@ -53,6 +53,9 @@ class BlockInterpreter {
   }
   // Empties the sin/cos cache and forgets the determinant signs (kinegen::Solver::reset).
   void reset();
+  // The input drivers' values for the next steps (ProgramEvaluator::set_inputs: 3 per driver,
+  // value, rate, acceleration), as a generated Params holds them. Not owned.
+  void set_inputs(const double* inputs) { inputs_ = inputs; }
 
   const Structure& structure() const { return st_; }
   // The coordinates Newton iterates (the generated newton_coordinates).
@@ -68,6 +71,7 @@ class BlockInterpreter {
   std::vector<double> trig_;       // 3 per slot: anchor, sin, cos (NaN: empty)
   std::vector<signed char> signs_;  // per block
   std::unique_ptr<Run> run_;        // the workspace of one step
+  const double* inputs_ = nullptr;
   Phase phase_ = Phase::kPosition;
 };
 

@@ -28,6 +28,9 @@ struct BuildOptions {
   // one is a UsageError (every command but generate, whose code reads them from Params).
   std::vector<std::pair<std::string, std::string>> inputs;
   bool inputs_required = false;
+  // The free coordinates (format 7.1) are the state of a simulation, not inputs needing a
+  // table (simulate, equilibrium, modes, linearize).
+  bool free_as_state = false;
 };
 
 // Owns the stages; not copyable because later stages point into earlier ones.
@@ -105,6 +108,10 @@ class ModelEvaluator {
         params_(model.params().begin(), model.params().end()),
         jac_values_(model.programs().jac_rows.size()) {}
 
+  // The input drivers' values (ProgramEvaluator::set_inputs); not owned.
+  void set_inputs(const T* inputs) {
+    for (auto* p : {&phi_, &phi_q_, &nu_, &gamma_}) p->set_inputs(inputs);
+  }
   void phi(const T* q, T t, T* out) { phi_.run(q, nullptr, t, params_.data(), out); }
   void nu(const T* q, T t, T* out) { nu_.run(q, nullptr, t, params_.data(), out); }
   void gamma(const T* q, const T* qd, T t, T* out) { gamma_.run(q, qd, t, params_.data(), out); }
@@ -145,6 +152,8 @@ class ProgramSystem {
 
   int nq() const { return model_->nq(); }
   int nc() const { return model_->nc(); }
+  // The input drivers' values (ProgramEvaluator::set_inputs); not owned.
+  void set_inputs(const double* inputs) { eval_.set_inputs(inputs); }
   double length_scale() const { return model_->symbolic().length_scale; }
   double coordinate_scale(int k) const { return model_->symbolic().coordinate_scales[k]; }
   void phi(const double* q, double t, double* out) const { eval_.phi(q, t, out); }

@@ -28,17 +28,22 @@ class ProgramEvaluator {
   void run(const T* q, const T* qd, T t, const T* params, T* out) {
     const auto& nodes = program_->nodes;
     for (std::size_t k = 0; k < nodes.size(); ++k)
-      values_[k] = node_value(nodes, k, values_.data(), q, qd, t, params);
+      values_[k] = node_value(nodes, k, values_.data(), q, qd, t, params, inputs_);
     for (std::size_t o = 0; o < program_->outputs.size(); ++o) {
       const int id = program_->outputs[o];
       out[o] = id == Program::kZero ? T(0) : values_[id];
     }
   }
 
+  // The input drivers' values (format 6.3 `f: input`, and the free coordinates of 7.1, which
+  // are inputs too): 3 per driver of Mechanism::drivers, its value, rate and acceleration, as
+  // the generated Params members NAME, NAME_v and NAME_a. Not owned; null reads 0.
+  void set_inputs(const T* inputs) { inputs_ = inputs; }
+
   // Node k of `nodes` from the values of the nodes before it, as the emitted C++ computes it:
   // the one evaluation of a node that run() and the in-process block solver share.
   static T node_value(const std::vector<Node>& nodes, std::size_t k, const T* values, const T* q,
-                      const T* qd, T t, const T* params) {
+                      const T* qd, T t, const T* params, const T* inputs = nullptr) {
     using std::pow;
     const Node& n = nodes[k];
     const auto arg = [&](int a) { return values[n.args[a]]; };
@@ -85,9 +90,9 @@ class ProgramEvaluator {
         v = kernels::floor_re(arg(0));
         break;
       case OpKind::kDriverInput:
-        // An input driver not given as a table (`--input`): 0, as in a default Params of
-        // generated code (eval and check; analyze requires the table).
-        v = T(0);
+        // Without inputs (eval and check; analyze requires a table), 0, as in a default Params
+        // of generated code.
+        v = inputs ? inputs[3 * n.table + n.order] : T(0);
         break;
       case OpKind::kTable: {
         const Spline& s = registered_table(n.table);
@@ -115,6 +120,7 @@ class ProgramEvaluator {
 
   const Program* program_;
   std::vector<T> values_;
+  const T* inputs_ = nullptr;
 };
 
 }  // namespace kinegen::codegen

@@ -85,6 +85,7 @@ void columns_from_lambda(const Mechanism& m, const ForceModel& f, const ForceDat
   const int nj = static_cast<int>(m.joints.size());
   for (std::size_t di = 0; di < m.drivers.size(); ++di) {
     const Constraint& c = m.drivers[di];
+    if (c.free) continue;  // no actuator (force_columns)
     const int k = nj + static_cast<int>(di), r0 = f.row_begin[k];
     if (is_distance(c)) {
       // Phi = d.d - f^2: the force along d is -lambda dPhi/dL = -2 lambda L.

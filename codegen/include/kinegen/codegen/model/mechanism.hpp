@@ -103,6 +103,15 @@ struct Constraint {
   std::vector<Expr> equations;  // expression constraints: each string = 0
   std::map<std::string, Vec2> curves;      // kCurve keys: [x(u), y(u)] local to a body
   std::map<std::string, int> coordinates;  // kCoordinate keys: index into Mechanism::coordinates
+  // A free coordinate (format 7.1): listed under `free:`, kept among the drivers (after the
+  // file's own) as an input driver whose value, rate and acceleration are the dynamics' state
+  // z, zd and zdd. value0 and v0 are its state at t0 (value0 absent: its value at the
+  // assembled q0).
+  struct Free {
+    std::optional<Expr> value0;
+    Expr v0{"0", {}};
+  };
+  std::optional<Free> free;
 
   const char* type_name() const;
   // Number of scalar equations this constraint contributes.
@@ -159,6 +168,8 @@ struct Mechanism {
   std::vector<Point> points;
   std::vector<Output> outputs;
   ForceSpec forces;  // masses, gravity and loads (`analyze --forces`)
+  // `stop_when:` (format 7.3): `simulate` ends where this crosses 0 from below.
+  std::optional<Expr> stop_when;
 
   int nq() const {
     return 3 * static_cast<int>(bodies.size()) + static_cast<int>(coordinates.size());
@@ -169,6 +180,10 @@ struct Mechanism {
   // Joints then drivers, in file order: the order of the rows of Phi.
   std::vector<const Constraint*> constraints() const;
   std::optional<int> find_body(const std::string& name) const;
+  // The free coordinates (format 7.1) as indices into `drivers`, in `free:` order; they
+  // follow the file's drivers there.
+  std::vector<int> free_drivers() const;
+  int num_free() const { return static_cast<int>(free_drivers().size()); }
 };
 
 // Reads and validates a mechanism file. Throws InputError naming the file, item and line.

@@ -52,9 +52,11 @@ std::string table_outside(const Mechanism& m, double t);
 // Turns each named input driver (`f: input`) into a table driver read from its CSV file
 // (`analyze --input NAME=FILE.csv`; the path is the user's, relative to the working
 // directory, not confined). Throws UsageError for a name that is not an input driver, one
-// given twice, or (when `required`) an input driver left without a table.
+// given twice, or (when `required`) an input driver left without a table. A free coordinate
+// (format 7.1) given a table becomes a prescribed driver; with free_as_state (simulate and the
+// other commands of section 7) the free coordinates are the state and take no table.
 void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::string>>& inputs,
-                  bool required);
+                  bool required, bool free_as_state = false);
 
 // Limits that keep a hostile table from costing unbounded time or memory.
 inline constexpr std::size_t kMaxTableBytes = 8u << 20;

@@ -35,6 +35,11 @@ struct ForceData {
 // Q^A as expressions; whoever runs it lowers it (the emitter after folding, ForceSolver as is).
 struct ForceModel {
   std::vector<GiNaC::ex> applied;  // Q^A(q, qd, t), nq: gravity and the loads
+  // The energy columns of `simulate` (format 7.3): the potential of gravity and the springs
+  // (preloads included), V(q), and the generalized force of everything else that does work:
+  // `force` and `torque` loads and the dampers, Q^nc(q, qd, t), so that Q^A = -V_q + Q^nc.
+  GiNaC::ex potential;
+  std::vector<GiNaC::ex> nonconservative;  // nq
   ForceData<GiNaC::ex> exact;      // parameters substituted, exact where they are
   ForceData<double> numbers;       // the same in double
   ForceData<GiNaC::ex> symbolic;   // the same with the parameters as symbols (generated code)

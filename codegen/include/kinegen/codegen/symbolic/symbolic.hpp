@@ -29,6 +29,7 @@ enum class Scope {
   kJoint,       // parameters and coordinates: expression joints
   kDriverTime,  // parameters and t: f(t) of a driver
   kDriver,      // parameters, coordinates and t: expression drivers
+  kLoad,        // parameters, coordinates, velocities and t: force and torque loads (7.2)
 };
 
 // A parameter whose value is an expression of earlier ones (format 6.1): not a symbol of its
@@ -71,11 +72,20 @@ class SymbolTable {
   // The role of a symbol created here; throws std::logic_error for a foreign symbol.
   Input classify(const GiNaC::ex& symbol) const;
 
+  // Names a derived quantity for the expressions parsed after: a free coordinate's value Z
+  // and rate Z_d (format 7.2), which exist only once derive() has its equation. A name the
+  // file already uses keeps its meaning (user names take precedence).
+  void define(const std::string& name, const GiNaC::ex& value);
+  // A name for a value supplied beside the parameters when an expression is evaluated in
+  // process, not a model input (stop_when's force columns, format 7.3): it reads as
+  // parameter num_params() + k, k counting these from 0. Returns k.
+  int define_extra(const std::string& name);
+
  private:
   static bool has_symbol(const GiNaC::ex& e);
 
   std::string source_;
-  std::vector<GiNaC::realsymbol> q_, qd_, params_;
+  std::vector<GiNaC::realsymbol> q_, qd_, params_, extra_;
   GiNaC::realsymbol t_;
   std::vector<std::string> param_names_, coord_names_;
   std::vector<int> param_source_;
@@ -118,9 +128,25 @@ struct SymbolicModel {
   // Reported points and outputs never enter.
   std::vector<CoordinateKind> coordinate_kinds;
   std::vector<double> coordinate_scales;
+  // The free coordinates (format 7.1), in Mechanism::free_drivers() order: the quantity each
+  // measures as an expression in q (its value z) and its rate in q and qd.
+  std::vector<GiNaC::ex> free_values, free_rates;
   // The largest length scale (the v1 header member; the solvers use coordinate_scales).
   double length_scale = 1.0;
+  // `stop_when:` (format 7.3), in q, qd, t, the parameters and, as extra parameters
+  // (SymbolTable::define_extra), the force columns it reads: stop_force_columns[k] is the
+  // force_columns index extra parameter k stands for. Empty when the file has none.
+  GiNaC::ex stop_when;
+  std::vector<int> stop_force_columns;
 };
+
+// Parses `stop_when` (format 7.3) into model.stop_when: an expression in the coordinates and
+// velocities by name (x_B, xd_B, ...), t, the parameters, the free coordinates (Z, Z_d), the
+// outputs, and the CSV's columns by name (B.x, B.y, B.phi, B.vx, B.vy, B.omega, P.x, P.y,
+// P.vx, P.vy, Z.v, O.v, and force columns such as J.fn or D.effort). Defines those names in
+// `symbols` for it. InputError for an unknown name, naming the line.
+void derive_stop_when(const Mechanism& mechanism, SymbolTable& symbols, SymbolicModel& model,
+                      const std::vector<std::string>& force_columns);
 
 // A --param NAME=VALUE override.
 struct ParamOverride {

@@ -1,0 +1,99 @@
+// Forward dynamics in minimal coordinates (mechanism format 7.2), in-process: the free items
+// (7.1) are input drivers whose values are the state z. At (t, z, zd) the block program
+// solves q(z, t), qd = B zd + b and c, the acceleration at zdd = 0; B = dq/dz comes from
+// Phi_q B = E (E: the free rows' unit vectors) with one factorization of Phi_q; then the
+// dynamics kernel (kernels/dynamics.hpp) solves (B^T M B) zdd = B^T (Q^A - M c - ...) and
+// qdd = c + B zdd. Nothing drifts: q is solved from z at every evaluation.
+//
+// Takes: a CompiledModel with free items and the ForceModel of symbolic/forces.hpp. Gives:
+// the state at t0 (checked as 7.1 requires), zdd and the full q, qd, qdd at any (t, z, zd),
+// the energy terms of 7.3, and failures with their reason.
+#pragma once
+
+#include <Eigen/Dense>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/symbolic/forces.hpp"
+
+namespace kinegen::codegen {
+
+class BlockInterpreter;
+
+// Why an evaluation of the equations of motion failed.
+enum class MotionFailure {
+  kNone,
+  kPosition,      // q(z, t) not found: Newton failed, or a singular or ill-conditioned Phi_q
+  kBranch,        // the solution left its assembly branch (a singular position was crossed)
+  kReducedMass,   // B^T M B is singular: a free coordinate moves no mass here
+  kNonFinite,     // a value is NaN or infinite (a load, a table)
+  kOutsideTable,  // t lies outside a table's range
+};
+
+struct MotionState {
+  double t = 0;
+  Eigen::VectorXd z, zd, zdd;  // nf
+  Eigen::VectorXd q, qd, qdd;  // nq
+};
+
+// The energy terms of format 7.3 at one state.
+struct Energy {
+  double kinetic = 0;    // 1/2 qd^T M qd
+  double potential = 0;  // gravity and springs (preloads included)
+  double power = 0;      // of the loads, dampers and prescribed drivers: the work's rate
+};
+
+class ReducedDynamics {
+ public:
+  // Checks what 7.1 asks at t0 and assembles there: the counts (naming the degrees of
+  // freedom), the rank with the free items (naming the item that adds nothing), value0
+  // (InputError when the mechanism does not assemble there), the reduced mass (naming a free
+  // item that moves no mass). The model and forces must outlive this object.
+  ReducedDynamics(const CompiledModel& model, const ForceModel& forces, double t0);
+  ~ReducedDynamics();
+  ReducedDynamics(const ReducedDynamics&) = delete;
+  ReducedDynamics& operator=(const ReducedDynamics&) = delete;
+
+  int nf() const { return nf_; }
+  int nq() const { return nq_; }
+  // z and zd at t0 (value0 and v0, or their defaults), and the state there.
+  const MotionState& initial() const { return initial_; }
+
+  // The equations of motion at (t, z, zd): true and the state (zdd, q, qd, qdd) on success;
+  // false and failure() / reason() otherwise. Starts Newton from the last solution, moved
+  // along B by the change in z, so that it stays on the branch it assembled on.
+  bool evaluate(double t, const double* z, const double* zd, MotionState& out);
+  MotionFailure failure() const { return failure_; }
+  // One line: what failed, with the constraints that became dependent where Phi_q lost rank.
+  const std::string& reason() const { return reason_; }
+
+  // The energy terms at a state evaluate() returned (the power needs its qdd, for the
+  // prescribed drivers' efforts).
+  Energy energy(const MotionState& s);
+
+  // dq/dz at the last successful evaluation (nq x nf).
+  const Eigen::MatrixXd& b() const { return b_; }
+
+ private:
+  struct Impl;
+  bool solve(double t, const double* z, const double* zd, MotionState& out);
+  void check_at_t0(double t0);
+  bool fail(MotionFailure f, std::string reason);
+
+  const CompiledModel& model_;
+  const ForceModel& forces_;
+  int nq_ = 0, nf_ = 0;
+  std::vector<int> free_rows_;  // the row of Phi of each free item
+  std::unique_ptr<Impl> impl_;
+  MotionState initial_;
+  Eigen::MatrixXd b_;
+  MotionFailure failure_ = MotionFailure::kNone;
+  std::string reason_;
+};
+
+// The free items' names (their CSV columns Z, Z.v, Z.a), in `free:` order.
+std::vector<std::string> free_names(const Mechanism& m);
+
+}  // namespace kinegen::codegen

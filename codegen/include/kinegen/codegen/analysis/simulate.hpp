@@ -1,0 +1,97 @@
+// Forward dynamics over a time grid (mechanism format 7.3): a formulation of the equations of
+// motion as an ODE, integrated by SUNDIALS CVODE (BDF or Adams, its error control, its dense
+// output on the grid, its root finding for stop_when), with the energy columns.
+//
+// Takes: a CompiledModel with free items, its ForceModel, the grid and options. Gives: rows
+// (StateRow with the free coordinates and the energy terms) to a sink as they are computed;
+// an AnalysisError naming the time and the cause when the run fails, after the rows so far.
+#pragma once
+
+#include <Eigen/Dense>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/dynamics.hpp"
+
+namespace kinegen::codegen {
+
+// The equations of motion as y' = f(t, y) for the integrator: minimal coordinates
+// (y = [z, zd]) or a formulation in all of q (the augmented Lagrangian, y = [q, qd]).
+class MotionFormulation {
+ public:
+  virtual ~MotionFormulation() = default;
+  virtual int size() const = 0;
+  // y at t0, and each entry's scale (atol is --atol times it).
+  virtual Eigen::VectorXd initial() const = 0;
+  virtual Eigen::VectorXd scales() const = 0;
+  // y' at (t, y); on success state() is the full state there. false: failure() says why
+  // (the integrator may retry with a smaller step).
+  virtual bool rhs(double t, const double* y, double* ydot) = 0;
+  virtual const MotionState& state() const = 0;
+  virtual Energy energy() = 0;  // at state()
+  virtual MotionFailure failure() const = 0;
+  virtual const std::string& reason() const = 0;
+  // Projection onto the constraints after each step (CVODE's CVodeSetProjFn): the
+  // correction that brings y back to Phi = 0 and Phi_q qd = nu. None by default.
+  virtual bool has_projection() const { return false; }
+  virtual bool project(double /*t*/, const double* /*y*/, double* /*correction*/) {
+    return true;
+  }
+  // What advice a failure gets (the other method, for the minimal coordinates).
+  virtual std::string advice() const { return ""; }
+};
+
+// The default method: minimal coordinates on ReducedDynamics.
+std::unique_ptr<MotionFormulation> minimal_formulation(const CompiledModel& model,
+                                                       const ForceModel& forces, double t0);
+
+enum class Integrator { kAuto, kBdf, kAdams };
+enum class Method { kMinimal, kAugmented };
+
+struct SimulateOptions {
+  double rtol = 1e-8;
+  double atol = 1e-10;  // times each state's scale
+  Integrator integrator = Integrator::kAuto;  // auto: BDF with springs or dampers, else Adams
+  Method method = Method::kMinimal;
+  // Adds the force columns (force_columns order: prescribed drivers' efforts, reactions).
+  const ForceModel* forces_columns = nullptr;
+  // Called with the time of each row written; and polled during the run: true stops it
+  // (an interrupt), as a failure with the rows so far kept.
+  std::function<void(double)> progress;
+  std::function<bool()> interrupted;
+  long max_steps = 10000000;  // internal steps in all
+};
+
+// The extra columns of a simulated row: each free item's Z, Z.v, Z.a, then the energy.
+struct SimulatedRow {
+  StateRow state;
+  Eigen::VectorXd z, zd, zdd;
+  double kinetic = 0, potential = 0, work = 0, balance = 0;
+};
+
+// The method for singular positions: an index-3 augmented Lagrangian in all of q with
+// mass-orthogonal projections (analysis/augmented.cpp).
+std::unique_ptr<MotionFormulation> augmented_formulation(const CompiledModel& model,
+                                                         const ForceModel& forces, double t0);
+
+// A formulation for `method`.
+std::unique_ptr<MotionFormulation> make_formulation(Method method, const CompiledModel& model,
+                                                    const ForceModel& forces, double t0);
+
+// Integrates over the grid (rows at its times, and one at a stop_when root, where the run
+// ends). Throws AnalysisError on failure, after the rows so far; InputError for the checks of
+// format 7.1 at t0.
+void run_simulation(const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid,
+                    const std::function<void(const SimulatedRow&)>& sink,
+                    const SimulateOptions& options);
+
+// The CSV header of `simulate`: analyze's columns (with the force columns when given), then
+// Z, Z.v, Z.a per free item, then energy.kinetic, energy.potential, energy.work and
+// energy.balance; and a row.
+std::string simulate_csv_header(const Mechanism& m, const std::vector<std::string>& forces);
+std::string simulate_csv_row(const SimulatedRow& row, int num_bodies);
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,419 @@
+// Forward dynamics in minimal coordinates, in-process (see analysis/dynamics.hpp).
+#include "kinegen/codegen/analysis/dynamics.hpp"
+
+#include <Eigen/SparseLU>
+#include <cmath>
+#include <kinegen/kernels/dynamics.hpp>
+#include <kinegen/solver.hpp>
+#include <limits>
+#include <optional>
+
+#include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/block_interpreter.hpp"
+#include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/model/table.hpp"
+#include "diagnosis.hpp"
+
+namespace kinegen::codegen {
+
+namespace {
+
+using K = kernels::DynamicsKernel;
+using analysis_detail::singular_rows;
+
+// A solved position whose scaled Phi_q has a larger condition estimate is a singular position
+// (as in `analyze`: cond * eps would reach 1e-8).
+constexpr double kMaxCondition = 1e8;
+// A solution that misses the first-order prediction from the last one by more than this
+// fraction of the predicted change (scaled) left its branch.
+constexpr double kJumpFraction = 0.25;
+
+BlockInterpreter::Options block_options() {
+  BlockInterpreter::Options o;
+  const SolverOptions s = default_options<double>();
+  o.tolerance = s.tolerance;
+  o.max_iterations = s.max_iterations;
+  o.singular_pivot_ratio = s.singular_pivot_ratio;
+  o.min_rcond = s.min_rcond;
+  o.residual_tolerance = s.residual_tolerance;
+  return o;
+}
+
+// The numerical rank of the rows `rows` of the scaled Phi_q.
+int rank_of(const Eigen::MatrixXd& scaled, const std::vector<int>& rows) {
+  if (rows.empty()) return 0;
+  Eigen::MatrixXd s(rows.size(), scaled.cols());
+  for (std::size_t i = 0; i < rows.size(); ++i) s.row(i) = scaled.row(rows[i]);
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(s);
+  qr.setThreshold(1e-10);
+  return static_cast<int>(qr.rank());
+}
+
+}  // namespace
+
+std::vector<std::string> free_names(const Mechanism& m) {
+  std::vector<std::string> names;
+  for (int d : m.free_drivers()) names.push_back(m.drivers[d].name);
+  return names;
+}
+
+struct ReducedDynamics::Impl {
+  explicit Impl(const CompiledModel& model, const ForceModel& forces)
+      : eval(model),
+        applied_program(lower(forces.applied, model.symbols())),
+        applied(applied_program),
+        nonconservative_program(lower(forces.nonconservative, model.symbols())),
+        nonconservative(nonconservative_program),
+        potential_program(lower({forces.potential}, model.symbols())),
+        potential(potential_program),
+        free_program(lower(model.symbolic().free_values, model.symbols())),
+        free_values(free_program),
+        inputs(3 * model.mechanism().drivers.size(), 0.0) {
+    eval.set_inputs(inputs.data());
+    if (model.nq() == model.nc() && BlockInterpreter::supported(model.structure())) {
+      blocks = std::make_unique<BlockInterpreter>(model);
+      blocks->set_inputs(inputs.data());
+    } else {
+      dense.emplace(ProgramSystem(model));
+      dense->system().set_inputs(inputs.data());
+    }
+  }
+
+  ModelEvaluator<double> eval;
+  Program applied_program;
+  ProgramEvaluator<double> applied;
+  Program nonconservative_program;
+  ProgramEvaluator<double> nonconservative;
+  Program potential_program;
+  ProgramEvaluator<double> potential;
+  Program free_program;
+  ProgramEvaluator<double> free_values;
+  std::vector<double> inputs;  // 3 per driver: the free items' z, zd and 0 (zdd)
+  std::unique_ptr<BlockInterpreter> blocks;
+  std::optional<BasicSolver<ProgramSystem>> dense;  // where the block program does not serve
+  std::unique_ptr<ForceSolver> force_solver;        // the prescribed drivers' power
+
+  // Work space of one evaluation.
+  Eigen::MatrixXd jac, mb;
+  Eigen::VectorXd g, nu, mass_m, mass_j, mass_ax, mass_ay, reduced;
+  std::vector<double> force_columns;
+  // The last solution, the start of the next Newton solve.
+  bool have_last = false;
+  double t_last = 0;
+  Eigen::VectorXd z_last, q_last, rheonomic_last;  // rheonomic: qd - B zd (the drivers' part)
+
+  // Each body's mass, inertia and rotated centre of mass at q, for the mass kernel.
+  void mass_data(const ForceModel& f, const Eigen::VectorXd& q) {
+    const std::size_t nb = f.numbers.mass.size();
+    mass_m.resize(nb);
+    mass_j.resize(nb);
+    mass_ax.resize(nb);
+    mass_ay.resize(nb);
+    for (std::size_t b = 0; b < nb; ++b) {
+      const double c = std::cos(q[3 * b + 2]), s = std::sin(q[3 * b + 2]);
+      const auto& com = f.numbers.com[b];
+      mass_m[b] = f.numbers.mass[b];
+      mass_j[b] = f.numbers.inertia[b];
+      mass_ax[b] = c * com[0] - s * com[1];
+      mass_ay[b] = s * com[0] + c * com[1];
+    }
+  }
+  void mass_times(int nq, const double* v, double* out) const {
+    K::_mass_times(static_cast<int>(mass_m.size()), nq, mass_m.data(), mass_j.data(),
+                   mass_ax.data(), mass_ay.data(), v, out);
+  }
+};
+
+ReducedDynamics::ReducedDynamics(const CompiledModel& model, const ForceModel& forces, double t0)
+    : model_(model), forces_(forces), nq_(model.nq()) {
+  const Mechanism& m = model.mechanism();
+  const std::vector<int> free = m.free_drivers();
+  nf_ = static_cast<int>(free.size());
+  if (nf_ == 0)
+    throw UsageError(m.source +
+                     " has no free coordinates (format 7.1: `free:` lists the degrees of freedom "
+                     "that the forces move); there is nothing to simulate");
+  const int nj = static_cast<int>(m.joints.size());
+  for (int d : free) {
+    int row = 0;
+    for (int c = 0; c < nj + d; ++c) row += m.constraints()[c]->equation_count();
+    free_rows_.push_back(row);
+  }
+  impl_ = std::make_unique<Impl>(model, forces);
+  // Prescribed drivers whose rate is not 0 do work: their efforts come from a force solve.
+  for (std::size_t d = 0; d < m.drivers.size(); ++d)
+    if (!m.drivers[d].free) impl_->force_solver = std::make_unique<ForceSolver>(model, forces);
+  check_at_t0(t0);
+}
+
+ReducedDynamics::~ReducedDynamics() = default;
+
+bool ReducedDynamics::fail(MotionFailure f, std::string reason) {
+  failure_ = f;
+  reason_ = std::move(reason);
+  return false;
+}
+
+// 7.1's checks at t0, then the state there.
+void ReducedDynamics::check_at_t0(double t0) {
+  const Mechanism& m = model_.mechanism();
+  const std::vector<int> free = m.free_drivers();
+  Impl& w = *impl_;
+  const int nc = model_.nc();
+  // Assemble with the joints and prescribed drivers alone: the Gauss-Newton step of least
+  // (scaled) norm from q0, which finds the assembled position nearest the estimates.
+  std::vector<int> fixed_rows;
+  for (int r = 0; r < nc; ++r)
+    if (std::find(free_rows_.begin(), free_rows_.end(), r) == free_rows_.end())
+      fixed_rows.push_back(r);
+  const auto& scales = model_.symbolic().coordinate_scales;
+  Eigen::VectorXd q = model_.q0(), phi(nc);
+  Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(nc, nq_);
+  for (int it = 0; it < 30; ++it) {
+    w.eval.phi(q.data(), t0, phi.data());
+    jac.setZero();
+    w.eval.jacobian(q.data(), t0, jac);
+    Eigen::MatrixXd js(fixed_rows.size(), nq_);
+    Eigen::VectorXd rs(fixed_rows.size());
+    for (std::size_t i = 0; i < fixed_rows.size(); ++i) {
+      js.row(i) = jac.row(fixed_rows[i]);
+      rs[i] = phi[fixed_rows[i]];
+    }
+    for (int k = 0; k < nq_; ++k) js.col(k) *= scales[k];
+    if (!js.allFinite() || !rs.allFinite()) break;
+    const Eigen::VectorXd step = js.completeOrthogonalDecomposition().solve(rs);
+    double size = 0;
+    for (int k = 0; k < nq_; ++k) {
+      q[k] -= step[k] * scales[k];
+      size = std::max(size, std::abs(step[k]));
+    }
+    if (size < 1e-13) break;
+  }
+  // Counts and rank (7.1), at that position.
+  w.eval.jacobian(q.data(), t0, jac);
+  const Eigen::MatrixXd scaled = scaled_jacobian(model_, jac);
+  const int rank_fixed = rank_of(scaled, fixed_rows);
+  const int dof = nq_ - rank_fixed;
+  const int equations = static_cast<int>(fixed_rows.size());
+  const std::string counts =
+      std::to_string(nq_) + " coordinates less " +
+      (rank_fixed == equations ? std::to_string(equations) + " joint and driver equations"
+                               : std::to_string(equations) + " joint and driver equations, of "
+                                                             "which " +
+                                     std::to_string(rank_fixed) + " are independent here");
+  const Constraint& first = m.drivers[free.front()];
+  if (nf_ != dof || nc != nq_)
+    throw InputError(m.source, "free", first.loc,
+                     "the mechanism has " + std::to_string(dof) + " degree" +
+                         (dof == 1 ? "" : "s") + " of freedom (" + counts + ") but " +
+                         std::to_string(nf_) + " free item" + (nf_ == 1 ? "" : "s") +
+                         ": list exactly one free item per degree of freedom" +
+                         (nc != nq_ && nf_ == dof
+                              ? " (and remove the redundant joints: the minimal-coordinates "
+                                "method needs independent constraints)"
+                              : ""));
+  std::vector<int> rows = fixed_rows;
+  for (int k = 0; k < nf_; ++k) {
+    rows.push_back(free_rows_[k]);
+    if (rank_of(scaled, rows) < static_cast<int>(rows.size())) {
+      const Constraint& c = m.drivers[free[k]];
+      throw InputError(m.source, c.item, c.loc,
+                       "this free item adds nothing to the rank of Phi_q at t0 (the mechanism "
+                       "has " +
+                           std::to_string(dof) + " degree" + (dof == 1 ? "" : "s") +
+                           " of freedom; this item's quantity is already fixed by the joints, "
+                           "the drivers and the free items before it): choose another "
+                           "coordinate");
+    }
+  }
+  // The state at t0: value0 (default: the quantity at the assembled position) and v0.
+  Eigen::VectorXd z0(nf_), zd0(nf_);
+  w.free_values.run(q.data(), nullptr, t0, model_.params().data(), z0.data());
+  for (int k = 0; k < nf_; ++k) {
+    const Constraint& c = m.drivers[free[k]];
+    if (c.free->value0) z0[k] = model_.geometry_number(*c.free->value0, c.item + " value0");
+    zd0[k] = model_.geometry_number(c.free->v0, c.item + " v0");
+  }
+  w.q_last = q;
+  w.have_last = false;
+  initial_.t = t0;
+  if (!solve(t0, z0.data(), zd0.data(), initial_)) {
+    // Where the file's own value0 does not assemble, the file is at fault (exit 2).
+    for (int k = 0; k < nf_; ++k) {
+      const Constraint& c = m.drivers[free[k]];
+      if (c.free->value0)
+        throw InputError(m.source, c.item + " value0", c.free->value0->loc,
+                         "the mechanism does not assemble with the free coordinates at their "
+                         "value0 at t = " +
+                             format_time(t0) + ": " + reason_);
+    }
+    throw InputError(m.source, "free", first.loc,
+                     "the mechanism does not assemble at t0 = " + format_time(t0) + ": " +
+                         reason_);
+  }
+  if (failure_ == MotionFailure::kNone) return;
+}
+
+bool ReducedDynamics::evaluate(double t, const double* z, const double* zd, MotionState& out) {
+  return solve(t, z, zd, out);
+}
+
+bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionState& out) {
+  const Mechanism& m = model_.mechanism();
+  const std::vector<int> free = m.free_drivers();
+  Impl& w = *impl_;
+  failure_ = MotionFailure::kNone;
+  reason_.clear();
+  if (const std::string table = table_outside(m, t); !table.empty())
+    return fail(MotionFailure::kOutsideTable, "t lies outside " + table);
+  for (int k = 0; k < nf_; ++k) {
+    if (!std::isfinite(z[k]) || !std::isfinite(zd[k]))
+      return fail(MotionFailure::kNonFinite, "the state is not finite");
+    w.inputs[3 * free[k]] = z[k];
+    w.inputs[3 * free[k] + 1] = zd[k];
+    w.inputs[3 * free[k] + 2] = 0;  // c: the acceleration at zdd = 0
+  }
+  out.t = t;
+  out.z = Eigen::Map<const Eigen::VectorXd>(z, nf_);
+  out.zd = Eigen::Map<const Eigen::VectorXd>(zd, nf_);
+  // Newton's start: the last solution moved along B by the change in z, and along the
+  // prescribed drivers' rates by the change in t.
+  out.q = w.q_last;
+  if (w.have_last) out.q += b_ * (out.z - w.z_last) + (t - w.t_last) * w.rheonomic_last;
+  const Eigen::VectorXd predicted = out.q;
+  out.qd.resize(nq_);
+  out.qdd.resize(nq_);
+  const auto& scales = model_.symbolic().coordinate_scales;
+  double condition = 1;
+  if (w.blocks) {
+    const auto r = w.blocks->solve_step(out.q.data(), t, out.qd.data(), out.qdd.data(),
+                                        block_options());
+    if (r.status != 0) {
+      const char* phase = BlockInterpreter::to_string(w.blocks->failed_phase());
+      const std::string what = std::string(phase) + " solve failed: " +
+                               to_string(static_cast<Status>(r.status));
+      return fail(r.status == 6 ? MotionFailure::kBranch
+                  : r.status == 3 ? MotionFailure::kNonFinite
+                                  : MotionFailure::kPosition,
+                  what);
+    }
+    condition = r.rcond > 0 ? 1 / static_cast<double>(r.rcond) : 1;
+  } else {
+    if (auto r = w.dense->position(out.q, t); !r)
+      return fail(r.status == Status::kNonFinite ? MotionFailure::kNonFinite
+                                                 : MotionFailure::kPosition,
+                  std::string("position solve failed: ") + r.message());
+    auto rv = w.dense->velocity(out.q, t, out.qd);
+    if (!rv) return fail(MotionFailure::kPosition, std::string("velocity solve: ") + rv.message());
+    condition = rv.condition;
+    if (auto ra = w.dense->acceleration(out.q, out.qd, t, out.qdd); !ra)
+      return fail(MotionFailure::kPosition, std::string("acceleration solve: ") + ra.message());
+  }
+  w.jac.setZero(nq_, nq_);
+  w.eval.jacobian(out.q.data(), t, w.jac);
+  if (condition > kMaxCondition)
+    return fail(MotionFailure::kPosition,
+                "the mechanism reached a singular position, where q is not a function of the "
+                "free coordinates" +
+                    singular_rows(model_, w.jac));
+  if (w.have_last) {
+    // The branch check: the solution must agree with the first-order prediction to far better
+    // than the predicted change itself (the miss is second order in the step).
+    double change = 0, miss = 0;
+    for (int k = 0; k < nq_; ++k) {
+      const double inv = model_.symbolic().coordinate_kinds[k] == CoordinateKind::kAngle
+                             ? 1.0
+                             : 1 / scales[k];
+      change = std::max(change, std::abs(predicted[k] - w.q_last[k]) * inv);
+      miss = std::max(miss, std::abs(out.q[k] - predicted[k]) * inv);
+    }
+    if (miss > kJumpFraction * change + 1e-9)
+      return fail(MotionFailure::kBranch,
+                  "the position left its assembly branch (it misses the prediction from the "
+                  "last one by " +
+                      format_estimate(miss) + ", the predicted change being " +
+                      format_estimate(change) + ")" + singular_rows(model_, w.jac));
+  }
+  // B: Phi_q B = E, the free rows' unit vectors; one factorization for all columns.
+  Eigen::MatrixXd e = Eigen::MatrixXd::Zero(nq_, nf_);
+  for (int k = 0; k < nf_; ++k) e(free_rows_[k], k) = 1;
+  if (nq_ <= 48) {
+    b_ = Eigen::PartialPivLU<Eigen::MatrixXd>(w.jac).solve(e);
+  } else {
+    Eigen::SparseMatrix<double> sparse = w.jac.sparseView();
+    Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(sparse);
+    if (lu.info() != Eigen::Success)
+      return fail(MotionFailure::kPosition, "Phi_q could not be factored" +
+                                                singular_rows(model_, w.jac));
+    b_ = lu.solve(e);
+  }
+  // g = Q^A + the inertia forces at qdd = c; then the reduced accelerations.
+  w.g.resize(nq_);
+  w.applied.run(out.q.data(), out.qd.data(), t, model_.params().data(), w.g.data());
+  add_inertia_forces(forces_.numbers, static_cast<int>(m.bodies.size()), out.q.data(),
+                     out.qd.data(), out.qdd.data(), w.g.data());
+  w.mass_data(forces_, out.q);
+  w.mb.resize(nq_, nf_);
+  for (int k = 0; k < nf_; ++k) w.mass_times(nq_, b_.col(k).data(), w.mb.col(k).data());
+  w.reduced.resize(nf_ * nf_);
+  out.zdd.resize(nf_);
+  const double ratio = K::_reduced_accelerations(nq_, nf_, b_.data(), w.mb.data(), w.g.data(),
+                                                 w.reduced.data(), out.zdd.data(),
+                                                 out.qdd.data());
+  if (!b_.allFinite() || !w.g.allFinite() || std::isnan(ratio))
+    return fail(MotionFailure::kNonFinite,
+                "a non-finite value in the generalized forces or dq/dz (a load, a table or the "
+                "state)");
+  if (!(ratio > 1e-13)) {
+    std::string names;
+    for (int k = 0; k < nf_; ++k)
+      if (!(w.reduced[k * nf_ + k] != 0) || ratio == 0)
+        names += (names.empty() ? "" : ", ") + m.drivers[free[k]].item;
+    return fail(MotionFailure::kReducedMass,
+                "the reduced mass B^T M B is singular (pivot ratio " + format_estimate(ratio) +
+                    "): a free coordinate moves no mass (" + names + ")");
+  }
+  w.have_last = true;
+  w.t_last = t;
+  w.z_last = out.z;
+  w.q_last = out.q;
+  w.rheonomic_last = out.qd - b_ * out.zd;
+  return true;
+}
+
+Energy ReducedDynamics::energy(const MotionState& s) {
+  Impl& w = *impl_;
+  const Mechanism& m = model_.mechanism();
+  Energy e;
+  w.mass_data(forces_, s.q);
+  Eigen::VectorXd mv(nq_), qnc(nq_);
+  w.mass_times(nq_, s.qd.data(), mv.data());
+  e.kinetic = 0.5 * s.qd.dot(mv);
+  w.potential.run(s.q.data(), nullptr, s.t, model_.params().data(), &e.potential);
+  w.nonconservative.run(s.q.data(), s.qd.data(), s.t, model_.params().data(), qnc.data());
+  e.power = s.qd.dot(qnc);
+  if (w.force_solver) {
+    // The prescribed drivers' power, effort times rate: -lambda_r nu_r over their rows.
+    for (int k = 0; k < nf_; ++k) {
+      const int d = m.free_drivers()[k];
+      w.inputs[3 * d] = s.z[k];
+      w.inputs[3 * d + 1] = s.zd[k];
+    }
+    w.nu.resize(model_.nc());
+    w.eval.nu(s.q.data(), s.t, w.nu.data());
+    double p = 0;
+    if (w.force_solver->solve(s.t, s.q, s.qd, s.qdd, w.force_columns)) {
+      const Eigen::VectorXd& lambda = w.force_solver->lambda();
+      for (int r = 0; r < model_.nc(); ++r)
+        if (std::find(free_rows_.begin(), free_rows_.end(), r) == free_rows_.end())
+          p -= lambda[r] * w.nu[r];
+    } else {
+      p = std::numeric_limits<double>::quiet_NaN();
+    }
+    e.power += p;
+  }
+  return e;
+}
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,128 @@
+// `kinegen simulate`: forward dynamics (format 7.3) on SUNDIALS CVODE, rows on the --steps
+// grid, with the free coordinates and the energy columns.
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "cli.hpp"
+#include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/simulate.hpp"
+#include "kinegen/codegen/io/output_file.hpp"
+
+namespace kinegen::cli {
+
+namespace {
+
+struct Options {
+  double t0 = 0, t1 = 0;
+  int steps = 0;
+  double rtol = 1e-8, atol = 1e-10;
+  std::string method = "minimal", integrator = "auto";
+  std::string output;
+  bool with_forces = false;
+  int reference_digits = 0;
+};
+
+void check_options(const Options& o) {
+  check_grid(o.t0, o.t1, o.steps);
+  if (!(o.t1 > o.t0))
+    throw kc::UsageError("--t1 (" + kc::format_number(o.t1) + ") must come after --t0 (" +
+                         kc::format_number(o.t0) + "): a simulation runs forward in time");
+  if (o.steps < 1) throw kc::UsageError("--steps must be at least 1");
+  if (!std::isfinite(o.rtol) || !(o.rtol > 0) || o.rtol >= 1)
+    throw kc::UsageError("--rtol must be a finite number in (0, 1), not " +
+                         kc::format_number(o.rtol));
+  if (!std::isfinite(o.atol) || !(o.atol > 0))
+    throw kc::UsageError("--atol must be a finite number above 0, not " +
+                         kc::format_number(o.atol));
+}
+
+// The progress bar, drawn only once a run has taken a second.
+std::function<void(double)> progress_after_a_second(double t0, double t1) {
+  auto bar = terminal_progress("simulating");
+  if (!bar) return {};
+  const auto start = std::chrono::steady_clock::now();
+  return [bar, t0, t1, start](double t) {
+    if (std::chrono::steady_clock::now() - start < std::chrono::seconds(1) && t < t1) return;
+    bar(static_cast<int>(std::lround(1000 * (t - t0) / (t1 - t0))), 1000);
+  };
+}
+
+int run_simulate(const Common& c, const Options& o) {
+  check_options(o);
+  if (o.reference_digits != 0)
+    throw kc::UsageError("--reference is not available yet");
+  kc::BuildOptions build;
+  build.free_as_state = true;
+  auto model = load(c, build);
+  const kc::ForceModel forces = kc::derive_forces(*model);
+  kc::SimulateOptions options;
+  options.rtol = o.rtol;
+  options.atol = o.atol;
+  options.method = o.method == "augmented" ? kc::Method::kAugmented : kc::Method::kMinimal;
+  options.integrator = o.integrator == "bdf"     ? kc::Integrator::kBdf
+                       : o.integrator == "adams" ? kc::Integrator::kAdams
+                                                 : kc::Integrator::kAuto;
+  std::vector<std::string> force_names;
+  if (o.with_forces) {
+    options.forces_columns = &forces;
+    force_names = kc::force_columns(model->mechanism());
+  }
+  options.progress = progress_after_a_second(o.t0, o.t1);
+  const int nb = static_cast<int>(model->mechanism().bodies.size());
+  // The checks at t0 (format 7.1) come first, so that bad input writes no file.
+  kc::OutputFile file(o.output.empty() ? "-" : o.output);
+  std::ostream& out = file.stream();
+  int status = 0, rows = 0;
+  bool header = false;
+  try {
+    kc::run_simulation(*model, forces, {o.t0, o.t1, o.steps},
+                       [&](const kc::SimulatedRow& row) {
+                         if (!header) out << kc::simulate_csv_header(model->mechanism(), force_names);
+                         header = true;
+                         out << kc::simulate_csv_row(row, nb);
+                         file.check();
+                         ++rows;
+                       },
+                       options);
+  } catch (const kc::AnalysisError& e) {
+    std::cerr << "error: " << one_line(e.what()) << "\n";
+    status = kExitFailed;  // the rows so far are kept
+  }
+  if (rows > 0 || status == 0 || !file.replaces_target()) file.commit();
+  return status;
+}
+
+}  // namespace
+
+Subcommand add_simulate(CLI::App& app, Common& common) {
+  const auto o = std::make_shared<Options>();
+  auto* cmd = app.add_subcommand("simulate", "Forward dynamics: the motion under the forces");
+  add_common(cmd, common);
+  cmd->add_option("--t0", o->t0, "Start time (default 0)");
+  cmd->add_option("--t1", o->t1, "End time")->required();
+  cmd->add_option("--steps", o->steps, "Rows on the grid: N steps (N + 1 rows)")->required();
+  cmd->add_option("--rtol", o->rtol, "Relative tolerance of the integrator (default 1e-8)");
+  cmd->add_option("--atol", o->atol,
+                  "Absolute tolerance, times each state's scale (default 1e-10)");
+  cmd->add_option("--method", o->method,
+                  "minimal (default): minimal coordinates, the free items as the state; "
+                  "augmented: an augmented Lagrangian in all coordinates, which passes "
+                  "singular positions")
+      ->check(CLI::IsMember({"minimal", "augmented"}));
+  cmd->add_option("--integrator", o->integrator,
+                  "CVODE's method: auto (default: BDF with springs or dampers, else Adams), "
+                  "bdf or adams")
+      ->check(CLI::IsMember({"auto", "bdf", "adams"}));
+  cmd->add_option("-o,--output", o->output, "CSV file (default: standard output)");
+  cmd->add_flag("--forces", o->with_forces,
+                "Add the prescribed drivers' efforts and the joints' reactions along the motion");
+  cmd->add_option("--reference", o->reference_digits,
+                  "Integrate with D significant digits in CLN arithmetic (for tests)")
+      ->type_name("D");
+  return {cmd, [&common, o] { return run_simulate(common, *o); }};
+}
+
+}  // namespace kinegen::cli
