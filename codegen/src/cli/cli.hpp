@@ -71,5 +71,6 @@ Subcommand add_eval(CLI::App& app, Common& common);
 Subcommand add_check(CLI::App& app, Common& common);
 Subcommand add_animate(CLI::App& app, Common& common);
 Subcommand add_tolerance(CLI::App& app, Common& common);
+Subcommand add_view(CLI::App& app, Common& common);
 
 }  // namespace kinegen::cli

@@ -1,6 +1,7 @@
 #include "kinegen/codegen/io/animate.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -83,6 +84,45 @@ class Picture {
  public:
   Picture(const CompiledModel& model, const AnimateOptions& options)
       : model_(model), options_(options) {}
+  // Over given positions (kinegen view), for drawing() rather than render().
+  Picture(const CompiledModel& model, std::vector<Eigen::VectorXd> q, int width)
+      : model_(model), q_(std::move(q)) {
+    options_.width = width;
+  }
+
+  AnimateDrawing drawing() {
+    if (q_.empty()) throw UsageError("nothing to draw: no positions");
+    if (options_.width < 50 || options_.width > 20000)
+      throw UsageError("--width must be between 50 and 20000 pixels");
+    collect();
+    infer_attachments();
+    fit();
+    AnimateDrawing d;
+    d.bodies = body_points_;
+    d.pins = pins_;
+    d.points = named_;
+    d.ground_pivots = ground_pivots_;
+    for (const auto& sl : sliders_) d.sliders.push_back({sl, sl.travel_min, sl.travel_max});
+    for (const auto& l : pitch_lines_) d.pitch_lines.push_back({l, l.travel_min, l.travel_max});
+    d.struts = struts_;
+    d.pitch_circles = pitch_circles_;
+    d.welds = welds_;
+    d.curves = curves_;
+    // The constraint behind each element: the kinds add theirs in constraint order.
+    std::array<std::vector<const Constraint*>*, 7> by = {&d.pin_by,    &d.slider_by, &d.strut_by,
+                                                         &d.circle_by, &d.line_by,   &d.weld_by,
+                                                         &d.curve_by};
+    for (const auto& [c, counts] : drawn_)
+      for (std::size_t k = 0; k < by.size(); ++k) by[k]->resize(counts[k], c);
+    d.scale = scale_, d.x0 = x0_, d.y0 = y0_, d.width = width_, d.height = height_;
+    d.margin = kMargin, d.title = kTitle;
+    d.colours = {{"link", kLinkColour},   {"background", kBackgroundColour},
+                 {"force", kForceColour}, {"ground", kGroundColour},
+                 {"pin", kPinStroke},     {"slider", kSliderFill},
+                 {"point", kPointColour}, {"path", kPathColour},
+                 {"gear", kGearColour}};
+    return d;
+  }
 
   std::string render() {
     solve();
@@ -163,6 +203,9 @@ class Picture {
       context.curve_point = [&](const std::string& key, double u) { return curve_point(*c, key, u); };
       context.curve_range = [&](int k) { return curve_range(k); };
       c->kind->draw(context, sketch);
+      drawn_.push_back({c, {sketch.pins.size(), sketch.sliders.size(), sketch.struts.size(),
+                            sketch.pitch_circles.size(), sketch.pitch_lines.size(),
+                            sketch.welds.size(), sketch.curves.size()}});
     }
     for (const Attach& a : sketch.landmarks) attach(a.body, a.s);
     for (const Attach& a : sketch.pins) pins_.push_back(a);
@@ -602,6 +645,8 @@ class Picture {
   std::vector<Slider> pitch_lines_;  // travel: of the pinion's centre along the line
   std::vector<Attach> welds_;
   std::vector<Sketch::Curve> curves_;
+  // Each drawing constraint with the Sketch's element counts after it (AnimateDrawing's *_by).
+  std::vector<std::pair<const Constraint*, std::array<std::size_t, 7>>> drawn_;
   // With options_.forces.
   struct Reaction {
     Attach at;
@@ -616,6 +661,11 @@ class Picture {
 };
 
 }  // namespace
+
+AnimateDrawing animate_drawing(const CompiledModel& model, std::vector<Eigen::VectorXd> q,
+                               int width) {
+  return Picture(model, std::move(q), width).drawing();
+}
 
 std::string animate_svg(const CompiledModel& model, const AnimateOptions& options) {
   return Picture(model, options).render();
