@@ -10,7 +10,6 @@
   const kPathPoints = 4000;  // traced paths: at most this many points each
   const kPalette = ['#1f77b4', '#d62728', '#2ca02c', '#ff7f0e', '#9467bd', '#8c564b', '#e377c2',
                     '#7f7f7f', '#bcbd22', '#17becf'];
-  const started = performance.now();
 
   let data, run, drawing, row = 0, playing = false, speed = 1, clock = 0, lastFrame = 0;
   let mode = 0, amplitude = 1, hovered = null;
@@ -280,9 +279,9 @@
     for (const n of data.notes) note(n);
     run = data.modes ? K.modeRun(data, 0, 1, 120) : K.csvRun(data);
     if (!data.modes && data.stride > 1)
-      note('A long run: ' + data.total_rows + ' rows, of which the page keeps every ' +
-           data.stride + 'th and the last (' + run.n + '). Each value shown is the run\'s own at ' +
-           'that row; kinegen view --max-rows keeps more.');
+      note('A long run: ' + data.total_rows + ' rows, of which the page keeps one in ' +
+           data.stride + ' and the last (' + run.n + ' rows). Each value shown is the run\'s own ' +
+           'at that row; kinegen view --max-rows keeps more.');
     drawing = new K.Drawing(data, $('kg-drawing-box'));
     drawing.build(run, Math.max(1, Math.ceil(run.n / kPathPoints)));
     hookHover(drawing.svg);
@@ -302,7 +301,7 @@
     defaultPlots();
     if (data.modes) modesForm();
     window.kinegen = { data, get run() { return run; }, get row() { return row; }, setRow,
-                       plots, play, ready: true, loadMs: performance.now() - started };
+                       plots, play, ready: true, loadMs: performance.now() };
   }
 
   try {

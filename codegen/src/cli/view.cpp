@@ -54,9 +54,9 @@ int run_view(const Common& c, const Options& o) {
       }
       if (run.stride > 1)
         kc::Log::global().warning(run.source + ": " + std::to_string(run.total_rows) +
-                                  " rows; the page keeps every " + std::to_string(run.stride) +
-                                  "th and the last (--max-rows " + std::to_string(o.max_rows) +
-                                  ")");
+                                  " rows; the page keeps one in " + std::to_string(run.stride) +
+                                  " and the last, " + std::to_string(run.rows()) +
+                                  " (--max-rows " + std::to_string(o.max_rows) + ")");
       html = kc::view_html(*model, run, options);
     }
     stage.done(std::to_string(html.size() / 1024) + " KiB of HTML");

@@ -102,8 +102,9 @@ RunTable read_run_csv(const std::string& path, std::size_t max_rows) {
       double v = 0;
       const auto [end, ec] = std::from_chars(fields[c].data(), fields[c].data() + fields[c].size(), v);
       if (ec != std::errc() || end != fields[c].data() + fields[c].size() || fields[c].empty())
-        throw InputError(path, "row " + std::to_string(row) + " column " + run.columns[c],
-                         {line_number}, "'" + std::string(fields[c]) + "' is not a number");
+        throw InputError(path, "row " + std::to_string(row), {line_number},
+                         "'" + std::string(fields[c]) + "' in column '" + run.columns[c] +
+                             "' is not a number");
       if (keep) run.values[c].push_back(v);
     }
     ++row;
