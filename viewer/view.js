@@ -87,8 +87,9 @@
     }
   }
 
-  // ---- Hover: a body, joint, point or arrow with its name and its values now.
-  function tip(target) {
+  // ---- Hover: what is under the mouse (a point over a pin, a pin over a body: each), with
+  // its name and its values now.
+  function describe(target) {
     const kind = target.getAttribute('data-kind'), k = +target.getAttribute('data-index');
     const s = data.scene;
     let lines = [kind + ': ' + target.getAttribute('data-name')];
@@ -106,29 +107,33 @@
         if (r.name === s.pins[k].name) lines = lines.concat(columns(r.columns));
     } else if (kind === 'gear') lines.push('centre ' + at(s.pitch_circles[k]));
     else if (kind === 'slider') lines.push(at(s.sliders[k]));
-    if (data.modes) lines = ['(mode ' + (mode + 1) + ', phase ' + K.short(time()[row]) + ')']
-      .concat(lines);
+    return lines.join('\n');
+  }
+  function tip(targets) {
     const box = $('kg-tip');
-    box.textContent = lines.join('\n');
+    let text = targets.map(describe).join('\n\n');
+    if (data.modes) text = '(mode ' + (mode + 1) + ', phase ' + K.short(time()[row]) + ')\n' + text;
+    box.textContent = text;
     box.hidden = false;
   }
   function hookHover(svg) {
-    svg.addEventListener('mouseover', (e) => {
-      const t = e.target.closest('[data-hover]');
-      if (!t) return;
-      hovered = t;
-      tip(t);
-    });
     svg.addEventListener('mousemove', (e) => {
+      const found = document.elementsFromPoint(e.clientX, e.clientY)
+        .filter((t) => t.hasAttribute && t.hasAttribute('data-hover')).slice(0, 3);
       const box = $('kg-tip');
+      if (!found.length) {
+        hovered = null;
+        box.hidden = true;
+        return;
+      }
+      hovered = found;
+      tip(found);
       box.style.left = (e.clientX + 14) + 'px';
       box.style.top = (e.clientY + 14) + 'px';
     });
-    svg.addEventListener('mouseout', (e) => {
-      if (e.target.closest('[data-hover]') === hovered) {
-        hovered = null;
-        $('kg-tip').hidden = true;
-      }
+    svg.addEventListener('mouseleave', () => {
+      hovered = null;
+      $('kg-tip').hidden = true;
     });
   }
 
@@ -137,8 +142,8 @@
     constructor(xc, ycs) {
       this.xc = xc;
       this.ycs = ycs;
-      this.forced = null;
-      this.syncing = false;
+      // The slider's row, which the cursor shows until the mouse enters the plot (null then).
+      this.pinned = row;
       const box = document.createElement('div');
       box.className = 'kg-plot';
       const close = document.createElement('button');
@@ -158,13 +163,17 @@
           value: (u, v) => K.fmt(v), points: { show: false } }))),
         cursor: {
           // From the slider: exactly its row, whatever row is nearest the pixel.
-          dataIdx: (u, s, closest) => (this.forced !== null ? this.forced : closest),
+          dataIdx: (u, s, closest) => (this.pinned !== null ? this.pinned : closest),
           drag: { x: true, y: false },
         },
         legend: { live: true },
-        hooks: { setCursor: [(u) => this.moved(u)] },
+        hooks: { setCursor: [(u) => this.moved(u)], ready: [() => this.follow(row)] },
       };
       this.u = new uPlot(opts, this.data(), box);
+      this.u.over.addEventListener('mouseenter', () => { this.pinned = null; });
+      this.u.over.addEventListener('mouseleave', () => {
+        requestAnimationFrame(() => this.follow(row));  // back to the slider's row
+      });
       this.follow(row);
     }
     data() { return [this.xc].concat(this.ycs).map((c) => run.column(c)); }
@@ -172,28 +181,22 @@
       this.u.setData(this.data());
       this.follow(row);
     }
+    // The mouse moved the cursor: the slider (and the other plots) follow its row.
     moved(u) {
-      if (this.syncing) return;
+      if (this.pinned !== null) return;
       const idx = u.cursor.idx;
       if (idx !== null && idx !== undefined && u.cursor.left >= 0) {
         setRow(idx, 'plot');
         for (const p of plots) if (p !== this) p.follow(row);
-      } else {
-        requestAnimationFrame(() => this.follow(row));  // the mouse left: back to the row
       }
     }
     follow(k) {
-      const u = this.u, x = run.column(this.xc)[k];
-      this.syncing = true;
-      this.forced = k;
-      try {
-        const y = run.column(this.ycs[0])[k];
-        const top = Number.isFinite(y) ? u.valToPos(y, u.series[1].scale || 'y') : 10;
-        u.setCursor({ left: u.valToPos(x, 'x'), top: Number.isFinite(top) ? top : 10 });
-      } finally {
-        this.forced = null;
-        this.syncing = false;
-      }
+      const u = this.u;
+      if (!u) return;
+      this.pinned = k;
+      const x = run.column(this.xc)[k], y = run.column(this.ycs[0])[k];
+      const left = u.valToPos(x, 'x'), top = Number.isFinite(y) ? u.valToPos(y, 'y') : 10;
+      u.setCursor({ left: Number.isFinite(left) ? left : 0, top: Number.isFinite(top) ? top : 10 });
     }
     remove() {
       this.u.destroy();
