@@ -421,3 +421,42 @@ test('a million rows: a decimated view, each value the CSV\'s own', async () => 
     await close();
   }
 });
+
+test('a run that stops early: the page of the rows before, and why', async () => {
+  const dir = scratch('stops');
+  // The rocker driven past the end of its swing: the analysis fails at t = 1.7.
+  const yaml = path.join(dir, 'rocker_driven.yaml'), html = path.join(dir, 'stops.html');
+  fs.writeFileSync(yaml, fs.readFileSync(FOUR_BAR, 'utf8').replace(
+    'body: crank\n    f: "omega*t"', 'body: rocker\n    f: "1.3694384060045657 + 0.5*t"'));
+  const r = kinegen('view', yaml, '--t0', '0', '--t1', '4', '--steps', '80', '-o', html);
+  assert.equal(r.code, 1);
+  assert.match(r.err, /^error: .*position analysis failed at t = 1\.7/m);
+  const { page, log, close } = await open(html);
+  try {
+    const n = await notes(page);
+    assert.equal(n.error, '');
+    assert.match(n.notes[0], /^The run stops early: .*failed at t = 1\.7.* The page shows the rows before it\.$/);
+    assert.equal(await page.getAttribute('#kg-slider', 'max'), '33');
+    clean(log);
+  } finally {
+    await close();
+  }
+});
+
+test('a damaged page says so rather than show nothing', async () => {
+  const dir = scratch('damaged');
+  const html = path.join(dir, 'four_bar.html'), cut = path.join(dir, 'cut.html');
+  view(FOUR_BAR, '--t0', '0', '--t1', TURN, '--steps', '90', '-o', html);
+  const text = fs.readFileSync(html, 'utf8');
+  const at = text.indexOf('id="kinegen-values">') + 20;
+  fs.writeFileSync(cut, text.slice(0, at + 4000) + text.slice(text.indexOf('</script>', at)));
+  const { page, log, close } = await open(cut);
+  try {
+    const n = await notes(page);
+    assert.match(n.error, /^The page could not show this run: the page holds 375 values where \d+ were written: the file is cut short or damaged$/);
+    assert.deepEqual(log.errors, []);
+    assert.deepEqual(log.requests, []);
+  } finally {
+    await close();
+  }
+});
