@@ -25,15 +25,25 @@ struct Page {
     escaped.reserve(html.size() + html.size() / 8);
     for (const char ch : html) {
       switch (ch) {
-        case '&': escaped += "&amp;"; break;
-        case '"': escaped += "&quot;"; break;
-        case '<': escaped += "&lt;"; break;
-        case '>': escaped += "&gt;"; break;
-        default: escaped += ch;
+        case '&':
+          escaped += "&amp;";
+          break;
+        case '"':
+          escaped += "&quot;";
+          break;
+        case '<':
+          escaped += "&lt;";
+          break;
+        case '>':
+          escaped += "&gt;";
+          break;
+        default:
+          escaped += ch;
       }
     }
     return "<iframe sandbox=\"allow-scripts\" style=\"width: 100%; height: 920px; border: 1px "
-           "solid #ddd\" srcdoc=\"" + escaped + "\"></iframe>";
+           "solid #ddd\" srcdoc=\"" +
+           escaped + "\"></iframe>";
   }
 };
 
@@ -50,8 +60,9 @@ std::string view_html(const kc::CompiledModel& model, const ViewArgs& a,
   // The command line's checks (cli/view.cpp), in its words.
   const bool grid = a.t0 || a.t1 || a.steps;
   if (static_cast<int>(!a.csv.empty()) + static_cast<int>(!a.modes.empty()) + grid != 1)
-    throw kc::UsageError("view shows one of: csv=RUN.csv, modes=MODES.json, or an analysis "
-                         "(t0, t1, steps)");
+    throw kc::UsageError(
+        "view shows one of: csv=RUN.csv, modes=MODES.json, or an analysis "
+        "(t0, t1, steps)");
   if (grid && !(a.t0 && a.t1 && a.steps))
     throw kc::UsageError("an analysis to view needs t0, t1 and steps");
   if (a.forces && !grid) throw kc::UsageError("forces belongs to an analysis (t0, ...)");
@@ -88,36 +99,40 @@ void bind_page(py::module_& m) {
                                if (p.path.empty()) return py::none();
                                return py::str(p.path);
                              })
-      .def("save",
-           [](Page& p, const std::string& path) {
-             write(path, p.html);
-             p.path = path;
-             return path;
-           },
-           py::arg("path"), "Writes the page to path (through a temporary file).")
+      .def(
+          "save",
+          [](Page& p, const std::string& path) {
+            write(path, p.html);
+            p.path = path;
+            return path;
+          },
+          py::arg("path"), "Writes the page to path (through a temporary file).")
       .def("_repr_html_", &Page::repr_html)
-      .def("show",
-           [](const py::object& self) {
-             // In IPython (Jupyter) the page shows inline; elsewhere in the web browser.
-             try {
-               if (!py::module_::import("IPython").attr("get_ipython")().is_none()) {
-                 py::module_::import("IPython.display").attr("display")(self);
-                 return;
-               }
-             } catch (const py::error_already_set&) {  // no IPython
-             }
-             Page& p = self.cast<Page&>();
-             if (p.path.empty()) {
-               const py::object tmp = py::module_::import("tempfile").attr("mkstemp")(
-                   py::arg("suffix") = ".html", py::arg("prefix") = "kinegen-view-");
-               py::module_::import("os").attr("close")(tmp[py::int_(0)]);
-               p.path = tmp[py::int_(1)].cast<std::string>();
-               write(p.path, p.html);
-             }
-             const py::object absolute = py::module_::import("os.path").attr("abspath")(p.path);
-             py::module_::import("webbrowser").attr("open")("file://" + absolute.cast<std::string>());
-           },
-           "Shows the page: inline in Jupyter (IPython.display), else in the web browser.")
+      .def(
+          "show",
+          [](const py::object& self) {
+            // In IPython (Jupyter) the page shows inline; elsewhere in the web browser.
+            try {
+              if (!py::module_::import("IPython").attr("get_ipython")().is_none()) {
+                py::module_::import("IPython.display").attr("display")(self);
+                return;
+              }
+            } catch (const py::error_already_set&) {  // no IPython
+            }
+            Page& p = self.cast<Page&>();
+            if (p.path.empty()) {
+              const py::object tmp = py::module_::import("tempfile")
+                                         .attr("mkstemp")(py::arg("suffix") = ".html",
+                                                          py::arg("prefix") = "kinegen-view-");
+              py::module_::import("os").attr("close")(tmp[py::int_(0)]);
+              p.path = tmp[py::int_(1)].cast<std::string>();
+              write(p.path, p.html);
+            }
+            const py::object absolute = py::module_::import("os.path").attr("abspath")(p.path);
+            py::module_::import("webbrowser")
+                .attr("open")("file://" + absolute.cast<std::string>());
+          },
+          "Shows the page: inline in Jupyter (IPython.display), else in the web browser.")
       .def("__repr__", [](const Page& p) {
         return "<kinegen.Page " + std::to_string(p.html.size() / 1024) + " KiB" +
                (p.path.empty() ? "" : " at '" + p.path + "'") + ">";

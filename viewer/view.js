@@ -12,7 +12,7 @@
                     '#7f7f7f', '#bcbd22', '#17becf'];
 
   let data, run, drawing, row = 0, playing = false, speed = 1, clock = 0, lastFrame = 0;
-  let mode = 0, amplitude = 1, hovered = null;
+  let mode = 0, amplitude = 1, hovered = null, timeIncreases = false;
   const plots = [];
 
   function note(text) {
@@ -26,6 +26,13 @@
   function increasing(a) {
     for (let k = 1; k < a.length; k++) if (!(a[k] >= a[k - 1])) return false;
     return a.length > 1 && a[a.length - 1] > a[0];
+  }
+
+  // Whether a column may serve as x: increasing at 65 rows across it (addPlot checks all).
+  function looksIncreasing(a) {
+    const n = a.length, step = Math.max(1, Math.floor((n - 1) / 64));
+    for (let k = step; k < n; k += step) if (!(a[k] > a[k - step])) return false;
+    return n > 1 && a[n - 1] > a[0];
   }
 
   // The source row of kept row k (the CSV's numbering from 0, below the header).
@@ -63,7 +70,7 @@
     const dt = Math.min(0.25, (now - lastFrame) / 1000) * speed;
     lastFrame = now;
     const a = time(), t0 = a[0], t1 = a[run.n - 1];
-    if (data.modes || !increasing(a)) {
+    if (data.modes || !timeIncreases) {
       // Modes: a period in 2 s at 1x; runs without increasing t: all rows in 4 s.
       const per = data.modes ? 2 : 4;
       clock = (clock + dt * (data.modes ? 1 / per : (run.n - 1) / per));
@@ -81,7 +88,7 @@
     $('kg-play').innerHTML = on ? '&#10074;&#10074; Pause' : '&#9654; Play';
     if (on) {
       if (data.modes) clock = row / (run.n - 1);
-      else if (!increasing(time())) clock = row;
+      else if (!timeIncreases) clock = row;
       lastFrame = performance.now();
       requestAnimationFrame(frame);
     }
@@ -238,7 +245,7 @@
       o.value = c;
       o.textContent = name;
       ys.appendChild(o);
-      if (c === run.time || increasing(run.column(c))) xs.appendChild(o.cloneNode(true));
+      if (c === run.time || looksIncreasing(run.column(c))) xs.appendChild(o.cloneNode(true));
     });
     xs.value = run.time;
     $('kg-filter').addEventListener('input', () => {
@@ -281,6 +288,7 @@
                            'before it.');
     for (const n of data.notes) note(n);
     run = data.modes ? K.modeRun(data, 0, 1, 120) : K.csvRun(data);
+    timeIncreases = increasing(time());
     if (!data.modes && data.stride > 1)
       note('A long run: ' + data.total_rows + ' rows, of which the page keeps one in ' +
            data.stride + ' and the last (' + run.n + ' rows). Each value shown is the run\'s own ' +

@@ -27,8 +27,9 @@ struct Options {
 int run_view(const Common& c, const Options& o) {
   const bool grid = o.t0 || o.t1 || o.steps;
   if (static_cast<int>(!o.csv.empty()) + static_cast<int>(!o.modes.empty()) + grid != 1)
-    throw kc::UsageError("view shows one of: --csv RUN.csv, --modes MODES.json, or an analysis "
-                         "(--t0, --t1, --steps)");
+    throw kc::UsageError(
+        "view shows one of: --csv RUN.csv, --modes MODES.json, or an analysis "
+        "(--t0, --t1, --steps)");
   if (grid && !(o.t0 && o.t1 && o.steps))
     throw kc::UsageError("an analysis to view needs --t0, --t1 and --steps");
   if (o.forces && !grid) throw kc::UsageError("--forces belongs to an analysis (--t0 ...)");
@@ -55,8 +56,8 @@ int run_view(const Common& c, const Options& o) {
       if (run.stride > 1)
         kc::Log::global().warning(run.source + ": " + std::to_string(run.total_rows) +
                                   " rows; the page keeps one in " + std::to_string(run.stride) +
-                                  " and the last, " + std::to_string(run.rows()) +
-                                  " (--max-rows " + std::to_string(o.max_rows) + ")");
+                                  " and the last, " + std::to_string(run.rows()) + " (--max-rows " +
+                                  std::to_string(o.max_rows) + ")");
       html = kc::view_html(*model, run, options);
     }
     stage.done(std::to_string(html.size() / 1024) + " KiB of HTML");
@@ -79,8 +80,9 @@ Subcommand add_view(CLI::App& app, Common& common) {
   auto* view = app.add_subcommand(
       "view", "One self-contained HTML page: the mechanism moving over a run, with plots");
   add_common(view, common);
-  view->add_option("--csv", o->csv, "A run to show: the CSV of analyze (or any with its "
-                                    "position columns)");
+  view->add_option("--csv", o->csv,
+                   "A run to show: the CSV of analyze (or any with its "
+                   "position columns)");
   view->add_option("--modes", o->modes,
                    "Vibration modes to play: JSON {q, frequencies, shapes} (dq per coordinate)");
   view->add_option("--t0", o->t0, "Or analyze here: start time");

@@ -109,9 +109,8 @@ class Picture {
     d.welds = welds_;
     d.curves = curves_;
     // The constraint behind each element: the kinds add theirs in constraint order.
-    std::array<std::vector<const Constraint*>*, 7> by = {&d.pin_by,    &d.slider_by, &d.strut_by,
-                                                         &d.circle_by, &d.line_by,   &d.weld_by,
-                                                         &d.curve_by};
+    std::array<std::vector<const Constraint*>*, 7> by = {
+        &d.pin_by, &d.slider_by, &d.strut_by, &d.circle_by, &d.line_by, &d.weld_by, &d.curve_by};
     for (const auto& [c, counts] : drawn_)
       for (std::size_t k = 0; k < by.size(); ++k) by[k]->resize(counts[k], c);
     d.scale = scale_, d.x0 = x0_, d.y0 = y0_, d.width = width_, d.height = height_;
@@ -203,9 +202,10 @@ class Picture {
       context.curve_point = [&](const std::string& key, double u) { return curve_point(*c, key, u); };
       context.curve_range = [&](int k) { return curve_range(k); };
       c->kind->draw(context, sketch);
-      drawn_.push_back({c, {sketch.pins.size(), sketch.sliders.size(), sketch.struts.size(),
-                            sketch.pitch_circles.size(), sketch.pitch_lines.size(),
-                            sketch.welds.size(), sketch.curves.size()}});
+      drawn_.push_back({c,
+                        {sketch.pins.size(), sketch.sliders.size(), sketch.struts.size(),
+                         sketch.pitch_circles.size(), sketch.pitch_lines.size(),
+                         sketch.welds.size(), sketch.curves.size()}});
     }
     for (const Attach& a : sketch.landmarks) attach(a.body, a.s);
     for (const Attach& a : sketch.pins) pins_.push_back(a);

@@ -104,12 +104,13 @@ void check_matches(const CompiledModel& model, const RunTable& run, const Column
     for (int r = 0; r < model.nc(); ++r) {
       if (model.symbolic().rows[r].constraint->is_driver || std::abs(phi[r]) <= tol) continue;
       throw InputError(run.source, row_name(run, k, time), {},
-                       "the positions break " + model.row_label(r) + " of " + m.source +
-                           " by " + format_number(std::abs(phi[r]), NumberStyle::kShort) +
+                       "the positions break " + model.row_label(r) + " of " + m.source + " by " +
+                           format_number(std::abs(phi[r]), NumberStyle::kShort) +
                            ": a run of another mechanism, or made with other --param values?");
     }
     for (std::size_t p = 0; p < m.points.size(); ++p) {
-      const int x = columns.find(m.points[p].name + ".x"), y = columns.find(m.points[p].name + ".y");
+      const int x = columns.find(m.points[p].name + ".x"),
+                y = columns.find(m.points[p].name + ".y");
       if (x < 0 || y < 0) continue;
       const Eigen::Vector2d at = world(q[k], m.points[p].body, model.point_offsets()[p]);
       const Eigen::Vector2d given(run.values[x][k], run.values[y][k]);
@@ -145,7 +146,8 @@ void write_values(Json& json, const RunTable& run, std::string& blob) {
     }
   }
   json.close(']');
-  blob = base64(reinterpret_cast<const unsigned char*>(stored.data()), stored.size() * sizeof(double));
+  blob =
+      base64(reinterpret_cast<const unsigned char*>(stored.data()), stored.size() * sizeof(double));
 }
 
 void header(Json& json, const CompiledModel& model, const ViewOptions& options) {
@@ -230,7 +232,8 @@ std::string view_modes_html(const CompiledModel& model, const ModeSet& modes,
   std::vector<Eigen::VectorXd> q;
   for (const auto& shape : modes.shapes) {
     double largest = 0;
-    for (int i = 0; i < shape.size(); ++i) largest = std::max(largest, std::abs(shape[i]) / scales[i]);
+    for (int i = 0; i < shape.size(); ++i)
+      largest = std::max(largest, std::abs(shape[i]) / scales[i]);
     amplitude.push_back(0.1 / largest);
     for (int k = 0; k < 16; ++k)  // the extents and attachments over the oscillation
       q.push_back(modes.q + amplitude.back() * std::sin(2 * M_PI * k / 16) * shape);

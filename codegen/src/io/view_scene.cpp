@@ -133,7 +133,8 @@ void reactions(Json& json, const CompiledModel& model, const Columns& columns) {
     if (fx < 0 || fy < 0) continue;
     const bool on_j = c.j != kGround;
     const Vec2 s = reaction_point(c, on_j ? c.kind->reaction_j : c.kind->reaction_i);
-    const Eigen::Vector2d at(model.geometry_number(s.x, c.item), model.geometry_number(s.y, c.item));
+    const Eigen::Vector2d at(model.geometry_number(s.x, c.item),
+                             model.geometry_number(s.y, c.item));
     json.item().open('{').key("body").raw(std::to_string(on_j ? c.j : c.i)).key("s").vec(at);
     json.key("name").string(title(&c)).key("fx").raw(std::to_string(fx));
     json.key("fy").raw(std::to_string(fy));
@@ -211,8 +212,12 @@ void write_scene(Json& json, const CompiledModel& model, const AnimateDrawing& d
   reactions(json, model, columns);
   json.key("view").open('{');
   for (const auto& [name, v] : {std::pair<const char*, double>{"scale", d.scale},
-                                {"x0", d.x0}, {"y0", d.y0}, {"width", d.width},
-                                {"height", d.height}, {"margin", d.margin}, {"title", d.title}})
+                                {"x0", d.x0},
+                                {"y0", d.y0},
+                                {"width", d.width},
+                                {"height", d.height},
+                                {"margin", d.margin},
+                                {"title", d.title}})
     json.key(name).number(v);
   json.close('}').key("colours").open('{');
   for (const auto& [role, colour] : d.colours) json.key(role).string(colour);

@@ -100,11 +100,12 @@ RunTable read_run_csv(const std::string& path, std::size_t max_rows) {
     const bool keep = row % run.stride == 0 || row + 1 == run.total_rows;
     for (std::size_t c = 0; c < fields.size(); ++c) {
       double v = 0;
-      const auto [end, ec] = std::from_chars(fields[c].data(), fields[c].data() + fields[c].size(), v);
+      const auto [end, ec] =
+          std::from_chars(fields[c].data(), fields[c].data() + fields[c].size(), v);
       if (ec != std::errc() || end != fields[c].data() + fields[c].size() || fields[c].empty())
-        throw InputError(path, "row " + std::to_string(row), {line_number},
-                         "'" + std::string(fields[c]) + "' in column '" + run.columns[c] +
-                             "' is not a number");
+        throw InputError(
+            path, "row " + std::to_string(row), {line_number},
+            "'" + std::string(fields[c]) + "' in column '" + run.columns[c] + "' is not a number");
       if (keep) run.values[c].push_back(v);
     }
     ++row;
@@ -185,8 +186,9 @@ ModeSet read_modes_json(const std::string& path, const CompiledModel& model) {
   const auto numbers = [&](const YAML::Node& node, const std::string& item, int size) {
     if (!node.IsSequence()) fail(node, item, "expected a list of numbers");
     if (size >= 0 && static_cast<int>(node.size()) != size)
-      fail(node, item, std::to_string(node.size()) + " values, expected " + std::to_string(size) +
-                           " (one per coordinate: " + std::to_string(nq) + ")");
+      fail(node, item,
+           std::to_string(node.size()) + " values, expected " + std::to_string(size) +
+               " (one per coordinate: " + std::to_string(nq) + ")");
     Eigen::VectorXd v(node.size());
     for (std::size_t k = 0; k < node.size(); ++k) {
       try {
@@ -220,8 +222,8 @@ ModeSet read_modes_json(const std::string& path, const CompiledModel& model) {
   modes.frequencies.assign(f.data(), f.data() + f.size());
   const YAML::Node shapes = root["shapes"];
   if (!shapes.IsSequence() || shapes.size() != modes.frequencies.size())
-    fail(shapes, "shapes", "expected one shape per frequency (" +
-                               std::to_string(modes.frequencies.size()) + ")");
+    fail(shapes, "shapes",
+         "expected one shape per frequency (" + std::to_string(modes.frequencies.size()) + ")");
   for (std::size_t k = 0; k < shapes.size(); ++k) {
     modes.shapes.push_back(numbers(shapes[k], "shapes[" + std::to_string(k) + "]", nq));
     if (modes.shapes.back().cwiseAbs().maxCoeff() == 0)

@@ -59,8 +59,8 @@ struct ModeSet {
 ModeSet read_modes_json(const std::string& path, const CompiledModel& model);
 
 struct ViewOptions {
-  int width = 800;       // of the drawing, pixels (as animate's --width)
-  std::string failure;   // shown in the page: why the run ends early
+  int width = 800;                 // of the drawing, pixels (as animate's --width)
+  std::string failure;             // shown in the page: why the run ends early
   std::vector<std::string> notes;  // shown in the page (warnings)
 };
 
@@ -72,8 +72,7 @@ void require_viewer();
 // The page of a run. InputError when the run does not match the mechanism: a position column
 // missing, or a named point's columns away from where the positions put it (another file or
 // other parameters).
-std::string view_html(const CompiledModel& model, const RunTable& run,
-                      const ViewOptions& options);
+std::string view_html(const CompiledModel& model, const RunTable& run, const ViewOptions& options);
 // The page of modes: each plays as an oscillation q + a sin(2 pi tau) dq.
 std::string view_modes_html(const CompiledModel& model, const ModeSet& modes,
                             const ViewOptions& options);
