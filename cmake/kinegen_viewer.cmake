@@ -34,6 +34,9 @@ if(KINEGEN_BUILD_VIEWER)
     COMMENT "Embedding the viewer page (uPlot ${kinegen_uplot_installed})"
     VERBATIM)
   target_sources(kinegen_codegen PRIVATE ${kinegen_viewer_assets})
+  # The run's data is deflated in the page (the browser inflates it: DecompressionStream).
+  find_package(ZLIB REQUIRED)
+  target_link_libraries(kinegen_codegen PRIVATE ZLIB::ZLIB)
   set_source_files_properties(src/io/view_page.cpp PROPERTIES
                               COMPILE_DEFINITIONS KINEGEN_HAVE_VIEWER
                               OBJECT_DEPENDS ${kinegen_viewer_assets})

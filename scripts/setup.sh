@@ -8,6 +8,7 @@ packages=(g++ cmake make pkg-config libginac-dev libcln-dev libeigen3-dev catch2
           pybind11-dev python3-dev python3-numpy python3-pytest  # the Python module and its tests
           python3-scipy python3-matplotlib                       # examples/python
           libpng-dev chromium gnuplot-nox  # pictures: animate test (PNG decode, headless render), plots
+          zlib1g-dev  # kinegen view: the run deflated in the page
           python3-venv python3-setuptools python3-wheel)  # pip install . (offline) and its test
 missing=()
 for p in "${packages[@]}"; do

@@ -19,26 +19,55 @@
   window.addEventListener('error', (e) => showError('The page failed: ' + e.message));
 
   // ---- The run: columns by name, each a Float64Array of n rows.
-  function decode(text) {
+  function base64(text) {
     text = text.trim();
-    let bytes;
-    if (typeof Uint8Array.fromBase64 === 'function') {
-      bytes = Uint8Array.fromBase64(text);
-    } else {
-      const bin = atob(text);
-      bytes = new Uint8Array(bin.length);
-      for (let i = 0; i < bin.length; i++) bytes[i] = bin.charCodeAt(i);
-    }
-    return new Float64Array(bytes.buffer, bytes.byteOffset, bytes.byteLength / 8);
+    if (typeof Uint8Array.fromBase64 === 'function') return Uint8Array.fromBase64(text);
+    const bin = atob(text), bytes = new Uint8Array(bin.length);
+    for (let i = 0; i < bin.length; i++) bytes[i] = bin.charCodeAt(i);
+    return bytes;
   }
 
-  function csvRun(data) {
-    const n = data.rows;
-    const values = decode($('kinegen-values').textContent);
-    const stored = data.layout.filter((l) => typeof l === 'number').length;
-    if (values.length !== stored * n)
-      throw new Error('the page holds ' + values.length + ' values where ' + stored * n +
+  // The stored columns (view_page.cpp, pack): inflated, the 8 byte planes put back together,
+  // and each column's 64-bit differences summed (in two 32-bit halves with their carry).
+  async function unpack(text, count, rows) {
+    if (count === 0) return new Float64Array(0);
+    if (typeof DecompressionStream !== 'function')
+      throw new Error('this browser cannot inflate the page\'s data (no DecompressionStream)');
+    let planes;
+    try {
+      const stream = new Blob([base64(text)]).stream().pipeThrough(new DecompressionStream('deflate'));
+      planes = new Uint8Array(await new Response(stream).arrayBuffer());
+    } catch (e) {
+      throw new Error('the page\'s data does not inflate (' + e.message + '): the file is cut ' +
+                      'short or damaged');
+    }
+    if (planes.length !== 8 * count)
+      throw new Error('the page holds ' + planes.length / 8 + ' values where ' + count +
                       ' were written: the file is cut short or damaged');
+    const words = new Uint32Array(2 * count);
+    const p = [0, 1, 2, 3, 4, 5, 6, 7].map((b) => planes.subarray(b * count, (b + 1) * count));
+    let lo = 0, hi = 0;
+    for (let k = 0; k < count; k++) {
+      const dlo = (p[0][k] | p[1][k] << 8 | p[2][k] << 16 | p[3][k] << 24) >>> 0;
+      const dhi = (p[4][k] | p[5][k] << 8 | p[6][k] << 16 | p[7][k] << 24) >>> 0;
+      if (k % rows === 0) {
+        lo = dlo;
+        hi = dhi;
+      } else {
+        const sum = lo + dlo;
+        lo = sum >>> 0;
+        hi = (hi + dhi + (sum > 0xffffffff ? 1 : 0)) >>> 0;
+      }
+      words[2 * k] = lo;
+      words[2 * k + 1] = hi;
+    }
+    return new Float64Array(words.buffer);
+  }
+
+  async function csvRun(data) {
+    const n = data.rows;
+    const stored = data.layout.filter((l) => typeof l === 'number').length;
+    const values = await unpack($('kinegen-values').textContent, stored * n, n);
     const cache = [];
     const column = (k) => {
       if (!cache[k]) {

@@ -278,7 +278,7 @@
     rebuild();
   }
 
-  function main() {
+  async function main() {
     data = JSON.parse($('kinegen-data').textContent);
     document.title = data.mechanism + ' - kinegen view';
     $('kg-title').textContent = data.mechanism;
@@ -287,7 +287,7 @@
     if (data.failure) note('The run stops early: ' + data.failure + ' The page shows the rows ' +
                            'before it.');
     for (const n of data.notes) note(n);
-    run = data.modes ? K.modeRun(data, 0, 1, 120) : K.csvRun(data);
+    run = data.modes ? K.modeRun(data, 0, 1, 120) : await K.csvRun(data);
     timeIncreases = increasing(time());
     if (!data.modes && data.stride > 1)
       note('A long run: ' + data.total_rows + ' rows, of which the page keeps one in ' +
@@ -315,10 +315,8 @@
                        plots, play, ready: true, loadMs: performance.now() };
   }
 
-  try {
-    main();
-  } catch (e) {
+  main().catch((e) => {
     K.showError('The page could not show this run: ' + (e && e.message ? e.message : e));
     window.kinegen = { ready: true, error: String(e && e.message ? e.message : e) };
-  }
+  });
 })();

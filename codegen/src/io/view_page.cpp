@@ -2,7 +2,9 @@
 // the data and the page's template (viewer/, with uPlot, embedded at build time) put together.
 #include <bit>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
+#include <stdexcept>
 
 #include "kinegen/codegen/analysis/kinematics.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
@@ -11,6 +13,8 @@
 #include "view_json.hpp"
 
 #ifdef KINEGEN_HAVE_VIEWER
+#include <zlib.h>
+
 #include "kinegen/codegen/io/viewer_assets.hpp"
 #endif
 
@@ -125,6 +129,33 @@ void check_matches(const CompiledModel& model, const RunTable& run, const Column
 }
 
 // The columns as doubles: constant ones by value, the others one after another in one block.
+// The stored columns packed for the page: each value's 64 bits as an integer less the one
+// before it in its column (smooth runs make small differences), the 8 bytes of every value in
+// 8 planes (high bytes compress to almost nothing), deflated (zlib), so a run of 1e5 rows
+// weighs about 40% of its doubles; the page undoes each step exactly (drawing.js).
+std::string pack(const std::vector<double>& stored, std::size_t rows) {
+  const std::size_t n = stored.size();
+  std::vector<unsigned char> planes(8 * n);
+  std::uint64_t previous = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &stored[k], sizeof bits);
+    const std::uint64_t delta = k % rows == 0 ? bits : bits - previous;  // modulo 2^64
+    previous = bits;
+    for (int b = 0; b < 8; ++b) planes[b * n + k] = static_cast<unsigned char>(delta >> (8 * b));
+  }
+#ifdef KINEGEN_HAVE_VIEWER
+  uLongf size = compressBound(static_cast<uLong>(planes.size()));
+  std::vector<unsigned char> deflated(size);
+  if (compress2(deflated.data(), &size, planes.data(), static_cast<uLong>(planes.size()), 1) !=
+      Z_OK)
+    throw std::runtime_error("zlib could not compress the page's data");
+  return base64(deflated.data(), size);
+#else
+  return {};  // not reached: view_html requires the viewer
+#endif
+}
+
 void write_values(Json& json, const RunTable& run, std::string& blob) {
   std::vector<double> stored;
   stored.reserve(run.columns.size() * run.rows());
@@ -145,9 +176,8 @@ void write_values(Json& json, const RunTable& run, std::string& blob) {
       stored.insert(stored.end(), column.begin(), column.end());
     }
   }
-  json.close(']');
-  blob =
-      base64(reinterpret_cast<const unsigned char*>(stored.data()), stored.size() * sizeof(double));
+  json.close(']').key("packing").string("delta-planes-deflate");
+  blob = stored.empty() ? "" : pack(stored, run.rows());
 }
 
 void header(Json& json, const CompiledModel& model, const ViewOptions& options) {
