@@ -26,6 +26,7 @@
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "kinegen/codegen/model/table.hpp"
+#include "view_page.hpp"
 
 namespace py = pybind11;
 namespace kc = kinegen::codegen;
@@ -278,6 +279,23 @@ class Mechanism {
     });
   }
 
+  // `kinegen view`: the page of an analysis, a CSV or modes (view_page.cpp), written to path
+  // unless it is empty; the command line's page, byte for byte.
+  py::object view(const std::string& path, const kinegen::python::ViewArgs& args) {
+    std::vector<std::string> warnings;
+    std::string failure;
+    std::string html = translate(
+        path_, [&] { return kinegen::python::view_html(*model_, args, &warnings, &failure); });
+    const py::object warn = py::module_::import("warnings").attr("warn");
+    for (const auto& w : warnings) warn(one_line(w));
+    py::object page = translate(path_, [&] { return kinegen::python::make_page(html, path); });
+    if (!failure.empty()) {  // as the command line: the page of the rows so far, and exit 1
+      PyErr_SetString(analysis_error.ptr(), one_line(failure).c_str());
+      throw py::error_already_set();
+    }
+    return page;
+  }
+
   // Every coordinate, the bodies' x, y, phi and then the extra ones (format 6.1), as the
   // CSV's position columns name them.
   std::vector<std::string> coordinates() const {
@@ -328,6 +346,7 @@ PYBIND11_MODULE(kinegen, m) {
   m.attr("InputError") = input_error;
   m.attr("UsageError") = usage_error;
   m.attr("AnalysisError") = analysis_error;
+  kinegen::python::bind_page(m);
 
   py::class_<Mechanism>(m, "Mechanism")
       .def(py::init<std::string, py::dict, py::dict>(), py::arg("path"),
@@ -348,6 +367,19 @@ PYBIND11_MODULE(kinegen, m) {
            "Symbolic derivatives against numeric ones, one dict per block and method.")
       .def("generate", &Mechanism::generate, py::arg("dir") = ".", py::arg("fold_params") = false,
            "Writes DIR/<name>.hpp and returns its path.")
+      .def(
+          "view",
+          [](Mechanism& mech, const std::string& path, std::optional<double> t0,
+             std::optional<double> t1, std::optional<int> steps, const std::string& csv,
+             const std::string& modes, bool forces, int max_rows, int width) {
+            return mech.view(path, {t0, t1, steps, csv, modes, forces, max_rows, width});
+          },
+          py::arg("path") = "", py::kw_only(), py::arg("t0") = py::none(),
+          py::arg("t1") = py::none(), py::arg("steps") = py::none(), py::arg("csv") = "",
+          py::arg("modes") = "", py::arg("forces") = false, py::arg("max_rows") = 200000,
+          py::arg("width") = 800,
+          "The page of kinegen view (an analysis t0, t1, steps; csv=RUN.csv; or modes=FILE.json) "
+          "as a kinegen.Page, written to path if given; Jupyter shows it inline.")
       .def_property_readonly("coordinates", &Mechanism::coordinates,
                              "Names of the coordinates q, in order (body.x, body.y, body.phi).")
       .def_property_readonly("parameters", &Mechanism::parameters,

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Makes docs/figures/ with the tool itself: an SVG animation of every example over one crank
-# turn, a PNG still of the four-bar (headless Chromium) and a plot of its analysis (gnuplot).
+# turn, a PNG still of the four-bar (headless Chromium), a plot of its analysis (gnuplot) and
+# screenshots of kinegen view's page.
 #   scripts/make_figures.sh [path/to/kinegen]   (default: build/codegen/kinegen)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -63,3 +64,7 @@ rm -rf "$dir"
 # Rack-and-pinion steering over one cycle of the wheel, lock to lock.
 "$kinegen" animate examples/gears/steering.yaml --t0 0 --t1 6.283185307179586 --steps 120 \
   --width 480 -o "$out/steering.svg"
+# kinegen view's page, in headless Chromium (playwright-core from viewer/node_modules: npm ci).
+if [[ -d viewer/node_modules/playwright-core ]] && command -v node >/dev/null; then
+  node viewer/screenshots.mjs "$kinegen"
+fi

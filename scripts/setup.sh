@@ -7,16 +7,24 @@ packages=(g++ cmake make pkg-config libginac-dev libcln-dev libeigen3-dev catch2
           libyaml-cpp-dev libcli11-dev python3
           pybind11-dev python3-dev python3-numpy python3-pytest  # the Python module and its tests
           python3-scipy python3-matplotlib                       # examples/python
-          libpng-dev chromium gnuplot-nox)  # pictures: animate test (PNG decode, headless render), plots
+          libpng-dev chromium gnuplot-nox  # pictures: animate test (PNG decode, headless render), plots
+          zlib1g-dev  # kinegen view: the run deflated in the page
+          python3-venv python3-setuptools python3-wheel)  # pip install . (offline) and its test
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
+# kinegen view's page (viewer/: uPlot, and playwright-core for its tests) comes from npm. Node
+# from elsewhere (NodeSource's nodejs bundles npm, and conflicts with Debian's npm) is kept.
+command -v node >/dev/null || missing+=(nodejs)
+command -v npm >/dev/null || missing+=(npm)
 if ((${#missing[@]})); then
   SUDO=""
   [[ $(id -u) -ne 0 ]] && SUDO="sudo"
   $SUDO apt-get update
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
 fi
+# The versions viewer/package-lock.json pins.
+(cd viewer && npm ci --no-audit --no-fund)
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j"$(nproc)"

@@ -72,5 +72,6 @@ Subcommand add_check(CLI::App& app, Common& common);
 Subcommand add_animate(CLI::App& app, Common& common);
 Subcommand add_tolerance(CLI::App& app, Common& common);
 Subcommand add_simulate(CLI::App& app, Common& common);
+Subcommand add_view(CLI::App& app, Common& common);
 
 }  // namespace kinegen::cli

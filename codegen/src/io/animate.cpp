@@ -72,6 +72,10 @@ void Picture::collect() {
     context.curve_point = [&](const std::string& key, double u) { return curve_point(*c, key, u); };
     context.curve_range = [&](int k) { return curve_range(k); };
     c->kind->draw(context, sketch);
+    drawn_.push_back({c,
+                      {sketch.pins.size(), sketch.sliders.size(), sketch.struts.size(),
+                       sketch.pitch_circles.size(), sketch.pitch_lines.size(), sketch.welds.size(),
+                       sketch.curves.size()}});
   }
   for (const Attach& a : sketch.landmarks) attach(a.body, a.s);
   for (const Attach& a : sketch.pins) pins_.push_back(a);

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -85,6 +86,13 @@ class Picture {
  public:
   Picture(const CompiledModel& model, const AnimateOptions& options)
       : model_(model), options_(options) {}
+  // Over given positions (kinegen view), for drawing() rather than render().
+  Picture(const CompiledModel& model, std::vector<Eigen::VectorXd> q, int width)
+      : model_(model), q_(std::move(q)) {
+    options_.width = width;
+  }
+  // The drawing as numbers (animate_drawing.cpp).
+  AnimateDrawing drawing();
   std::string render() {
     solve();
     collect();
@@ -166,6 +174,8 @@ class Picture {
   std::vector<Slider> pitch_lines_;  // travel: of the pinion's centre along the line
   std::vector<Attach> welds_;
   std::vector<Sketch::Curve> curves_;
+  // Each drawing constraint with the Sketch's element counts after it (AnimateDrawing's *_by).
+  std::vector<std::pair<const Constraint*, std::array<std::size_t, 7>>> drawn_;
   // With options_.forces.
   struct Reaction {
     Attach at;

@@ -3,11 +3,15 @@
 // slider blocks, ground as hatched pivots and guides, named points with their traced paths.
 #pragma once
 
+#include <Eigen/Core>
 #include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
 
 namespace kinegen::codegen {
 
@@ -34,5 +38,30 @@ inline constexpr const char* kForceColour = "#2ca02c";
 // Throws AnalysisError if the analysis fails, UsageError for a bad frame or size (and with
 // `forces`, forces_for_analysis' errors).
 std::string animate_svg(const CompiledModel& model, const AnimateOptions& options);
+
+// What animate draws, as numbers, for a renderer of its own (`kinegen view`'s page): the
+// registry's Sketch completed over given positions (outlines through the joints and points,
+// attachments inferred from the motion, the guides' travel) and the picture's pixel map.
+struct AnimateDrawing {
+  struct Guide : Sketch::Slider {
+    double travel_min = 0, travel_max = 0;  // along dir, over the positions, with margins
+  };
+  std::vector<std::vector<Eigen::Vector2d>> bodies;  // outline points in each body's frame
+  std::vector<Attach> pins, points;                  // points: Mechanism::points' order
+  std::vector<Eigen::Vector2d> ground_pivots;
+  std::vector<Guide> sliders, pitch_lines;
+  std::vector<std::pair<Attach, Attach>> struts;
+  std::vector<Sketch::Circle> pitch_circles;
+  std::vector<Attach> welds;
+  std::vector<Sketch::Curve> curves;
+  // The constraint that drew each pin, slider, strut, pitch circle, pitch line, weld, curve.
+  std::vector<const Constraint*> pin_by, slider_by, strut_by, circle_by, line_by, weld_by, curve_by;
+  // px = x0 + scale x, py = y0 - scale y; the picture's size, margin and title line (pixels).
+  double scale = 1, x0 = 0, y0 = 0, width = 0, height = 0, margin = 0, title = 0;
+  std::vector<std::pair<std::string, std::string>> colours;  // role ("link", ...), #rrggbb
+};
+// q: the positions (each nq long, at least one); width as AnimateOptions::width.
+AnimateDrawing animate_drawing(const CompiledModel& model, std::vector<Eigen::VectorXd> q,
+                               int width = 800);
 
 }  // namespace kinegen::codegen
