@@ -27,6 +27,32 @@ constexpr double kOrderDown = 0.8, kOrderUp = 0.9;
 // Consecutive failed evaluations (Newton, a branch, ...) that end the run.
 constexpr int kMaxFailures = 40;
 
+// |x| as a double, at most 1e300 (a scaled error of a wild first try may exceed double's
+// range when D is large).
+double bounded(const numeric& x) {
+  const numeric a = GiNaC::abs(x);
+  return a > numeric(10).power(300) ? 1e300 : a.to_double();
+}
+
+// The tableau's lines for D digits: ODEX's optimal order grows like 0.6 D, capped where a
+// step's work (about columns^2 evaluations) stops paying.
+int extrapolation_columns(int digits) { return std::clamp(digits / 3 + 4, 9, 60); }
+
+// Extrapolating with `columns` lines of the harmonic sequence multiplies the rounding of the
+// midpoint values by up to the sum of |weights| of the extrapolation to h = 0 (its Lebesgue
+// constant, about 5^columns: 1e4 for 14 lines), so the arithmetic carries that many more
+// digits (and two more) than the tolerance asks.
+int guard_digits(int columns) {
+  double sum = 0;
+  for (int j = 1; j <= columns; ++j) {
+    double w = 1;
+    for (int i = 1; i <= columns; ++i)
+      if (i != j) w *= double(j) * j / (double(j) * j - double(i) * i);
+    sum += std::abs(w);
+  }
+  return static_cast<int>(std::ceil(std::log10(sum))) + 2;
+}
+
 // An accepted point: the state y = [z, zd, work], its derivative and the full state there.
 struct StepPoint {
   numeric t;
@@ -36,18 +62,16 @@ struct StepPoint {
 
 class Extrapolation {
  public:
+  // digits: the requested D (the tolerance's); columns: extrapolation_columns(D).
   Extrapolation(ReferenceDynamics& dynamics, const std::vector<double>& scales, int digits,
-                const SimulateOptions& options)
-      : dyn_(dynamics), scales_(scales), options_(options) {
+                int columns, const SimulateOptions& options)
+      : dyn_(dynamics), scales_(scales), options_(options), kmax_(columns) {
     // The local tolerance: 10^-(D-2) leaves about D - 5 digits after a few hundred steps
     // (a damped four-bar over 2 s at 30 digits: 9e-27 from a 45-digit run, 2e-24 with
-    // 10^-(D-4); the truncation error dominates, not the rounding).
-    tolerance_ = std::pow(10.0, -(digits - 2));
-    // Columns: the extrapolation amplifies rounding by about 5^columns (the harmonic
-    // sequence's Lebesgue constant), so the order stays where that costs under 4 digits.
-    kmax_ = std::clamp(digits / 3 + 2, 9, 14);
+    // 10^-(D-4)).
+    tolerance_ = numeric(10).power(-(digits - 2));  // below double's range for large D
     for (int j = 1; j <= kmax_ + 1; ++j) work_.push_back(j == 1 ? n(1) : work_.back() + n(j) - 1);
-    k_ = std::clamp(static_cast<int>((digits - 4) * 0.6 + 1.5), 3, kmax_ - 1);
+    k_ = std::clamp(static_cast<int>((digits - 2) * 0.6 + 1.5), 3, kmax_ - 1);
   }
 
   // y' at (t, y) and the state there; throws AnalysisError.
@@ -68,15 +92,13 @@ class Extrapolation {
     derivative(t, y, p.f, p.state);
     return p;
   }
-  // A first step size from the scaled sizes of y and y' (Hairer's rule of thumb).
+  // A first step: one whose change h |y'| is a hundredth of |y| + its scale.
   void initial_step(const StepPoint& p, double span) {
-    double dy = 0, df = 0;
-    for (std::size_t i = 0; i < p.y.size(); ++i) {
-      const double sc = tolerance_ * (scale(i) + std::abs(p.y[i].to_double()));
-      dy = std::max(dy, std::abs(p.y[i].to_double()) / sc);
-      df = std::max(df, std::abs(p.f[i].to_double()) / sc);
-    }
-    h_ = (dy < 1e-5 || df < 1e-5) ? 1e-6 * span : std::min(0.01 * dy / df, span);
+    double rate = 0;
+    for (std::size_t i = 0; i < p.y.size(); ++i)
+      rate = std::max(rate,
+                      bounded(GiNaC::abs(p.f[i]) / (exact_numeric(scale(i)) + GiNaC::abs(p.y[i]))));
+    h_ = rate > 0 ? std::min(0.01 / rate, span) : 1e-3 * span;
   }
 
   // One accepted step from p towards t_end (shorter where the controller asks); p becomes
@@ -148,8 +170,8 @@ class Extrapolation {
     double sum = 0;
     for (std::size_t i = 0; i < best.size(); ++i) {
       const numeric size = std::max(GiNaC::abs(p.y[i]), GiNaC::abs(best[i]));
-      const double sc = tolerance_ * (scale(i) + size.to_double());
-      const double e = (best[i] - next[i]).to_double() / sc;
+      const numeric sc = tolerance_ * (exact_numeric(scale(i)) + size);
+      const double e = bounded((best[i] - next[i]) / sc);
       sum += e * e;
     }
     return std::sqrt(sum / best.size());
@@ -221,8 +243,9 @@ class Extrapolation {
   ReferenceDynamics& dyn_;
   std::vector<double> scales_;
   const SimulateOptions& options_;
-  double tolerance_ = 0, h_ = 0;
-  int k_ = 3, kmax_ = 9;
+  numeric tolerance_;
+  double h_ = 0;
+  int kmax_ = 9, k_ = 3;
   bool reject_ = false;
   std::vector<double> work_;  // A_j: evaluations of lines 1..j, the end point's included
 };
@@ -414,12 +437,17 @@ SimulatedRow to_simulated_row(const ReferenceSimulatedRow& r) {
 ReferenceSimulationStats run_reference_simulation_exact(
     const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid, int digits,
     const std::function<void(const ReferenceSimulatedRow&)>& sink, const SimulateOptions& options) {
-  ReferenceDynamics dyn(model, forces, digits, grid.t0);
-  const DigitsGuard guard(digits);
+  if (digits < kMinReferenceDigits || digits > kMaxReferenceDigits)
+    throw UsageError("reference digits must be between " + std::to_string(kMinReferenceDigits) +
+                     " and " + std::to_string(kMaxReferenceDigits) + ", not " +
+                     std::to_string(digits));
+  const int columns = extrapolation_columns(digits);
+  ReferenceDynamics dyn(model, forces, digits + guard_digits(columns), grid.t0);
+  const DigitsGuard guard(dyn.digits());
   const std::string& file = model.mechanism().source;
   std::vector<double> scales = dyn.scales();
   scales.insert(scales.end(), dyn.scales().begin(), dyn.scales().end());
-  Extrapolation gbs(dyn, scales, digits, options);
+  Extrapolation gbs(dyn, scales, digits, columns, options);
   RowBuilder rows(model, forces, dyn, options.forces_columns != nullptr);
   StopFunction stop(model, forces, dyn);
   const ReferenceMotionState& s0 = dyn.initial();
