@@ -2,6 +2,8 @@
 // analysis/reference_dynamics.hpp); the integrator is reference_simulate.cpp.
 #include "kinegen/codegen/analysis/reference_dynamics.hpp"
 
+#include <cln/exception.h>
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <kinegen/kernels/dynamics.hpp>
@@ -309,8 +311,13 @@ void ReferenceDynamics::evaluate(const numeric& t, const Vector& z, const Vector
   out.t = t;
   out.z = z;
   out.zd = zd;
-  solve_position(t, z, out);
-  solve_motion(out);
+  try {
+    solve_position(t, z, out);
+    solve_motion(out);
+  } catch (const cln::runtime_exception& e) {
+    // CLN's own failures (a division by zero, an overflow) are the state's, not the code's.
+    throw AnalysisError(std::string("the high-precision arithmetic failed: ") + e.what());
+  }
   start_from(out);
 }
 

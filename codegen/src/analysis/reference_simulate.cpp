@@ -123,6 +123,8 @@ class Extrapolation {
         }
         ++stats.rejected;
         h_ = h_next;
+        if (!(h_ > 1e-14 * std::max(1.0, std::abs(p.t.to_double()))))
+          throw AnalysisError("the step size fell below 1e-14 of t (the error test fails)");
         continue;
       } catch (const AnalysisError& e) {
         reason = e.what();
