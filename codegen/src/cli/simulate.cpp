@@ -1,5 +1,7 @@
 // `kinegen simulate`: forward dynamics (format 7.3) on SUNDIALS CVODE, rows on the --steps
 // grid, with the free coordinates and the energy columns.
+#include "kinegen/codegen/analysis/simulate.hpp"
+
 #include <chrono>
 #include <cmath>
 #include <iostream>
@@ -8,7 +10,7 @@
 
 #include "cli.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
-#include "kinegen/codegen/analysis/simulate.hpp"
+#include "kinegen/codegen/analysis/reference_dynamics.hpp"
 #include "kinegen/codegen/io/output_file.hpp"
 
 namespace kinegen::cli {
@@ -34,6 +36,11 @@ void check_options(const Options& o) {
   if (!std::isfinite(o.rtol) || !(o.rtol > 0) || o.rtol >= 1)
     throw kc::UsageError("--rtol must be a finite number in (0, 1), not " +
                          kc::format_number(o.rtol));
+  if (o.reference_digits != 0 && (o.reference_digits < kc::kMinReferenceDigits ||
+                                  o.reference_digits > kc::kMaxReferenceDigits))
+    throw kc::UsageError("--reference must be between " + std::to_string(kc::kMinReferenceDigits) +
+                         " and " + std::to_string(kc::kMaxReferenceDigits) + " digits, not " +
+                         std::to_string(o.reference_digits));
   if (!std::isfinite(o.atol) || !(o.atol > 0))
     throw kc::UsageError("--atol must be a finite number above 0, not " +
                          kc::format_number(o.atol));
@@ -52,8 +59,6 @@ std::function<void(double)> progress_after_a_second(double t0, double t1) {
 
 int run_simulate(const Common& c, const Options& o) {
   check_options(o);
-  if (o.reference_digits != 0)
-    throw kc::UsageError("--reference is not available yet");
   kc::BuildOptions build;
   build.free_as_state = true;
   auto model = load(c, build);
@@ -77,16 +82,20 @@ int run_simulate(const Common& c, const Options& o) {
   std::ostream& out = file.stream();
   int status = 0, rows = 0;
   bool header = false;
+  const auto sink = [&](const kc::SimulatedRow& row) {
+    if (!header) out << kc::simulate_csv_header(model->mechanism(), force_names);
+    header = true;
+    out << kc::simulate_csv_row(row, nb);
+    file.check();
+    ++rows;
+  };
   try {
-    kc::run_simulation(*model, forces, {o.t0, o.t1, o.steps},
-                       [&](const kc::SimulatedRow& row) {
-                         if (!header) out << kc::simulate_csv_header(model->mechanism(), force_names);
-                         header = true;
-                         out << kc::simulate_csv_row(row, nb);
-                         file.check();
-                         ++rows;
-                       },
-                       options);
+    if (o.reference_digits != 0) {
+      kc::run_reference_simulation(*model, forces, {o.t0, o.t1, o.steps}, o.reference_digits, sink,
+                                   options);
+    } else {
+      kc::run_simulation(*model, forces, {o.t0, o.t1, o.steps}, sink, options);
+    }
   } catch (const kc::AnalysisError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
     status = kExitFailed;  // the rows so far are kept
@@ -120,7 +129,9 @@ Subcommand add_simulate(CLI::App& app, Common& common) {
   cmd->add_flag("--forces", o->with_forces,
                 "Add the prescribed drivers' efforts and the joints' reactions along the motion");
   cmd->add_option("--reference", o->reference_digits,
-                  "Integrate with D significant digits in CLN arithmetic (for tests)")
+                  "Integrate with D significant digits in CLN arithmetic (Gragg-Bulirsch-Stoer "
+                  "extrapolation; about D - 5 correct digits; for tests); --rtol, --atol, "
+                  "--integrator do not apply")
       ->type_name("D");
   return {cmd, [&common, o] { return run_simulate(common, *o); }};
 }

@@ -1,0 +1,514 @@
+// The reference integrator: Gragg-Bulirsch-Stoer extrapolation in CLN arithmetic on
+// ReferenceDynamics (see analysis/reference_dynamics.hpp). The step, order and rejection rules
+// are those of Hairer, Norsett and Wanner, Solving ODEs I, section II.9 (their code ODEX),
+// without dense output: steps land exactly on the grid's times and on a stop_when root.
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <string>
+
+#include "kinegen/codegen/analysis/kinematics.hpp"
+#include "kinegen/codegen/analysis/reference_dynamics.hpp"
+#include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/program/program.hpp"
+
+namespace kinegen::codegen {
+
+using GiNaC::ex;
+using GiNaC::numeric;
+using Vector = std::vector<numeric>;
+
+namespace {
+
+// ODEX's constants: the step factor's bounds, safety factors, order change thresholds.
+constexpr double kFacMin = 0.02, kFacMax = 4.0, kSafe1 = 0.65, kSafe2 = 0.94;
+constexpr double kOrderDown = 0.8, kOrderUp = 0.9;
+// Consecutive failed evaluations (Newton, a branch, ...) that end the run.
+constexpr int kMaxFailures = 40;
+
+// |x| as a double, at most 1e300 (a scaled error of a wild first try may exceed double's
+// range when D is large).
+double bounded(const numeric& x) {
+  const numeric a = GiNaC::abs(x);
+  return a > numeric(10).power(300) ? 1e300 : a.to_double();
+}
+
+// The tableau's lines for D digits: ODEX's optimal order grows like 0.6 D, capped where a
+// step's work (about columns^2 evaluations) stops paying.
+int extrapolation_columns(int digits) { return std::clamp(digits / 3 + 4, 9, 60); }
+
+// Extrapolating with `columns` lines of the harmonic sequence multiplies the rounding of the
+// midpoint values by up to the sum of |weights| of the extrapolation to h = 0 (its Lebesgue
+// constant, about 5^columns: 1e4 for 14 lines), so the arithmetic carries that many more
+// digits (and two more) than the tolerance asks.
+int guard_digits(int columns) {
+  double sum = 0;
+  for (int j = 1; j <= columns; ++j) {
+    double w = 1;
+    for (int i = 1; i <= columns; ++i)
+      if (i != j) w *= double(j) * j / (double(j) * j - double(i) * i);
+    sum += std::abs(w);
+  }
+  return static_cast<int>(std::ceil(std::log10(sum))) + 2;
+}
+
+// An accepted point: the state y = [z, zd, work], its derivative and the full state there.
+struct StepPoint {
+  numeric t;
+  Vector y, f;
+  ReferenceMotionState state;
+};
+
+class Extrapolation {
+ public:
+  // digits: the requested D (the tolerance's); columns: extrapolation_columns(D).
+  Extrapolation(ReferenceDynamics& dynamics, const std::vector<double>& scales, int digits,
+                int columns, const SimulateOptions& options)
+      : dyn_(dynamics), scales_(scales), options_(options), kmax_(columns) {
+    // The local tolerance: 10^-(D-2) leaves about D - 5 digits after a few hundred steps
+    // (a damped four-bar over 2 s at 30 digits: 9e-27 from a 45-digit run, 2e-24 with
+    // 10^-(D-4)).
+    tolerance_ = numeric(10).power(-(digits - 2));  // below double's range for large D
+    for (int j = 1; j <= kmax_ + 1; ++j) work_.push_back(j == 1 ? n(1) : work_.back() + n(j) - 1);
+    k_ = std::clamp(static_cast<int>((digits - 2) * 0.6 + 1.5), 3, kmax_ - 1);
+  }
+
+  // y' at (t, y) and the state there; throws AnalysisError.
+  void derivative(const numeric& t, const Vector& y, Vector& f, ReferenceMotionState& s) {
+    const int nf = dyn_.nf();
+    ++stats.evaluations;
+    dyn_.evaluate(t, Vector(y.begin(), y.begin() + nf), Vector(y.begin() + nf, y.begin() + 2 * nf),
+                  s);
+    f.resize(y.size());
+    for (int k = 0; k < nf; ++k) {
+      f[k] = y[nf + k];
+      f[nf + k] = s.zdd[k];
+    }
+    f[2 * nf] = s.power;
+  }
+  StepPoint point(const numeric& t, const Vector& y) {
+    StepPoint p{t, y, {}, {}};
+    derivative(t, y, p.f, p.state);
+    return p;
+  }
+  // A first step: one whose change h |y'| is a hundredth of |y| + its scale.
+  void initial_step(const StepPoint& p, double span) {
+    double rate = 0;
+    for (std::size_t i = 0; i < p.y.size(); ++i)
+      rate = std::max(rate,
+                      bounded(GiNaC::abs(p.f[i]) / (exact_numeric(scale(i)) + GiNaC::abs(p.y[i]))));
+    h_ = rate > 0 ? std::min(0.01 / rate, span) : 1e-3 * span;
+  }
+
+  // One accepted step from p towards t_end (shorter where the controller asks); p becomes
+  // the new point. Throws AnalysisError after kMaxFailures failed evaluations in a row.
+  void step(StepPoint& p, const numeric& t_end) {
+    for (int failures = 0;;) {
+      if (options_.interrupted && options_.interrupted()) throw AnalysisError("interrupted");
+      const double remaining = (t_end - p.t).to_double();
+      const bool last = h_ >= remaining * (1 - 1e-9);
+      const double h = last ? remaining : h_;
+      const numeric t_new = last ? t_end : dyn_.to_float(p.t + exact_numeric(h));
+      Vector y;
+      double h_next = h;
+      std::string reason;
+      try {
+        if (attempt(p, t_new, y, h_next)) {
+          StepPoint next = point(t_new, y);
+          ++stats.steps;
+          h_ = last ? std::max(h_next, h_) : h_next;
+          p = std::move(next);
+          return;
+        }
+        ++stats.rejected;
+        h_ = h_next;
+        if (!(h_ > 1e-14 * std::max(1.0, std::abs(p.t.to_double()))))
+          throw AnalysisError("the step size fell below 1e-14 of t (the error test fails)");
+        continue;
+      } catch (const AnalysisError& e) {
+        reason = e.what();
+      }
+      // A failed evaluation: CVODE's policy, a smaller step.
+      ++stats.rejected;
+      reject_ = true;
+      h_ = h / 4;
+      if (++failures >= kMaxFailures || !(h_ > 1e-14 * std::max(1.0, std::abs(p.t.to_double()))))
+        throw AnalysisError(reason);
+    }
+  }
+
+  ReferenceSimulationStats stats;
+
+ private:
+  static int n(int j) { return 2 * j; }  // the harmonic sequence, j from 1
+  double scale(std::size_t i) const { return i < scales_.size() ? scales_[i] : energy_scale; }
+
+ public:
+  double energy_scale = 1;
+
+ private:
+  // T_j1: the modified midpoint rule with n(j) substeps from p to t_new.
+  Vector midpoint(const StepPoint& p, const numeric& t_new, int j) {
+    const int steps = n(j);
+    const numeric h = (t_new - p.t) / steps;
+    dyn_.start_from(p.state);
+    Vector u0 = p.y, u1(p.y.size()), f;
+    for (std::size_t i = 0; i < u1.size(); ++i) u1[i] = u0[i] + h * p.f[i];
+    ReferenceMotionState s;
+    for (int m = 1; m < steps; ++m) {
+      derivative(p.t + h * m, u1, f, s);
+      for (std::size_t i = 0; i < u1.size(); ++i) {
+        const numeric u2 = u0[i] + 2 * h * f[i];
+        u0[i] = u1[i];
+        u1[i] = u2;
+      }
+    }
+    return u1;
+  }
+
+  // The scaled RMS norm of T_jj - T_j,j-1.
+  double error(const StepPoint& p, const Vector& best, const Vector& next) const {
+    double sum = 0;
+    for (std::size_t i = 0; i < best.size(); ++i) {
+      const numeric size = std::max(GiNaC::abs(p.y[i]), GiNaC::abs(best[i]));
+      const numeric sc = tolerance_ * (exact_numeric(scale(i)) + size);
+      const double e = bounded((best[i] - next[i]) / sc);
+      sum += e * e;
+    }
+    return std::sqrt(sum / best.size());
+  }
+
+  // One attempt with HNW's convergence monitor in lines k-1, k and k+1; true when accepted,
+  // with y and the next step and order.
+  bool attempt(const StepPoint& p, const numeric& t_new, Vector& y, double& h_next) {
+    const double h = (t_new - p.t).to_double();
+    std::vector<double> hh(kmax_ + 2, h), w(kmax_ + 2, 0);
+    std::vector<Vector> row;  // the tableau's last row, T_j1 .. T_jj
+    int kc = 0;
+    bool accepted = false;
+    for (int j = 1; j <= k_ + 1 && kc == 0; ++j) {
+      std::vector<Vector> next{midpoint(p, t_new, j)};
+      for (int l = 1; l < j; ++l) {
+        const numeric ratio = numeric(n(j) * n(j) - n(j - l) * n(j - l), n(j - l) * n(j - l));
+        Vector v(next[l - 1].size());
+        for (std::size_t i = 0; i < v.size(); ++i)
+          v[i] = next[l - 1][i] + (next[l - 1][i] - row[l - 1][i]) / ratio;
+        next.push_back(std::move(v));
+      }
+      row = std::move(next);
+      stats.largest_column = std::max(stats.largest_column, j);
+      if (j < 2) continue;
+      const double err = std::max(error(p, row[j - 1], row[j - 2]), 1e-300);
+      const double expo = 1.0 / (2 * j - 1), facmin = std::pow(kFacMin, expo);
+      const double fac =
+          std::clamp(std::pow(err / kSafe1, expo) / kSafe2, facmin, kFacMax / facmin);
+      hh[j] = h / fac;
+      w[j] = work_[j - 1] / hh[j];
+      if (j < k_ - 1) continue;
+      const double n1 = n(1);
+      if (err <= 1) {
+        kc = j, accepted = true;
+      } else if ((j == k_ - 1 && err > std::pow(n(k_ + 1) * n(k_) / (n1 * n1), 2)) ||
+                 (j == k_ && err > std::pow(n(k_ + 1) / n1, 2)) || j == k_ + 1) {
+        kc = j;
+      }
+    }
+    if (!accepted) {
+      int k = std::min({k_, kc, kmax_ - 1});
+      if (k > 2 && w[k - 1] < kOrderDown * w[k]) --k;
+      k_ = std::max(k, 2);
+      h_next = hh[k_] > 0 ? hh[k_] : h / 2;
+      reject_ = true;
+      return false;
+    }
+    y = row[kc - 1];
+    int kopt = kc;
+    if (kc == 2) {
+      kopt = std::min(3, kmax_ - 1);
+    } else if (kc <= k_) {
+      if (w[kc - 1] < kOrderDown * w[kc]) kopt = kc - 1;
+      if (w[kc] < kOrderUp * w[kc - 1]) kopt = std::min(kc + 1, kmax_ - 1);
+    } else {
+      kopt = kc - 1;
+      if (kc > 3 && w[kc - 2] < kOrderDown * w[kc - 1]) kopt = kc - 2;
+      if (w[kc] < kOrderUp * w[kopt]) kopt = std::min(kc, kmax_ - 1);
+    }
+    if (reject_) kopt = std::min(kopt, kc);
+    h_next = kopt <= kc ? hh[kopt] : hh[kc] * work_[kopt - 1] / work_[kc - 1];
+    if (reject_) h_next = std::min(h_next, h);
+    reject_ = false;
+    k_ = std::max(kopt, 2);
+    return true;
+  }
+
+  ReferenceDynamics& dyn_;
+  std::vector<double> scales_;
+  const SimulateOptions& options_;
+  numeric tolerance_;
+  double h_ = 0;
+  int kmax_ = 9, k_ = 3;
+  bool reject_ = false;
+  std::vector<double> work_;  // A_j: evaluations of lines 1..j, the end point's included
+};
+
+}  // namespace
+
+namespace {
+
+// stop_when (format 7.3) at a state in high precision: its tape, or, where it reads force
+// columns, the expression evaluated with them (ReferenceForces) substituted.
+class StopFunction {
+ public:
+  StopFunction(const CompiledModel& model, const ForceModel& forces, ReferenceDynamics& dyn)
+      : model_(model), dyn_(dyn) {
+    const SymbolicModel& sym = model.symbolic();
+    const SymbolTable& s = model.symbols();
+    if (sym.stop_when.is_zero() && !model.mechanism().stop_when) return;
+    active_ = true;
+    if (sym.stop_force_columns.empty()) {
+      handle_ = dyn.evaluator().add_outputs({sym.stop_when});
+      return;
+    }
+    forces_ = std::make_unique<ReferenceForces>(model, forces, dyn.digits());
+    expression_ = substitute_params(sym.stop_when, s, sym.param_values);
+    for (GiNaC::const_preorder_iterator it = expression_.preorder_begin();
+         it != expression_.preorder_end(); ++it)
+      if (GiNaC::is_a<GiNaC::symbol>(*it)) {
+        const Input in = s.classify(*it);
+        if (in.kind == InputKind::kParam && in.index >= s.num_params())
+          extras_.emplace_back(*it, in.index - s.num_params());
+      }
+  }
+  bool active() const { return active_; }
+
+  numeric operator()(const ReferenceMotionState& st) {
+    if (handle_ >= 0) return dyn_.evaluator().evaluate(handle_, st.q, st.qd, st.t)[0];
+    const DigitsGuard guard(dyn_.digits());
+    ReferenceRow row;
+    row.t = st.t;
+    row.q = st.q;
+    row.qd = st.qd;
+    row.qdd = st.qdd;
+    const std::vector<numeric> columns = forces_->solve(row);
+    const SymbolTable& s = model_.symbols();
+    GiNaC::exmap map;
+    for (int k = 0; k < s.nq(); ++k) {
+      map[s.q(k)] = st.q[k];
+      map[s.qd(k)] = st.qd[k];
+    }
+    map[s.t()] = st.t;
+    for (const auto& [symbol, k] : extras_)
+      map[symbol] = columns[model_.symbolic().stop_force_columns[k]];
+    const ex v = GiNaC::evalf(expression_.subs(map));
+    if (!GiNaC::is_a<numeric>(v) || !GiNaC::ex_to<numeric>(v).is_real())
+      throw AnalysisError("stop_when does not evaluate to a real number in the reference");
+    return dyn_.to_float(GiNaC::ex_to<numeric>(v));
+  }
+
+ private:
+  const CompiledModel& model_;
+  ReferenceDynamics& dyn_;
+  bool active_ = false;
+  int handle_ = -1;
+  std::unique_ptr<ReferenceForces> forces_;
+  ex expression_;
+  std::vector<std::pair<ex, int>> extras_;
+};
+
+// The columns of a row: points, outputs, energy, forces.
+class RowBuilder {
+ public:
+  RowBuilder(const CompiledModel& model, const ForceModel& forces, ReferenceDynamics& dyn,
+             bool with_forces)
+      : model_(model), dyn_(dyn) {
+    const SymbolicModel& sym = model.symbolic();
+    const DigitsGuard guard(dyn.digits());
+    for (const auto& [x, y] : sym.point_s) {
+      const auto value = [&](const ex& e) {
+        return dyn.to_float(GiNaC::ex_to<numeric>(
+            GiNaC::evalf(substitute_params(e, model.symbols(), sym.param_values))));
+      };
+      offsets_.push_back({value(x), value(y)});
+    }
+    outputs_ = static_cast<int>(sym.output_values.size());
+    if (outputs_ > 0) {
+      std::vector<ex> all = sym.output_values;
+      for (const ex& e : output_rate_expressions(sym)) all.push_back(e);
+      handle_ = dyn.evaluator().add_outputs(all);
+    }
+    if (with_forces) forces_ = std::make_unique<ReferenceForces>(model, forces, dyn.digits());
+  }
+
+  ReferenceSimulatedRow row(const StepPoint& p) {
+    const DigitsGuard guard(dyn_.digits());
+    const ReferenceMotionState& s = p.state;
+    const int nq = model_.nq(), nf = dyn_.nf();
+    ReferenceSimulatedRow r;
+    r.row.t = p.t;
+    r.row.q = s.q;
+    r.row.qd = s.qd;
+    r.row.qdd = s.qdd;
+    const auto& points = model_.mechanism().points;
+    for (std::size_t k = 0; k < points.size(); ++k) {
+      const int b = 3 * points[k].body;
+      const numeric c = GiNaC::cos(s.q[b + 2]), sn = GiNaC::sin(s.q[b + 2]);
+      r.row.points.push_back(
+          point_kinematics(&s.q[b], &s.qd[b], &s.qdd[b], c, sn, offsets_[k][0], offsets_[k][1]));
+    }
+    if (handle_ >= 0) {
+      const Vector v = dyn_.evaluator().evaluate(handle_, s.q, s.qd, p.t);
+      for (int o = 0; o < outputs_; ++o) {
+        numeric a = v[2 * outputs_ + o];
+        for (int k = 0; k < nq; ++k) a = a + v[3 * outputs_ + o * nq + k] * s.qdd[k];
+        r.row.outputs.push_back({v[o], v[outputs_ + o], a});
+      }
+    }
+    r.z = s.z;
+    r.zd = s.zd;
+    r.zdd = s.zdd;
+    const auto e = dyn_.energy(s);
+    r.kinetic = e[0];
+    r.potential = e[1];
+    r.work = p.y[2 * nf];
+    if (!have_energy0_) energy0_ = e[0] + e[1], have_energy0_ = true;
+    r.balance = e[0] + e[1] - r.work - energy0_;
+    if (forces_) r.forces = forces_->solve(r.row);
+    return r;
+  }
+
+ private:
+  const CompiledModel& model_;
+  ReferenceDynamics& dyn_;
+  std::vector<std::array<numeric, 2>> offsets_;
+  int outputs_ = 0, handle_ = -1;
+  std::unique_ptr<ReferenceForces> forces_;
+  bool have_energy0_ = false;
+  numeric energy0_;
+};
+
+// The root of stop_when between two accepted points (g(a) < 0 <= g(b)), by the Illinois
+// method on the time, each trial point integrated from a with the same controller.
+StepPoint find_root(Extrapolation gbs, StopFunction& stop, const StepPoint& a, numeric ga,
+                    StepPoint b, numeric gb, const numeric& tolerance) {
+  StepPoint lo = a;
+  int side = 0;
+  for (int it = 0; it < 200 && b.t - lo.t > tolerance; ++it) {
+    numeric t = (lo.t * gb - b.t * ga) / (gb - ga);
+    if (!(t > lo.t && t < b.t)) t = (lo.t + b.t) / 2;
+    StepPoint m = a;
+    Extrapolation sub = gbs;
+    while (m.t < t) sub.step(m, t);
+    const numeric gm = stop(m.state);
+    if (gm.is_negative()) {
+      lo = std::move(m);
+      ga = gm;
+      if (side == -1) gb = gb / 2;
+      side = -1;
+    } else {
+      b = std::move(m);
+      gb = gm;
+      if (side == 1) ga = ga / 2;
+      side = 1;
+    }
+  }
+  return b;
+}
+
+}  // namespace
+
+SimulatedRow to_simulated_row(const ReferenceSimulatedRow& r) {
+  SimulatedRow s;
+  s.state = to_state_row(r.row);
+  const auto vec = [](const std::vector<numeric>& v) {
+    Eigen::VectorXd d(v.size());
+    for (std::size_t k = 0; k < v.size(); ++k) d[k] = v[k].to_double();
+    return d;
+  };
+  s.z = vec(r.z);
+  s.zd = vec(r.zd);
+  s.zdd = vec(r.zdd);
+  for (const numeric& f : r.forces) s.state.forces.push_back(f.to_double());
+  s.kinetic = r.kinetic.to_double();
+  s.potential = r.potential.to_double();
+  s.work = r.work.to_double();
+  s.balance = r.balance.to_double();
+  return s;
+}
+
+ReferenceSimulationStats run_reference_simulation_exact(
+    const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid, int digits,
+    const std::function<void(const ReferenceSimulatedRow&)>& sink, const SimulateOptions& options) {
+  if (digits < kMinReferenceDigits || digits > kMaxReferenceDigits)
+    throw UsageError("reference digits must be between " + std::to_string(kMinReferenceDigits) +
+                     " and " + std::to_string(kMaxReferenceDigits) + ", not " +
+                     std::to_string(digits));
+  const int columns = extrapolation_columns(digits);
+  ReferenceDynamics dyn(model, forces, digits + guard_digits(columns), grid.t0);
+  const DigitsGuard guard(dyn.digits());
+  const std::string& file = model.mechanism().source;
+  std::vector<double> scales = dyn.scales();
+  scales.insert(scales.end(), dyn.scales().begin(), dyn.scales().end());
+  Extrapolation gbs(dyn, scales, digits, columns, options);
+  RowBuilder rows(model, forces, dyn, options.forces_columns != nullptr);
+  StopFunction stop(model, forces, dyn);
+  const ReferenceMotionState& s0 = dyn.initial();
+  Vector y = s0.z;
+  y.insert(y.end(), s0.zd.begin(), s0.zd.end());
+  y.push_back(0);
+  StepPoint p{s0.t, y, {}, {}};
+  const auto fail = [&](const numeric& t, const std::string& why) {
+    throw AnalysisError(file + ": reference simulation (" + std::to_string(digits) +
+                        " digits) failed at " + format_time(t.to_double()) + ": " + why);
+  };
+  try {
+    p = gbs.point(s0.t, y);
+  } catch (const AnalysisError& e) {
+    fail(p.t, e.what());
+  }
+  const auto e0 = dyn.energy(p.state);
+  gbs.energy_scale = std::max((GiNaC::abs(e0[0]) + GiNaC::abs(e0[1])).to_double(), 1.0);
+  gbs.initial_step(p, grid.t1 - grid.t0);
+  const auto emit = [&](const StepPoint& at) {
+    sink(rows.row(at));
+    if (options.progress) options.progress(at.t.to_double());
+  };
+  emit(p);
+  numeric g = stop.active() ? stop(p.state) : numeric(0);
+  const numeric root_tolerance =
+      numeric(10).power(-(digits - 5)) *
+      dyn.to_float(exact_numeric(std::max(std::abs(grid.t1), grid.t1 - grid.t0)));
+  for (int k = 1; k <= grid.steps; ++k) {
+    const numeric target = dyn.to_float(exact_numeric(grid.at(k)));
+    while (p.t < target) {
+      if (gbs.stats.steps >= options.max_steps)
+        fail(p.t, "the integrator took more steps than its limit");
+      StepPoint previous = p;
+      const Extrapolation before = gbs;
+      try {
+        gbs.step(p, target);
+        if (!stop.active()) continue;
+        const numeric g_new = stop(p.state);
+        if (g.is_negative() && !g_new.is_negative()) {
+          emit(find_root(before, stop, previous, g, p, g_new, root_tolerance));
+          return gbs.stats;
+        }
+        g = g_new;
+      } catch (const AnalysisError& e) {
+        fail(p.t, e.what());
+      }
+    }
+    emit(p);
+  }
+  return gbs.stats;
+}
+
+ReferenceSimulationStats run_reference_simulation(
+    const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid, int digits,
+    const std::function<void(const SimulatedRow&)>& sink, const SimulateOptions& options) {
+  return run_reference_simulation_exact(
+      model, forces, grid, digits,
+      [&](const ReferenceSimulatedRow& row) { sink(to_simulated_row(row)); }, options);
+}
+
+}  // namespace kinegen::codegen

@@ -1,0 +1,366 @@
+// The high-precision reference of forward dynamics (analysis/reference_dynamics.hpp,
+// `kinegen simulate --reference D`), against independent truths:
+//  1. the pendulum released from horizontal: its half period (a stop_when root) against the
+//     elliptic-integral closed form T/2 = 2 sqrt(I / (m g a)) K(1/2), K by the
+//     arithmetic-geometric mean in GiNaC's own arithmetic at D + 10 digits, to ~D - 5 digits;
+//  2. energy conservation of a four-bar under gravity and the power balance of a pendulum on
+//     a cart with a prescribed motion (the work integral of the prescribed driver's power);
+//  3. self-consistency: D and D + 10 digits agree to ~D - 5 digits;
+//  4. the double simulation (CVODE at rtol 1e-12) against the reference;
+//  5. the command line: --reference D writes simulate's columns, and bad D exits 2.
+#include <catch2/catch.hpp>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/reference_dynamics.hpp"
+#include "kinegen/codegen/analysis/simulate.hpp"
+#include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/symbolic/symbolic.hpp"
+#include "support/run_command.hpp"
+
+namespace {
+
+namespace cg = kinegen::codegen;
+namespace fs = std::filesystem;
+using GiNaC::ex;
+using GiNaC::numeric;
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// A mechanism file written into the test's temporary folder.
+std::string write_yaml(const std::string& name, const std::string& text) {
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "reference_dynamics";
+  fs::create_directories(dir);
+  const fs::path p = dir / (name + ".yaml");
+  std::ofstream(p) << text;
+  return p.string();
+}
+
+std::string pendulum_text() {
+  return read_text(fs::path(KINEGEN_SOURCE_DIR) / "examples/dynamics/pendulum.yaml");
+}
+
+// The pendulum of examples/dynamics/pendulum.yaml, stopped where theta.v crosses 0 from
+// below: half a swing, from horizontal (theta = 0) through the bottom to theta = -pi.
+std::string pendulum_half_period_file() {
+  return write_yaml("pendulum_half", pendulum_text() + "stop_when: theta.v\n");
+}
+
+struct Run {
+  std::vector<cg::ReferenceSimulatedRow> rows;
+  cg::ReferenceSimulationStats stats;
+  double seconds = 0;
+};
+
+Run reference(const std::string& file, const cg::TimeGrid& grid, int digits) {
+  cg::BuildOptions build;
+  build.free_as_state = true;
+  const auto model = cg::CompiledModel::from_file(file, {}, build);
+  const cg::ForceModel forces = cg::derive_forces(*model);
+  Run r;
+  const auto start = std::chrono::steady_clock::now();
+  r.stats = cg::run_reference_simulation_exact(
+      *model, forces, grid, digits,
+      [&](const cg::ReferenceSimulatedRow& row) { r.rows.push_back(row); });
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+
+// The rows' times of a reference run, kept in `times` also when it throws.
+void reference_rows(const std::string& file, const cg::TimeGrid& grid, int digits,
+                    std::vector<double>& times) {
+  cg::BuildOptions build;
+  build.free_as_state = true;
+  const auto model = cg::CompiledModel::from_file(file, {}, build);
+  const cg::ForceModel forces = cg::derive_forces(*model);
+  cg::run_reference_simulation(*model, forces, grid, digits,
+                               [&](const cg::SimulatedRow& row) { times.push_back(row.state.t); });
+}
+
+std::vector<cg::SimulatedRow> in_double(const std::string& file, const cg::TimeGrid& grid,
+                                        double rtol, double atol) {
+  cg::BuildOptions build;
+  build.free_as_state = true;
+  const auto model = cg::CompiledModel::from_file(file, {}, build);
+  const cg::ForceModel forces = cg::derive_forces(*model);
+  cg::SimulateOptions o;
+  o.rtol = rtol;
+  o.atol = atol;
+  std::vector<cg::SimulatedRow> rows;
+  cg::run_simulation(
+      *model, forces, grid, [&](const cg::SimulatedRow& r) { rows.push_back(r); }, o);
+  return rows;
+}
+
+// |a - b| as a double, the difference taken in high precision.
+double gap(const numeric& a, const numeric& b) { return GiNaC::abs(a - b).to_double(); }
+
+// K(m) = pi / (2 AGM(1, sqrt(1 - m))), at the current GiNaC::Digits.
+numeric elliptic_k(const numeric& m) {
+  const auto root = [](const numeric& x) {
+    return GiNaC::ex_to<numeric>(GiNaC::evalf(GiNaC::sqrt(ex(x))));
+  };
+  numeric a = 1, b = root(1 - m);
+  const numeric small = numeric(10).power(-(GiNaC::Digits - 3));
+  while (GiNaC::abs(a - b) > small) {
+    const numeric next = (a + b) / 2;
+    b = root(a * b);
+    a = next;
+  }
+  const numeric pi = GiNaC::ex_to<numeric>(GiNaC::evalf(GiNaC::Pi));
+  return pi / (2 * a);
+}
+
+// The pendulum's half period: m = 1, a = 1/2, g = 981/100, I about the pin = m (2a)^2 / 3.
+numeric pendulum_half_period(int digits) {
+  const cg::DigitsGuard guard(digits);
+  const numeric inertia = numeric(1, 3), mga = numeric(981, 200);
+  const numeric s = GiNaC::ex_to<numeric>(GiNaC::evalf(GiNaC::sqrt(ex(inertia / mga))));
+  return 2 * s * elliptic_k(numeric(1, 2));
+}
+
+}  // namespace
+
+TEST_CASE("reference dynamics: the pendulum's half period matches the elliptic integral",
+          "[reference_dynamics]") {
+  for (const int digits : {20, 30, 60}) {
+    const Run r = reference(pendulum_half_period_file(), {0, 2, 4}, digits);
+    const cg::ReferenceSimulatedRow& last = r.rows.back();
+    const numeric want = pendulum_half_period(digits + 10);
+    const double error = gap(last.row.t, want) / want.to_double();
+    // theta = -pi there (the swing ends opposite its start), found with the root.
+    const cg::DigitsGuard guard(digits + 10);
+    const numeric pi = GiNaC::ex_to<numeric>(GiNaC::evalf(GiNaC::Pi));
+    const double angle = gap(last.z[0], -pi);
+    INFO("digits " << digits << ": half period relative error " << error << ", theta + pi " << angle
+                   << "; " << r.stats.steps << " steps, " << r.stats.rejected << " rejected, "
+                   << r.stats.evaluations << " evaluations, column " << r.stats.largest_column
+                   << ", " << r.seconds << " s");
+    CHECK(r.rows.size() == 3);  // t = 0, 0.5 and the root (before t = 1)
+    CHECK(error < std::pow(10.0, -(digits - 5)));
+    CHECK(angle < std::pow(10.0, -(digits - 5)));
+    // A conservative model: the energy balance is rounding and truncation only.
+    for (const auto& row : r.rows)
+      CHECK(std::abs(row.balance.to_double()) < 2.5 * std::pow(10.0, -(digits - 5)));
+    WARN("pendulum half period, " << digits << " digits: relative error " << error << ", "
+                                  << r.stats.evaluations << " evaluations, " << r.seconds << " s");
+  }
+}
+
+namespace {
+
+// A crank-rocker four-bar (Grashof) under gravity, released at rest with the crank
+// horizontal, with an optional viscous damper on the rocker's bearing.
+std::string four_bar_file(const std::string& name, const std::string& damping) {
+  return write_yaml(name, R"yaml(name: )yaml" + name + R"yaml(
+parameters:
+  a: 0.1
+  b: 0.35
+  c: 0.25
+  d: 0.3
+gravity: [0, -9.81]
+bodies:
+  - {name: crank, q0: [0, 0, 0], mass: 0.4, inertia: 0.0004, com: ["a/2", 0]}
+  - {name: coupler, q0: [0.1, 0, 0.78], mass: 1.2, inertia: 0.012, com: ["b/2", 0.02]}
+  - {name: rocker, q0: [0.3, 0, 1.37], mass: 0.9, inertia: 0.005, com: ["c/2", 0]}
+joints:
+  - {type: revolute, name: O2, i: ground, j: crank}
+  - {type: revolute, name: A, i: crank, j: coupler, si: [a, 0]}
+  - {type: revolute, name: B, i: coupler, j: rocker, si: [b, 0], sj: [c, 0]}
+  - {type: revolute, name: O4, i: ground, j: rocker, si: [d, 0]}
+free:
+  - {type: absolute_angle, name: theta, body: crank, value0: 0, v0: 0}
+forces:
+  - {type: rotational_spring_damper, name: bearing, i: ground, j: rocker, stiffness: 0,
+     damping: )yaml" + damping +
+                              R"yaml(, angle0: 0}
+points:
+  - {name: P, body: coupler, s: ["b/2", 0.05]}
+)yaml");
+}
+
+// A pendulum hanging from a cart whose motion is prescribed (x = 0.2 sin 3t): the drivers do
+// work, which the reference takes from the multipliers (power -lambda nu).
+std::string cart_pendulum_file() {
+  return write_yaml("cart_pendulum", R"yaml(name: cart_pendulum
+gravity: [0, -9.81]
+bodies:
+  - {name: cart, q0: [0, 0, 0], mass: 2.0, inertia: 0.1}
+  - {name: rod, q0: [0, 0, -1.2], mass: 0.5, inertia: 0.02, com: [0.4, 0]}
+joints:
+  - {type: revolute, name: pin, i: cart, j: rod}
+drivers:
+  - {type: absolute_x, name: cx, body: cart, f: "0.2*sin(3*t)"}
+  - {type: absolute_y, name: cy, body: cart, f: "0"}
+  - {type: absolute_angle, name: cphi, body: cart, f: "0"}
+free:
+  - {type: absolute_angle, name: theta, body: rod, v0: 0.5}
+)yaml");
+}
+
+// The largest |balance| over the rows, against the energy scale (kinetic + potential at t0,
+// at least 1 J, as the integrators scale the work).
+double worst_balance(const Run& r) {
+  const double scale =
+      std::max(1.0, std::abs((r.rows[0].kinetic + r.rows[0].potential).to_double()));
+  double worst = 0;
+  for (const auto& row : r.rows) worst = std::max(worst, std::abs(row.balance.to_double()));
+  return worst / scale;
+}
+
+// The largest difference of the free coordinates (scaled as the integrators do: angles in
+// radians) between two high-precision runs on the same grid.
+double worst_gap(const Run& a, const Run& b) {
+  double worst = 0;
+  for (std::size_t k = 0; k < a.rows.size(); ++k)
+    for (std::size_t i = 0; i < a.rows[k].z.size(); ++i)
+      worst = std::max({worst, gap(a.rows[k].z[i], b.rows[k].z[i]),
+                        gap(a.rows[k].zd[i], b.rows[k].zd[i]) /
+                            std::max(1.0, std::abs(b.rows[k].zd[i].to_double()))});
+  return worst;
+}
+
+}  // namespace
+
+TEST_CASE("reference dynamics: energy and power balances hold to ~D - 5 digits",
+          "[reference_dynamics]") {
+  constexpr int kDigits = 30;
+  const double bound = std::pow(10.0, -(kDigits - 5));
+  SECTION("a four-bar under gravity conserves its energy") {
+    const Run r = reference(four_bar_file("four_bar_gravity", "0"), {0, 1, 10}, kDigits);
+    INFO(r.stats.steps << " steps, " << r.stats.evaluations << " evaluations, " << r.seconds
+                       << " s");
+    CHECK(worst_balance(r) < bound);
+    // It moves: the crank swings through more than a quarter turn.
+    double reach = 0;
+    for (const auto& row : r.rows) reach = std::max(reach, std::abs(row.z[0].to_double()));
+    CHECK(reach > 1.5);
+  }
+  SECTION("with a damper, the work equals the energy lost") {
+    const Run r = reference(four_bar_file("four_bar_damper", "0.05"), {0, 1, 10}, kDigits);
+    CHECK(worst_balance(r) < bound);
+    CHECK(r.rows.back().work.to_double() < -1e-3);  // the damper took energy out
+  }
+  SECTION("a prescribed motion's work (from the multipliers) balances the energy") {
+    const Run r = reference(cart_pendulum_file(), {0, 2, 20}, kDigits);
+    CHECK(worst_balance(r) < bound);
+    double work = 0;
+    for (const auto& row : r.rows) work = std::max(work, std::abs(row.work.to_double()));
+    CHECK(work > 1e-2);  // the cart's driver does work
+  }
+}
+
+TEST_CASE("reference dynamics: D and D + 10 digits agree to ~D - 5 digits",
+          "[reference_dynamics]") {
+  const std::string file = four_bar_file("four_bar_gravity", "0.05");
+  const Run a = reference(file, {0, 1, 5}, 30), b = reference(file, {0, 1, 5}, 40);
+  REQUIRE(a.rows.size() == b.rows.size());
+  const double worst = worst_gap(a, b);
+  WARN("four-bar with damper to t = 1: 30 against 40 digits " << worst << " (" << a.seconds
+                                                              << " s and " << b.seconds << " s)");
+  CHECK(worst < 1e-25);
+}
+
+TEST_CASE("reference dynamics: the double simulation converges to the reference",
+          "[reference_dynamics]") {
+  // CVODE's global error is not bounded by rtol (it grows with the steps and the motion's
+  // sensitivity): measured at rtol = atol = 1e-12, 2e-11 (pendulum), 1e-9 (four-bar) and
+  // 4e-12 (cart). The test: below 1e-8, and at least 10 times below the error at 1e-10.
+  for (const std::string& file :
+       {std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/pendulum.yaml",
+        four_bar_file("four_bar_gravity", "0"), cart_pendulum_file()}) {
+    const cg::TimeGrid grid{0, 1, 10};
+    const Run r = reference(file, grid, 30);
+    const auto error = [&](double tol) {
+      const std::vector<cg::SimulatedRow> d = in_double(file, grid, tol, tol);
+      REQUIRE(d.size() == r.rows.size());
+      double worst = 0;
+      for (std::size_t k = 0; k < d.size(); ++k) {
+        for (int i = 0; i < d[k].z.size(); ++i)
+          worst = std::max(worst, gap(cg::exact_numeric(d[k].z[i]), r.rows[k].z[i]));
+        for (int i = 0; i < d[k].state.q.size(); ++i)
+          worst = std::max(worst, gap(cg::exact_numeric(d[k].state.q[i]), r.rows[k].row.q[i]));
+      }
+      return worst;
+    };
+    const double fine = error(1e-12), coarse = error(1e-10);
+    WARN(fs::path(file).filename().string() << ": double against the reference to t = 1: " << fine
+                                            << " at rtol 1e-12, " << coarse << " at 1e-10");
+    CHECK(fine < 1e-8);
+    CHECK(fine * 10 < coarse);
+    // The rounded row is the row the CSV writer prints.
+    const cg::SimulatedRow rounded = cg::to_simulated_row(r.rows.back());
+    CHECK(rounded.z[0] == r.rows.back().z[0].to_double());
+    CHECK(rounded.state.t == grid.t1);
+  }
+}
+
+TEST_CASE("reference dynamics: a singular position ends the run after its rows",
+          "[reference_dynamics]") {
+  // The pendulum with its tip's height as the free coordinate: at the bottom dy/dtheta = 0,
+  // q is no function of z there (released at y = -0.8, it gets there near t = 0.42).
+  std::string text = pendulum_text();
+  const std::string from = "type: absolute_angle\n    name: theta\n    body: rod\n    value0: 0";
+  REQUIRE(text.find(from) != std::string::npos);
+  text.replace(text.find(from), from.size(),
+               "type: absolute_y\n    name: theta\n    body: rod\n    s: [\"2*a\", 0]\n"
+               "    value0: -0.8");
+  const std::string file = write_yaml("pendulum_tip_height", text);
+  std::vector<double> times;
+  std::string message;
+  try {
+    reference_rows(file, {0, 1, 10}, 25, times);
+  } catch (const cg::AnalysisError& e) {
+    message = e.what();
+  }
+  CHECK(message.find("singular position") != std::string::npos);
+  CHECK(message.find("pendulum_tip_height.yaml") != std::string::npos);
+  CHECK(times.size() == 5);  // t = 0 .. 0.4
+}
+
+TEST_CASE("reference dynamics: kinegen simulate --reference", "[reference_dynamics][cli]") {
+  const std::string file = std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/pendulum.yaml";
+  const auto run = [&](const std::vector<std::string>& extra) {
+    std::vector<std::string> argv{KINEGEN_EXE, "simulate", file, "--t1", "1", "--steps", "4"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return kinegen::test::run_command(argv);
+  };
+  const auto ref = run({"--reference", "25"});
+  const auto dbl = run({"--rtol", "1e-12", "--atol", "1e-12"});
+  REQUIRE(ref.exit_code == 0);
+  REQUIRE(dbl.exit_code == 0);
+  // The same columns and rows as the double run, the values to its error.
+  const auto lines = [](const std::string& s) {
+    std::vector<std::string> v;
+    for (std::size_t p = 0, q; p < s.size(); p = q + 1) {
+      q = s.find('\n', p);
+      if (q == std::string::npos) q = s.size();
+      v.push_back(s.substr(p, q - p));
+    }
+    return v;
+  };
+  const auto a = lines(ref.out), b = lines(dbl.out);
+  REQUIRE(a.size() == 6);  // header and 5 rows
+  CHECK(a[0] == b[0]);
+  const auto column = [](const std::string& row, int c) {
+    std::size_t p = 0;
+    for (int k = 0; k < c; ++k) p = row.find(',', p) + 1;
+    return std::stod(row.substr(p, row.find(',', p) - p));
+  };
+  CHECK(std::abs(column(a[5], 3) - column(b[5], 3)) < 1e-9);  // rod.phi at t = 1
+  for (const char* bad : {"10", "1001"}) {
+    const auto r = run({"--reference", bad});
+    CHECK(r.exit_code == 2);
+    CHECK(r.err.rfind("error: ", 0) == 0);
+    CHECK(r.out.empty());
+  }
+}
