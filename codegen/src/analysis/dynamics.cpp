@@ -28,6 +28,9 @@ constexpr double kMaxCondition = 1e8;
 // A solution that misses the first-order prediction from the last one by more than this
 // fraction of the predicted change (scaled) left its branch.
 constexpr double kJumpFraction = 0.25;
+// Where the integrator gives up and Phi_q's condition estimate has grown this much since t0,
+// the cause is the singular position it approaches (singular_diagnosis).
+constexpr double kNearSingular = 1e3;
 
 BlockInterpreter::Options block_options() {
   BlockInterpreter::Options o;
@@ -238,7 +241,9 @@ void ReducedDynamics::check_at_t0(double t0) {
   w.q_last = q;
   w.have_last = false;
   initial_.t = t0;
-  if (!solve(t0, z0.data(), zd0.data(), initial_)) {
+  const bool assembled = solve(t0, z0.data(), zd0.data(), initial_);
+  condition0_ = condition_;
+  if (!assembled) {
     // Where the file's own value0 does not assemble, the file is at fault (exit 2).
     for (int k = 0; k < nf_; ++k) {
       const Constraint& c = m.drivers[free[k]];
@@ -253,6 +258,59 @@ void ReducedDynamics::check_at_t0(double t0) {
                          reason_);
   }
   if (failure_ == MotionFailure::kNone) return;
+}
+
+// A singular position (Phi_q lost rank: the block solver's singular pivot, or the condition
+// estimate) or a solution on another assembly branch (a block's determinant changed sign, or
+// the position jumped off the prediction): both mean the motion reached or crossed a position
+// where q is not a function of z. The reason names the free coordinates' values and the
+// constraints that became dependent (those of the failed block, else of all Phi_q, at the
+// last iterate).
+std::string ReducedDynamics::singular_reason(double t, const MotionState& out, bool branch,
+                                             int block, const std::string& detail) {
+  const Mechanism& m = model_.mechanism();
+  Impl& w = *impl_;
+  w.jac.setZero(nq_, nq_);
+  w.eval.jacobian(out.q.data(), t, w.jac);
+  std::string rows;
+  if (w.jac.allFinite()) {
+    if (block >= 0 && w.blocks) {
+      const Block& b = model_.structure().plans[block].block;
+      rows = singular_rows(model_, w.jac, b.rows, b.cols);
+    } else {
+      rows = singular_rows(model_, w.jac);
+    }
+  }
+  std::string at;
+  for (int k = 0; k < nf_; ++k)
+    at += (k ? ", " : "") + m.drivers[m.free_drivers()[k]].name + " = " +
+          format_number(out.z[k]);
+  if (branch)
+    return "the position solve left its assembly branch at " + at + detail +
+           ": the motion reached a singular position, where Phi_q loses rank and the minimal "
+           "coordinates cannot tell the branches apart" +
+           rows;
+  return "the mechanism reached a singular position at " + at + detail +
+         ", where Phi_q loses rank and q is not a function of the free coordinates" + rows;
+}
+
+bool ReducedDynamics::singular_failure(double t, const MotionState& out, bool branch, int block,
+                                       const std::string& detail) {
+  return fail(branch ? MotionFailure::kBranch : MotionFailure::kPosition,
+              singular_reason(t, out, branch, block, detail));
+}
+
+std::string ReducedDynamics::singular_diagnosis(double t, const double* z, const double* zd) {
+  MotionState s;
+  if (!solve(t, z, zd, s))
+    return failure_ == MotionFailure::kPosition || failure_ == MotionFailure::kBranch ? reason_
+                                                                                       : "";
+  if (!(condition_ > kNearSingular * condition0_)) return "";
+  failure_ = MotionFailure::kPosition;
+  reason_ = singular_reason(t, s, false, -1,
+                            " (condition estimate of Phi_q " + format_estimate(condition_) +
+                                ", " + format_estimate(condition0_) + " at t0)");
+  return reason_;
 }
 
 bool ReducedDynamics::evaluate(double t, const double* z, const double* zd, MotionState& out) {
@@ -293,17 +351,18 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
       const char* phase = BlockInterpreter::to_string(w.blocks->failed_phase());
       const std::string what = std::string(phase) + " solve failed: " +
                                to_string(static_cast<Status>(r.status));
-      return fail(r.status == 6 ? MotionFailure::kBranch
-                  : r.status == 3 ? MotionFailure::kNonFinite
-                                  : MotionFailure::kPosition,
-                  what);
+      if (r.status == 2 || r.status == 6) return singular_failure(t, out, r.status == 6, r.block);
+      return fail(r.status == 3 ? MotionFailure::kNonFinite : MotionFailure::kPosition, what);
     }
     condition = r.rcond > 0 ? 1 / static_cast<double>(r.rcond) : 1;
   } else {
-    if (auto r = w.dense->position(out.q, t); !r)
+    if (auto r = w.dense->position(out.q, t); !r) {
+      if (r.status == Status::kSingular || r.status == Status::kBranchJump)
+        return singular_failure(t, out, r.status == Status::kBranchJump, -1);
       return fail(r.status == Status::kNonFinite ? MotionFailure::kNonFinite
                                                  : MotionFailure::kPosition,
                   std::string("position solve failed: ") + r.message());
+    }
     auto rv = w.dense->velocity(out.q, t, out.qd);
     if (!rv) return fail(MotionFailure::kPosition, std::string("velocity solve: ") + rv.message());
     condition = rv.condition;
@@ -312,11 +371,8 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
   }
   w.jac.setZero(nq_, nq_);
   w.eval.jacobian(out.q.data(), t, w.jac);
-  if (condition > kMaxCondition)
-    return fail(MotionFailure::kPosition,
-                "the mechanism reached a singular position, where q is not a function of the "
-                "free coordinates" +
-                    singular_rows(model_, w.jac));
+  condition_ = condition;
+  if (condition > kMaxCondition) return singular_failure(t, out, false, -1);
   if (w.have_last) {
     // The branch check: the solution must agree with the first-order prediction to far better
     // than the predicted change itself (the miss is second order in the step).
@@ -329,11 +385,10 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
       miss = std::max(miss, std::abs(out.q[k] - predicted[k]) * inv);
     }
     if (miss > kJumpFraction * change + 1e-9)
-      return fail(MotionFailure::kBranch,
-                  "the position left its assembly branch (it misses the prediction from the "
-                  "last one by " +
-                      format_estimate(miss) + ", the predicted change being " +
-                      format_estimate(change) + ")" + singular_rows(model_, w.jac));
+      return singular_failure(t, out, true, -1,
+                              " (it misses the prediction from the last position by " +
+                                  format_estimate(miss) + ", the predicted change being " +
+                                  format_estimate(change) + ")");
   }
   // B: Phi_q B = E, the free rows' unit vectors; one factorization for all columns.
   Eigen::MatrixXd e = Eigen::MatrixXd::Zero(nq_, nf_);

@@ -6,6 +6,7 @@
 #include <nvector/nvector_serial.h>
 #include <sundials/sundials_context.h>
 #include <sunlinsol/sunlinsol_dense.h>
+#include <sunlinsol/sunlinsol_spgmr.h>
 #include <sunmatrix/sunmatrix_dense.h>
 #include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
 
@@ -57,6 +58,10 @@ class MinimalFormulation : public MotionFormulation {
   Energy energy() override { return dynamics_.energy(state_); }
   MotionFailure failure() const override { return dynamics_.failure(); }
   const std::string& reason() const override { return dynamics_.reason(); }
+  std::string diagnose(double t, const double* y) override {
+    const std::string cause = dynamics_.singular_diagnosis(t, y, y + dynamics_.nf());
+    return cause.empty() ? cause : cause + advice();
+  }
   std::string advice() const override {
     const MotionFailure f = dynamics_.failure();
     if (f == MotionFailure::kPosition || f == MotionFailure::kBranch ||
@@ -71,6 +76,9 @@ class MinimalFormulation : public MotionFormulation {
   ReducedDynamics dynamics_;
   MotionState state_;
 };
+
+// The smallest step CVODE may take, as a fraction of the run (Integration::set_stop_time).
+constexpr double kMinStep = 1e-12;
 
 // Whether the model has springs or dampers: stiff enough that BDF is the safer default.
 bool has_springs(const Mechanism& m) {
@@ -106,13 +114,26 @@ class Integration {
     const bool bdf = o.integrator == Integrator::kBdf ||
                      (o.integrator == Integrator::kAuto &&
                       (has_springs(model.mechanism()) || f.has_projection()));
+    if (f.has_projection() && o.integrator == Integrator::kAdams)
+      throw UsageError(
+          "--method augmented projects onto the constraints after each step, which CVODE "
+          "supports with BDF only: use --integrator bdf (or auto)");
     cvode_ = CVodeCreate(bdf ? CV_BDF : CV_ADAMS, ctx_);
     check(CVodeInit(cvode_, &Integration::rhs, t0, y_), "CVodeInit");
+    // CVODE's own messages would go to stderr; the failure's cause is in the AnalysisError.
+    check(CVodeSetErrHandlerFn(cvode_, &Integration::quiet, nullptr), "CVodeSetErrHandlerFn");
     check(CVodeSVtolerances(cvode_, o.rtol, atol_), "CVodeSVtolerances");
     check(CVodeSetUserData(cvode_, this), "CVodeSetUserData");
     check(CVodeSetMaxNumSteps(cvode_, o.max_steps), "CVodeSetMaxNumSteps");
     check(CVodeSetMaxErrTestFails(cvode_, 20), "CVodeSetMaxErrTestFails");
-    if (bdf) {
+    if (bdf && f.has_projection()) {
+      // A formulation in all of q (2 nq states, 487 for the N = 40 four-bar): Newton's systems
+      // by matrix-free GMRES, each product a difference of two evaluations, rather than a
+      // dense difference Jacobian of n evaluations and its n^3 factorization (6x faster
+      // there, and it passed singular positions the dense Jacobian's did not, at 1e-13).
+      ls_ = SUNLinSol_SPGMR(y_, SUN_PREC_NONE, 20, ctx_);
+      check(CVodeSetLinearSolver(cvode_, ls_, nullptr), "CVodeSetLinearSolver");
+    } else if (bdf) {
       a_ = SUNDenseMatrix(n_ + 1, n_ + 1, ctx_);
       ls_ = SUNLinSol_Dense(y_, a_, ctx_);
       check(CVodeSetLinearSolver(cvode_, ls_, a_), "CVodeSetLinearSolver");
@@ -144,7 +165,14 @@ class Integration {
   Integration(const Integration&) = delete;
   Integration& operator=(const Integration&) = delete;
 
-  void set_stop_time(double t1) { check(CVodeSetStopTime(cvode_, t1), "CVodeSetStopTime"); }
+  // The end, and the smallest step: a failure that persists down to a step of kMinStep of
+  // the run is not one a smaller step avoids (a singular position the minimal coordinates
+  // cannot pass: the evaluations fail just past it, and the steps would shrink towards it
+  // without end).
+  void set_stop_time(double t0, double t1) {
+    check(CVodeSetStopTime(cvode_, t1), "CVodeSetStopTime");
+    check(CVodeSetMinStep(cvode_, kMinStep * (t1 - t0)), "CVodeSetMinStep");
+  }
 
   // Advances to `t`; returns the time reached (a root's, when stopped) and whether a root
   // stopped it. Throws AnalysisError on failure.
@@ -155,18 +183,28 @@ class Integration {
     if (flag < 0) {
       double now = reached;
       CVodeGetCurrentTime(cvode_, &now);
-      std::string cause = last_failure_.empty()
-                              ? std::string("the integrator failed (") +
-                                    CVodeGetReturnFlagName(flag) + ")"
-                              : last_failure_;
-      if (flag == CV_TOO_MUCH_WORK) cause = "the integrator took more steps than its limit";
-      if (flag == CV_ERR_FAILURE || flag == CV_CONV_FAILURE)
-        cause += std::string(" (") + CVodeGetReturnFlagName(flag) +
-                 ": the error test or the corrector failed repeatedly)";
       throw AnalysisError(model_.mechanism().source + ": simulation failed at " +
-                          format_time(now) + ": " + cause);
+                          format_time(now) + ": " + failure_cause(flag, now));
     }
     return reached;
+  }
+
+  // Why CVODE returned `flag` at `now`: the failed evaluation's reason; else the formulation's
+  // diagnosis at the state reached (a singular position the steps could not pass); else the
+  // flag.
+  std::string failure_cause(int flag, double now) {
+    if (flag == CV_TOO_MUCH_WORK) return "the integrator took more steps than its limit";
+    if (!last_failure_.empty()) return last_failure_;
+    std::vector<double> y(n_ + 1);
+    N_Vector v = N_VMake_Serial(n_ + 1, y.data(), ctx_);
+    std::string diagnosis;
+    if (CVodeGetDky(cvode_, now, 0, v) == CV_SUCCESS) diagnosis = f_.diagnose(now, y.data());
+    N_VDestroy(v);
+    if (!diagnosis.empty()) return diagnosis;
+    std::string cause = std::string("the integrator failed (") + CVodeGetReturnFlagName(flag) + ")";
+    if (flag == CV_ERR_FAILURE || flag == CV_CONV_FAILURE)
+      cause += " (the error test or the corrector failed repeatedly)";
+    return cause;
   }
 
   // The row at time t from the integrator's y there (dense output, or the root's state).
@@ -216,6 +254,7 @@ class Integration {
       self->last_failure_ = self->f_.reason() + self->f_.advice();
       return self->f_.failure() == MotionFailure::kOutsideTable ? -1 : 1;
     }
+    self->last_failure_.clear();  // a failure that a smaller step avoided is no cause
     dv[self->n_] = self->f_.energy().power;
     if (!std::isfinite(dv[self->n_])) {
       self->last_failure_ = "the power of the loads and drivers is not finite";
@@ -223,6 +262,7 @@ class Integration {
     }
     return 0;
   }
+  static void quiet(int, const char*, const char*, char*, void*) {}
   static int root(double t, N_Vector y, double* g, void* data) {
     auto* self = static_cast<Integration*>(data);
     const double* yv = N_VGetArrayPointer(y);
@@ -238,11 +278,13 @@ class Integration {
     self->stop_eval_->run(s.q.data(), s.qd.data(), t, params.data(), g);
     return std::isfinite(g[0]) ? 0 : 1;
   }
-  static int project(double t, N_Vector y, N_Vector corr, double /*eps*/, N_Vector /*err*/,
+  static int project(double t, N_Vector y, N_Vector corr, double /*eps*/, N_Vector err,
                      void* data) {
     auto* self = static_cast<Integration*>(data);
     N_VConst(0.0, corr);
-    return self->f_.project(t, N_VGetArrayPointer(y), N_VGetArrayPointer(corr)) ? 0 : 1;
+    if (!self->f_.project(t, N_VGetArrayPointer(y), N_VGetArrayPointer(corr))) return 1;
+    if (err && !self->f_.project_error(t, N_VGetArrayPointer(err))) return 1;
+    return 0;
   }
 
   const CompiledModel& model_;
@@ -280,7 +322,7 @@ void run_simulation(const CompiledModel& model, const ForceModel& forces, const 
                     const SimulateOptions& options) {
   std::unique_ptr<MotionFormulation> f = make_formulation(options.method, model, forces, grid.t0);
   Integration integration(model, forces, *f, options, grid.t0);
-  integration.set_stop_time(grid.t1);
+  integration.set_stop_time(grid.t0, grid.t1);
   std::unique_ptr<ForceSolver> force_solver;
   if (options.forces_columns) force_solver = std::make_unique<ForceSolver>(model, forces);
   OutputEvaluator outputs(model);

@@ -73,6 +73,12 @@ class ReducedDynamics {
   // prescribed drivers' efforts).
   Energy energy(const MotionState& s);
 
+  // Why the integrator could not go on from (t, z, zd), where it failed with no failed
+  // evaluation (its error test, near a singular position): the singular position's reason
+  // when q is not found there or Phi_q's condition estimate is 1000 times its value at t0,
+  // else empty.
+  std::string singular_diagnosis(double t, const double* z, const double* zd);
+
   // dq/dz at the last successful evaluation (nq x nf).
   const Eigen::MatrixXd& b() const { return b_; }
 
@@ -81,6 +87,10 @@ class ReducedDynamics {
   bool solve(double t, const double* z, const double* zd, MotionState& out);
   void check_at_t0(double t0);
   bool fail(MotionFailure f, std::string reason);
+  bool singular_failure(double t, const MotionState& out, bool branch, int block,
+                        const std::string& detail = "");
+  std::string singular_reason(double t, const MotionState& out, bool branch, int block,
+                              const std::string& detail);
 
   const CompiledModel& model_;
   const ForceModel& forces_;
@@ -91,6 +101,7 @@ class ReducedDynamics {
   Eigen::MatrixXd b_;
   MotionFailure failure_ = MotionFailure::kNone;
   std::string reason_;
+  double condition_ = 1, condition0_ = 1;  // Phi_q's, at the last solve and at t0
 };
 
 // The free items' names (their CSV columns Z, Z.v, Z.a), in `free:` order.

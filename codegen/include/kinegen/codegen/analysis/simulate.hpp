@@ -40,8 +40,16 @@ class MotionFormulation {
   virtual bool project(double /*t*/, const double* /*y*/, double* /*correction*/) {
     return true;
   }
+  // Called right after project() with CVODE's local error estimate (size()), which it may
+  // project in place: the components the projection removes are no error of the projected
+  // solution. As it is by default.
+  virtual bool project_error(double /*t*/, double* /*error*/) { return true; }
   // What advice a failure gets (the other method, for the minimal coordinates).
   virtual std::string advice() const { return ""; }
+  // The cause, with its advice, when the integrator gave up at (t, y) with no evaluation
+  // failing there (its error test, near a singular position); empty when the formulation
+  // knows none.
+  virtual std::string diagnose(double /*t*/, const double* /*y*/) { return ""; }
 };
 
 // The default method: minimal coordinates on ReducedDynamics.
