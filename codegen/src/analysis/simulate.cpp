@@ -107,6 +107,9 @@ class Integration {
                      (o.integrator == Integrator::kAuto &&
                       (has_springs(model.mechanism()) || f.has_projection()));
     cvode_ = CVodeCreate(bdf ? CV_BDF : CV_ADAMS, ctx_);
+    // CVODE prints its errors to stderr by default; a failure is reported once, as one
+    // `error:` line naming the time and the cause (advance()), so its own text is dropped.
+    check(CVodeSetErrHandlerFn(cvode_, &Integration::quiet, nullptr), "CVodeSetErrHandlerFn");
     check(CVodeInit(cvode_, &Integration::rhs, t0, y_), "CVodeInit");
     check(CVodeSVtolerances(cvode_, o.rtol, atol_), "CVodeSVtolerances");
     check(CVodeSetUserData(cvode_, this), "CVodeSetUserData");
@@ -202,6 +205,7 @@ class Integration {
   static void check(int flag, const char* what) {
     if (flag < 0) throw std::runtime_error(std::string(what) + " failed");
   }
+  static void quiet(int, const char*, const char*, char*, void*) {}
   static int rhs(double t, N_Vector y, N_Vector ydot, void* data) {
     auto* self = static_cast<Integration*>(data);
     if (self->o_.interrupted && self->o_.interrupted()) {
