@@ -101,6 +101,9 @@ class Integration {
                           ": " + f.reason() + f.advice());
     const Energy e = f.energy();
     energy0_ = e.kinetic + e.potential;
+    kinetic0_ = e.kinetic;
+    potential0_ = e.potential;
+    t0_ = t0;
     // The work's absolute tolerance: --atol times the energy scale at t0.
     NV_Ith_S(atol_, n_) = o.atol * std::max({std::abs(e.kinetic) + std::abs(e.potential), 1.0});
     const bool bdf = o.integrator == Integrator::kBdf ||
@@ -194,6 +197,7 @@ class Integration {
     r.potential = e.potential;
     r.work = NV_Ith_S(y_, n);
     r.balance = e.kinetic + e.potential - r.work - energy0_;
+    check_balance(t, r);
     if (force_solver && !force_solver->solve(t, s.q, s.qd, s.qdd, r.state.forces))
       throw AnalysisError(model_.mechanism().source + ": force analysis failed at " +
                           format_time(t) + ": Phi_q is singular (scaled condition estimate " +
@@ -204,6 +208,28 @@ class Integration {
  private:
   static void check(int flag, const char* what) {
     if (flag < 0) throw std::runtime_error(std::string(what) + " failed");
+  }
+  // The energy balance as a guard: a run whose balance is off by far more than its tolerance
+  // allows (10% of the energy exchanged, or 1000 rtol) has lost its accuracy, and its rows
+  // from here on would be a wrong answer (the minimal coordinates stall at a fold of q(z), as
+  // a slider-crank moved by its slider at a dead centre: the kinetic energy gone, no Newton
+  // failure). The energy exchanged: the largest change of each term since t0.
+  void check_balance(double t, const SimulatedRow& r) {
+    energy_scale_ = std::max(energy_scale_, std::abs(r.kinetic - kinetic0_) +
+                                                std::abs(r.potential - potential0_) +
+                                                std::abs(r.work));
+    const double rounding = 1e-9 * (std::abs(r.kinetic) + std::abs(r.potential));
+    const double allowed = std::max(0.1, 1e3 * o_.rtol) * energy_scale_ + rounding;
+    if (t == t0_ || !(std::abs(r.balance) > allowed)) return;
+    throw AnalysisError(
+        model_.mechanism().source + ": simulation failed at " + format_time(t) +
+        ": the energy balance is off by " + format_estimate(std::abs(r.balance)) + " (" +
+        format_estimate(100 * std::abs(r.balance) / energy_scale_) +
+        "% of the energy exchanged): the integration lost its accuracy" +
+        (o_.method == Method::kMinimal
+             ? "; the minimal-coordinates method does this where the free coordinates stop "
+               "determining q (a singular position): use --method augmented"
+             : ""));
   }
   static void quiet(int, const char*, const char*, char*, void*) {}
   static int rhs(double t, N_Vector y, N_Vector ydot, void* data) {
@@ -259,7 +285,7 @@ class Integration {
   SUNMatrix a_ = nullptr;
   SUNLinearSolver ls_ = nullptr;
   SUNNonlinearSolver nls_ = nullptr;
-  double energy0_ = 0;
+  double energy0_ = 0, kinetic0_ = 0, potential0_ = 0, energy_scale_ = 0, t0_ = 0;
   std::string last_failure_;
   std::unique_ptr<Program> stop_;
   std::unique_ptr<ProgramEvaluator<double>> stop_eval_;
