@@ -63,3 +63,5 @@ rm -rf "$dir"
 # Rack-and-pinion steering over one cycle of the wheel, lock to lock.
 "$kinegen" animate examples/gears/steering.yaml --t0 0 --t1 6.283185307179586 --steps 120 \
   --width 480 -o "$out/steering.svg"
+# The dynamics examples: simulated, plotted, the press and the four-bar animated.
+scripts/make_dynamics_figures.sh "$kinegen"
