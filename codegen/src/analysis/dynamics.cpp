@@ -150,7 +150,20 @@ ReducedDynamics::~ReducedDynamics() = default;
 bool ReducedDynamics::fail(MotionFailure f, std::string reason) {
   failure_ = f;
   reason_ = std::move(reason);
+  singular_ = false;
   return false;
+}
+
+bool ReducedDynamics::fail_singular(MotionFailure f, std::string reason,
+                                    const Eigen::MatrixXd& jac) {
+  fail(f, std::move(reason));
+  singular_jac_ = jac;
+  singular_ = true;
+  return false;
+}
+
+std::string ReducedDynamics::failure_detail() const {
+  return singular_ ? singular_rows(model_, singular_jac_) : std::string();
 }
 
 // 7.1's checks at t0, then the state there.
@@ -255,10 +268,11 @@ void ReducedDynamics::check_at_t0(double t0) {
         throw InputError(m.source, c.item + " value0", c.free->value0->loc,
                          "the mechanism does not assemble with the free coordinates at their "
                          "value0 at " +
-                             format_time(t0) + ": " + reason_);
+                             format_time(t0) + ": " + reason_ + failure_detail());
     }
     throw InputError(m.source, "free", first.loc,
-                     "the mechanism does not assemble at " + format_time(t0) + ": " + reason_);
+                     "the mechanism does not assemble at " + format_time(t0) + ": " + reason_ +
+                         failure_detail());
   }
   if (failure_ == MotionFailure::kNone) return;
 }
@@ -321,10 +335,10 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
   w.jac.setZero(nq_, nq_);
   w.eval.jacobian(out.q.data(), t, w.jac);
   if (condition > kMaxCondition)
-    return fail(MotionFailure::kPosition,
-                "the mechanism reached a singular position, where q is not a function of the "
-                "free coordinates" +
-                    singular_rows(model_, w.jac));
+    return fail_singular(MotionFailure::kPosition,
+                         "the mechanism reached a singular position, where q is not a function "
+                         "of the free coordinates",
+                         w.jac);
   if (w.have_last) {
     // The branch check: the solution must agree with the first-order prediction to far better
     // than the predicted change itself (the miss is second order in the step).
@@ -337,11 +351,12 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
       miss = std::max(miss, std::abs(out.q[k] - predicted[k]) * inv);
     }
     if (miss > kJumpFraction * change + 1e-9)
-      return fail(MotionFailure::kBranch,
-                  "the position left its assembly branch (it misses the prediction from the "
-                  "last one by " +
-                      format_estimate(miss) + ", the predicted change being " +
-                      format_estimate(change) + ")" + singular_rows(model_, w.jac));
+      return fail_singular(MotionFailure::kBranch,
+                           "the position left its assembly branch (it misses the prediction "
+                           "from the last one by " +
+                               format_estimate(miss) + ", the predicted change being " +
+                               format_estimate(change) + ")",
+                           w.jac);
   }
   // B: Phi_q B = E, the free rows' unit vectors; one factorization for all columns.
   Eigen::MatrixXd e = Eigen::MatrixXd::Zero(nq_, nf_);
@@ -352,8 +367,7 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
     Eigen::SparseMatrix<double> sparse = w.jac.sparseView();
     Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(sparse);
     if (lu.info() != Eigen::Success)
-      return fail(MotionFailure::kPosition, "Phi_q could not be factored" +
-                                                singular_rows(model_, w.jac));
+      return fail_singular(MotionFailure::kPosition, "Phi_q could not be factored", w.jac);
     b_ = lu.solve(e);
   }
   // g = Q^A + the inertia forces at qdd = c; then the reduced accelerations.

@@ -57,6 +57,7 @@ class MinimalFormulation : public MotionFormulation {
   Energy energy() override { return dynamics_.energy(state_); }
   MotionFailure failure() const override { return dynamics_.failure(); }
   const std::string& reason() const override { return dynamics_.reason(); }
+  std::string failure_detail() const override { return dynamics_.failure_detail(); }
   std::string advice() const override {
     const MotionFailure f = dynamics_.failure();
     if (f == MotionFailure::kPosition || f == MotionFailure::kBranch ||
@@ -98,7 +99,7 @@ class Integration {
     std::vector<double> ydot(n_);
     if (!f.rhs(t0, y0.data(), ydot.data()))
       throw AnalysisError(model.mechanism().source + ": simulation failed at " + format_time(t0) +
-                          ": " + f.reason() + f.advice());
+                          ": " + f.reason() + f.failure_detail() + f.advice());
     const Energy e = f.energy();
     energy0_ = e.kinetic + e.potential;
     kinetic0_ = e.kinetic;
@@ -150,7 +151,15 @@ class Integration {
   Integration(const Integration&) = delete;
   Integration& operator=(const Integration&) = delete;
 
-  void set_stop_time(double t1) { check(CVodeSetStopTime(cvode_, t1), "CVodeSetStopTime"); }
+  void set_stop_time(double t1) {
+    check(CVodeSetStopTime(cvode_, t1), "CVodeSetStopTime");
+    // Steps of a few ulps of t at least: where the evaluations keep failing (the minimal
+    // coordinates approaching a singular position) CVODE shrinks the step until t + h == t
+    // and then retries there for ever; with a least step it fails, and the run reports why.
+    const double hmin = 16 * std::numeric_limits<double>::epsilon() *
+                        std::max({std::abs(t0_), std::abs(t1), std::abs(t1 - t0_)});
+    check(CVodeSetMinStep(cvode_, hmin), "CVodeSetMinStep");
+  }
 
   // Advances to `t`; returns the time reached (a root's, when stopped) and whether a root
   // stopped it. Throws AnalysisError on failure.
@@ -164,7 +173,8 @@ class Integration {
       std::string cause = last_failure_.empty()
                               ? std::string("the integrator failed (") +
                                     CVodeGetReturnFlagName(flag) + ")"
-                              : last_failure_;
+                              : last_failure_ + (detail_ ? f_.failure_detail() : "") +
+                                    last_advice_;
       if (flag == CV_TOO_MUCH_WORK) cause = "the integrator took more steps than its limit";
       if (flag == CV_ERR_FAILURE || flag == CV_CONV_FAILURE)
         cause += std::string(" (") + CVodeGetReturnFlagName(flag) +
@@ -182,7 +192,7 @@ class Integration {
     for (int k = 0; k < n; ++k) y[k] = NV_Ith_S(y_, k);
     if (!f_.rhs(t, y.data(), ydot.data()))
       throw AnalysisError(model_.mechanism().source + ": simulation failed at " + format_time(t) +
-                          ": " + f_.reason() + f_.advice());
+                          ": " + f_.reason() + f_.failure_detail() + f_.advice());
     const MotionState& s = f_.state();
     SimulatedRow r;
     r.state.t = t;
@@ -236,6 +246,8 @@ class Integration {
     auto* self = static_cast<Integration*>(data);
     if (self->o_.interrupted && self->o_.interrupted()) {
       self->last_failure_ = "interrupted";
+      self->detail_ = false;
+      self->last_advice_.clear();
       return -1;
     }
     const double* yv = N_VGetArrayPointer(y);
@@ -243,12 +255,16 @@ class Integration {
     if (!self->f_.rhs(t, yv, dv)) {
       // Recoverable: CVODE retries with a smaller step; if the motion really reaches the
       // failure, it gives up and this is the cause named.
-      self->last_failure_ = self->f_.reason() + self->f_.advice();
+      self->last_failure_ = self->f_.reason();
+      self->last_advice_ = self->f_.advice();
+      self->detail_ = true;
       return self->f_.failure() == MotionFailure::kOutsideTable ? -1 : 1;
     }
     dv[self->n_] = self->f_.energy().power;
     if (!std::isfinite(dv[self->n_])) {
       self->last_failure_ = "the power of the loads and drivers is not finite";
+      self->detail_ = false;
+      self->last_advice_.clear();
       return 1;
     }
     return 0;
@@ -286,7 +302,8 @@ class Integration {
   SUNLinearSolver ls_ = nullptr;
   SUNNonlinearSolver nls_ = nullptr;
   double energy0_ = 0, kinetic0_ = 0, potential0_ = 0, energy_scale_ = 0, t0_ = 0;
-  std::string last_failure_;
+  std::string last_failure_, last_advice_;
+  bool detail_ = false;  // last_failure_ is the formulation's, which has its failure_detail()
   std::unique_ptr<Program> stop_;
   std::unique_ptr<ProgramEvaluator<double>> stop_eval_;
   std::unique_ptr<ForceSolver> stop_forces_;

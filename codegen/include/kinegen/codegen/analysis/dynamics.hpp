@@ -66,8 +66,12 @@ class ReducedDynamics {
   // along B by the change in z, so that it stays on the branch it assembled on.
   bool evaluate(double t, const double* z, const double* zd, MotionState& out);
   MotionFailure failure() const { return failure_; }
-  // One line: what failed, with the constraints that became dependent where Phi_q lost rank.
+  // One line: what failed.
   const std::string& reason() const { return reason_; }
+  // Where the last failure was at a singular position, the constraints that became dependent
+  // there (" (condition estimate ...; involved: ...)"), on demand: an SVD of Phi_q, too dear
+  // for every failed evaluation the integrator retries. Empty after other failures.
+  std::string failure_detail() const;
 
   // The energy terms at a state evaluate() returned (the power needs its qdd, for the
   // prescribed drivers' efforts).
@@ -81,6 +85,7 @@ class ReducedDynamics {
   bool solve(double t, const double* z, const double* zd, MotionState& out);
   void check_at_t0(double t0);
   bool fail(MotionFailure f, std::string reason);
+  bool fail_singular(MotionFailure f, std::string reason, const Eigen::MatrixXd& jac);
 
   const CompiledModel& model_;
   const ForceModel& forces_;
@@ -91,6 +96,8 @@ class ReducedDynamics {
   Eigen::MatrixXd b_;
   MotionFailure failure_ = MotionFailure::kNone;
   std::string reason_;
+  Eigen::MatrixXd singular_jac_;  // Phi_q at the last failure, where that was singular
+  bool singular_ = false;
 };
 
 // The free items' names (their CSV columns Z, Z.v, Z.a), in `free:` order.

@@ -34,6 +34,9 @@ class MotionFormulation {
   virtual Energy energy() = 0;  // at state()
   virtual MotionFailure failure() const = 0;
   virtual const std::string& reason() const = 0;
+  // More about the last failure, computed only for the message that reports it (the
+  // constraints that became dependent at a singular position).
+  virtual std::string failure_detail() const { return ""; }
   // Projection onto the constraints after each step (CVODE's CVodeSetProjFn): the
   // correction that brings y back to Phi = 0 and Phi_q qd = nu. None by default.
   virtual bool has_projection() const { return false; }
