@@ -522,3 +522,50 @@ TEST_CASE("dynamics examples: a run that fails in the middle keeps its rows and 
   CHECK(s["ram.x"].back() < 0.25);
   CHECK(max_abs(s["energy.balance"]) < 1e-3 * max_abs(s["energy.kinetic"]));
 }
+
+TEST_CASE("dynamics examples: the minimal coordinates stop at the N-four-bar's flat position",
+          "[dynamics_examples]") {
+  // The N-four-bar of the IFToMM benchmark A02 (N = 8): falling from 45 degrees it reaches
+  // the flat position, where Phi_q loses N ranks, after 0.29 s. The default method cannot
+  // pass it: exit 1, the rows so far kept, the constraints and the other method named (it
+  // used to retry there for ever, the step shrinking below the ulps of t).
+  const int n = 8;
+  std::ostringstream y;
+  y.precision(17);
+  y << "name: n_four_bar\nparameters: {m: 1.0, l: 1.0, g: 9.81}\ngravity: [0, -g]\nbodies:\n";
+  for (int k = 0; k <= n; ++k)
+    y << "  - {name: crank_" << k << ", q0: [" << k << ", 0, 0.7853981633974483], mass: m, "
+      << "inertia: \"m*l^2/12\", com: [\"l/2\", 0]}\n";
+  for (int k = 0; k < n; ++k)
+    y << "  - {name: coupler_" << k << ", q0: [" << k + std::sqrt(0.5) << ", "
+      << std::sqrt(0.5) << ", 0], mass: m, inertia: \"m*l^2/12\", com: [\"l/2\", 0]}\n";
+  y << "joints:\n";
+  for (int k = 0; k <= n; ++k)
+    y << "  - {type: revolute, name: O" << k << ", i: ground, j: crank_" << k << ", si: ["
+      << k << ", 0]}\n";
+  for (int k = 0; k < n; ++k)
+    y << "  - {type: revolute, name: A" << k << ", i: crank_" << k << ", j: coupler_" << k
+      << ", si: [l, 0]}\n  - {type: revolute, name: B" << k << ", i: coupler_" << k
+      << ", j: crank_" << k + 1 << ", si: [l, 0], sj: [l, 0]}\n";
+  y << "free:\n  - {type: absolute_angle, name: theta, body: crank_0, value0: \"pi/4\", "
+       "v0: \"-sqrt(2)\"}\n";
+  const fs::path dir = scratch("flat_position");
+  write_text(dir / "n_four_bar.yaml", y.str());
+  const fs::path out = dir / "out.csv";
+  const CommandResult r = run_kinegen({"simulate", (dir / "n_four_bar.yaml").string(), "--t1",
+                                       "20", "--steps", "2000", "-o", out.string()});
+  INFO("stderr: " << r.err);
+  CHECK(r.exit_code == 1);
+  require_one_error_line(r);
+  CHECK(r.err.find("--method augmented") != std::string::npos);
+  CHECK(r.err.find("involved: ") != std::string::npos);
+  const auto at = r.err.find("failed at t = ");
+  REQUIRE(at != std::string::npos);
+  const double failed_at = std::stod(r.err.substr(at + 14));
+  CHECK(failed_at > 0.28);
+  CHECK(failed_at < 0.30);
+  const Table s = read_csv(out);
+  REQUIRE(s.rows() > 20);
+  CHECK(s["t"].back() < failed_at);
+  CHECK(s["theta"].back() > 0);  // short of the flat position, on the branch it started on
+}
