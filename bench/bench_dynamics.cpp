@@ -231,7 +231,10 @@ struct Table {
     std::string note = r.note;
     for (char& ch : note)
       if (ch == ',' || ch == '\n') ch = ';';
-    csv << p.label << "," << r.method << "," << r.setting << "," << r.seconds << ","
+    std::string label = p.label;
+    for (char& ch : label)
+      if (ch == ',') ch = ';';
+    csv << label << "," << r.method << "," << r.setting << "," << r.seconds << ","
         << (r.ok ? ez : NAN) << "," << (r.ok ? ezd : NAN) << "," << r.steps << "," << r.ok
         << "," << note << "\n";
   }
