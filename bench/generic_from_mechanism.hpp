@@ -12,9 +12,11 @@
 namespace kinegen::generic {
 
 // The description of `model`, or nullopt with `why` set when the generic joint library cannot
-// express it (`expression` constraints, drivers not linear in t).
+// express it (`expression` constraints, drivers not linear in t). With skip_free, the free
+// items (format 7.1) are left out: the joints and prescribed drivers of a dynamics model.
 inline std::optional<MechanismData> from_compiled_model(const codegen::CompiledModel& model,
-                                                        std::string& why) {
+                                                        std::string& why,
+                                                        bool skip_free = false) {
   const auto& mech = model.mechanism();
   const auto& symbols = model.symbols();
   const auto& values = model.symbolic().param_values;
@@ -31,6 +33,7 @@ inline std::optional<MechanismData> from_compiled_model(const codegen::CompiledM
   data.q0 = model.q0();
   data.length_scale = model.symbolic().length_scale;
   for (const codegen::Constraint* c : mech.constraints()) {
+    if (skip_free && c->free) continue;
     JointRecord jr;
     jr.is_driver = c->is_driver;
     jr.i = c->i;

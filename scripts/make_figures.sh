@@ -68,3 +68,5 @@ rm -rf "$dir"
 if [[ -d viewer/node_modules/playwright-core ]] && command -v node >/dev/null; then
   node viewer/screenshots.mjs "$kinegen"
 fi
+# The dynamics examples: simulated, plotted, the press and the four-bar animated.
+scripts/make_dynamics_figures.sh "$kinegen"

@@ -158,6 +158,7 @@ bool ReducedDynamics::fail(MotionFailure f, std::string reason) {
   return false;
 }
 
+
 // 7.1's checks at t0, then the state there.
 void ReducedDynamics::check_at_t0(double t0) {
   const Mechanism& m = model_.mechanism();
@@ -244,18 +245,28 @@ void ReducedDynamics::check_at_t0(double t0) {
   const bool assembled = solve(t0, z0.data(), zd0.data(), initial_);
   condition0_ = condition_;
   if (!assembled) {
+    if (failure_ == MotionFailure::kReducedMass) {
+      // It assembled: the fault is a free item that moves no mass (7.1), the one whose
+      // diagonal of B^T M B is the smallest.
+      int worst = 0;
+      for (int k = 1; k < nf_; ++k)
+        if (b_.col(k).dot(w.mb.col(k)) < b_.col(worst).dot(w.mb.col(worst))) worst = k;
+      const Constraint& c = m.drivers[free[worst]];
+      throw InputError(m.source, c.item, c.loc,
+                       "this free coordinate carries no inertia at " + format_time(t0) +
+                           " (format 7.1: it moves only massless bodies): " + reason_);
+    }
     // Where the file's own value0 does not assemble, the file is at fault (exit 2).
     for (int k = 0; k < nf_; ++k) {
       const Constraint& c = m.drivers[free[k]];
       if (c.free->value0)
         throw InputError(m.source, c.item + " value0", c.free->value0->loc,
                          "the mechanism does not assemble with the free coordinates at their "
-                         "value0 at t = " +
+                         "value0 at " +
                              format_time(t0) + ": " + reason_);
     }
     throw InputError(m.source, "free", first.loc,
-                     "the mechanism does not assemble at t0 = " + format_time(t0) + ": " +
-                         reason_);
+                     "the mechanism does not assemble at " + format_time(t0) + ": " + reason_);
   }
   if (failure_ == MotionFailure::kNone) return;
 }
@@ -399,8 +410,7 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
     Eigen::SparseMatrix<double> sparse = w.jac.sparseView();
     Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(sparse);
     if (lu.info() != Eigen::Success)
-      return fail(MotionFailure::kPosition, "Phi_q could not be factored" +
-                                                singular_rows(model_, w.jac));
+      return singular_failure(t, out, false, -1, " (Phi_q could not be factored)");
     b_ = lu.solve(e);
   }
   // g = Q^A + the inertia forces at qdd = c; then the reduced accelerations.

@@ -16,9 +16,11 @@
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/model/table.hpp"
+#include "diagnosis.hpp"
 
 namespace kinegen::codegen {
 
+using analysis_detail::singular_rows;
 using GiNaC::ex;
 using GiNaC::numeric;
 using Vector = ReferenceDynamics::Vector;

@@ -109,6 +109,9 @@ class Integration {
                           ": " + f.reason() + f.advice());
     const Energy e = f.energy();
     energy0_ = e.kinetic + e.potential;
+    kinetic0_ = e.kinetic;
+    potential0_ = e.potential;
+    t0_ = t0;
     // The work's absolute tolerance: --atol times the energy scale at t0.
     NV_Ith_S(atol_, n_) = o.atol * std::max({std::abs(e.kinetic) + std::abs(e.potential), 1.0});
     const bool bdf = o.integrator == Integrator::kBdf ||
@@ -119,9 +122,10 @@ class Integration {
           "--method augmented projects onto the constraints after each step, which CVODE "
           "supports with BDF only: use --integrator bdf (or auto)");
     cvode_ = CVodeCreate(bdf ? CV_BDF : CV_ADAMS, ctx_);
-    check(CVodeInit(cvode_, &Integration::rhs, t0, y_), "CVodeInit");
-    // CVODE's own messages would go to stderr; the failure's cause is in the AnalysisError.
+    // CVODE prints its errors to stderr by default; a failure is reported once, as one
+    // `error:` line naming the time and the cause (advance()), so its own text is dropped.
     check(CVodeSetErrHandlerFn(cvode_, &Integration::quiet, nullptr), "CVodeSetErrHandlerFn");
+    check(CVodeInit(cvode_, &Integration::rhs, t0, y_), "CVodeInit");
     check(CVodeSVtolerances(cvode_, o.rtol, atol_), "CVodeSVtolerances");
     check(CVodeSetUserData(cvode_, this), "CVodeSetUserData");
     check(CVodeSetMaxNumSteps(cvode_, o.max_steps), "CVodeSetMaxNumSteps");
@@ -229,6 +233,7 @@ class Integration {
     r.potential = e.potential;
     r.work = NV_Ith_S(y_, n);
     r.balance = e.kinetic + e.potential - r.work - energy0_;
+    check_balance(t, r);
     if (force_solver && !force_solver->solve(t, s.q, s.qd, s.qdd, r.state.forces))
       throw AnalysisError(model_.mechanism().source + ": force analysis failed at " +
                           format_time(t) + ": Phi_q is singular (scaled condition estimate " +
@@ -240,6 +245,36 @@ class Integration {
   static void check(int flag, const char* what) {
     if (flag < 0) throw std::runtime_error(std::string(what) + " failed");
   }
+  // The energy balance as a guard: a run whose balance is off by far more than its tolerance
+  // allows (10% of the energy exchanged, or 1000 rtol) has lost its accuracy, and its rows
+  // from here on would be a wrong answer (the minimal coordinates stall at a fold of q(z), as
+  // a slider-crank moved by its slider at a dead centre: the kinetic energy gone, no Newton
+  // failure). The energy exchanged: the largest change of the terms since t0 at any state
+  // the integrator evaluated (rhs()), not only at the rows, which may all sit where the
+  // energy is back at its start (a pendulum's swing stopped at its far end).
+  void note_energy(const Energy& e, double work) {
+    energy_scale_ = std::max(energy_scale_, std::abs(e.kinetic - kinetic0_) +
+                                                std::abs(e.potential - potential0_) +
+                                                std::abs(work));
+  }
+  void check_balance(double t, const SimulatedRow& r) {
+    energy_scale_ = std::max(energy_scale_, std::abs(r.kinetic - kinetic0_) +
+                                                std::abs(r.potential - potential0_) +
+                                                std::abs(r.work));
+    const double rounding = 1e-9 * (std::abs(r.kinetic) + std::abs(r.potential));
+    const double allowed = std::max(0.1, 1e3 * o_.rtol) * energy_scale_ + rounding;
+    if (t == t0_ || !(std::abs(r.balance) > allowed)) return;
+    throw AnalysisError(
+        model_.mechanism().source + ": simulation failed at " + format_time(t) +
+        ": the energy balance is off by " + format_estimate(std::abs(r.balance)) + " (" +
+        format_estimate(100 * std::abs(r.balance) / energy_scale_) +
+        "% of the energy exchanged): the integration lost its accuracy" +
+        (o_.method == Method::kMinimal
+             ? "; the minimal-coordinates method does this where the free coordinates stop "
+               "determining q (a singular position): use --method augmented"
+             : ""));
+  }
+  static void quiet(int, const char*, const char*, char*, void*) {}
   static int rhs(double t, N_Vector y, N_Vector ydot, void* data) {
     auto* self = static_cast<Integration*>(data);
     if (self->o_.interrupted && self->o_.interrupted()) {
@@ -255,14 +290,15 @@ class Integration {
       return self->f_.failure() == MotionFailure::kOutsideTable ? -1 : 1;
     }
     self->last_failure_.clear();  // a failure that a smaller step avoided is no cause
-    dv[self->n_] = self->f_.energy().power;
+    const Energy e = self->f_.energy();
+    dv[self->n_] = e.power;
+    if (std::isfinite(e.power)) self->note_energy(e, yv[self->n_]);
     if (!std::isfinite(dv[self->n_])) {
       self->last_failure_ = "the power of the loads and drivers is not finite";
       return 1;
     }
     return 0;
   }
-  static void quiet(int, const char*, const char*, char*, void*) {}
   static int root(double t, N_Vector y, double* g, void* data) {
     auto* self = static_cast<Integration*>(data);
     const double* yv = N_VGetArrayPointer(y);
@@ -297,7 +333,7 @@ class Integration {
   SUNMatrix a_ = nullptr;
   SUNLinearSolver ls_ = nullptr;
   SUNNonlinearSolver nls_ = nullptr;
-  double energy0_ = 0;
+  double energy0_ = 0, kinetic0_ = 0, potential0_ = 0, energy_scale_ = 0, t0_ = 0;
   std::string last_failure_;
   std::unique_ptr<Program> stop_;
   std::unique_ptr<ProgramEvaluator<double>> stop_eval_;

@@ -66,7 +66,7 @@ class ReducedDynamics {
   // along B by the change in z, so that it stays on the branch it assembled on.
   bool evaluate(double t, const double* z, const double* zd, MotionState& out);
   MotionFailure failure() const { return failure_; }
-  // One line: what failed, with the constraints that became dependent where Phi_q lost rank.
+  // One line: what failed.
   const std::string& reason() const { return reason_; }
 
   // The energy terms at a state evaluate() returned (the power needs its qdd, for the
