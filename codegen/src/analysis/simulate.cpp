@@ -258,9 +258,7 @@ class Integration {
                                                 std::abs(work));
   }
   void check_balance(double t, const SimulatedRow& r) {
-    energy_scale_ = std::max(energy_scale_, std::abs(r.kinetic - kinetic0_) +
-                                                std::abs(r.potential - potential0_) +
-                                                std::abs(r.work));
+    note_energy({r.kinetic, r.potential}, r.work);
     const double rounding = 1e-9 * (std::abs(r.kinetic) + std::abs(r.potential));
     const double allowed = std::max(0.1, 1e3 * o_.rtol) * energy_scale_ + rounding;
     if (t == t0_ || !(std::abs(r.balance) > allowed)) return;
