@@ -160,17 +160,11 @@ bool ReducedDynamics::fail(MotionFailure f, std::string reason) {
 
 
 // 7.1's checks at t0, then the state there.
-void ReducedDynamics::check_at_t0(double t0) {
-  const Mechanism& m = model_.mechanism();
-  const std::vector<int> free = m.free_drivers();
+// Assembles with the joints and prescribed drivers alone (fixed_rows): the Gauss-Newton step
+// of least (scaled) norm from q0, which finds the assembled position nearest the estimates.
+Eigen::VectorXd ReducedDynamics::assemble_fixed(double t0, const std::vector<int>& fixed_rows) {
   Impl& w = *impl_;
   const int nc = model_.nc();
-  // Assemble with the joints and prescribed drivers alone: the Gauss-Newton step of least
-  // (scaled) norm from q0, which finds the assembled position nearest the estimates.
-  std::vector<int> fixed_rows;
-  for (int r = 0; r < nc; ++r)
-    if (std::find(free_rows_.begin(), free_rows_.end(), r) == free_rows_.end())
-      fixed_rows.push_back(r);
   const auto& scales = model_.symbolic().coordinate_scales;
   Eigen::VectorXd q = model_.q0(), phi(nc);
   Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(nc, nq_);
@@ -194,8 +188,17 @@ void ReducedDynamics::check_at_t0(double t0) {
     }
     if (size < 1e-13) break;
   }
-  // Counts and rank (7.1), at that position.
-  w.eval.jacobian(q.data(), t0, jac);
+  return q;
+}
+
+// Counts and rank (7.1), at the assembled position q.
+void ReducedDynamics::check_counts_and_rank(double t0, const Eigen::VectorXd& q,
+                                            const std::vector<int>& fixed_rows) {
+  const Mechanism& m = model_.mechanism();
+  const std::vector<int> free = m.free_drivers();
+  const int nc = model_.nc();
+  Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(nc, nq_);
+  impl_->eval.jacobian(q.data(), t0, jac);
   const Eigen::MatrixXd scaled = scaled_jacobian(model_, jac);
   const int rank_fixed = rank_of(scaled, fixed_rows);
   const int dof = nq_ - rank_fixed;
@@ -231,6 +234,18 @@ void ReducedDynamics::check_at_t0(double t0) {
                            "coordinate");
     }
   }
+}
+
+void ReducedDynamics::check_at_t0(double t0) {
+  const Mechanism& m = model_.mechanism();
+  const std::vector<int> free = m.free_drivers();
+  Impl& w = *impl_;
+  std::vector<int> fixed_rows;
+  for (int r = 0; r < model_.nc(); ++r)
+    if (std::find(free_rows_.begin(), free_rows_.end(), r) == free_rows_.end())
+      fixed_rows.push_back(r);
+  const Eigen::VectorXd q = assemble_fixed(t0, fixed_rows);
+  check_counts_and_rank(t0, q, fixed_rows);
   // The state at t0: value0 (default: the quantity at the assembled position) and v0.
   Eigen::VectorXd z0(nf_), zd0(nf_);
   w.free_values.run(q.data(), nullptr, t0, model_.params().data(), z0.data());
@@ -244,31 +259,36 @@ void ReducedDynamics::check_at_t0(double t0) {
   initial_.t = t0;
   const bool assembled = solve(t0, z0.data(), zd0.data(), initial_);
   condition0_ = condition_;
-  if (!assembled) {
-    if (failure_ == MotionFailure::kReducedMass) {
-      // It assembled: the fault is a free item that moves no mass (7.1), the one whose
-      // diagonal of B^T M B is the smallest.
-      int worst = 0;
-      for (int k = 1; k < nf_; ++k)
-        if (b_.col(k).dot(w.mb.col(k)) < b_.col(worst).dot(w.mb.col(worst))) worst = k;
-      const Constraint& c = m.drivers[free[worst]];
-      throw InputError(m.source, c.item, c.loc,
-                       "this free coordinate carries no inertia at " + format_time(t0) +
-                           " (format 7.1: it moves only massless bodies): " + reason_);
-    }
-    // Where the file's own value0 does not assemble, the file is at fault (exit 2).
-    for (int k = 0; k < nf_; ++k) {
-      const Constraint& c = m.drivers[free[k]];
-      if (c.free->value0)
-        throw InputError(m.source, c.item + " value0", c.free->value0->loc,
-                         "the mechanism does not assemble with the free coordinates at their "
-                         "value0 at " +
-                             format_time(t0) + ": " + reason_);
-    }
-    throw InputError(m.source, "free", first.loc,
-                     "the mechanism does not assemble at " + format_time(t0) + ": " + reason_);
+  if (!assembled) report_t0_failure(t0);
+}
+
+// The state at t0 did not solve: the input is at fault (exit 2), and this says where.
+void ReducedDynamics::report_t0_failure(double t0) {
+  const Mechanism& m = model_.mechanism();
+  const std::vector<int> free = m.free_drivers();
+  Impl& w = *impl_;
+  if (failure_ == MotionFailure::kReducedMass) {
+    // It assembled: the fault is a free item that moves no mass (7.1), the one whose
+    // diagonal of B^T M B is the smallest.
+    int worst = 0;
+    for (int k = 1; k < nf_; ++k)
+      if (b_.col(k).dot(w.mb.col(k)) < b_.col(worst).dot(w.mb.col(worst))) worst = k;
+    const Constraint& c = m.drivers[free[worst]];
+    throw InputError(m.source, c.item, c.loc,
+                     "this free coordinate carries no inertia at " + format_time(t0) +
+                         " (format 7.1: it moves only massless bodies): " + reason_);
   }
-  if (failure_ == MotionFailure::kNone) return;
+  // Where the file's own value0 does not assemble, the file is at fault (exit 2).
+  for (int k = 0; k < nf_; ++k) {
+    const Constraint& c = m.drivers[free[k]];
+    if (c.free->value0)
+      throw InputError(m.source, c.item + " value0", c.free->value0->loc,
+                       "the mechanism does not assemble with the free coordinates at their "
+                       "value0 at " +
+                           format_time(t0) + ": " + reason_);
+  }
+  throw InputError(m.source, "free", m.drivers[free.front()].loc,
+                   "the mechanism does not assemble at " + format_time(t0) + ": " + reason_);
 }
 
 // A singular position (Phi_q lost rank: the block solver's singular pivot, or the condition
@@ -328,33 +348,10 @@ bool ReducedDynamics::evaluate(double t, const double* z, const double* zd, Moti
   return solve(t, z, zd, out);
 }
 
-bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionState& out) {
-  const Mechanism& m = model_.mechanism();
-  const std::vector<int> free = m.free_drivers();
+// q, qd and c (the acceleration at zdd = 0) from the inputs set, by the block program (or the
+// dense solves); `condition` is Phi_q's scaled condition estimate there.
+bool ReducedDynamics::solve_kinematics(double t, MotionState& out, double& condition) {
   Impl& w = *impl_;
-  failure_ = MotionFailure::kNone;
-  reason_.clear();
-  if (const std::string table = table_outside(m, t); !table.empty())
-    return fail(MotionFailure::kOutsideTable, "t lies outside " + table);
-  for (int k = 0; k < nf_; ++k) {
-    if (!std::isfinite(z[k]) || !std::isfinite(zd[k]))
-      return fail(MotionFailure::kNonFinite, "the state is not finite");
-    w.inputs[3 * free[k]] = z[k];
-    w.inputs[3 * free[k] + 1] = zd[k];
-    w.inputs[3 * free[k] + 2] = 0;  // c: the acceleration at zdd = 0
-  }
-  out.t = t;
-  out.z = Eigen::Map<const Eigen::VectorXd>(z, nf_);
-  out.zd = Eigen::Map<const Eigen::VectorXd>(zd, nf_);
-  // Newton's start: the last solution moved along B by the change in z, and along the
-  // prescribed drivers' rates by the change in t.
-  out.q = w.q_last;
-  if (w.have_last) out.q += b_ * (out.z - w.z_last) + (t - w.t_last) * w.rheonomic_last;
-  const Eigen::VectorXd predicted = out.q;
-  out.qd.resize(nq_);
-  out.qdd.resize(nq_);
-  const auto& scales = model_.symbolic().coordinate_scales;
-  double condition = 1;
   if (w.blocks) {
     const auto r = w.blocks->solve_step(out.q.data(), t, out.qd.data(), out.qdd.data(),
                                         block_options());
@@ -380,27 +377,14 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
     if (auto ra = w.dense->acceleration(out.q, out.qd, t, out.qdd); !ra)
       return fail(MotionFailure::kPosition, std::string("acceleration solve: ") + ra.message());
   }
-  w.jac.setZero(nq_, nq_);
-  w.eval.jacobian(out.q.data(), t, w.jac);
-  condition_ = condition;
-  if (condition > kMaxCondition) return singular_failure(t, out, false, -1);
-  if (w.have_last) {
-    // The branch check: the solution must agree with the first-order prediction to far better
-    // than the predicted change itself (the miss is second order in the step).
-    double change = 0, miss = 0;
-    for (int k = 0; k < nq_; ++k) {
-      const double inv = model_.symbolic().coordinate_kinds[k] == CoordinateKind::kAngle
-                             ? 1.0
-                             : 1 / scales[k];
-      change = std::max(change, std::abs(predicted[k] - w.q_last[k]) * inv);
-      miss = std::max(miss, std::abs(out.q[k] - predicted[k]) * inv);
-    }
-    if (miss > kJumpFraction * change + 1e-9)
-      return singular_failure(t, out, true, -1,
-                              " (it misses the prediction from the last position by " +
-                                  format_estimate(miss) + ", the predicted change being " +
-                                  format_estimate(change) + ")");
-  }
+  return true;
+}
+
+// B = dq/dz, the generalized forces at c, and the reduced accelerations (zdd, qdd = c + B zdd).
+bool ReducedDynamics::reduce(double t, MotionState& out) {
+  const Mechanism& m = model_.mechanism();
+  const std::vector<int> free = m.free_drivers();
+  Impl& w = *impl_;
   // B: Phi_q B = E, the free rows' unit vectors; one factorization for all columns.
   Eigen::MatrixXd e = Eigen::MatrixXd::Zero(nq_, nf_);
   for (int k = 0; k < nf_; ++k) e(free_rows_[k], k) = 1;
@@ -439,6 +423,59 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
                 "the reduced mass B^T M B is singular (pivot ratio " + format_estimate(ratio) +
                     "): a free coordinate moves no mass (" + names + ")");
   }
+  return true;
+}
+
+bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionState& out) {
+  const Mechanism& m = model_.mechanism();
+  const std::vector<int> free = m.free_drivers();
+  Impl& w = *impl_;
+  failure_ = MotionFailure::kNone;
+  reason_.clear();
+  if (const std::string table = table_outside(m, t); !table.empty())
+    return fail(MotionFailure::kOutsideTable, "t lies outside " + table);
+  for (int k = 0; k < nf_; ++k) {
+    if (!std::isfinite(z[k]) || !std::isfinite(zd[k]))
+      return fail(MotionFailure::kNonFinite, "the state is not finite");
+    w.inputs[3 * free[k]] = z[k];
+    w.inputs[3 * free[k] + 1] = zd[k];
+    w.inputs[3 * free[k] + 2] = 0;  // c: the acceleration at zdd = 0
+  }
+  out.t = t;
+  out.z = Eigen::Map<const Eigen::VectorXd>(z, nf_);
+  out.zd = Eigen::Map<const Eigen::VectorXd>(zd, nf_);
+  // Newton's start: the last solution moved along B by the change in z, and along the
+  // prescribed drivers' rates by the change in t.
+  out.q = w.q_last;
+  if (w.have_last) out.q += b_ * (out.z - w.z_last) + (t - w.t_last) * w.rheonomic_last;
+  const Eigen::VectorXd predicted = out.q;
+  out.qd.resize(nq_);
+  out.qdd.resize(nq_);
+  const auto& scales = model_.symbolic().coordinate_scales;
+  double condition = 1;
+  if (!solve_kinematics(t, out, condition)) return false;
+  w.jac.setZero(nq_, nq_);
+  w.eval.jacobian(out.q.data(), t, w.jac);
+  condition_ = condition;
+  if (condition > kMaxCondition) return singular_failure(t, out, false, -1);
+  if (w.have_last) {
+    // The branch check: the solution must agree with the first-order prediction to far better
+    // than the predicted change itself (the miss is second order in the step).
+    double change = 0, miss = 0;
+    for (int k = 0; k < nq_; ++k) {
+      const double inv = model_.symbolic().coordinate_kinds[k] == CoordinateKind::kAngle
+                             ? 1.0
+                             : 1 / scales[k];
+      change = std::max(change, std::abs(predicted[k] - w.q_last[k]) * inv);
+      miss = std::max(miss, std::abs(out.q[k] - predicted[k]) * inv);
+    }
+    if (miss > kJumpFraction * change + 1e-9)
+      return singular_failure(t, out, true, -1,
+                              " (it misses the prediction from the last position by " +
+                                  format_estimate(miss) + ", the predicted change being " +
+                                  format_estimate(change) + ")");
+  }
+  if (!reduce(t, out)) return false;
   w.have_last = true;
   w.t_last = t;
   w.z_last = out.z;

@@ -86,6 +86,12 @@ class ReducedDynamics {
   struct Impl;
   bool solve(double t, const double* z, const double* zd, MotionState& out);
   void check_at_t0(double t0);
+  Eigen::VectorXd assemble_fixed(double t0, const std::vector<int>& fixed_rows);
+  void check_counts_and_rank(double t0, const Eigen::VectorXd& q,
+                             const std::vector<int>& fixed_rows);
+  [[noreturn]] void report_t0_failure(double t0);
+  bool solve_kinematics(double t, MotionState& out, double& condition);
+  bool reduce(double t, MotionState& out);
   bool fail(MotionFailure f, std::string reason);
   bool singular_failure(double t, const MotionState& out, bool branch, int block,
                         const std::string& detail = "");
