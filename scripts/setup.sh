@@ -5,6 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 packages=(g++ cmake make pkg-config libginac-dev libcln-dev libeigen3-dev catch2
           libyaml-cpp-dev libcli11-dev python3
+          libsundials-dev  # CVODE for kinegen simulate, IDA for the dynamics benchmark's peer
           pybind11-dev python3-dev python3-numpy python3-pytest  # the Python module and its tests
           python3-scipy python3-matplotlib                       # examples/python
           libpng-dev chromium gnuplot-nox  # pictures: animate test (PNG decode, headless render), plots
