@@ -27,5 +27,6 @@ if ((${#missing[@]})); then
 fi
 # The versions viewer/package-lock.json pins.
 (cd viewer && npm ci --no-audit --no-fund)
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
+# KINEGEN_CMAKE_ARGS: more options for the configure step (scripts/test.sh passes some).
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release ${KINEGEN_CMAKE_ARGS:-}
 cmake --build build -j"$(nproc)"

@@ -47,7 +47,15 @@ class CMakeBuild(build_ext):
         # CMake asks the interpreter for numpy as a user runs it, not through pip's isolated
         # build environment (PYTHONPATH to a sitecustomize that hides site-packages).
         env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONNOUSERSITE")}
-        subprocess.run(["cmake", "-S", str(source), "-B", str(build), *args], check=True, env=env)
+        # KINEGEN_CMAKE_BUILD_DIR: an existing, configured build tree to build the module in
+        # (the pip_install test uses the suite's own build/, so it packages without compiling
+        # the library a second time; a user's pip install configures build-pip-*/ itself).
+        reuse = os.environ.get("KINEGEN_CMAKE_BUILD_DIR")
+        if reuse:
+            build = pathlib.Path(reuse)
+        else:
+            subprocess.run(["cmake", "-S", str(source), "-B", str(build), *args], check=True,
+                           env=env)
         subprocess.run(["cmake", "--build", str(build), "--target", "kinegen_python", "-j", jobs],
                        check=True, env=env)
         suffix = pathlib.Path(self.get_ext_filename(ext.name)).name
