@@ -106,9 +106,6 @@ def run(cmd, env, cwd, timeout=600):
                           stderr=subprocess.STDOUT, timeout=timeout, text=True)
 
 
-UPDATES = []  # (file, block start line, old text, new text) under --update
-
-
 def check_console(text, flags, env, cwd, update=None):
     new_text = text
     for cmd, want in console_steps(text):
@@ -118,12 +115,12 @@ def check_console(text, flags, env, cwd, update=None):
         if expect_error != (r.returncode != 0):
             return False, f"`{cmd}` exited {r.returncode}:\n{r.stdout[-2000:]}"
         compare = not flags.get("nocompare") and not any("..." in l for l in want)
-        if compare and [l.rstrip() for l in got] != [l.rstrip() for l in want] and update is not None:
-            old = "\n".join(want)
-            if old and old in new_text:
-                new_text = new_text.replace(old, "\n".join(got), 1)
-                continue
-        if compare and [l.rstrip() for l in got] != [l.rstrip() for l in want]:
+        if not compare or [l.rstrip() for l in got] == [l.rstrip() for l in want]:
+            continue
+        old = "\n".join(want)
+        if update is not None and old and old in new_text:
+            new_text = new_text.replace(old, "\n".join(got), 1)
+        else:
             diff = [f"  want: {w}\n  got:  {g}" for w, g in zip(want + [""] * len(got),
                                                                  got + [""] * len(want)) if
                     w.rstrip() != g.rstrip()]
