@@ -3,9 +3,8 @@
 // position balances) an exit 1 with its message, bad input one error line each (modes without
 // free coordinates, --at with an unknown name or a wrong count), linearize without inputs an
 // empty B, the modes' JSON read back by `kinegen view`'s reader, a mode drawn by animate.
-#include <catch2/catch.hpp>
-
 #include <algorithm>
+#include <catch2/catch.hpp>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -99,8 +98,7 @@ TEST_CASE("equilibrium: a free wheel's spin is a neutral direction", "[cli_linea
   CHECK(m.out.find("mode 1: neutral (zero stiffness)") != std::string::npos);
 }
 
-TEST_CASE("equilibrium: loads that balance nowhere are exit 1, never an answer",
-          "[cli_linear]") {
+TEST_CASE("equilibrium: loads that balance nowhere are exit 1, never an answer", "[cli_linear]") {
   const fs::path dir = scratch("none");
   const fs::path yaml = write(dir / "overdriven.yaml", kOverdriven), out = dir / "eq.json";
   const CommandResult r = run_kinegen({"equilibrium", yaml.string(), "-o", out.string()});
@@ -120,9 +118,9 @@ TEST_CASE("equilibrium, modes, linearize: bad input is one error line", "[cli_li
                          "--at: unknown name 'psi' (known: t, z, u, theta)");
   require_one_error_line(run_kinegen({"linearize", pendulum, "--at", "z=0.1,0.2"}), 2,
                          "--at z expects 1 value, one per free coordinate (theta), got 2");
-  require_one_error_line(run_kinegen({"linearize", example("dynamics/cart_pole.yaml"), "--at",
-                                  "u=1,2"}),
-                         2, "--at u expects 1 value, one per run-time input (push_x), got 2");
+  require_one_error_line(
+      run_kinegen({"linearize", example("dynamics/cart_pole.yaml"), "--at", "u=1,2"}), 2,
+      "--at u expects 1 value, one per run-time input (push_x), got 2");
   require_one_error_line(run_kinegen({"linearize", pendulum, "--at", "zd=x"}), 2,
                          "'x' is not a finite number");
   require_one_error_line(run_kinegen({"equilibrium", pendulum, "--at", "z=1"}), 2,
@@ -138,7 +136,7 @@ TEST_CASE("linearize: no run-time inputs give an empty B, no error", "[cli_linea
   CHECK(r.out.find("\"B\": [[], []]") != std::string::npos);
   // By name, and as CSV: [A | B] with the states' names.
   const CommandResult c = run_kinegen({"linearize", example("dynamics/cart_pole.yaml"), "--at",
-                                   "phi=1.5,x.v=0.2,push_x=1", "--format", "csv"});
+                                       "phi=1.5,x.v=0.2,push_x=1", "--format", "csv"});
   REQUIRE(c.exit_code == 0);
   std::istringstream lines(c.out);
   std::string header;
@@ -149,8 +147,7 @@ TEST_CASE("linearize: no run-time inputs give an empty B, no error", "[cli_linea
   CHECK(rows == 4);
 }
 
-TEST_CASE("modes: its JSON is what kinegen view plays; animate --mode draws one",
-          "[cli_linear]") {
+TEST_CASE("modes: its JSON is what kinegen view plays; animate --mode draws one", "[cli_linear]") {
   const fs::path dir = scratch("modes");
   const std::string path = example("dynamics/four_bar_damped.yaml");
   const fs::path json = dir / "modes.json", svg = dir / "mode.svg";
@@ -173,4 +170,36 @@ TEST_CASE("modes: its JSON is what kinegen view plays; animate --mode draws one"
   CHECK(text.find("<animate") != std::string::npos);
   require_one_error_line(run_kinegen({"animate", path, "--mode", "2", "-o", svg.string()}), 2,
                          "--mode 2: the mechanism has 1 mode (1..1)");
+}
+
+TEST_CASE("a load's input reads --input as a table: the cart-pole pushed, energy balanced",
+          "[cli_linear]") {
+  const fs::path dir = scratch("load_input");
+  const fs::path table = write(dir / "push.csv", "t,value\n0,2\n0.5,2\n1,2\n1.5,2\n2,2\n");
+  const fs::path out = dir / "run.csv";
+  const std::string path = example("dynamics/cart_pole.yaml");
+  // Without its table, simulate cannot run it (a usage error naming the input).
+  require_one_error_line(run_kinegen({"simulate", path, "--t1", "0.3", "--steps", "3"}), 2,
+                         "give its values with --input push_x=FILE.csv");
+  const CommandResult r =
+      run_kinegen({"simulate", path, "--t1", "0.3", "--steps", "3", "--rtol", "1e-10", "--input",
+                   "push_x=" + table.string(), "-q", "-o", out.string()});
+  INFO(r.err);
+  REQUIRE(r.exit_code == 0);
+  std::istringstream csv(read(out));
+  std::string header, line, last;
+  std::getline(csv, header);
+  while (std::getline(csv, line)) last = line;
+  std::vector<std::string> names, values;
+  for (std::istringstream h(header); std::getline(h, line, ',');) names.push_back(line);
+  for (std::istringstream v(last); std::getline(v, line, ',');) values.push_back(line);
+  const auto column = [&](const std::string& name) {
+    const auto at = std::find(names.begin(), names.end(), name);
+    REQUIRE(at != names.end());
+    return std::stod(values[at - names.begin()]);
+  };
+  // The push did work (it moved the cart along +x), and the energy balance holds.
+  CHECK(column("energy.work") > 0.01);
+  CHECK(std::abs(column("energy.balance")) < 1e-8 * column("energy.work"));
+  CHECK(column("x") > 0);
 }

@@ -89,7 +89,9 @@ OperatingPoint parse_operating_point(const Mechanism& m, const std::string& text
     std::vector<std::string> values{items[i].substr(eq + 1)};
     for (++i; i < items.size() && items[i].find('=') == std::string::npos; ++i)
       values.push_back(items[i]);
-    if (key == "t" && allowed("t") && values.size() == 1) {
+    if (key == "t" && allowed("t")) {
+      if (values.size() != 1)
+        throw UsageError(option + " t expects one value, got " + std::to_string(values.size()));
       base.t = number_of(values[0], option + " t");
     } else if ((key == "z" || key == "zd" || key == "u") && allowed(key)) {
       Eigen::VectorXd& v = vector_of(key);

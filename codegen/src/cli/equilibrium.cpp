@@ -39,7 +39,7 @@ void write_text(std::ostream& out, const kc::Mechanism& m, const kc::Equilibrium
                 const std::vector<std::string>& force_names, const std::vector<double>& forces) {
   const auto free = kc::state_names(m);
   out << "equilibrium of " << m.name << " at " << kc::format_time(e.at.t) << " (" << e.iterations
-      << " Newton steps): " << verdict(e.stiffness) << "\n";
+      << " Newton step" << (e.iterations == 1 ? "" : "s") << "): " << verdict(e.stiffness) << "\n";
   for (Eigen::Index k = 0; k < e.at.z.size(); ++k)
     out << free[k] << " = " << number(e.at.z[k]) << "\n";
   out << "stiffness eigenvalues (K_z v = lambda M_z v):";
