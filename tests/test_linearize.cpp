@@ -505,6 +505,14 @@ TEST_CASE("the exact Jacobians against the complex step and central differences"
     CHECK(relative(d_zd, cd.d_zd, scale) < 1e-7);
     CHECK(relative(d_u, cd.d_u, scale) < 1e-7);
     // The complex evaluation is the same dynamics: its real part is zdd.
+    // The solves through the blocks (as generated code) and on one LU of Phi_q agree.
+    kc::Linearizer lu(*s.model, s.forces, 0.0, false);
+    kc::MotionState lu_state;
+    Eigen::MatrixXd lu_z, lu_zd, lu_u;
+    REQUIRE(lu.evaluate(p, lu_state, &lu_z, &lu_zd, &lu_u));
+    CHECK(relative(lu_z, d_z, scale) < 1e-14);
+    CHECK(relative(lu_zd, d_zd, scale) < 1e-14);
+    CHECK(relative(lu_u, d_u, scale) < 1e-14);
     const Eigen::VectorXcd z = p.z.cast<C>(), zd = p.zd.cast<C>(), u = p.u.cast<C>();
     CHECK(relative(complex_zdd<C>(*s.model, s.forces, p.t, z, zd, u, state.q).real(), state.zdd,
                    scale) < 1e-13);

@@ -96,7 +96,6 @@ void check_pinned_body() {
   const T ax[] = {a * std::cos(z)}, ay[] = {a * std::sin(z)};
   const T applied[] = {T(0), -m * g, -m * g * a * std::cos(z) + T(0)};
   // Input slots: z 0, zd 1, zdd 2 (the free item's), the torque's 3.
-  const int free_slot[] = {0};
   const int w_row[] = {2}, w_col0[] = {0}, w_col1[] = {1}, w_col2[] = {2}, q_col[] = {2};
   const int u_row[] = {2}, u_col[] = {3};
   const T minus_one[] = {T(-1)}, one[] = {T(1)};
@@ -105,7 +104,6 @@ void check_pinned_body() {
   p.nq = 3;
   p.nf = 1;
   p.nb = 1;
-  p.free_slot = free_slot;
   p.q = q;
   p.qd = qd;
   p.qdd = qdd;
@@ -122,9 +120,11 @@ void check_pinned_body() {
   p.applied_w = {1, u_row, u_col, one};
   const int slots[] = {0, 1, 3};
   T out[3];
-  std::vector<T> work(L::_tangent_work_size(3, 1));
-  const auto identity = [](T*, int) { return 0; };  // Phi_q = I
+  std::vector<T> work(L::_tangent_work_size(3, 1, 3));
+  int calls = 0;
+  const auto identity = [&](T*, int) { return ++calls, 0; };  // Phi_q = I
   REQUIRE(L::_dynamics_tangent(p, 3, slots, out, work.data(), identity, identity) == 0);
+  CHECK(calls == 3);  // the solves batched: Phi_q^T once, Phi_q twice
   using R = decltype(std::abs(T()));
   const R tol = std::is_same_v<T, float> ? R(1e-5) : R(1e-14);
   using std::abs;

@@ -3,8 +3,10 @@
 
 #include <Eigen/SparseLU>
 #include <cmath>
+#include <kinegen/kernels/block_linear.hpp>
 #include <kinegen/kernels/linearize.hpp>
 
+#include "block_tables.hpp"
 #include "kinegen/codegen/analysis/evaluator.hpp"
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/symbolic/tangent.hpp"
@@ -47,6 +49,33 @@ std::vector<GiNaC::ex> concatenate(const TangentModel& t, const ForceModel& f,
   return all;
 }
 
+// The kernel with solves on one LU of all of Phi_q (where its blocks do not serve): dense up
+// to 48 coordinates, sparse beyond.
+int lu_tangent(const Eigen::MatrixXd& jac, const K::_TangentPoint<double>& p,
+               const std::vector<int>& slots, Eigen::MatrixXd& out, std::vector<double>& work) {
+  const Eigen::Index nq = jac.rows();
+  const int ndir = static_cast<int>(slots.size());
+  const auto in_place = [nq](auto&& solver, double* x, int m) {
+    Eigen::Map<Eigen::MatrixXd> cols(x, nq, m);
+    cols = solver.solve(Eigen::MatrixXd(cols));
+    return cols.allFinite() ? 0 : 3;
+  };
+  if (nq <= 48) {
+    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(jac), lu_t(jac.transpose());
+    return K::_dynamics_tangent(
+        p, ndir, slots.data(), out.data(), work.data(),
+        [&](double* x, int m) { return in_place(lu, x, m); },
+        [&](double* x, int m) { return in_place(lu_t, x, m); });
+  }
+  const Eigen::SparseMatrix<double> sparse = jac.sparseView(), sparse_t = sparse.transpose();
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(sparse), lu_t(sparse_t);
+  if (lu.info() != Eigen::Success || lu_t.info() != Eigen::Success) return 2;
+  return K::_dynamics_tangent(
+      p, ndir, slots.data(), out.data(), work.data(),
+      [&](double* x, int m) { return in_place(lu, x, m); },
+      [&](double* x, int m) { return in_place(lu_t, x, m); });
+}
+
 }  // namespace
 
 struct Linearizer::Impl {
@@ -64,7 +93,9 @@ struct Linearizer::Impl {
   std::vector<double> values;
   ModelEvaluator<double> model_eval;
   std::vector<int> free_slot;
+  std::unique_ptr<BlockTables> blocks;  // null where the blocks do not serve
   Eigen::MatrixXd jac;
+  std::vector<double> jac_values, scratch;
   Eigen::VectorXd mass, inertia, ax, ay;
   std::vector<double> work;
 
@@ -90,7 +121,6 @@ struct Linearizer::Impl {
     p.nq = static_cast<int>(s.q.size());
     p.nf = static_cast<int>(b.cols());
     p.nb = static_cast<int>(nb);
-    p.free_slot = free_slot.data();
     p.q = s.q.data();
     p.qd = s.qd.data();
     p.qdd = s.qdd.data();
@@ -116,7 +146,7 @@ struct Linearizer::Impl {
   }
 };
 
-Linearizer::Linearizer(const CompiledModel& model, const ForceModel& forces, double t0)
+Linearizer::Linearizer(const CompiledModel& model, const ForceModel& forces, double t0, bool blocks)
     : model_(model),
       forces_(forces),
       dynamics_(model, forces, t0),
@@ -126,6 +156,7 @@ Linearizer::Linearizer(const CompiledModel& model, const ForceModel& forces, dou
   impl_->eval.set_inputs(dynamics_.input_slots());
   impl_->model_eval.set_inputs(dynamics_.input_slots());
   for (int d : model.mechanism().free_drivers()) impl_->free_slot.push_back(3 * d);
+  if (blocks && BlockTables::supported(model)) impl_->blocks = std::make_unique<BlockTables>(model);
 }
 
 Linearizer::~Linearizer() = default;
@@ -231,42 +262,45 @@ Eigen::VectorXd Linearizer::scales() const {
   return s;
 }
 
-// The kernel on the state s (evaluate()'s), with solves on one LU of Phi_q there.
+// The kernel on the state s (evaluate()'s), with solves on Phi_q there: through its blocks by
+// the block_linear kernel, as generated code solves (each call factors every block once for
+// all its columns), or where the blocks do not serve on one LU of all of Phi_q.
 bool Linearizer::tangent(const MotionState& s, const std::vector<int>& slots,
                          Eigen::MatrixXd& out) {
   Impl& w = *impl_;
-  const int nq = model_.nq(), nf = dynamics_.nf();
+  const int nq = model_.nq(), nf = dynamics_.nf(), ndir = static_cast<int>(slots.size());
   w.eval.run(s.q.data(), s.qd.data(), s.t, model_.params().data(), w.values.data());
-  w.jac.setZero(nq, nq);
-  w.model_eval.jacobian(s.q.data(), s.t, w.jac);
   const auto p = w.point(forces_, s, dynamics_.b());
   force_terms_ = dynamics_.b().cwiseAbs().transpose() *
                  Eigen::Map<const Eigen::VectorXd>(p.applied, nq).cwiseAbs();
-  w.work.resize(K::_tangent_work_size(nq, nf));
-  out.resize(nf, static_cast<Eigen::Index>(slots.size()));
-  const auto in_place = [nq](auto&& solver, double* x, int m) {
-    Eigen::Map<Eigen::MatrixXd> cols(x, nq, m);
-    cols = solver.solve(Eigen::MatrixXd(cols));
-    return cols.allFinite() ? 0 : 3;
-  };
+  w.work.resize(K::_tangent_work_size(nq, nf, ndir));
+  out.resize(nf, ndir);
   int status = 0;
-  if (nq <= 48) {
-    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(w.jac), lu_t(w.jac.transpose());
+  if (w.blocks) {
+    w.jac_values.resize(model_.programs().jac_rows.size());
+    w.model_eval.phi_q_values(s.q.data(), s.t, w.jac_values.data());
+    const BlockTables::Binding bound(*w.blocks);
+    const kernels::ReportKernel::BasicBlockOptions<double> options;
+    using Linear = kernels::BlockLinearKernel;
+    const auto copy = [&](const double* x, int m) { w.scratch.assign(x, x + nq * m); };
     status = K::_dynamics_tangent(
-        p, static_cast<int>(slots.size()), slots.data(), out.data(), w.work.data(),
-        [&](double* x, int m) { return in_place(lu, x, m); },
-        [&](double* x, int m) { return in_place(lu_t, x, m); });
+        p, ndir, slots.data(), out.data(), w.work.data(),
+        [&](double* x, int m) {
+          copy(x, m);
+          return Linear::_block_forward<RuntimeBlocks>(w.jac_values.data(), w.scratch.data(), x, m,
+                                                       options)
+              .status;
+        },
+        [&](double* x, int m) {
+          copy(x, m);
+          return Linear::_block_transposed<RuntimeBlocks>(w.jac_values.data(), w.scratch.data(), x,
+                                                          m, options)
+              .status;
+        });
   } else {
-    const Eigen::SparseMatrix<double> sparse = w.jac.sparseView(), sparse_t = sparse.transpose();
-    Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(sparse), lu_t(sparse_t);
-    if (lu.info() != Eigen::Success || lu_t.info() != Eigen::Success) {
-      status = 2;
-    } else {
-      status = K::_dynamics_tangent(
-          p, static_cast<int>(slots.size()), slots.data(), out.data(), w.work.data(),
-          [&](double* x, int m) { return in_place(lu, x, m); },
-          [&](double* x, int m) { return in_place(lu_t, x, m); });
-    }
+    w.jac.setZero(nq, nq);
+    w.model_eval.jacobian(s.q.data(), s.t, w.jac);
+    status = lu_tangent(w.jac, p, slots, out, w.work);
   }
   if (status == 0) return true;
   reason_ = status == 2 ? "the tangent's solves failed: Phi_q or the reduced mass is singular"

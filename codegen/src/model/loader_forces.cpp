@@ -96,6 +96,9 @@ void Loader::read_load_inputs(Load& load, const Mechanism& m) {
     in.component = component;
     in.name = component == 2 ? load.name : load.name + (component == 0 ? "_x" : "_y");
     in.index = count++;
+    for (const Parameter& prm : m.parameters)
+      if (prm.name == in.name)
+        fail(load.item, e->loc, "the input '" + in.name + "' is named like a parameter");
     for (const Constraint& d : m.drivers)
       if (d.name == in.name || d.name + "_v" == in.name || d.name + "_a" == in.name)
         fail(load.item, e->loc, "the input '" + in.name + "' is named like " + d.item + "'s");

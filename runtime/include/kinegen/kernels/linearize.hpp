@@ -8,7 +8,7 @@
 // Phi_q qdd = gamma(q, qd, t, w), M(q) qdd + h(q, qd) + Phi_q^T lambda = Q^A(q, qd, t, w), with
 // w the run-time inputs' slots (a free item's z, zd, zdd; an input driver's value, rate and
 // acceleration; a load's input) and lambda 0 on the free rows. Differentiated along one slot
-// (zdd held free): dq = -Phi_q^-1 Phi_w (B e_k for z_k), dqd = -Phi_q^-1 r_v with
+// (zdd held free): dq = -Phi_q^-1 Phi_w (= B e_k for z_k), dqd = -Phi_q^-1 r_v with
 // r_v = (Phi_q qd)_q dq - nu_q dq - nu_w, the acceleration residual
 // r_a = (Phi_q qdd)_q dq - gamma_q dq - gamma_qd dqd - gamma_w, so that dqdd = B dzdd - Phi_q^-1
 // r_a; projected on B (B^T Phi_q^T = E^T kills d lambda on the non-free rows, and lambda's free
@@ -45,8 +45,7 @@ struct LinearizeKernel : DynamicsKernel {
   template <class T>
   struct _TangentPoint {
     int nq = 0, nf = 0, nb = 0;
-    const int* free_slot = nullptr;  // nf: z_k's input slot (zd_k's the next, zdd_k's after)
-    const T* q = nullptr;            // the state: q, qd and the accelerations qdd
+    const T* q = nullptr;  // the state: q, qd and the accelerations qdd
     const T* qd = nullptr;
     const T* qdd = nullptr;
     const T* b = nullptr;     // dq/dz, nq x nf (column k at b + k nq)
@@ -128,29 +127,29 @@ struct LinearizeKernel : DynamicsKernel {
     }
   }
 
-  // The work space _dynamics_tangent needs, in T's.
-  static constexpr int _tangent_work_size(int nq, int nf) noexcept {
-    return 2 * nq * nf + nf * nf + 5 * nq;
+  // The work space _dynamics_tangent needs for ndir directions, in T's.
+  static constexpr int _tangent_work_size(int nq, int nf, int ndir) noexcept {
+    return nq * nf + nq * (nf + 1) + nf * nf + 2 * nq * ndir + 2 * nq;
   }
 
   // d(zdd)/d(w_slot) for each of the ndir slots (slots[i]: a free item's z or zd, or a
   // run-time input's; never a zdd), into dzdd (nf per slot, slot i's at dzdd + i nf). solve(x,
   // m) solves Phi_q X = X in place for m columns (each nq long); solve_transposed(x, m) solves
-  // Phi_q^T Y = X in place (X by coordinate, Y by row); both return 0 or their status. work:
-  // _tangent_work_size T's. Returns 0; 2 when M_z = B^T M B is not positive definite; 3 when a
-  // value is not finite; or a solve's status.
+  // Phi_q^T Y = X in place (X by coordinate, Y by row); both return 0 or their status. Three
+  // calls in all (nf + 1 transposed columns, then ndir, then ndir), so that a solver factors
+  // Phi_q's blocks once per call. work: _tangent_work_size T's. Returns 0; 2 when
+  // M_z = B^T M B is not positive definite; 3 when a value is not finite; or a solve's status.
   template <class T, class Solve, class SolveTransposed>
   static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir, const int* slots, T* dzdd,
                                T* work, Solve&& solve,
                                SolveTransposed&& solve_transposed) noexcept {
     const int nq = p.nq, nf = p.nf;
     T* mb = work;
-    T* y = mb + nq * nf;
-    T* mz = y + nq * nf;
-    T* lambda = mz + nf * nf;
-    T* dq = lambda + nq;
-    T* dqd = dq + nq;
-    T* r = dqd + nq;
+    T* y = mb + nq * nf;  // Phi_q^-T M B, then lambda in column nf
+    T* mz = y + nq * (nf + 1);
+    T* dq = mz + nf * nf;
+    T* dqd = dq + nq * ndir;
+    T* r = dqd + nq * ndir;
     T* f = r + nq;
     for (int k = 0; k < nf; ++k)
       _mass_times(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.b + k * nq, mb + k * nq);
@@ -158,14 +157,27 @@ struct LinearizeKernel : DynamicsKernel {
       for (int k = 0; k < nf; ++k) mz[i * nf + k] = _dot(nq, p.b + i * nq, mb + k * nq);
     const _real<T> ratio = _ldlt_factor(nf, mz);
     if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
-    // lambda from Phi_q^T lambda = Q^A - (M qdd + h); Y = Phi_q^-T M B.
+    // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
+    T* lambda = y + nq * nf;
+    for (int k = 0; k < nq * nf; ++k) y[k] = mb[k];
     _inertia_forces(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, f);
     for (int k = 0; k < nq; ++k) lambda[k] = p.applied[k] - f[k];
-    if (const int s = solve_transposed(lambda, 1)) return s;
-    for (int k = 0; k < nq * nf; ++k) y[k] = mb[k];
-    if (const int s = solve_transposed(y, nf)) return s;
+    if (const int s = solve_transposed(y, nf + 1)) return s;
+    // dq = -Phi_q^-1 Phi_w (B e_k for z_k), then dqd = -Phi_q^-1 r_v, all directions at once.
+    for (int i = 0; i < ndir * nq; ++i) dq[i] = T(0);
+    for (int i = 0; i < ndir; ++i) _sparse_column(p.phi_w, slots[i], T(-1), dq + i * nq);
+    if (const int s = solve(dq, ndir)) return s;
     for (int i = 0; i < ndir; ++i) {
-      if (const int s = _tangent_direction(p, slots[i], lambda, dq, dqd, r, f, solve)) return s;
+      T* v = dqd + i * nq;
+      for (int k = 0; k < nq; ++k) v[k] = T(0);
+      _hessian_times(p.phi_qq, p.qd, dq + i * nq, v);
+      _sparse_add(p.nu_q, T(-1), dq + i * nq, v);
+      _sparse_column(p.nu_w, slots[i], T(-1), v);
+      for (int k = 0; k < nq; ++k) v[k] = -v[k];
+    }
+    if (const int s = solve(dqd, ndir)) return s;
+    for (int i = 0; i < ndir; ++i) {
+      _tangent_residuals(p, slots[i], lambda, dq + i * nq, dqd + i * nq, r, f);
       T* out = dzdd + i * nf;
       for (int k = 0; k < nf; ++k) out[k] = _dot(nq, y + k * nq, r) - _dot(nq, p.b + k * nq, f);
       _ldlt_solve(nf, mz, out);
@@ -181,36 +193,13 @@ struct LinearizeKernel : DynamicsKernel {
     for (int k = 0; k < n; ++k) s += a[k] * b[k];
     return s;
   }
-  template <class T>
-  static bool _any_nonzero(int n, const T* v) noexcept {
-    for (int k = 0; k < n; ++k)
-      if (_mag(v[k]) != _real<T>(0)) return true;
-    return false;
-  }
 
-  // One slot's dq, dqd, the acceleration residual r (r_a) and the force f, as
-  // _dynamics_tangent describes them.
-  template <class T, class Solve>
-  static int _tangent_direction(const _TangentPoint<T>& p, int slot, const T* lambda, T* dq, T* dqd,
-                                T* r, T* f, Solve& solve) noexcept {
-    const int nq = p.nq;
-    int free = -1;
-    for (int k = 0; k < p.nf; ++k)
-      if (p.free_slot[k] == slot) free = k;
-    for (int k = 0; k < nq; ++k) dq[k] = free >= 0 ? p.b[free * nq + k] : T(0);
-    if (free < 0) {
-      _sparse_column(p.phi_w, slot, T(-1), dq);
-      if (_any_nonzero(nq, dq))
-        if (const int s = solve(dq, 1)) return s;
-    }
-    for (int k = 0; k < nq; ++k) dqd[k] = T(0);
-    _hessian_times(p.phi_qq, p.qd, dq, dqd);
-    _sparse_add(p.nu_q, T(-1), dq, dqd);
-    _sparse_column(p.nu_w, slot, T(-1), dqd);
-    for (int k = 0; k < nq; ++k) dqd[k] = -dqd[k];
-    if (_any_nonzero(nq, dqd))
-      if (const int s = solve(dqd, 1)) return s;
-    for (int k = 0; k < nq; ++k) r[k] = f[k] = T(0);
+  // One direction's acceleration residual r (r_a) and force f, as _dynamics_tangent describes
+  // them, from its dq and dqd.
+  template <class T>
+  static void _tangent_residuals(const _TangentPoint<T>& p, int slot, const T* lambda, const T* dq,
+                                 const T* dqd, T* r, T* f) noexcept {
+    for (int k = 0; k < p.nq; ++k) r[k] = f[k] = T(0);
     _hessian_times(p.phi_qq, p.qdd, dq, r);
     _sparse_add(p.gamma_q, T(-1), dq, r);
     _sparse_add(p.gamma_qd, T(-1), dqd, r);
@@ -220,7 +209,6 @@ struct LinearizeKernel : DynamicsKernel {
     _sparse_add(p.applied_q, T(-1), dq, f);
     _sparse_add(p.applied_qd, T(-1), dqd, f);
     _sparse_column(p.applied_w, slot, T(-1), f);
-    return 0;
   }
   // kinegen-kernel-end linearize
 };
