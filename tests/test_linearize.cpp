@@ -36,14 +36,17 @@ struct Setup {
       : model(compile(yaml)),
         forces(kc::derive_forces(*model)),
         lin(std::make_unique<kc::Linearizer>(*model, forces, 0.0)) {}
-  kc::OperatingPoint at(std::vector<double> z, std::vector<double> zd = {},
-                        std::vector<double> u = {}) const {
+  kc::OperatingPoint at(const std::vector<double>& z, const std::vector<double>& zd = {},
+                        const std::vector<double>& u = {}) const {
+    const auto vector = [](const std::vector<double>& v) {
+      Eigen::VectorXd out(static_cast<Eigen::Index>(v.size()));
+      for (std::size_t k = 0; k < v.size(); ++k) out[static_cast<Eigen::Index>(k)] = v[k];
+      return out;
+    };
     kc::OperatingPoint p = lin->initial();
-    p.z = Eigen::Map<Eigen::VectorXd>(z.data(), static_cast<Eigen::Index>(z.size()));
-    if (!zd.empty())
-      p.zd = Eigen::Map<Eigen::VectorXd>(zd.data(), static_cast<Eigen::Index>(zd.size()));
-    if (!u.empty())
-      p.u = Eigen::Map<Eigen::VectorXd>(u.data(), static_cast<Eigen::Index>(u.size()));
+    p.z = vector(z);
+    if (!zd.empty()) p.zd = vector(zd);
+    if (!u.empty()) p.u = vector(u);
     return p;
   }
 };
@@ -516,5 +519,32 @@ TEST_CASE("the exact Jacobians against the complex step and central differences"
     const Eigen::VectorXcd z = p.z.cast<C>(), zd = p.zd.cast<C>(), u = p.u.cast<C>();
     CHECK(relative(complex_zdd<C>(*s.model, s.forces, p.t, z, zd, u, state.q).real(), state.zdd,
                    scale) < 1e-13);
+  }
+}
+
+TEST_CASE("a distance free coordinate moves as its absolute_x twin (dq/dz of |d|^2 - z^2)",
+          "[linearize]") {
+  // A block on a rail pushed by 3 N, its free coordinate its x, or its distance from the
+  // origin (the same quantity where x > 0): zdd = F / m either way, and no stiffness.
+  const std::string x = R"(
+name: slide
+bodies:
+  - {name: block, q0: [2, 0, 0], mass: 2.0, inertia: 0.1}
+joints:
+  - {type: translational, i: ground, j: block, vi: [1, 0]}
+free:
+  - {type: absolute_x, name: s, body: block, value0: 2, v0: 0.5}
+forces:
+  - {type: force, body: block, f: [3, 0]}
+)";
+  std::string d = x;
+  d.replace(d.find("absolute_x, name: s, body: block"), 32,
+            "distance, name: s, i: ground, j: block");
+  for (const std::string& yaml : {x, d}) {
+    Setup s(yaml);
+    const kc::LinearModel l = kc::linearize(*s.lin, s.at({2.5}, {0.5}));
+    CHECK(l.xdot[1] == Approx(1.5).epsilon(1e-15));
+    CHECK(std::abs(l.a(1, 0)) < 1e-15);
+    CHECK(std::abs(l.a(1, 1)) < 1e-15);
   }
 }

@@ -393,9 +393,11 @@ bool ReducedDynamics::reduce(double t, MotionState& out) {
   const Mechanism& m = model_.mechanism();
   const std::vector<int> free = m.free_drivers();
   Impl& w = *impl_;
-  // B: Phi_q B = E, the free rows' unit vectors; one factorization for all columns.
+  // B: Phi_q B = E = -Phi_z, the free rows' unit vectors (their equations are quantity - z),
+  // but 2 z for a distance (|d|^2 - z^2); one factorization for all columns.
   Eigen::MatrixXd e = Eigen::MatrixXd::Zero(nq_, nf_);
-  for (int k = 0; k < nf_; ++k) e(free_rows_[k], k) = 1;
+  for (int k = 0; k < nf_; ++k)
+    e(free_rows_[k], k) = is_distance(m.drivers[free[k]]) ? 2 * out.z[k] : 1;
   if (nq_ <= 48) {
     b_ = Eigen::PartialPivLU<Eigen::MatrixXd>(w.jac).solve(e);
   } else {

@@ -269,7 +269,12 @@ bool Linearizer::tangent(const MotionState& s, const std::vector<int>& slots,
                          Eigen::MatrixXd& out) {
   Impl& w = *impl_;
   const int nq = model_.nq(), nf = dynamics_.nf(), ndir = static_cast<int>(slots.size());
+  // The derivatives at the state itself: the free items' acceleration slots hold zdd (the
+  // dynamics solved with them at 0, for c), which gamma of a distance item reads (2 z zdd).
+  double* inputs = dynamics_.input_slots();
+  for (int k = 0; k < nf; ++k) inputs[w.free_slot[k] + 2] = s.zdd[k];
   w.eval.run(s.q.data(), s.qd.data(), s.t, model_.params().data(), w.values.data());
+  for (int k = 0; k < nf; ++k) inputs[w.free_slot[k] + 2] = 0;
   const auto p = w.point(forces_, s, dynamics_.b());
   force_terms_ = dynamics_.b().cwiseAbs().transpose() *
                  Eigen::Map<const Eigen::VectorXd>(p.applied, nq).cwiseAbs();
