@@ -75,6 +75,8 @@ Subcommand add_animate(CLI::App& app, Common& common) {
   animate->add_option("--at", o->at, "--mode about this point (as kinegen modes --at)");
   return {animate, [&common, o, t0, t1, steps] {
             o->grid_given = *t0 && *t1 && *steps;
+            if (o->mode != 0 && (*t0 || *t1))
+              throw kc::UsageError("--t0 and --t1 do not apply to --mode (one period is drawn)");
             if (!o->grid_given && o->mode == 0 && (*t0 || *t1 || *steps))
               throw kc::UsageError("animate needs all of --t0, --t1 and --steps");
             if (o->mode != 0 && !*steps) o->animate.grid.steps = 40;  // frames per period
