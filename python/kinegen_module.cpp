@@ -26,6 +26,7 @@
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "kinegen/codegen/model/table.hpp"
+#include "dynamics_api.hpp"
 #include "view_page.hpp"
 
 namespace py = pybind11;
@@ -308,6 +309,16 @@ class Mechanism {
     return out;
   }
 
+  // Forward dynamics and its linearization (format 7.3-7.5, dynamics_api.hpp), their errors
+  // turned into the module's exceptions.
+  template <class F>
+  auto with_dynamics(F&& f) {
+    return translate(path_, [&] {
+      if (!dynamics_) dynamics_ = std::make_unique<kinegen::python::DynamicsApi>(*model_);
+      return f(*dynamics_);
+    });
+  }
+
   std::string name() const { return model_->mechanism().name; }
   const std::string& path() const { return path_; }
   int nq() const { return model_->nq(); }
@@ -318,6 +329,7 @@ class Mechanism {
   std::vector<kc::ParamOverride> overrides_;
   kc::BuildOptions build_;
   std::unique_ptr<kc::CompiledModel> model_;
+  std::unique_ptr<kinegen::python::DynamicsApi> dynamics_;
 };
 
 }  // namespace
@@ -380,6 +392,62 @@ PYBIND11_MODULE(kinegen, m) {
           py::arg("width") = 800,
           "The page of kinegen view (an analysis t0, t1, steps; csv=RUN.csv; or modes=FILE.json) "
           "as a kinegen.Page, written to path if given; Jupyter shows it inline.")
+      .def(
+          "simulate",
+          [](Mechanism& mech, double t1, int steps, double rtol, double atol,
+             const std::string& method, double t0, const std::string& integrator, bool forces) {
+            kinegen::python::SimulateArgs a{t0, t1, steps, rtol, atol, method, integrator, forces};
+            return mech.with_dynamics([&](auto& d) { return d.simulate(a); });
+          },
+          py::arg("t1"), py::arg("steps"), py::kw_only(), py::arg("rtol") = 1e-8,
+          py::arg("atol") = 1e-10, py::arg("method") = "minimal", py::arg("t0") = 0.0,
+          py::arg("integrator") = "auto", py::arg("forces") = false,
+          "Forward dynamics (kinegen simulate): rows at t0 + k (t1 - t0) / steps, a dict from "
+          "simulate's CSV column names to numpy arrays, in the CSV's order.")
+      .def(
+          "dynamics",
+          [](Mechanism& mech, double t, const std::vector<double>& z,
+             const std::vector<double>& zd, kinegen::python::OptionalValues u) {
+            return mech.with_dynamics([&](auto& d) { return d.dynamics(t, z, zd, u); });
+          },
+          py::arg("t"), py::arg("z"), py::arg("zd"), py::arg("u") = py::none(),
+          "zdd at (t, z, zd, u): the free coordinates' accelerations under the forces, u the "
+          "run-time inputs (Mechanism.inputs; default zeros). x' = (zd, zdd) is what "
+          "linearize linearizes.")
+      .def(
+          "equilibrium",
+          [](Mechanism& mech, double t, kinegen::python::OptionalValues u) {
+            return mech.with_dynamics([&](auto& d) { return d.equilibrium(t, u); });
+          },
+          py::kw_only(), py::arg("t") = 0.0, py::arg("u") = py::none(),
+          "kinegen equilibrium: Newton from value0 on B^T Q^A = 0; a dict with z, q, the "
+          "reactions (forces), M_z, K_z, the stability and its directions.")
+      .def(
+          "modes",
+          [](Mechanism& mech, double t, kinegen::python::OptionalValues z,
+             kinegen::python::OptionalValues u) {
+            return mech.with_dynamics([&](auto& d) { return d.modes(t, z, u); });
+          },
+          py::kw_only(), py::arg("t") = 0.0, py::arg("z") = py::none(),
+          py::arg("u") = py::none(),
+          "kinegen modes: about the equilibrium (or z), M_z, K_z, C_z, the frequencies (Hz), "
+          "damping ratios and shapes (one row of dq per mode).")
+      .def(
+          "linearize",
+          [](Mechanism& mech, double t, kinegen::python::OptionalValues z,
+             kinegen::python::OptionalValues zd, kinegen::python::OptionalValues u) {
+            return mech.with_dynamics([&](auto& d) { return d.linearize(t, z, zd, u); });
+          },
+          py::kw_only(), py::arg("t") = 0.0, py::arg("z") = py::none(),
+          py::arg("zd") = py::none(), py::arg("u") = py::none(),
+          "kinegen linearize: the exact A and B of x' = f(x, u), x = (z, zd), at the point "
+          "(defaults value0, v0, zeros), as a dict of numpy arrays with the names of x and u.")
+      .def_property_readonly(
+          "free", [](Mechanism& mech) { return mech.with_dynamics([](auto& d) { return d.free_names(); }); },
+          "Names of the free coordinates z (format 7.1), in order.")
+      .def_property_readonly(
+          "inputs", [](Mechanism& mech) { return mech.with_dynamics([](auto& d) { return d.input_names(); }); },
+          "Names of the run-time inputs u (f: input drivers' D, D_v, D_a; loads' inputs), in order.")
       .def_property_readonly("coordinates", &Mechanism::coordinates,
                              "Names of the coordinates q, in order (body.x, body.y, body.phi).")
       .def_property_readonly("parameters", &Mechanism::parameters,

@@ -72,8 +72,10 @@ struct ReducedDynamics::Impl {
         potential(potential_program),
         free_program(lower(model.symbolic().free_values, model.symbols())),
         free_values(free_program),
-        inputs(3 * model.mechanism().drivers.size(), 0.0) {
+        inputs(model.mechanism().input_slots(), 0.0) {
     eval.set_inputs(inputs.data());
+    applied.set_inputs(inputs.data());
+    nonconservative.set_inputs(inputs.data());
     if (model.nq() == model.nc() && BlockInterpreter::supported(model.structure())) {
       blocks = std::make_unique<BlockInterpreter>(model);
       blocks->set_inputs(inputs.data());
@@ -92,7 +94,9 @@ struct ReducedDynamics::Impl {
   ProgramEvaluator<double> potential;
   Program free_program;
   ProgramEvaluator<double> free_values;
-  std::vector<double> inputs;  // 3 per driver: the free items' z, zd and 0 (zdd)
+  // 3 per driver (the free items' z, zd and 0 (zdd); an input driver's value, rate and
+  // acceleration), then the loads' inputs (Mechanism::input_slots).
+  std::vector<double> inputs;
   std::unique_ptr<BlockInterpreter> blocks;
   std::optional<BasicSolver<ProgramSystem>> dense;  // where the block program does not serve
   std::unique_ptr<ForceSolver> force_solver;        // the prescribed drivers' power
@@ -105,6 +109,7 @@ struct ReducedDynamics::Impl {
   bool have_last = false;
   double t_last = 0;
   Eigen::VectorXd z_last, q_last, rheonomic_last;  // rheonomic: qd - B zd (the drivers' part)
+  std::vector<double> inputs_last;                  // the input slots at the last solution
 
   // Each body's mass, inertia and rotated centre of mass at q, for the mass kernel.
   void mass_data(const ForceModel& f, const Eigen::VectorXd& q) {
@@ -147,6 +152,7 @@ ReducedDynamics::ReducedDynamics(const CompiledModel& model, const ForceModel& f
   // Prescribed drivers whose rate is not 0 do work: their efforts come from a force solve.
   for (std::size_t d = 0; d < m.drivers.size(); ++d)
     if (!m.drivers[d].free) impl_->force_solver = std::make_unique<ForceSolver>(model, forces);
+  if (impl_->force_solver) impl_->force_solver->set_inputs(impl_->inputs.data());
   check_at_t0(t0);
 }
 
@@ -344,6 +350,8 @@ std::string ReducedDynamics::singular_diagnosis(double t, const double* z, const
   return reason_;
 }
 
+double* ReducedDynamics::input_slots() { return impl_->inputs.data(); }
+
 bool ReducedDynamics::evaluate(double t, const double* z, const double* zd, MotionState& out) {
   return solve(t, z, zd, out);
 }
@@ -385,9 +393,11 @@ bool ReducedDynamics::reduce(double t, MotionState& out) {
   const Mechanism& m = model_.mechanism();
   const std::vector<int> free = m.free_drivers();
   Impl& w = *impl_;
-  // B: Phi_q B = E, the free rows' unit vectors; one factorization for all columns.
+  // B: Phi_q B = E = -Phi_z, the free rows' unit vectors (their equations are quantity - z),
+  // but 2 z for a distance (|d|^2 - z^2); one factorization for all columns.
   Eigen::MatrixXd e = Eigen::MatrixXd::Zero(nq_, nf_);
-  for (int k = 0; k < nf_; ++k) e(free_rows_[k], k) = 1;
+  for (int k = 0; k < nf_; ++k)
+    e(free_rows_[k], k) = is_distance(m.drivers[free[k]]) ? 2 * out.z[k] : 1;
   if (nq_ <= 48) {
     b_ = Eigen::PartialPivLU<Eigen::MatrixXd>(w.jac).solve(e);
   } else {
@@ -458,7 +468,14 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
   w.eval.jacobian(out.q.data(), t, w.jac);
   condition_ = condition;
   if (condition > kMaxCondition) return singular_failure(t, out, false, -1);
-  if (w.have_last) {
+  // A run-time input driver's value set anew since the last solve (equilibrium, modes,
+  // linearize, Python's dynamics): the prediction knows nothing of it, so this solve, like the
+  // first, is not checked against it.
+  bool inputs_moved = false;
+  for (std::size_t d = 0; w.have_last && d < m.drivers.size(); ++d)
+    if (m.drivers[d].law.input && !m.drivers[d].free)
+      inputs_moved = inputs_moved || w.inputs[3 * d] != w.inputs_last[3 * d];
+  if (w.have_last && !inputs_moved) {
     // The branch check: the solution must agree with the first-order prediction to far better
     // than the predicted change itself (the miss is second order in the step).
     double change = 0, miss = 0;
@@ -481,6 +498,7 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
   w.z_last = out.z;
   w.q_last = out.q;
   w.rheonomic_last = out.qd - b_ * out.zd;
+  w.inputs_last = w.inputs;
   return true;
 }
 

@@ -73,5 +73,8 @@ Subcommand add_animate(CLI::App& app, Common& common);
 Subcommand add_tolerance(CLI::App& app, Common& common);
 Subcommand add_simulate(CLI::App& app, Common& common);
 Subcommand add_view(CLI::App& app, Common& common);
+Subcommand add_equilibrium(CLI::App& app, Common& common);
+Subcommand add_modes(CLI::App& app, Common& common);
+Subcommand add_linearize(CLI::App& app, Common& common);
 
 }  // namespace kinegen::cli

@@ -114,7 +114,8 @@ int main(int argc, char** argv) {
   const std::vector<Subcommand> subs = {
       add_generate(app, common), add_analyze(app, common), add_eval(app, common),
       add_check(app, common),    add_animate(app, common), add_tolerance(app, common),
-      add_simulate(app, common), add_view(app, common),
+      add_simulate(app, common), add_equilibrium(app, common), add_modes(app, common),
+      add_linearize(app, common), add_view(app, common),
   };
 
   try {

@@ -300,6 +300,9 @@ void emit_params(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
        << "    double " << input_member(m, k, 0) << " = 0, " << input_member(m, k, 1) << " = 0, "
        << input_member(m, k, 2) << " = 0;\n";
   }
+  for (const Load::Input* in : m.load_inputs())
+    if (in->table_id < 0)
+      os << "    double " << in->name << " = 0;  // a load's input (format 7.5), set at run time\n";
   os << "  };\n\n";
 }
 

@@ -27,6 +27,9 @@ std::string safe_comment_text(const std::string& s) {
 // acceleration, NAME, NAME_v and NAME_a.
 std::string input_member(const Mechanism& m, int driver, int order) {
   static const char* const kSuffix[] = {"", "_v", "_a"};
+  const int nd = static_cast<int>(m.drivers.size());
+  if (driver >= nd)  // a load's input (Load::Input): slots after the drivers', its value only
+    return m.load_inputs().at(static_cast<std::size_t>(driver - nd))->name + kSuffix[order];
   return m.drivers.at(static_cast<std::size_t>(driver)).name + kSuffix[order];
 }
 

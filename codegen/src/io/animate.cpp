@@ -16,6 +16,13 @@ void Picture::solve() {
                      std::to_string(g.steps) + ")");
   if (options_.width < 50 || options_.width > 20000)
     throw UsageError("--width must be between 50 and 20000 pixels");
+  if (!options_.positions.empty()) {  // given (a mode): drawn as they are, at the grid's times
+    q_ = options_.positions;
+    for (std::size_t k = 0; k < q_.size(); ++k)
+      t_.push_back(g.t0 + (g.t1 - g.t0) * static_cast<double>(k) /
+                              std::max<double>(1.0, static_cast<double>(q_.size() - 1)));
+    return;
+  }
   AnalysisOptions analysis;
   analysis.warn = options_.warn;
   if (options_.forces) {

@@ -49,8 +49,10 @@ std::string Picture::emit() {
   os << "  <rect width=\"100%\" height=\"100%\" fill=\"" << kBackgroundColour << "\"/>\n";
   const auto short_number = [](double v) { return format_number(v, NumberStyle::kShort); };
   const std::string title =
-      m.name + (still() ? "   t = " + short_number(t_[options_.frame])
-                        : "   t = " + short_number(g.t0) + " .. " + short_number(g.t1));
+      !options_.title.empty()
+          ? options_.title
+          : m.name + (still() ? "   t = " + short_number(t_[options_.frame])
+                              : "   t = " + short_number(g.t0) + " .. " + short_number(g.t1));
   os << "  <text x=\"" << num(kMargin) << "\" y=\"" << num(kTitle * 0.7)
      << "\" font-family=\"sans-serif\" font-size=\"14\" fill=\"#333333\">" << escape(title)
      << "</text>\n";

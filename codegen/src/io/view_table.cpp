@@ -200,10 +200,17 @@ ModeSet read_modes_json(const std::string& path, const CompiledModel& model) {
     }
     return v;
   };
+  // `kinegen modes`' JSON adds what the page does not draw (format 7.4: the point, M_z, K_z,
+  // C_z, the damped frequencies, ...); those keys are read past, anything else is a mistake.
+  const std::string known =
+      " coordinates q frequencies shapes t equilibrium stability free z mass stiffness damping "
+      "damped_frequencies damping_ratios kinds shapes_z ";
   for (const auto& key : root) {
     const std::string k = key.first.as<std::string>();
-    if (k != "coordinates" && k != "q" && k != "frequencies" && k != "shapes")
-      fail(key.first, k, "unknown key (the keys are coordinates, q, frequencies, shapes)");
+    if (known.find(" " + k + " ") == std::string::npos)
+      fail(key.first, k,
+           "unknown key (the keys are coordinates, q, frequencies, shapes, and those kinegen "
+           "modes writes beside them)");
   }
   if (const YAML::Node c = root["coordinates"]) {
     if (!c.IsSequence() || c.size() != labels.size())

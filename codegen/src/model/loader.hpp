@@ -82,6 +82,7 @@ class Loader {
   // Applied loads (format 6.5). Defaults beyond the spec's: s, si, sj [0, 0]; damping 0;
   // rotational angle0 0.
   void read_forces(const YAML::Node& node, Mechanism& m);
+  void read_load_inputs(Load& load, const Mechanism& m);
   void read_points(const YAML::Node& node, Mechanism& m);
   // Parameters, coordinates (x_<body>, ...) and points share one namespace in expressions and
   // CSV headers; a clash would make an expression or a column ambiguous.

@@ -74,7 +74,39 @@ void Loader::read_forces(const YAML::Node& node, Mechanism& m) {
     if (f["length0"]) load.length0 = expr_of(f["length0"], item + " length0");
     if (f["preload"]) load.preload = expr_of(f["preload"], item + " preload");
     if (f["angle0"]) load.angle0 = expr_of(f["angle0"], item + " angle0");
+    read_load_inputs(load, m);
     m.forces.loads.push_back(std::move(load));
+  }
+}
+
+// A force's component or a torque's value written `input` (format 7.5) is a run-time input,
+// named after the load: the torque's name, or name_x / name_y for a force's components.
+void Loader::read_load_inputs(Load& load, const Mechanism& m) {
+  const std::pair<const Expr*, int> components[] = {
+      {&load.f.x, 0}, {&load.f.y, 1}, {&load.value, 2}};
+  int count = 0;
+  for (const Load& l : m.forces.loads) count += static_cast<int>(l.inputs.size());
+  for (const auto& [e, component] : components) {
+    if (e->text != "input") continue;
+    if (load.kind != Load::Kind::kForce && load.kind != Load::Kind::kTorque) continue;
+    if (load.name.empty())
+      fail(load.item, e->loc,
+           "a run-time input needs the load's `name` (the input is named after it)");
+    Load::Input in;
+    in.component = component;
+    in.name = component == 2 ? load.name : load.name + (component == 0 ? "_x" : "_y");
+    in.index = count++;
+    for (const Parameter& prm : m.parameters)
+      if (prm.name == in.name)
+        fail(load.item, e->loc, "the input '" + in.name + "' is named like a parameter");
+    for (const Constraint& d : m.drivers)
+      if (d.name == in.name || d.name + "_v" == in.name || d.name + "_a" == in.name)
+        fail(load.item, e->loc, "the input '" + in.name + "' is named like " + d.item + "'s");
+    for (const Load& l : m.forces.loads)
+      for (const Load::Input& other : l.inputs)
+        if (other.name == in.name)
+          fail(load.item, e->loc, "the input '" + in.name + "' is also " + l.item + "'s");
+    load.inputs.push_back(in);
   }
 }
 

@@ -86,6 +86,29 @@ std::vector<int> Mechanism::free_drivers() const {
   return out;
 }
 
+std::vector<const Load::Input*> Mechanism::load_inputs() const {
+  std::vector<const Load::Input*> out;
+  for (const Load& l : forces.loads)
+    for (const Load::Input& in : l.inputs) out.push_back(&in);
+  return out;
+}
+
+std::vector<RunInput> run_inputs(const Mechanism& m) {
+  std::vector<RunInput> out;
+  for (std::size_t d = 0; d < m.drivers.size(); ++d) {
+    const Constraint& c = m.drivers[d];
+    if (!c.law.input || c.free) continue;
+    const int slot = 3 * static_cast<int>(d);
+    out.push_back({c.name, slot});
+    out.push_back({c.name + "_v", slot + 1});
+    out.push_back({c.name + "_a", slot + 2});
+  }
+  const int nd = static_cast<int>(m.drivers.size());
+  for (const Load::Input* in : m.load_inputs())
+    if (in->table_id < 0) out.push_back({in->name, 3 * (nd + in->index)});
+  return out;
+}
+
 std::optional<int> Mechanism::find_body(const std::string& name) const {
   for (std::size_t k = 0; k < bodies.size(); ++k)
     if (bodies[k].name == name) return static_cast<int>(k);

@@ -177,6 +177,24 @@ std::string table_outside(const Mechanism& m, double t) {
   return "";
 }
 
+namespace {
+
+// A load's input (format 7.5) named `name` given its table: true, or false when there is none.
+bool apply_load_input(Mechanism& m, const std::string& name, const std::string& path) {
+  for (Load& l : m.forces.loads)
+    for (Load::Input& in : l.inputs) {
+      if (in.name != name) continue;
+      const TableSource src{m.source, l.item + " --input " + name, l.loc, false};
+      std::vector<double> t, v;
+      read_table(fs::absolute(path).string(), src, t, v);
+      in.table_id = register_table(fit_not_a_knot(t, v));
+      return true;
+    }
+  return false;
+}
+
+}  // namespace
+
 void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::string>>& inputs,
                   bool required, bool free_as_state) {
   std::set<std::string> given;
@@ -185,9 +203,10 @@ void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::st
     Constraint* driver = nullptr;
     for (Constraint& d : m.drivers)
       if (d.name == name && d.law.input && !(d.free && free_as_state)) driver = &d;
+    if (!driver && apply_load_input(m, name, path)) continue;
     if (!driver)
       throw UsageError("--input " + name + ": " + m.source +
-                       " has no input driver (f: input) named '" + name + "'" +
+                       " has no input driver (f: input) or load input named '" + name + "'" +
                        (free_as_state ? " (a free coordinate's motion is the simulation's)" : ""));
     const TableSource src{m.source, driver->item + " --input " + name, driver->value.loc, false};
     std::vector<double> t, v;
@@ -210,6 +229,11 @@ void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::st
       throw UsageError(d.item + " is an input driver (f: input): give its values with --input " +
                        d.name + "=FILE.csv (columns t,value)");
   }
+  for (const Load& l : m.forces.loads)
+    for (const Load::Input& in : l.inputs)
+      if (in.table_id < 0)
+        throw UsageError(l.item + " has a run-time input: give its values with --input " +
+                         in.name + "=FILE.csv (columns t,value)");
 }
 
 bool Spline::eval(double x, double* f) const {

@@ -6,6 +6,7 @@
 
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"
+#include "kinegen/codegen/symbolic/functions.hpp"
 
 namespace kinegen::codegen {
 
@@ -70,6 +71,17 @@ class Builder {
     q[3 * b + 1] += fy;
     q[3 * b + 2] += a.x * fy - a.y * fx;  // (A s) x F
   }
+  // A force's component or a torque's value: its expression, or for a component written
+  // `input` (Load::Input) the run-time input (slot 3 (drivers + index), like an input
+  // driver's value), or the table --input gave it.
+  ex load_value(const Load& load, const Expr& e, int component, const std::string& item) const {
+    for (const Load::Input& in : load.inputs) {
+      if (in.component != component) continue;
+      if (in.table_id >= 0) return kinegen_table(in.table_id, 0, s_.t());
+      return kinegen_input(static_cast<int>(m_.drivers.size()) + in.index, 0, s_.t());
+    }
+    return parse(e, Scope::kLoad, item);
+  }
   void add_torque(std::vector<ex>& q, int b, const ex& tz) const {
     if (b != kGround) q[3 * b + 2] += tz;
   }
@@ -85,13 +97,14 @@ class Builder {
 void add_load(const Builder& b, const Load& load, ForceModel& f) {
   switch (load.kind) {
     case Load::Kind::kForce: {
-      const Vec fv = b.vec(load.f, Scope::kLoad, load.item + " f");
+      const Vec fv{b.load_value(load, load.f.x, 0, load.item + " f"),
+                   b.load_value(load, load.f.y, 1, load.item + " f")};
       const Vec at = b.vec(load.s, Scope::kGeometry, load.item + " s");
       for (auto* q : {&f.applied, &f.nonconservative}) b.add_force(*q, load.body, at, fv.x, fv.y);
       break;
     }
     case Load::Kind::kTorque: {
-      const ex tz = b.parse(load.value, Scope::kLoad, load.item);
+      const ex tz = b.load_value(load, load.value, 2, load.item);
       for (auto* q : {&f.applied, &f.nonconservative}) b.add_torque(*q, load.body, tz);
       break;
     }

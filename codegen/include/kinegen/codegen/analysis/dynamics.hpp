@@ -82,6 +82,11 @@ class ReducedDynamics {
   // dq/dz at the last successful evaluation (nq x nf).
   const Eigen::MatrixXd& b() const { return b_; }
 
+  // The run-time inputs' values (Mechanism::input_slots: 3 per driver, then the loads'
+  // inputs), which the programs read: set an input driver's or a load's here (run_inputs
+  // names them); the free items' slots are the state, written by each evaluation. 0 until set.
+  double* input_slots();
+
  private:
   struct Impl;
   bool solve(double t, const double* z, const double* zd, MotionState& out);

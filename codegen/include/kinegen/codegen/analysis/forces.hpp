@@ -142,6 +142,10 @@ class ForceSolver {
   ForceSolver(const ForceSolver&) = delete;
   ForceSolver& operator=(const ForceSolver&) = delete;
 
+  // The run-time inputs' values that Q^A reads (a load's input; Mechanism::input_slots), not
+  // owned; without, they are 0.
+  void set_inputs(const double* inputs) { applied_.set_inputs(inputs); }
+
   // Returns false when Phi_q^T is singular by force_min_rcond's rule, or lambda is not finite
   // (then `columns` is NaN).
   bool solve(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,

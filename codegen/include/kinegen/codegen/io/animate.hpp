@@ -26,6 +26,10 @@ struct AnimateOptions {
   bool forces = false;
   // Receives the analysis' warnings (one line each, without "warning: "); none if empty.
   std::function<void(const std::string&)> warn;
+  // Positions to draw instead of an analysis (one per frame, at the grid's times; a mode of
+  // `kinegen animate --mode`), and the title that says what they are (default: the times).
+  std::vector<Eigen::VectorXd> positions;
+  std::string title;
 };
 
 // The colours a test (or a user's stylesheet) can rely on.

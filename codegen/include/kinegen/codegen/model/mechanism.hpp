@@ -146,6 +146,18 @@ struct Load {
   Vec2 f;                 // force: global components
   Expr value;             // torque
   Expr stiffness, damping, length0, preload, angle0;
+  // Components written `input` (format 7.5): run-time inputs, like an input driver's value.
+  // component: 0 and 1 a force's x and y, 2 a torque's value; name: the load's name (a
+  // torque) or name_x / name_y (a force); index: its place among the mechanism's load inputs
+  // (file order); table_id: the table `--input NAME=FILE.csv` gave it, -1 while it is a
+  // run-time input.
+  struct Input {
+    int component = 0;
+    std::string name;
+    int index = 0;
+    int table_id = -1;
+  };
+  std::vector<Input> inputs;
 };
 
 struct ForceSpec {
@@ -184,7 +196,24 @@ struct Mechanism {
   // follow the file's drivers there.
   std::vector<int> free_drivers() const;
   int num_free() const { return static_cast<int>(free_drivers().size()); }
+  // The loads' inputs (Load::inputs), in file order.
+  std::vector<const Load::Input*> load_inputs() const;
+  // The slots of the run-time inputs' values (ProgramEvaluator::set_inputs): 3 per driver
+  // (value, rate, acceleration), then 3 per load input (its value first).
+  int input_slots() const {
+    return 3 * (static_cast<int>(drivers.size()) + static_cast<int>(load_inputs().size()));
+  }
 };
+
+// The run-time inputs u of the dynamics (format 7.5), in order: each input driver that is not
+// free (f: input) as its value, rate and acceleration (named D, D_v, D_a, as a generated
+// header's Params members), then each load input still without a table (Load::Input::name),
+// with its slot in the inputs array.
+struct RunInput {
+  std::string name;
+  int slot = 0;
+};
+std::vector<RunInput> run_inputs(const Mechanism& mechanism);
 
 // Reads and validates a mechanism file. Throws InputError naming the file, item and line.
 Mechanism load_mechanism(const std::string& path);

@@ -7,8 +7,9 @@
 // table of the expression language's functions and motion laws. Beside derive, from the same
 // pieces (and the Mechanism's ForceSpec): the kinetostatic expressions (forces.hpp:
 // derive_forces gives a ForceModel, Q^A and the mass data and reaction points; force_columns)
-// and the parameter derivatives (sensitivity.hpp: derive_phi_p, derive_output_p), which the
-// emitter prints and the analysis evaluates. Next: the program stage (lowering) and the
+// the parameter derivatives (sensitivity.hpp: derive_phi_p, derive_output_p) and the
+// derivatives the dynamics' tangent needs (tangent.hpp: derive_tangent), which the emitter
+// prints and the analysis evaluates. Next: the program stage (lowering) and the
 // structure stage (BLT).
 #pragma once
 
@@ -16,3 +17,4 @@
 #include "kinegen/codegen/symbolic/functions.hpp"
 #include "kinegen/codegen/symbolic/sensitivity.hpp"
 #include "kinegen/codegen/symbolic/symbolic.hpp"
+#include "kinegen/codegen/symbolic/tangent.hpp"

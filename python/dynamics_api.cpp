@@ -1,0 +1,248 @@
+// The Python module's dynamics (see dynamics_api.hpp).
+#include "dynamics_api.hpp"
+
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <cstdlib>
+
+#include "kinegen/codegen/analysis/equilibrium.hpp"
+#include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/simulate.hpp"
+#include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/model/table.hpp"
+
+namespace kinegen::python {
+
+namespace kc = kinegen::codegen;
+
+namespace {
+
+py::array_t<double> vector(const Eigen::VectorXd& v) {
+  py::array_t<double> a(v.size());
+  std::copy(v.data(), v.data() + v.size(), a.mutable_data());
+  return a;
+}
+
+py::array_t<double> matrix(const Eigen::MatrixXd& m) {
+  py::array_t<double> a({m.rows(), m.cols()});
+  for (Eigen::Index r = 0; r < m.rows(); ++r)
+    for (Eigen::Index c = 0; c < m.cols(); ++c) a.mutable_at(r, c) = m(r, c);
+  return a;
+}
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> items;
+  for (std::size_t b = 0, e; b <= line.size(); b = e + 1) {
+    e = std::min(line.find(',', b), line.size());
+    items.push_back(line.substr(b, e - b));
+  }
+  return items;
+}
+
+Eigen::VectorXd values(const std::vector<double>& v, Eigen::Index n, const std::string& what,
+                       const std::string& names) {
+  if (static_cast<Eigen::Index>(v.size()) != n)
+    throw kc::UsageError(what + " expects " + std::to_string(n) + " value" + (n == 1 ? "" : "s") +
+                         " (" + names + "), got " + std::to_string(v.size()));
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), n);
+}
+
+std::string joined(const std::vector<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
+  return s.empty() ? "none" : s;
+}
+
+}  // namespace
+
+DynamicsApi::DynamicsApi(const kc::CompiledModel& model) : model_(model) {}
+DynamicsApi::~DynamicsApi() = default;
+
+std::vector<std::string> DynamicsApi::free_names() const {
+  return kc::free_names(model_.mechanism());
+}
+
+std::vector<std::string> DynamicsApi::input_names() const {
+  return kc::input_names(model_.mechanism());
+}
+
+kc::Linearizer& DynamicsApi::linearizer(double t0, const std::string& command) {
+  if (model_.mechanism().num_free() == 0)
+    throw kc::UsageError("Mechanism." + command +
+                         " needs free coordinates (format 7.1: `free:` lists the degrees of "
+                         "freedom that the forces move), and the file has none");
+  if (!std::isfinite(t0)) throw kc::UsageError("t must be finite");
+  if (!forces_) forces_ = std::make_unique<kc::ForceModel>(kc::derive_forces(model_));
+  if (!linearizer_ || t0 != t0_) {
+    linearizer_ = std::make_unique<kc::Linearizer>(model_, *forces_, t0);
+    t0_ = t0;
+  }
+  return *linearizer_;
+}
+
+kc::OperatingPoint DynamicsApi::point(kc::Linearizer& lin, double t, const OptionalValues& z,
+                                      const OptionalValues& zd, const OptionalValues& u) const {
+  kc::OperatingPoint p = lin.initial();
+  p.t = t;
+  const std::string names = joined(free_names());
+  if (z) p.z = values(*z, lin.nf(), "z", names);
+  if (zd) p.zd = values(*zd, lin.nf(), "zd", names);
+  if (u) p.u = values(*u, lin.nu(), "u", "the run-time inputs: " + joined(input_names()));
+  return p;
+}
+
+py::dict DynamicsApi::simulate(const SimulateArgs& a) {
+  // The command line's checks (cli/simulate.cpp) and its model: the free coordinates the
+  // state, every input driver given its table.
+  if (a.steps < 1) throw kc::UsageError("--steps must be at least 1");
+  if (!std::isfinite(a.t0) || !std::isfinite(a.t1) || !(a.t1 > a.t0))
+    throw kc::UsageError("t1 must come after t0, both finite: a simulation runs forward in time");
+  if (!std::isfinite(a.rtol) || !(a.rtol > 0) || a.rtol >= 1)
+    throw kc::UsageError("rtol must be a finite number in (0, 1)");
+  if (!std::isfinite(a.atol) || !(a.atol > 0))
+    throw kc::UsageError("atol must be a finite number above 0");
+  if (a.method != "minimal" && a.method != "augmented")
+    throw kc::UsageError("method must be 'minimal' or 'augmented', not '" + a.method + "'");
+  if (a.integrator != "auto" && a.integrator != "bdf" && a.integrator != "adams")
+    throw kc::UsageError("integrator must be 'auto', 'bdf' or 'adams', not '" + a.integrator + "'");
+  {
+    kc::Mechanism copy = model_.mechanism();
+    kc::apply_inputs(copy, {}, true, true);
+  }
+  if (!forces_) forces_ = std::make_unique<kc::ForceModel>(kc::derive_forces(model_));
+  kc::SimulateOptions options;
+  options.rtol = a.rtol;
+  options.atol = a.atol;
+  options.method = a.method == "augmented" ? kc::Method::kAugmented : kc::Method::kMinimal;
+  options.integrator = a.integrator == "bdf"     ? kc::Integrator::kBdf
+                       : a.integrator == "adams" ? kc::Integrator::kAdams
+                                                 : kc::Integrator::kAuto;
+  std::vector<std::string> force_names;
+  if (a.forces) {
+    options.forces_columns = forces_.get();
+    force_names = kc::force_columns(model_.mechanism());
+  }
+  std::string header = kc::simulate_csv_header(model_.mechanism(), force_names);
+  header.pop_back();
+  const std::vector<std::string> columns = split(header);
+  std::vector<std::vector<double>> rows;
+  const int nb = static_cast<int>(model_.mechanism().bodies.size());
+  {
+    py::gil_scoped_release release;
+    // As the CSV: the text parsed back (17 digits round-trip a double), so bit for bit.
+    kc::run_simulation(
+        model_, *forces_, {a.t0, a.t1, a.steps},
+        [&](const kc::SimulatedRow& row) {
+          std::string line = kc::simulate_csv_row(row, nb);
+          line.pop_back();
+          std::vector<double> v;
+          for (const auto& item : split(line)) v.push_back(std::strtod(item.c_str(), nullptr));
+          rows.push_back(std::move(v));
+        },
+        options);
+  }
+  py::dict out;
+  for (std::size_t c = 0; c < columns.size(); ++c) {
+    py::array_t<double> col(static_cast<py::ssize_t>(rows.size()));
+    for (std::size_t r = 0; r < rows.size(); ++r) col.mutable_data()[r] = rows[r][c];
+    out[py::str(columns[c])] = col;
+  }
+  return out;
+}
+
+py::array_t<double> DynamicsApi::dynamics(double t, const std::vector<double>& z,
+                                          const std::vector<double>& zd, const OptionalValues& u) {
+  kc::Linearizer& lin = linearizer(linearizer_ ? t0_ : t, "dynamics");
+  const kc::OperatingPoint p = point(lin, t, z, zd, u);
+  kc::MotionState state;
+  if (!lin.evaluate(p, state))
+    throw kc::AnalysisError(model_.mechanism().source + ": dynamics at " + kc::format_time(t) +
+                            ": " + lin.reason());
+  return vector(state.zdd);
+}
+
+py::dict DynamicsApi::equilibrium(double t, const OptionalValues& u) {
+  kc::Linearizer& lin = linearizer(t, "equilibrium");
+  const kc::Equilibrium e = kc::find_equilibrium(lin, point(lin, t, std::nullopt, std::nullopt, u));
+  kc::ForceSolver solver(model_, *forces_);
+  solver.set_inputs(lin.dynamics().input_slots());
+  std::vector<double> columns;
+  solver.solve(e.at.t, e.state.q, e.state.qd, e.state.qdd, columns);
+  py::dict forces;
+  const auto names = kc::force_columns(model_.mechanism());
+  for (std::size_t k = 0; k < names.size(); ++k) forces[py::str(names[k])] = columns[k];
+  const kc::ReducedStiffness& r = e.stiffness;
+  py::dict out;
+  out["t"] = e.at.t;
+  out["stability"] = kc::to_string(r.stability);
+  out["free"] = free_names();
+  out["z"] = vector(e.at.z);
+  out["coordinates"] = kc::coordinate_labels(model_.mechanism());
+  out["q"] = vector(e.state.q);
+  out["forces"] = forces;
+  out["mass"] = matrix(r.mass);
+  out["stiffness"] = matrix(r.stiffness);
+  out["stiffness_eigenvalues"] = vector(r.eigenvalues);
+  out["unstable"] = r.unstable;
+  out["neutral"] = r.neutral;
+  out["iterations"] = e.iterations;
+  out["residual"] = vector(e.force);
+  return out;
+}
+
+py::dict DynamicsApi::modes(double t, const OptionalValues& z, const OptionalValues& u) {
+  kc::Linearizer& lin = linearizer(t, "modes");
+  kc::OperatingPoint p = point(lin, t, z, std::nullopt, u);
+  if (!z) p = kc::find_equilibrium(lin, p).at;
+  const kc::ModalAnalysis a = kc::modal_analysis(lin, p);
+  const Eigen::Index n = static_cast<Eigen::Index>(a.modes.size());
+  Eigen::VectorXd f(n), fd(n), zeta(n);
+  Eigen::MatrixXd shapes(n, model_.nq()), shapes_z(n, lin.nf());
+  std::vector<std::string> kinds;
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const kc::Mode& m = a.modes[k];
+    f[k] = m.frequency;
+    fd[k] = m.damped_frequency;
+    zeta[k] = m.damping_ratio;
+    shapes.row(k) = m.dq.transpose();
+    shapes_z.row(k) = m.dz.transpose();
+    kinds.push_back(kc::to_string(m.kind));
+  }
+  py::dict out;
+  out["t"] = a.at.t;
+  out["equilibrium"] = !z.has_value();
+  out["stability"] = kc::to_string(a.stiffness.stability);
+  out["free"] = free_names();
+  out["z"] = vector(a.at.z);
+  out["coordinates"] = kc::coordinate_labels(model_.mechanism());
+  out["q"] = vector(a.state.q);
+  out["mass"] = matrix(a.stiffness.mass);
+  out["stiffness"] = matrix(a.stiffness.stiffness);
+  out["damping"] = matrix(a.stiffness.damping);
+  out["frequencies"] = vector(f);
+  out["damped_frequencies"] = vector(fd);
+  out["damping_ratios"] = vector(zeta);
+  out["kinds"] = kinds;
+  out["shapes"] = matrix(shapes);
+  out["shapes_z"] = matrix(shapes_z);
+  return out;
+}
+
+py::dict DynamicsApi::linearize(double t, const OptionalValues& z, const OptionalValues& zd,
+                                const OptionalValues& u) {
+  kc::Linearizer& lin = linearizer(t, "linearize");
+  const kc::LinearModel l = kc::linearize(lin, point(lin, t, z, zd, u));
+  py::dict out;
+  out["t"] = l.at.t;
+  out["states"] = l.states;
+  out["inputs"] = l.inputs;
+  out["x"] = vector(l.x);
+  out["u"] = vector(l.at.u);
+  out["xdot"] = vector(l.xdot);
+  out["A"] = matrix(l.a);
+  out["B"] = matrix(l.b);
+  return out;
+}
+
+}  // namespace kinegen::python

@@ -1,0 +1,108 @@
+"""Mechanism.simulate, .dynamics, .equilibrium, .modes and .linearize against the command line
+(the same numbers: simulate's CSV bit for bit, the JSON of equilibrium, modes and linearize to
+its 17 digits), linearize's A and B against central differences of dynamics, their errors,
+and examples/python/lqr.py stabilizing the cart-pole."""
+import importlib.util
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+import kinegen
+from conftest import EXE, SOURCE
+
+DYN = SOURCE / "examples" / "dynamics"
+
+
+def run(*args):
+    return subprocess.run([EXE, *args], capture_output=True, text=True)
+
+
+def test_simulate_equals_command_line_bit_for_bit(tmp_path):
+    path = str(DYN / "four_bar_damped.yaml")
+    out = tmp_path / "run.csv"
+    r = run("simulate", path, "--t1", "0.5", "--steps", "20", "--forces", "-q", "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    with open(out) as f:
+        header = f.readline().rstrip("\n").split(",")
+        values = np.array([[float(v) for v in line.split(",")] for line in f])
+    got = kinegen.Mechanism(path).simulate(0.5, 20, forces=True)
+    assert list(got) == header
+    for k, name in enumerate(header):
+        assert np.array_equal(got[name], values[:, k]), name
+
+
+@pytest.mark.parametrize("name", ["pendulum", "four_bar_damped", "cart_pole"])
+def test_equilibrium_modes_linearize_equal_command_line(name):
+    path = str(DYN / (name + ".yaml"))
+    m = kinegen.Mechanism(path)
+    for command, got in (("equilibrium", m.equilibrium()), ("modes", m.modes()),
+                         ("linearize", m.linearize())):
+        r = run(command, path, "--format", "json")
+        assert r.returncode == 0, r.stderr
+        want = json.loads(r.stdout)
+        for key, value in want.items():
+            if isinstance(value, dict):
+                assert got[key] == pytest.approx(value, rel=0, abs=0), (command, key)
+            elif isinstance(value, list) and value and isinstance(value[0], str):
+                assert list(got[key]) == value, (command, key)
+            elif isinstance(value, (list, int, float)):
+                assert np.array_equal(np.asarray(got[key], dtype=float).reshape(-1),
+                                      np.asarray(value, dtype=float).reshape(-1)), (command, key)
+            else:
+                assert got[key] == value, (command, key)
+
+
+def test_linearize_is_the_derivative_of_dynamics():
+    m = kinegen.Mechanism(str(DYN / "cart_pole.yaml"))
+    assert m.free == ["x", "phi"] and m.inputs == ["push_x"]
+    x = np.array([0.3, 1.2, -0.7, 2.1])
+    u = np.array([3.5])
+    lin = m.linearize(t=0.0, z=x[:2], zd=x[2:], u=u)
+    f = lambda x, u: np.concatenate([x[2:], m.dynamics(0.0, x[:2], x[2:], u)])
+    assert np.array_equal(lin["xdot"], f(x, u))
+    h = 1e-6
+    a = np.column_stack([(f(x + h * e, u) - f(x - h * e, u)) / (2 * h) for e in np.eye(4)])
+    b = (f(x, u + h) - f(x, u - h)) / (2 * h)
+    assert np.abs(lin["A"] - a).max() < 1e-7 * np.abs(a).max()
+    assert np.abs(lin["B"][:, 0] - b).max() < 1e-7 * np.abs(b).max()
+
+
+def test_no_inputs_gives_an_empty_b():
+    lin = kinegen.Mechanism(str(DYN / "pendulum.yaml")).linearize()
+    assert lin["B"].shape == (2, 0) and lin["inputs"] == []
+
+
+def test_errors_are_the_command_line_ones():
+    slider = str(SOURCE / "examples" / "slider_crank.yaml")
+    with pytest.raises(kinegen.UsageError, match="needs free coordinates"):
+        kinegen.Mechanism(slider).modes()
+    m = kinegen.Mechanism(str(DYN / "cart_pole.yaml"))
+    with pytest.raises(kinegen.UsageError, match="z expects 2 values"):
+        m.linearize(z=[1.0])
+    with pytest.raises(kinegen.UsageError, match="u expects 1 value"):
+        m.dynamics(0.0, [0, 1.5], [0, 0], [1.0, 2.0])
+
+
+def load_lqr():
+    spec = importlib.util.spec_from_file_location("lqr", SOURCE / "examples" / "python" / "lqr.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_lqr_stabilizes_the_cart_pole(tmp_path):
+    pytest.importorskip("scipy")
+    pytest.importorskip("matplotlib")
+    lqr = load_lqr()
+    mech = kinegen.Mechanism(lqr.MECH)
+    lin, k = lqr.design(mech)
+    assert np.linalg.eigvals(lin["A"]).real.max() > 1  # upright: unstable
+    assert np.linalg.eigvals(lin["A"] - lin["B"] @ k).real.max() < 0
+    t, y, u = lqr.closed_loop(mech, lin, k)
+    assert abs(y[1, -1] - np.pi / 2) < 1e-3 and abs(y[0, -1]) < 1e-2
+    assert abs(y[1] - np.pi / 2).max() < 0.5  # it never falls
+    out = tmp_path / "lqr.png"
+    lqr.plot(t, y, u, out)
+    assert out.stat().st_size > 10000

@@ -1,0 +1,216 @@
+// Dynamics tangent kernel: the exact derivatives of the minimal-coordinates accelerations
+// zdd(z, zd, u) (format 7.2) with respect to the state and the run-time inputs, for
+// equilibrium, modes and linear models (format 7.4, 7.5). One implementation: `kinegen
+// equilibrium / modes / linearize` (analysis/tangent.cpp) call it with solves on their
+// factorization of Phi_q, a generated header with its block solves.
+//
+// The equations at a solved state: Phi(q, t, w) = 0, Phi_q qd = nu(q, t, w),
+// Phi_q qdd = gamma(q, qd, t, w), M(q) qdd + h(q, qd) + Phi_q^T lambda = Q^A(q, qd, t, w), with
+// w the run-time inputs' slots (a free item's z, zd, zdd; an input driver's value, rate and
+// acceleration; a load's input) and lambda 0 on the free rows. Differentiated along one slot
+// (zdd held free): dq = -Phi_q^-1 Phi_w (= B e_k for z_k), dqd = -Phi_q^-1 r_v with
+// r_v = (Phi_q qd)_q dq - nu_q dq - nu_w, the acceleration residual
+// r_a = (Phi_q qdd)_q dq - gamma_q dq - gamma_qd dqd - gamma_w, so that dqdd = B dzdd - Phi_q^-1
+// r_a; projected on B (B^T Phi_q^T = E^T kills d lambda on the non-free rows, and lambda's free
+// rows are 0): M_z dzdd = -B^T f + Y^T r_a with Y = Phi_q^-T M B and
+// f = d(M qdd + h) + (Phi_q^T lambda)_q dq - Q^A_q dq - Q^A_qd dqd - Q^A_w. The second
+// derivatives are Phi_qq contracted with qd, qdd and lambda; the rest are sparse matrices the
+// symbolic stage derives (symbolic/tangent.hpp). See report.hpp for how kernel files are used.
+#pragma once
+
+#include "kinegen/kernels/dynamics.hpp"
+
+namespace kinegen::kernels {
+
+struct LinearizeKernel : DynamicsKernel {
+  // kinegen-kernel-begin linearize
+  // A sparse matrix: n entries (row[e], col[e], value[e]).
+  template <class T>
+  struct _Sparse {
+    int n = 0;
+    const int* row = nullptr;
+    const int* col = nullptr;
+    const T* value = nullptr;
+  };
+  // Phi's second derivatives d^2 Phi_row / dq_j dq_k for j <= k.
+  template <class T>
+  struct _Hessian {
+    int n = 0;
+    const int* row = nullptr;
+    const int* j = nullptr;
+    const int* k = nullptr;
+    const T* value = nullptr;
+  };
+  // A solved state and the derivatives there.
+  template <class T>
+  struct _TangentPoint {
+    int nq = 0, nf = 0, nb = 0;
+    const T* q = nullptr;  // the state: q, qd and the accelerations qdd
+    const T* qd = nullptr;
+    const T* qdd = nullptr;
+    const T* b = nullptr;     // dq/dz, nq x nf (column k at b + k nq)
+    const T* mass = nullptr;  // per body, as _mass_times reads them
+    const T* inertia = nullptr;
+    const T* ax = nullptr;
+    const T* ay = nullptr;
+    const T* applied = nullptr;  // Q^A at the state (nq)
+    _Hessian<T> phi_qq;
+    _Sparse<T> nu_q, gamma_q, gamma_qd, phi_w, nu_w, gamma_w, applied_q, applied_qd, applied_w;
+  };
+
+  // out += s a x.
+  template <class T>
+  static void _sparse_add(const _Sparse<T>& a, const T& s, const T* x, T* out) noexcept {
+    for (int e = 0; e < a.n; ++e) out[a.row[e]] += s * a.value[e] * x[a.col[e]];
+  }
+  // out += s times column `col` of a.
+  template <class T>
+  static void _sparse_column(const _Sparse<T>& a, int col, const T& s, T* out) noexcept {
+    for (int e = 0; e < a.n; ++e)
+      if (a.col[e] == col) out[a.row[e]] += s * a.value[e];
+  }
+  // out += (Phi_q v)_q dq: row r gets sum_jk Phi_r,jk v_j dq_k.
+  template <class T>
+  static void _hessian_times(const _Hessian<T>& h, const T* v, const T* dq, T* out) noexcept {
+    for (int e = 0; e < h.n; ++e) {
+      const int j = h.j[e], k = h.k[e];
+      T s = v[j] * dq[k];
+      if (j != k) s += v[k] * dq[j];
+      out[h.row[e]] += h.value[e] * s;
+    }
+  }
+  // out += (Phi_q^T lambda)_q dq: coordinate j gets sum_rk lambda_r Phi_r,jk dq_k.
+  template <class T>
+  static void _hessian_transposed(const _Hessian<T>& h, const T* lambda, const T* dq,
+                                  T* out) noexcept {
+    for (int e = 0; e < h.n; ++e) {
+      const int j = h.j[e], k = h.k[e];
+      const T s = lambda[h.row[e]] * h.value[e];
+      out[j] += s * dq[k];
+      if (j != k) out[k] += s * dq[j];
+    }
+  }
+
+  // out = M qdd + h(q, qd), the inertia forces' negative: per body the centre of mass's
+  // acceleration (xdd - alpha ay - w^2 ax, ydd + alpha ax - w^2 ay) times m, and about the
+  // frame's origin (ax, ay) x that + j alpha. Extra coordinates' rows are 0.
+  template <class T>
+  static void _inertia_forces(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
+                              const T* qd, const T* qdd, T* out) noexcept {
+    for (int b = 0; b < nb; ++b) {
+      const T& w = qd[3 * b + 2];
+      const T& alpha = qdd[3 * b + 2];
+      const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
+      const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
+      out[3 * b] = fx;
+      out[3 * b + 1] = fy;
+      out[3 * b + 2] = ax[b] * fy - ay[b] * fx + j[b] * alpha;
+    }
+    for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
+  }
+  // out += d(M qdd + h)/dq dq + dh/dqd dqd at fixed qdd: each body's forces depend on q only
+  // through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w (the w^2 terms).
+  template <class T>
+  static void _inertia_tangent(int nb, const T* m, const T* ax, const T* ay, const T* qd,
+                               const T* qdd, const T* dq, const T* dqd, T* out) noexcept {
+    for (int b = 0; b < nb; ++b) {
+      const T& w = qd[3 * b + 2];
+      const T& alpha = qdd[3 * b + 2];
+      const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
+      const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
+      const T dphi = dq[3 * b + 2], dw = dqd[3 * b + 2];
+      const T dfx = m[b] * ((w * w * ay[b] - alpha * ax[b]) * dphi - T(2) * w * ax[b] * dw);
+      const T dfy = m[b] * (-(alpha * ay[b] + w * w * ax[b]) * dphi - T(2) * w * ay[b] * dw);
+      out[3 * b] += dfx;
+      out[3 * b + 1] += dfy;
+      out[3 * b + 2] += (-ay[b] * fy - ax[b] * fx) * dphi + ax[b] * dfy - ay[b] * dfx;
+    }
+  }
+
+  // The work space _dynamics_tangent needs for ndir directions, in T's.
+  static constexpr int _tangent_work_size(int nq, int nf, int ndir) noexcept {
+    return nq * nf + nq * (nf + 1) + nf * nf + 2 * nq * ndir + 2 * nq;
+  }
+
+  // d(zdd)/d(w_slot) for each of the ndir slots (slots[i]: a free item's z or zd, or a
+  // run-time input's; never a zdd), into dzdd (nf per slot, slot i's at dzdd + i nf). solve(x,
+  // m) solves Phi_q X = X in place for m columns (each nq long); solve_transposed(x, m) solves
+  // Phi_q^T Y = X in place (X by coordinate, Y by row); both return 0 or their status. Three
+  // calls in all (nf + 1 transposed columns, then ndir, then ndir), so that a solver factors
+  // Phi_q's blocks once per call. work: _tangent_work_size T's. Returns 0; 2 when
+  // M_z = B^T M B is not positive definite; 3 when a value is not finite; or a solve's status.
+  template <class T, class Solve, class SolveTransposed>
+  static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir, const int* slots, T* dzdd,
+                               T* work, Solve&& solve,
+                               SolveTransposed&& solve_transposed) noexcept {
+    const int nq = p.nq, nf = p.nf;
+    T* mb = work;
+    T* y = mb + nq * nf;  // Phi_q^-T M B, then lambda in column nf
+    T* mz = y + nq * (nf + 1);
+    T* dq = mz + nf * nf;
+    T* dqd = dq + nq * ndir;
+    T* r = dqd + nq * ndir;
+    T* f = r + nq;
+    for (int k = 0; k < nf; ++k)
+      _mass_times(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.b + k * nq, mb + k * nq);
+    for (int i = 0; i < nf; ++i)
+      for (int k = 0; k < nf; ++k) mz[i * nf + k] = _dot(nq, p.b + i * nq, mb + k * nq);
+    const _real<T> ratio = _ldlt_factor(nf, mz);
+    if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+    // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
+    T* lambda = y + nq * nf;
+    for (int k = 0; k < nq * nf; ++k) y[k] = mb[k];
+    _inertia_forces(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, f);
+    for (int k = 0; k < nq; ++k) lambda[k] = p.applied[k] - f[k];
+    if (const int s = solve_transposed(y, nf + 1)) return s;
+    // dq = -Phi_q^-1 Phi_w (B e_k for z_k), then dqd = -Phi_q^-1 r_v, all directions at once.
+    for (int i = 0; i < ndir * nq; ++i) dq[i] = T(0);
+    for (int i = 0; i < ndir; ++i) _sparse_column(p.phi_w, slots[i], T(-1), dq + i * nq);
+    if (const int s = solve(dq, ndir)) return s;
+    for (int i = 0; i < ndir; ++i) {
+      T* v = dqd + i * nq;
+      for (int k = 0; k < nq; ++k) v[k] = T(0);
+      _hessian_times(p.phi_qq, p.qd, dq + i * nq, v);
+      _sparse_add(p.nu_q, T(-1), dq + i * nq, v);
+      _sparse_column(p.nu_w, slots[i], T(-1), v);
+      for (int k = 0; k < nq; ++k) v[k] = -v[k];
+    }
+    if (const int s = solve(dqd, ndir)) return s;
+    for (int i = 0; i < ndir; ++i) {
+      _tangent_residuals(p, slots[i], lambda, dq + i * nq, dqd + i * nq, r, f);
+      T* out = dzdd + i * nf;
+      for (int k = 0; k < nf; ++k) out[k] = _dot(nq, y + k * nq, r) - _dot(nq, p.b + k * nq, f);
+      _ldlt_solve(nf, mz, out);
+      for (int k = 0; k < nf; ++k)
+        if (!_finite(_mag(out[k]))) return 3;
+    }
+    return 0;
+  }
+
+  template <class T>
+  static T _dot(int n, const T* a, const T* b) noexcept {
+    T s = T(0);
+    for (int k = 0; k < n; ++k) s += a[k] * b[k];
+    return s;
+  }
+
+  // One direction's acceleration residual r (r_a) and force f, as _dynamics_tangent describes
+  // them, from its dq and dqd.
+  template <class T>
+  static void _tangent_residuals(const _TangentPoint<T>& p, int slot, const T* lambda, const T* dq,
+                                 const T* dqd, T* r, T* f) noexcept {
+    for (int k = 0; k < p.nq; ++k) r[k] = f[k] = T(0);
+    _hessian_times(p.phi_qq, p.qdd, dq, r);
+    _sparse_add(p.gamma_q, T(-1), dq, r);
+    _sparse_add(p.gamma_qd, T(-1), dqd, r);
+    _sparse_column(p.gamma_w, slot, T(-1), r);
+    _inertia_tangent(p.nb, p.mass, p.ax, p.ay, p.qd, p.qdd, dq, dqd, f);
+    _hessian_transposed(p.phi_qq, lambda, dq, f);
+    _sparse_add(p.applied_q, T(-1), dq, f);
+    _sparse_add(p.applied_qd, T(-1), dqd, f);
+    _sparse_column(p.applied_w, slot, T(-1), f);
+  }
+  // kinegen-kernel-end linearize
+};
+
+}  // namespace kinegen::kernels
