@@ -60,13 +60,14 @@ struct press {
     }
   }
   // d^order/dx^order of motion law `law` (0 cycloidal, 1 harmonic, 2 poly345, 3 poly4567) at x
-  // (order >= 0), clamped outside (0, 1).
+  // (order >= 0): the formula on [0, 1), clamped outside it.
   template <class T>
   static T _motion_law(int law, int order, const T& x) noexcept {
     using std::cos, std::sin;
     using R = std::decay_t<decltype(_law_re(x))>;
     const R xr = _law_re(x);
-    if (!(xr > R(0))) return T(xr == xr ? R(0) : xr);  // NaN stays NaN
+    if (!(xr == xr)) return T(xr);  // NaN stays NaN
+    if (xr < R(0)) return T(R(0));
     if (!(xr < R(1))) return T(order == 0 ? R(1) : R(0));
     const R pi = R(3.14159265358979323846264338327950288L);
     switch (law) {

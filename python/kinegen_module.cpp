@@ -16,7 +16,9 @@
 #include <fstream>
 #include <memory>
 #include <optional>
+#include <regex>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
@@ -42,6 +44,21 @@ std::string one_line(std::string text) {
   return text;
 }
 
+// The library's messages name the command line's flags (--param l, --steps); from Python
+// they are the call's arguments (params['l'], steps).
+std::string python_names(std::string text) {
+  static const std::pair<std::regex, const char*> kFlags[] = {
+      {std::regex(R"(--param ([A-Za-z_][A-Za-z0-9_]*))"), "params['$1']"},
+      {std::regex(R"(--input ([A-Za-z_][A-Za-z0-9_]*)=FILE\.csv)"), "inputs={'$1': 'FILE.csv'}"},
+      {std::regex(R"(--input ([A-Za-z_][A-Za-z0-9_]*))"), "inputs['$1']"},
+      {std::regex(R"(\(--steps\))"), "(more steps)"},
+      {std::regex(R"(--(t0|t1|steps|samples|sensitivity)\b)"), "$1"},
+      {std::regex(R"(--forces\b)"), "forces=True"},
+  };
+  for (const auto& [flag, name] : kFlags) text = std::regex_replace(text, flag, name);
+  return text;
+}
+
 // Exception types, alive as long as the module (handles: never released at interpreter exit).
 py::handle input_error, usage_error, analysis_error;
 
@@ -63,8 +80,36 @@ auto translate(const std::string& file, F&& f) -> decltype(f()) {
     message = one_line(e.what());
     type = &analysis_error;
   }
-  PyErr_SetString(type->ptr(), message.c_str());
+  PyErr_SetString(type->ptr(), python_names(message).c_str());
   throw py::error_already_set();
+}
+
+// Each warning through Python's warnings module (UserWarning), as the command line prints its
+// `warning:` lines.
+void warn_all(const std::vector<std::string>& warnings) {
+  if (warnings.empty()) return;
+  const py::object warn = py::module_::import("warnings").attr("warn");
+  for (const auto& w : warnings) warn(python_names(one_line(w)));
+}
+
+// A list of names (sensitivity=[...]): any iterable of str, but not a str, whose letters
+// pybind11 would otherwise refuse with a message about the function's signature.
+std::vector<std::string> names_of(const py::object& value, const char* argument) {
+  const std::string usage = std::string(argument) + " expects a list of parameter names, e.g. " +
+                            argument + "=['e', 'l']";
+  if (value.is_none()) return {};
+  if (py::isinstance<py::str>(value))
+    throw py::type_error(usage + ", not the string '" + value.cast<std::string>() + "'");
+  if (!py::isinstance<py::iterable>(value))
+    throw py::type_error(usage + ", not " +
+                         std::string(py::str(py::type::of(value).attr("__name__"))));
+  std::vector<std::string> names;
+  for (const py::handle item : value) {
+    if (!py::isinstance<py::str>(item))
+      throw py::type_error(usage + "; " + std::string(py::repr(item)) + " is not a str");
+    names.push_back(item.cast<std::string>());
+  }
+  return names;
 }
 
 std::vector<kc::ParamOverride> overrides_of(const py::dict& params) {
@@ -109,6 +154,9 @@ class Mechanism {
       build_.inputs.emplace_back(py::str(name), py::str(file));
     model_ = translate(path_,
                        [&] { return kc::CompiledModel::from_file(path_, overrides_, build_); });
+    // The file's warnings (a jump at a driver's boundary), as the command line prints them
+    // when it loads the file.
+    warn_all(model_->symbolic().warnings);
   }
 
   // Column name -> numpy array, in the CSV's column order (a dict keeps insertion order).
@@ -166,8 +214,7 @@ class Mechanism {
             },
             options);
       }
-      const py::object warn = py::module_::import("warnings").attr("warn");
-      for (const auto& w : warnings) warn(w);
+      warn_all(warnings);
       return 0;
     });
     py::dict out;
@@ -287,11 +334,10 @@ class Mechanism {
     std::string failure;
     std::string html = translate(
         path_, [&] { return kinegen::python::view_html(*model_, args, &warnings, &failure); });
-    const py::object warn = py::module_::import("warnings").attr("warn");
-    for (const auto& w : warnings) warn(one_line(w));
+    warn_all(warnings);
     py::object page = translate(path_, [&] { return kinegen::python::make_page(html, path); });
     if (!failure.empty()) {  // as the command line: the page of the rows so far, and exit 1
-      PyErr_SetString(analysis_error.ptr(), one_line(failure).c_str());
+      PyErr_SetString(analysis_error.ptr(), python_names(one_line(failure)).c_str());
       throw py::error_already_set();
     }
     return page;
@@ -360,14 +406,39 @@ PYBIND11_MODULE(kinegen, m) {
   m.attr("AnalysisError") = analysis_error;
   kinegen::python::bind_page(m);
 
-  py::class_<Mechanism>(m, "Mechanism")
+  py::class_<Mechanism>(m, "Mechanism", R"doc(A mechanism file (format: docs/format.md), read and compiled in-process.
+
+Mechanism(path, params={}, inputs={}) reads the YAML file; params overrides its parameters
+(numbers or expression strings), inputs gives each input driver (f: input) its table
+(name: CSV path). The methods run the command line's analyses with the same library calls,
+so their numbers are the CSV's bit for bit:
+
+  analyze(t0, t1, steps, forces=False, sensitivity=[])  columns -> numpy arrays
+  eval(q=None, qd=None, t=0.0)                          Phi, Phi_q, nu, gamma
+  check(samples=5, ...)                                 derivatives against numeric ones
+  generate(dir='.', fold_params=False)                  writes DIR/<name>.hpp
+  view(path='', t0=..., t1=..., steps=...)              the kinegen view page
+
+The file's warnings (and an analysis's) are Python warnings (UserWarning); errors are
+kinegen.InputError, kinegen.UsageError or kinegen.AnalysisError with the command line's
+message.
+
+  >>> m = kinegen.Mechanism('examples/four_bar.yaml', params={'omega': 2.0})
+  >>> run = m.analyze(0, 3.14, 90)
+  >>> run['rocker.phi'][:3])doc")
       .def(py::init<std::string, py::dict, py::dict>(), py::arg("path"),
            py::arg("params") = py::dict(), py::arg("inputs") = py::dict(),
            "Reads and compiles a mechanism file; params overrides parameters like --param "
            "(numbers or expression strings), inputs gives input drivers their tables like "
            "--input (name: CSV path).")
-      .def("analyze", &Mechanism::analyze, py::arg("t0"), py::arg("t1"), py::arg("steps"),
-           py::arg("forces") = false, py::arg("sensitivity") = std::vector<std::string>{},
+      .def(
+          "analyze",
+          [](Mechanism& mech, double t0, double t1, int steps, bool forces,
+             const py::object& sensitivity) {
+            return mech.analyze(t0, t1, steps, forces, names_of(sensitivity, "sensitivity"));
+          },
+          py::arg("t0"), py::arg("t1"), py::arg("steps"), py::arg("forces") = false,
+          py::arg("sensitivity") = py::list(),
            "Position, velocity and acceleration at t_k = t0 + k (t1 - t0) / steps: a dict from "
            "the CSV's column names to numpy arrays, in the CSV's order; sensitivity=[p, ...] "
            "adds the d(C)/d(p) columns.")
@@ -452,10 +523,10 @@ PYBIND11_MODULE(kinegen, m) {
                              "Names of the coordinates q, in order (body.x, body.y, body.phi).")
       .def_property_readonly("parameters", &Mechanism::parameters,
                              "Parameter values after the overrides, in file order.")
-      .def_property_readonly("name", &Mechanism::name)
-      .def_property_readonly("path", &Mechanism::path)
-      .def_property_readonly("nq", &Mechanism::nq)
-      .def_property_readonly("nc", &Mechanism::nc)
+      .def_property_readonly("name", &Mechanism::name, "The file's name: key.")
+      .def_property_readonly("path", &Mechanism::path, "The mechanism file's path, as given.")
+      .def_property_readonly("nq", &Mechanism::nq, "The number of coordinates q.")
+      .def_property_readonly("nc", &Mechanism::nc, "The number of equations of Phi.")
       .def("__repr__", [](const Mechanism& mech) {
         return "<kinegen.Mechanism '" + mech.name() + "' from '" + mech.path() + "'>";
       });

@@ -1,10 +1,25 @@
 #!/usr/bin/env bash
 # Sets everything up, then runs the main job: a position, velocity and acceleration analysis of
-# the four-bar over one crank turn, and the generated header for it.
+# the four-bar over one crank turn, and the generated header for it. One line per stage, and
+# the build's progress (scripts/build_progress.sh); each stage's whole output goes to
+# out/setup.log, whose last lines are shown when a stage fails.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/setup.sh >/dev/null
 mkdir -p out
+log=out/setup.log
+: >"$log"
+stage() { printf 'demo: %s\n' "$*"; }
+failed() {
+  printf 'demo: %s failed; the last lines of %s:\n' "$1" "$log" >&2
+  tail -n 30 "$log" >&2
+  exit 1
+}
+stage "installing packages (only those missing; apt-get may ask for your password)"
+scripts/setup.sh packages >>"$log" 2>&1 || failed "installing packages"
+stage "building (about 6 min on 2 cores; less when done before)"
+scripts/setup.sh build 2>&1 | tee -a "$log" | scripts/build_progress.sh ||
+  failed "building"
+stage "analyzing the four-bar over one crank turn, and generating its header"
 build/codegen/kinegen analyze examples/four_bar.yaml --t0 0 --t1 6.283185307179586 --steps 72 \
   -o out/four_bar.csv
 build/codegen/kinegen generate examples/four_bar.yaml -o out

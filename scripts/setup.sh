@@ -1,32 +1,42 @@
 #!/usr/bin/env bash
 # Installs what kinegen needs to build and test, from Debian packages, and configures and
 # builds it in build/. Safe to run again.
+#   setup.sh [packages | build]   one stage only (scripts/demo.sh shows them one by one)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-packages=(g++ cmake make pkg-config libginac-dev libcln-dev libeigen3-dev catch2
-          libyaml-cpp-dev libcli11-dev python3
-          libsundials-dev  # CVODE for kinegen simulate, IDA for the dynamics benchmark's peer
-          pybind11-dev python3-dev python3-numpy python3-pytest  # the Python module and its tests
-          python3-scipy python3-matplotlib                       # examples/python
-          libpng-dev chromium gnuplot-nox  # pictures: animate test (PNG decode, headless render), plots
-          zlib1g-dev  # kinegen view: the run deflated in the page
-          python3-venv python3-setuptools python3-wheel)  # pip install . (offline) and its test
-missing=()
-for p in "${packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-# kinegen view's page (viewer/: uPlot, and playwright-core for its tests) comes from npm. Node
-# from elsewhere (NodeSource's nodejs bundles npm, and conflicts with Debian's npm) is kept.
-command -v node >/dev/null || missing+=(nodejs)
-command -v npm >/dev/null || missing+=(npm)
-if ((${#missing[@]})); then
-  SUDO=""
-  [[ $(id -u) -ne 0 ]] && SUDO="sudo"
-  $SUDO apt-get update
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
+stage=${1:-all}
+case "$stage" in
+  all | packages | build) ;;
+  *) echo "usage: scripts/setup.sh [packages | build]" >&2; exit 2 ;;
+esac
+if [[ $stage != build ]]; then
+  packages=(g++ cmake make pkg-config libginac-dev libcln-dev libeigen3-dev catch2
+            libyaml-cpp-dev libcli11-dev python3
+            libsundials-dev  # CVODE for kinegen simulate, IDA for the dynamics benchmark's peer
+            pybind11-dev python3-dev python3-numpy python3-pytest  # the Python module and its tests
+            python3-scipy python3-matplotlib                       # examples/python
+            libpng-dev chromium gnuplot-nox  # pictures: animate test (PNG decode, headless render), plots
+            zlib1g-dev  # kinegen view: the run deflated in the page
+            python3-venv python3-setuptools python3-wheel)  # pip install . (offline) and its test
+  missing=()
+  for p in "${packages[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  # kinegen view's page (viewer/: uPlot, and playwright-core for its tests) comes from npm. Node
+  # from elsewhere (NodeSource's nodejs bundles npm, and conflicts with Debian's npm) is kept.
+  command -v node >/dev/null || missing+=(nodejs)
+  command -v npm >/dev/null || missing+=(npm)
+  if ((${#missing[@]})); then
+    SUDO=""
+    [[ $(id -u) -ne 0 ]] && SUDO="sudo"
+    $SUDO apt-get update
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
+  fi
+  # The versions viewer/package-lock.json pins.
+  (cd viewer && npm ci --no-audit --no-fund)
 fi
-# The versions viewer/package-lock.json pins.
-(cd viewer && npm ci --no-audit --no-fund)
-# KINEGEN_CMAKE_ARGS: more options for the configure step (scripts/test.sh passes some).
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release ${KINEGEN_CMAKE_ARGS:-}
-cmake --build build -j"$(nproc)"
+if [[ $stage != packages ]]; then
+  # KINEGEN_CMAKE_ARGS: more options for the configure step (scripts/test.sh passes some).
+  cmake -S . -B build -DCMAKE_BUILD_TYPE=Release ${KINEGEN_CMAKE_ARGS:-}
+  cmake --build build -j"$(nproc)"
+fi

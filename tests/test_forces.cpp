@@ -465,7 +465,7 @@ TEST_CASE("forces near a toggle: a warning as the condition grows, then the sing
                                              "--steps", "2000", "--forces", "-o", csv});
   CHECK(r.exit_code == 1);  // the dead centre at t = 1 is singular
   CHECK_THAT(r.err, Catch::Contains("warning:") && Catch::Contains("nears a toggle") &&
-                        Catch::Contains("error:") && Catch::Contains("at t = 1:") &&
+                        Catch::Contains("error:") && Catch::Contains("failed at t = 1 (") &&
                         Catch::Contains("singular"));
   // The rows before are kept, and the piston force grows without bound towards the toggle:
   // with a constant torque on the crank, |F| ~ 1 / (r sin(crank angle)).

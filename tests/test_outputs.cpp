@@ -362,7 +362,7 @@ outputs:
   const std::vector<Case> cases = {
       // A velocity and an unknown name each get their own message.
       {"velocity", "  ok: \"x_crank\"\n  w: \"phi_crank_dot\"\n", "outputs.w", 21,
-       "uses the velocity 'phi_crank_dot': outputs are functions of the coordinates"},
+       "uses the velocity 'phi_crank_dot': outputs are functions of positions and time"},
       {"velocity_in_sum", "  w: \"1 + 2*x_crank_dot\"\n", "outputs.w", 20,
        "uses the velocity 'x_crank_dot'"},
       {"unknown", "  u: \"2*nothing\"\n", "outputs.u", 20, "unknown symbol 'nothing'"},

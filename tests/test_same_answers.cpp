@@ -33,6 +33,8 @@
 #include "gear_pair.hpp"
 #include "guarded_slider.hpp"
 #include "guarded_slider_split.hpp"
+#include "harmonic_return.hpp"
+#include "indexer.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/block_interpreter.hpp"
 #include "kinegen/codegen/analysis/compiled_model.hpp"
@@ -69,7 +71,10 @@ void check_same(const std::string& path, const TimeGrid& grid, int* blocks_out =
   kinegen::codegen::run_analysis(*model, grid, [&](const StateRow& r) { rows.push_back(r); });
   REQUIRE(static_cast<int>(rows.size()) == grid.steps + 1);
 
-  kinegen::Solver<Model> solver;
+  // With analyze's sub-steps, so that a refused step is taken in the same halves on both.
+  kinegen::SolverOptions options = kinegen::default_options<double>();
+  options.substep_halvings = kinegen::kAnalyzeSubstepHalvings;
+  kinegen::Solver<Model> solver(typename Model::Params{}, options);
   typename kinegen::Solver<Model>::Vector q = solver.initial_estimate(), qd, qdd;
   qd.setZero();
   qdd.setZero();
@@ -225,6 +230,12 @@ TEST_CASE("the same bits on torn, guarded and larger blocks", "[same_answers]") 
   // Motion laws with dwells (the clamped law kernel).
   check_same<kinegen::models::dwell_slider_crank>("tests/mechanisms/dwell_slider_crank.yaml",
                                                   {0, 5, 200});
+  // A coarse grid over a period of the indexer (pieces, harmonic and 3-4-5): steps refused
+  // and taken in sub-steps, the same halves on both.
+  check_same<kinegen::models::indexer>("tests/mechanisms/indexer.yaml", {0, 4, 4});
+  // Laws exactly at their boundaries: a harmonic rise-return repeated.
+  check_same<kinegen::models::harmonic_return>("tests/mechanisms/harmonic_return.yaml",
+                                               {0, 6, 24});
   // Extra coordinates (format 6.1) and curve joints.
   check_same<kinegen::models::cam_flat>("tests/mechanisms/cam_flat.yaml", turn);
   check_same<kinegen::models::cam_roller>("tests/mechanisms/cam_roller.yaml", turn);
@@ -253,9 +264,11 @@ TEST_CASE("a guarded block whose coefficient vanishes beside its couplings fails
   const auto model = CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
                                               "/tests/mechanisms/guarded_slider.yaml",
                                               {{"k", "1e-14"}});
+  // Singular for every t > 0: the step to 0.25 is refused, and so are its sub-steps.
   CHECK_THROWS_WITH(
       kinegen::codegen::run_analysis(*model, {0, 1, 4}, [](const StateRow&) {}),
-      Catch::Contains("at t = 0.25") && Catch::Contains("singular"));
+      Catch::Contains("(in sub-steps of the step from t = 0 to t = 0.25") &&
+          Catch::Contains("singular"));
 }
 
 TEST_CASE("the same reports, failed steps included: status, block, iterations, rcond",

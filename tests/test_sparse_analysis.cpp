@@ -274,13 +274,20 @@ TEST_CASE("sparse condition estimate and det sign match the dense ones", "[spars
 
 TEST_CASE("the sparse path reports a scissor lift driven past its reach", "[sparse]") {
   // w = w0 + dw sin(t) with w0 = 0.9, dw = 0.2 passes w = l = 1 (bars flat) at t = pi / 6:
-  // t = 0.5 still assembles, t = 0.55 (w = 1.0045) cannot.
+  // t = 0.5 still assembles, t = 0.55 (w = 1.0045) cannot; the sub-steps between stop at
+  // pi / 6, within 1/4096 of the step.
   const std::string file = family_file("scissor_lift", 40);  // nq = 240
   const auto r = kinegen::test::run_command({KINEGEN_EXE, "analyze", file, "--param", "w0=0.9",
                                              "--t0", "0", "--t1", "1", "--steps", "20"});
   INFO(r.err);
   CHECK(r.exit_code == 1);
-  CHECK(r.err.find("position analysis failed at t = 0.55") != std::string::npos);
+  const auto at = r.err.find("position analysis failed at t = ");
+  REQUIRE(at != std::string::npos);
+  const double t = std::stod(r.err.substr(at + 32));
+  CHECK(t >= std::asin(0.5) - 0.05 / 4096);
+  CHECK(t <= std::asin(0.5) + 0.05 / 4096);
+  CHECK(r.err.find("(in sub-steps of the step from t = 0.5 to t = 0.55000000000000004") !=
+        std::string::npos);
   CHECK(r.out.find("\n0.5,") != std::string::npos);  // the rows before it were written
   CHECK(r.out.find("\n0.55") == std::string::npos);
 }

@@ -135,11 +135,12 @@ TEST_CASE("a slider pushed past the reach of its crank stops at the toggle, keep
 }
 
 TEST_CASE("a rocker driven past its limit stops there, keeping the rows", "[stability]") {
-  // Upper limit acos(-0.6) = 2.2143 rad is reached at t = 0.7095.
+  // Upper limit acos(-0.6) = 2.2143 rad is reached at t = 0.7095: the sub-steps of the step
+  // from 0.70 to 0.75 stop there (tests/test_substeps.cpp: within 1/4096 of the step).
   const auto r = analyze(stability("rocker_overdriven"), 0, 1, 20);
   CHECK(r.exit_code == 1);
   require_one_line(r.err, "error: ");
-  CHECK(contains(r.err, "position analysis failed at t = 0.75"));
+  CHECK(contains(r.err, "position analysis failed at t = 0.7094"));
   CHECK((contains(r.err, "condition estimate") && contains(r.err, "residual")));
   const auto rows = parse_csv(r.out);
   REQUIRE(rows.size() == 15);  // t = 0 .. 0.70
@@ -239,7 +240,7 @@ TEST_CASE("a four-bar driven with coarse steps stays on its branch or says it ca
   for (const auto& [name, mode] :
        {std::pair<std::string, int>{"four_bar", 1}, {"four_bar_crossed", -1}}) {
     const fs::path mech = name == "four_bar" ? example(name) : stability(name);
-    for (int steps : {2, 3, 4, 5, 6, 8, 12}) {
+    for (int steps : {1, 2, 3, 4, 5, 6, 8, 12}) {
       INFO(name << " with " << steps << " steps per turn");
       const auto r = analyze(mech, 0, kTwoPi, steps);
       const auto rows = parse_csv(r.out);
@@ -252,7 +253,9 @@ TEST_CASE("a four-bar driven with coarse steps stays on its branch or says it ca
         require_one_line(r.err, "error: ");
         CHECK(contains(r.err, "--steps"));
       }
-      if (steps >= 3) CHECK(r.exit_code == 0);  // a third of a turn per step is still followed
+      // Followed at every grid, down to one step per turn: a refused step is taken in
+      // sub-steps (without them, 2 steps per turn were refused).
+      CHECK(r.exit_code == 0);
     }
   }
 }
@@ -276,8 +279,10 @@ TEST_CASE("a jump to another branch is detected, not returned", "[stability]") {
   for (int k = 0; k < 9; ++k) worst = std::max(worst, std::abs(rows.back().q[k] - exact.q[k]));
   CHECK(worst > 0.1);  // a wrong answer without the check
   rows.clear();
+  kc::AnalysisOptions plain = dense;
+  plain.substep_halvings = 0;  // one Newton start per row: the jump is refused, an error
   try {
-    kc::run_analysis(*model, {0, kTwoPi, 3}, sink, dense);
+    kc::run_analysis(*model, {0, kTwoPi, 3}, sink, plain);
     FAIL("no error");
   } catch (const kc::AnalysisError& e) {
     CHECK((contains(e.what(), "jumped") || contains(e.what(), "det(Phi_q) changed sign")));
@@ -285,6 +290,11 @@ TEST_CASE("a jump to another branch is detected, not returned", "[stability]") {
     CHECK(contains(e.what(), "t = 6.28"));
   }
   CHECK(rows.size() == 3);  // the rows before are kept
+  // With sub-steps (analyze's default) the refused step is taken in halves: the right rows.
+  rows.clear();
+  kc::run_analysis(*model, {0, kTwoPi, 3}, sink, dense);
+  REQUIRE(rows.size() == 4);
+  for (int k = 0; k < 9; ++k) CHECK(std::abs(rows.back().q[k] - exact.q[k]) < 1e-12);
   // The block solver (the default, as generated code): Newton on the rocker's block alone
   // from the predicted point converges on the right branch; a failure would be an error too,
   // never a wrong row.

@@ -119,132 +119,198 @@ class TimeLoop {
   void run(const TimeGrid& grid, const std::function<void(const StateRow&)>& sink) {
     for (int k = 0; k <= grid.steps; ++k) {
       const double t = grid.at(k);
-      if (k > 0) predict(k, t);
-      row_.t = t;
       if (const std::string table = table_outside(model_.mechanism(), t); !table.empty())
         throw AnalysisError(file_ + ": position analysis failed at " + format_time(t) +
                             ": t lies outside " + table);
-      if (blocks_)
-        solve_blocks(k, t);
+      if (k == 0)
+        solve_first(t);
       else
-        solve_dense(k, t);
+        advance(t);
+      row_.t = t;
       if (sensitivity_)
         solve_sensitivities(solver_, *sensitivity_, *phi_p_eval_, model_, t, row_,
                             [this](const char* stage, double at, Result r) { fail(stage, at, r); });
-      if (k > 0 && options_.check_jumps) check_step(t);
-      if (!blocks_) previous_sign_ = solver_.jacobian_sign();
       complete_row(t);
       sink(row_);
-      if (k > 0) {
-        qdd_before_ = previous_.qdd;
-        h_before_ = t - previous_.t;
-      }
-      previous_ = row_;
     }
   }
 
  private:
+  // Why a step was refused: a solve that failed (its phase and result), or a jump (`jump`,
+  // what the check found).
+  struct Refusal {
+    const char* stage = "position";
+    Result result;
+    std::string jump;
+  };
+
   // The coordinates the start of a step predicts.
   const std::vector<int>& predicted() const {
     return blocks_ ? blocks_->newton_coordinates() : all_coordinates_;
   }
 
-  // The runtime's predictor from the last solved state keeps Newton on its branch.
-  void predict(int k, double t) {
-    const double h = t - row_.t;
-    const TaylorPredictor<double> predict(h, h_before_, k > 1);
-    // The block path predicts what Solver::step predicts, the coordinates Newton iterates:
-    // the others are assigned, and their start value sets how their sin and cos rotate.
-    for (int c : predicted())
-      row_.q[c] = predict(row_.q[c], row_.qd[c], row_.qdd[c], k > 1 ? qdd_before_[c] : 0.0);
-  }
-
-  // The block program's step at t (Solver::step's).
-  void solve_blocks(int k, double t) {
-    // Solver::step's solve: the first one iterates to convergence whatever the options.
-    BlockInterpreter::Options o = block_options_;
-    if (k == 0) o.fixed_iterations = 0;
-    // A solve that fails, or succeeds near a toggle (Newton converging onto it), ends the
-    // analysis; a failed position may be retried once from the last solution.
-    const auto solve = [&](bool may_retry) {
-      Result r = block_result(
-          blocks_->solve_step(row_.q.data(), t, row_.qd.data(), row_.qdd.data(), o), model_.nq());
-      if (!r && may_retry && blocks_->failed_phase() == BlockInterpreter::Phase::kPosition)
-        return false;
-      if (!r) fail(BlockInterpreter::to_string(blocks_->failed_phase()), t, r);
-      if (r.condition > options_.max_condition) {
-        r.status = Status::kSingular;
-        fail("position", t, r);
-      }
-      return true;
+  // The first row: Newton from the file's q0 estimates, then the checks of the assembly.
+  void solve_first(double t) {
+    Refusal refused;
+    const auto solve = [&] {
+      if (!(blocks_ ? solve_blocks(t, true, refused) : solve_dense(t, true, refused)))
+        fail(refused.stage, t, refused.result);
     };
-    if (!solve(k > 0)) {
-      row_.q = previous_.q;
-      solve(false);
-    }
-    first_solve_ = false;
-    if (k == 0) {
+    solve();
+    if (blocks_) {
+      first_solve_ = false;
       // As on the dense path, but a changed estimate is solved again from scratch (then
       // analyze and a Solver started from the file's q0 differ by whole turns).
       const Eigen::VectorXd before = row_.q;
       keep_turns_of_estimates(solver_, model_, row_.q, t);
       if (row_.q != before) {
         blocks_->reset();
-        solve(false);
+        solve();
       }
       check_redundancy(model_, row_.q, t, options_);
       check_assembly(model_, row_.q, options_);
     }
+    accept(t);
   }
 
-  // Position, velocity and acceleration on the dense or sparse Phi_q.
-  void solve_dense(int k, double t) {
-    if (auto r = solver_.position(row_.q, t); !r) {
-      // A coarse step can predict a point from which Newton cannot find its way; start once
-      // more from the last solution before giving up (the jump check below still applies).
-      if (k == 0) fail("position", t, r);
-      row_.q = previous_.q;
-      if (auto r2 = solver_.position(row_.q, t); !r2) fail("position", t, r2);
+  // The step from the last accepted row to t, in sub-steps while it is refused (substeps,
+  // kinegen/motion.hpp: what Solver::step does with the same substep_halvings).
+  void advance(double t) {
+    Refusal refused;
+    const double from = last_.t;
+    const auto attempt = [&](double to) {
+      // A failure in a sub-step names the step it belongs to.
+      if ((to != t || last_.t != from) && substep_note_.empty())
+        substep_note_ = " (in sub-steps of the step from " + format_time(from) + " to " +
+                        format_time(t) + ", down to 1/" +
+                        format_number(std::ldexp(
+                            1.0, std::min(options_.substep_halvings, kMaxSubstepHalvings))) +
+                        " of it)";
+      predict(to);
+      const bool solved =
+          blocks_ ? solve_blocks(to, false, refused) : solve_dense(to, false, refused);
+      if (solved && !(options_.check_jumps && jumped(to, refused))) {
+        accept(to);
+        return true;
+      }
+        refused_q_ = row_.q;  // the messages describe the refused solution
+      return false;
+    };
+    const auto restore = [&] {
+      row_.q = last_.q;
+      row_.qd = last_.qd;
+      row_.qdd = last_.qdd;
+    };
+    double at = t;
+    if (substeps(from, t, options_.substep_halvings, attempt, restore, at)) {
+      substep_note_.clear();
+      return;
     }
+    row_.q = refused_q_;
+    if (refused.jump.empty()) fail(refused.stage, at, refused.result);
+    throw AnalysisError(
+        file_ + ": position analysis failed at " + format_time(at) + substep_note_ + ": " +
+        refused.jump +
+        (options_.substep_halvings > 0
+             ? ": the motion passes a singular configuration here (a change point, where "
+               "branches meet, or a toggle), or it moves too fast for the mechanism to follow"
+             : ": Newton left the assembly branch it started on, or the step is too coarse "
+               "to tell; use smaller steps (--steps)"));
+  }
+
+  // The runtime's predictor from the last accepted state keeps Newton on its branch.
+  void predict(double to) {
+    const double h = to - last_.t;
+    const bool jerk = accepted_ > 1;
+    const TaylorPredictor<double> predict(h, h_before_, jerk);
+    // The block path predicts what Solver::step predicts, the coordinates Newton iterates:
+    // the others are assigned, and their start value sets how their sin and cos rotate.
+    for (int c : predicted())
+      row_.q[c] = predict(row_.q[c], row_.qd[c], row_.qdd[c], jerk ? qdd_before_[c] : 0.0);
+  }
+
+  // Makes the solved row_ at t the last accepted state (the next step's start).
+  void accept(double t) {
+    if (accepted_ > 0) {
+      qdd_before_ = last_.qdd;
+      h_before_ = t - last_.t;
+    }
+    last_.t = t;
+    last_.q = row_.q;
+    last_.qd = row_.qd;
+    last_.qdd = row_.qdd;
+    ++accepted_;
+    if (!blocks_) previous_sign_ = solver_.jacobian_sign();
+  }
+
+  // The block program's step at t (Solver::step's); false, with the reason, when it failed.
+  // A solve that succeeds near a toggle (Newton converging onto it) ends the analysis.
+  bool solve_blocks(double t, bool first, Refusal& refused) {
+    // Solver::step's solve: the first one iterates to convergence whatever the options.
+    BlockInterpreter::Options o = block_options_;
+    if (first) o.fixed_iterations = 0;
+    Result r = block_result(
+        blocks_->solve_step(row_.q.data(), t, row_.qd.data(), row_.qdd.data(), o), model_.nq());
+    if (!r) {
+      refused = {BlockInterpreter::to_string(blocks_->failed_phase()), r, {}};
+      return false;
+    }
+    if (r.condition > options_.max_condition) {
+      r.status = Status::kSingular;
+      fail("position", t, r);
+    }
+    return true;
+  }
+
+  // Position, velocity and acceleration on the dense or sparse Phi_q; false, with the reason,
+  // when one failed. The first row checks the assembly between position and velocity.
+  bool solve_dense(double t, bool first, Refusal& refused) {
+    const auto refuse = [&](const char* stage, Result r) {
+      refused = {stage, r, {}};
+      return false;
+    };
+    if (auto r = solver_.position(row_.q, t); !r) return refuse("position", r);
     first_solve_ = false;
-    if (k == 0) {
+    if (first) {
       keep_turns_of_estimates(solver_, model_, row_.q, t);
       check_redundancy(model_, row_.q, t, options_);
       check_assembly(model_, row_.q, options_);
     }
     if (auto r = solver_.velocity(row_.q, t, row_.qd); !r) {
-      fail("velocity", t, r);
+      return refuse("velocity", r);
     } else if (r.condition > options_.max_condition) {
       // Newton converges (slowly) onto a toggle point, where Phi_q is singular only in the
       // limit: velocities there are meaningless, so it counts as singular.
       r.status = Status::kSingular;
       fail("position", t, r);
     }
-    if (auto r = solver_.acceleration(row_.q, row_.qd, t, row_.qdd); !r) fail("acceleration", t, r);
+    if (auto r = solver_.acceleration(row_.q, row_.qd, t, row_.qdd); !r)
+      return refuse("acceleration", r);
+    return true;
   }
 
   // The runtime's jump test (kinegen/motion.hpp), the one Solver::step applies, and the sign
-  // of det(Phi_q) on the dense path.
-  void check_step(double t) {
+  // of det(Phi_q) on the dense path: whether the solution at t left the motion, and how.
+  bool jumped(double t, Refusal& refused) const {
     const auto& scales = model_.symbolic().coordinate_scales;
     const auto inv_scale = [&](int k) { return 1 / scales[k]; };
     const MotionCheck motion = check_motion(
-        predicted(), t - previous_.t, previous_.q, previous_.qd, previous_.qdd, row_.q, row_.qd,
-        row_.qdd, inv_scale, options_.jump_fraction, std::numeric_limits<double>::epsilon());
-    if (motion.jumped())
-      throw AnalysisError(
-          file_ + ": position analysis failed at " + format_time(t) +
-          ": the solution jumped (scaled change " + format_number(motion.change) + " since " +
-          format_time(previous_.t) + " disagrees with the velocities by " +
-          format_number(motion.miss) +
-          "): Newton left the assembly branch it started on, or the step is too coarse to tell; "
-          "use smaller steps (--steps)");
+        predicted(), t - last_.t, last_.q, last_.qd, last_.qdd, row_.q, row_.qd, row_.qdd,
+        inv_scale, options_.jump_fraction, std::numeric_limits<double>::epsilon());
+    if (motion.jumped()) {
+      refused.jump = "the solution jumped (scaled change " + format_number(motion.change) +
+                     " since " + format_time(last_.t) + " disagrees with the velocities by " +
+                     format_number(motion.miss) + ")";
+      return true;
+    }
     const int sign = blocks_ ? 0 : solver_.jacobian_sign();
-    if (previous_sign_ != 0 && sign != 0 && sign != previous_sign_)
-      throw AnalysisError(file_ + ": position analysis failed at " + format_time(t) +
-                          ": det(Phi_q) changed sign since " + format_time(previous_.t) +
-                          ": the solution crossed a singular configuration or jumped to "
-                          "another assembly branch; use smaller steps (--steps)");
+    if (previous_sign_ != 0 && sign != 0 && sign != previous_sign_) {
+      refused.jump = "det(Phi_q) changed sign since " + format_time(last_.t) +
+                     ": the solution crossed a singular configuration or jumped to another "
+                     "assembly branch";
+      return true;
+    }
+    return false;
   }
 
   // The row's points, outputs, their sensitivities and the forces.
@@ -291,8 +357,8 @@ class TimeLoop {
     if (r.status == Status::kMaxIterations && r.condition > options_.max_condition)
       r.status = Status::kSingular;
     if (r.status == Status::kMaxIterations && r.step <= 1e-10) r.status = Status::kInconsistent;
-    std::string message =
-        file_ + ": " + stage + " analysis failed at " + format_time(t) + ": " + r.message();
+    std::string message = file_ + ": " + stage + " analysis failed at " + format_time(t) +
+                          substep_note_ + ": " + r.message();
     if (r.status == Status::kMaxIterations || r.status == Status::kInconsistent) {
       if (r.status == Status::kMaxIterations)
         message += " in " + std::to_string(r.iterations) + " iterations (last scaled step " +
@@ -351,10 +417,17 @@ class TimeLoop {
   std::unique_ptr<ForceSolver> force_solver_;
   bool force_warned_ = false;
   BlockInterpreter::Options block_options_;
-  StateRow previous_;
-  Eigen::VectorXd qdd_before_;  // the acceleration one step before `previous` (the jerk)
+  // The last accepted state (a row, or a sub-step between rows), where the next step starts.
+  struct Accepted {
+    double t = 0;
+    Eigen::VectorXd q, qd, qdd;
+  } last_;
+  int accepted_ = 0;            // rows and sub-steps accepted so far
+  Eigen::VectorXd qdd_before_;  // the acceleration one step before `last_` (the jerk)
   double h_before_ = 0;
   int previous_sign_ = 0;
+  Eigen::VectorXd refused_q_;  // the last refused solution
+  std::string substep_note_;   // what a failure after sub-steps adds to its time
 };
 
 }  // namespace

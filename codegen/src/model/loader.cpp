@@ -76,8 +76,7 @@ void Loader::check_keys(const YAML::Node& map, const std::string& item,
     if (!it->first.IsScalar()) fail(item, loc_of(it->first), "keys must be plain names");
     const std::string key = it->first.Scalar();
     if (!seen.insert(key).second) fail(item, loc_of(it->first), "duplicate key '" + key + "'");
-    const bool known = key == "type" || key == "name" ||
-                       std::find(required.begin(), required.end(), key) != required.end() ||
+    const bool known = std::find(required.begin(), required.end(), key) != required.end() ||
                        std::find(optional.begin(), optional.end(), key) != optional.end();
     if (!known) {
       std::string allowed;

@@ -69,7 +69,7 @@ bool Loader::has_value_key(const ConstraintKind& kind) {
 void Loader::read_keys(const YAML::Node& c, const ConstraintKind& kind, const std::string& item,
                        const Mechanism& m, Constraint& con) {
   const bool driver = con.is_driver;
-  std::vector<std::string> required, optional;
+  std::vector<std::string> required = {"type"}, optional = {"name"};
   bool has_law = false;  // a driver with an f(t): pieces, period and table apply
   for (const KeySpec& k : kind.keys) {
     has_law = has_law || (driver && k.kind == KeyKind::kValue);

@@ -56,7 +56,10 @@ void Loader::read_forces(const YAML::Node& node, Mechanism& m) {
       item = "forces[" + std::to_string(k) + "] '" + load.name + "' (" + type_name + ")";
     }
     load.item = item;
-    check_keys(f, item, kind->required, kind->optional);
+    std::vector<std::string> required = kind->required, optional = kind->optional;
+    required.insert(required.begin(), "type");
+    optional.insert(optional.begin(), "name");
+    check_keys(f, item, required, optional);
     const Expr zero{"0", load.loc};
     load.s = load.si = load.sj = Vec2{zero, zero};
     load.damping = load.preload = load.angle0 = zero;

@@ -167,8 +167,8 @@ class DriverLawBuilder {
             std::isfinite(left[o][j] - right[o][j]))
           continue;
         const std::string message = std::string(what[o]) + " jumps at " + joints[j].name + ": " +
-                                    format_number(left[o][j]) + " before it, " +
-                                    format_number(right[o][j]) + " after it";
+                                    format_number(shown(left[o][j], scale[o])) + " before it, " +
+                                    format_number(shown(right[o][j], scale[o])) + " after it";
         if (o == 0) fail(joints[j].loc, message);
         if (warnings)
           warnings->push_back(m_.source + ":" + std::to_string(joints[j].loc.line) + ": " +
@@ -176,6 +176,11 @@ class DriverLawBuilder {
                               (o == 1 ? "; velocities jump there" : "; accelerations jump there"));
       }
   }
+
+  // A side's value as a message shows it: taken a hair inside its piece, a value that is 0 at
+  // the boundary (a rise's f'' at its end) comes out as a few 1e-23; below 1e-12 of the scale
+  // the jump is measured in, it is that hair's rounding, so it reads 0.
+  static double shown(double v, double scale) { return std::abs(v) <= 1e-12 * scale ? 0.0 : v; }
 
   // The run-time input law: inputs(driver, order, t) (functions.hpp), its derivatives the
   // inputs of the next order.

@@ -31,12 +31,34 @@ numeric pi_like(const numeric& x) {
   return GiNaC::ex_to<numeric>(GiNaC::Pi.evalf());
 }
 
+// The n-th derivative of cos at 0, cos(n pi / 2).
+int cos_derivative_at_zero(int n) {
+  static const int kValues[4] = {1, 0, -1, 0};
+  return kValues[n % 4];
+}
+
+// A law's d^order/dx^order at exactly 0, its formula's value (format 6.3: a law is its formula
+// on [0, 1)), exact: pi stays GiNaC's Pi, so that harmonic''(0) is Pi^2/2, not a float.
+ex law_at_zero(int law, int order) {
+  switch (law) {
+    case kernels::kCycloidal:  // f' = 1 - cos(2 pi x); f^(n) = -(2 pi)^(n-1) cos^(n-1)(2 pi x)
+      if (order <= 1) return 0;
+      return -GiNaC::pow(2 * GiNaC::Pi, order - 1) * cos_derivative_at_zero(order - 1);
+    case kernels::kHarmonic:  // f^(n) = -(pi^n / 2) cos^(n)(pi x), n >= 1
+      if (order == 0) return 0;
+      return -GiNaC::pow(GiNaC::Pi, order) / 2 * cos_derivative_at_zero(order);
+    default:  // the polynomials: exact rationals at a rational x
+      return motion_law_high_precision(law, order, 0);
+  }
+}
+
 ex law_eval(const ex& law, const ex& order, const ex& x) {
-  // Clamped values are exact; floats are evaluated, as GiNaC does for sin(0.5).
+  // Clamped values and those at 0 are exact; floats are evaluated, as GiNaC does for sin(0.5).
   if (GiNaC::is_a<numeric>(x) && GiNaC::ex_to<numeric>(x).is_real()) {
     const numeric v = GiNaC::ex_to<numeric>(x);
-    if (!v.is_rational() || !v.is_positive() || v >= 1)
-      return motion_law_high_precision(small_integer(law, "law"), small_integer(order, "order"), v);
+    const int l = small_integer(law, "law"), n = small_integer(order, "order");
+    if (v.is_zero() && v.is_rational()) return law_at_zero(l, n);
+    if (!v.is_rational() || v.is_negative() || v >= 1) return motion_law_high_precision(l, n, v);
   }
   return kinegen_law(law, order, x).hold();
 }
@@ -226,8 +248,9 @@ bool is_motion_law(const ex& e, int& law, int& order) {
 }
 
 numeric motion_law_high_precision(int law, int order, const numeric& x) {
+  // The formula on [0, 1), clamped outside it (format 6.3); the branch on the real part.
   const numeric re = x.real();
-  if (!re.is_positive()) return 0;
+  if (re.is_negative()) return 0;
   if (re >= 1) return order == 0 ? 1 : 0;
   const numeric pi = pi_like(x);
   // n-th derivative of cos at w: cos(w + n pi / 2), exactly by quadrant.

@@ -4,11 +4,14 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "kinegen/codegen/symbolic/functions.hpp"
 #include "symbolic_detail.hpp"
@@ -112,15 +115,91 @@ const char* scope_hint(Scope scope) {
 // Why a velocity may not be used, for the item that uses one (its name says what it is).
 std::string velocity_hint(const std::string& item) {
   if (item.rfind("outputs.", 0) == 0)
-    return "outputs are functions of the coordinates, t and the parameters; an output's rate "
-           "is its NAME.v column";
+    return "outputs are functions of positions and time (the coordinates, t, the parameters "
+           "and definitions), not of velocities; an output's velocity and acceleration are its "
+           "NAME.v and NAME.a columns";
   if (item.rfind("forces[", 0) == 0)
     return "only a force's f and a torque's value may use velocities (xd_<body>, yd_<body>, "
            "phid_<body>, <name>_d); a spring-damper's damping gives its own";
   return "expressions may not use velocities; they follow from the positions";
 }
 
+// The edit distance of a and b (insertions, deletions, substitutions and swaps of neighbours).
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));
+  for (std::size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (std::size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i)
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1,
+                          d[i - 1][j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  return d[a.size()][b.size()];
+}
+
+// The position coordinate a velocity-like name stands for the rate of (omega_B, v_B, vx_B,
+// alpha_B, ... of body B; C_dot, C_v of coordinate C), or "" when it does not read as one.
+std::string position_of_rate(const std::string& name,
+                             const std::function<bool(const std::string&)>& is_coordinate) {
+  struct Prefix {
+    const char* prefix;
+    const char* coordinate;
+  };
+  static const Prefix kPrefixes[] = {
+      {"omega_", "phi_"}, {"alpha_", "phi_"},  {"w_", "phi_"},   {"dphi_", "phi_"},
+      {"ddphi_", "phi_"}, {"phidot_", "phi_"}, {"phidd_", "phi_"}, {"v_", "x_"},
+      {"vx_", "x_"},      {"xdot_", "x_"},     {"xdd_", "x_"},   {"a_", "x_"},
+      {"ax_", "x_"},      {"vy_", "y_"},       {"ydot_", "y_"},  {"ydd_", "y_"},
+      {"ay_", "y_"}};
+  for (const Prefix& p : kPrefixes) {
+    const std::string prefix = p.prefix;
+    if (name.size() > prefix.size() && name.rfind(prefix, 0) == 0) {
+      const std::string position = p.coordinate + name.substr(prefix.size());
+      if (is_coordinate(position)) return position;
+    }
+  }
+  for (const char* suffix : {"_dot", "_ddot", "_dd", "_d", "_v", "_a", "_omega", "_alpha"}) {
+    const std::string s = suffix;
+    if (name.size() > s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0 &&
+        is_coordinate(name.substr(0, name.size() - s.size())))
+      return name.substr(0, name.size() - s.size());
+  }
+  return "";
+}
+
 }  // namespace
+
+std::string SymbolTable::unknown_symbol_hint(const std::string& name, Scope scope,
+                                             const std::string& item) const {
+  const auto is_coordinate = [&](const std::string& n) {
+    return std::find(coord_names_.begin(), coord_names_.end(), n) != coord_names_.end();
+  };
+  if (!scope_allows(scope, InputKind::kQd) && scope_allows(scope, InputKind::kQ)) {
+    if (const std::string position = position_of_rate(name, is_coordinate); !position.empty())
+      return ": it reads as a rate of '" + position + "'; " + velocity_hint(item) +
+             " (its position is '" + position + "')";
+  }
+  // The nearest name the scope allows, within a quarter of the name's length (at least 1).
+  std::string best;
+  std::size_t best_distance = std::max<std::size_t>(1, name.size() / 4) + 1;
+  const auto consider = [&](const std::string& candidate) {
+    const std::size_t d = edit_distance(name, candidate);
+    if (d < best_distance) best = candidate, best_distance = d;
+  };
+  for (const auto& [candidate, value] : names_) {
+    if (GiNaC::is_a<GiNaC::symbol>(value) && roles_.count(value) &&
+        !scope_allows(scope, classify(value).kind))
+      continue;
+    if (!GiNaC::is_a<GiNaC::symbol>(value) && scope == Scope::kConstant) continue;
+    consider(candidate);
+  }
+  if (scope_allows(scope, InputKind::kT)) consider("t");
+  consider("pi");
+  if (best.empty()) return "";
+  return "; did you mean '" + best + "'?";
+}
 
 namespace symbolic_detail {
 
@@ -253,17 +332,23 @@ ex SymbolTable::parse(const Expr& expr, Scope scope, const std::string& item) co
     GiNaC::parser reader(table, /*strict=*/true, kFunctions);
     e = reader(rationalize_literals(expr.text));
   } catch (const std::exception& err) {
-    throw InputError(source_, item, expr.loc,
-                     "cannot read '" + expr.text + "': " + clean_message(err.what()));
+    std::string message = clean_message(err.what());
+    const std::string unknown = "unknown symbol '";
+    if (message.rfind(unknown, 0) == 0)
+      message += unknown_symbol_hint(message.substr(unknown.size(), message.size() -
+                                                                        unknown.size() - 1),
+                                     scope, item);
+    throw InputError(source_, item, expr.loc, "cannot read '" + expr.text + "': " + message);
   }
   for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it) {
     if (GiNaC::is_a<GiNaC::symbol>(*it)) {
       const Input role = classify(*it);
       const std::string name = GiNaC::ex_to<GiNaC::symbol>(*it).get_name();
       if (role.kind == InputKind::kQd && !scope_allows(scope, role.kind))
-        throw InputError(
-            source_, item, expr.loc,
-            "'" + expr.text + "' uses the velocity '" + name + "': " + velocity_hint(item));
+        throw InputError(source_, item, expr.loc,
+                         "'" + expr.text + "' uses the velocity '" + name + "': " +
+                             velocity_hint(item) + " (its position is '" +
+                             coord_names_[role.index] + "')");
       if (!scope_allows(scope, role.kind))
         throw InputError(source_, item, expr.loc,
                          "'" + expr.text + "' uses '" + name + "': " + scope_hint(scope));

@@ -287,8 +287,55 @@ class Solver {
   // state, passed back unchanged between steps (call reset() after changing them). A step
   // whose solution is not the one the velocities predict (check_motion: another assembly
   // branch, or a step too coarse to tell) fails with Status::kBranchJump, as does a change of
-  // a block's determinant sign where the header reports them.
+  // a block's determinant sign where the header reports them. With
+  // SolverOptions::substep_halvings, a refused step is taken in sub-steps instead (as `kinegen
+  // analyze` takes it), and fails only when one of 1 / 2^substep_halvings of it is refused;
+  // failed_time() then says where. A failed step leaves the history as it found it.
   Result step(Scalar t, Vector& q, Vector& qd, Vector& qdd) {
+    failed_at_ = t;
+    const int halvings = dense_.options().substep_halvings;
+    if (halvings <= 0 || !has_previous_) return single_step(t, q, qd, qdd);
+    return substepped(t, halvings, q, qd, qdd);
+  }
+  // Where the last step() failed: its t, or the end of its refused sub-step.
+  Scalar failed_time() const { return failed_at_; }
+  // Forgets everything the steps kept: the predictor's history, the sin/cos cache and the
+  // blocks' determinant signs. The next step() starts Newton from the q given.
+  void reset() {
+    has_previous_ = has_two_ = false;
+    h_previous_ = t_previous_ = Scalar(0);
+    qdd_before_.setZero();
+    trig_ = empty_trig_cache();
+    signs_.fill(0);
+    signs_new_.fill(0);
+    factors_valid_ = false;
+  }
+
+ private:
+  // step() in sub-steps (motion.hpp's substeps, as analyze takes them): each starts from the
+  // last accepted state, and a failure restores the history of the step's start.
+  Result substepped(Scalar t, int halvings, Vector& q, Vector& qd, Vector& qdd) {
+    Vector q_ok = q, qd_ok = qd, qdd_ok = qdd;
+    const History entry{t_previous_,  h_previous_,    has_two_,       q_previous_,
+                        qd_previous_, qdd_previous_, qdd_before_, signs_, signs_new_};
+    Result r;
+    const auto attempt = [&](Scalar to) {
+      r = single_step(to, q, qd, qdd);
+      if (!r) return false;
+      q_ok = q, qd_ok = qd, qdd_ok = qdd;
+      return true;
+    };
+    const auto restore = [&] { q = q_ok, qd = qd_ok, qdd = qdd_ok; };
+    if (substeps(t_previous_, t, halvings, attempt, restore, failed_at_)) return r;
+    t_previous_ = entry.t, h_previous_ = entry.h, has_two_ = entry.has_two;
+    q_previous_ = entry.q, qd_previous_ = entry.qd, qdd_previous_ = entry.qdd;
+    qdd_before_ = entry.qdd_before, signs_ = entry.signs, signs_new_ = entry.signs_new;
+    qd.setConstant(kNaN);
+    qdd.setConstant(kNaN);
+    return r;
+  }
+  // One step from the last one, without sub-steps.
+  Result single_step(Scalar t, Vector& q, Vector& qd, Vector& qdd) {
     factors_valid_ = false;
     const Scalar h = has_previous_ ? t - t_previous_ : Scalar(0);
     if (has_previous_) {
@@ -344,19 +391,7 @@ class Solver {
     }
     return r;
   }
-  // Forgets everything the steps kept: the predictor's history, the sin/cos cache and the
-  // blocks' determinant signs. The next step() starts Newton from the q given.
-  void reset() {
-    has_previous_ = has_two_ = false;
-    h_previous_ = t_previous_ = Scalar(0);
-    qdd_before_.setZero();
-    trig_ = empty_trig_cache();
-    signs_.fill(0);
-    signs_new_.fill(0);
-    factors_valid_ = false;
-  }
 
- private:
   auto block_options() const {
     typename Model::BlockOptions o;
     const SolverOptions& s = dense_.options();
@@ -507,6 +542,14 @@ class Solver {
   // (the predictor's jerk; zero before, where the predictor does not read it).
   Vector q_previous_ = Vector::Zero(), qd_previous_ = Vector::Zero(),
          qdd_previous_ = Vector::Zero(), qdd_before_ = Vector::Zero();
+  // What a failed step() in sub-steps puts back, and where it failed.
+  struct History {
+    Scalar t, h;
+    bool has_two;
+    Vector q, qd, qdd, qdd_before;
+    std::array<signed char, kNumSigns> signs, signs_new;
+  };
+  Scalar failed_at_ = Scalar(0);
 };
 
 }  // namespace kinegen

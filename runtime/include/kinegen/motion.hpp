@@ -115,9 +115,13 @@ struct MotionCheck {
 // (Euler-Maclaurin). A motion law's warned boundary (spec 6.3) makes qd or qdd jump at a grid
 // time, where the one-sided Taylor estimate from the other end still holds
 // (q0 + h qd0 + h^2 qdd0 / 2, or q1 - h qd1 + h^2 qdd1 / 2): the nearest of the three counts.
-// A solution that misses all three by more than `fraction` of the motion over the step (plus a
-// rounding floor in the scalar's epsilon) was not reached along the motion: Newton jumped to
-// another assembly branch, or the step is too coarse to tell. coords: the coordinates to
+// A solution that misses all three by more than `fraction` of the motion the velocities give
+// over the step, h max |qd| (plus a rounding floor in the scalar's epsilon), was not reached
+// along the motion: Newton jumped to another assembly branch, or the step is too coarse to
+// tell. The allowance is not scaled by the change itself: a whole turn that Newton added to an
+// angle, over a step whose acceleration terms happen to explain much of it, would then allow
+// itself (an indexer's crank in one step from rest to rest); such a step is refused, and taken
+// in sub-steps (substeps, below). coords: the coordinates to
 // compare (all, or those Newton iterates where every other one follows from them and t); V:
 // anything indexable with [k]; inv_scale(k): 1 / the coordinate's scale (multiplications: this
 // runs every step).
@@ -139,7 +143,7 @@ MotionCheck check_motion(const Coords& coords, double h, const V& q0, const V& q
     motion = std::max(motion, std::max(std::abs(v0), std::abs(v1)) * w);
     size = std::max(size, std::abs(static_cast<double>(q1[k])) * w);
   }
-  motion = std::max(std::abs(h) * motion, c.change);
+  motion *= std::abs(h);
   c.allowed = fraction * motion + 1e-6 + 1e4 * eps + 64 * eps * size;
   if (c.miss <= c.allowed) return c;  // the smooth case: one pass
   double miss_old = 0, miss_new = 0;
@@ -156,6 +160,51 @@ MotionCheck check_motion(const Coords& coords, double h, const V& q0, const V& q
   }
   c.miss = std::min({c.miss, miss_old, miss_new});
   return c;
+}
+
+// Sub-steps: the most halvings SolverOptions::substep_halvings may ask for (the pending times
+// are a fixed array), and the number `kinegen analyze` uses (a step refused at 1/4096 of its
+// length is refused for a reason, not for its size).
+constexpr int kMaxSubstepHalvings = 40;
+constexpr int kAnalyzeSubstepHalvings = 12;
+
+// A step from t_from (the last accepted time) to t that is refused (its solve failed, or it
+// jumped: check_motion) is retried as two halves, each halved again while refused, as long as
+// the refused step is longer than (t - t_from) / 2^halvings; every sub-step is a full step with
+// all its checks, and only the last one lands on t. attempt(to) tries one step from the last
+// accepted state to `to` and, when it succeeds, makes that the last accepted state; restore()
+// puts the caller's q, qd and qdd back to the last accepted state after a refusal. Returns true
+// when t was reached; otherwise failed_at is the end of the refused step at the finest length
+// (halvings = 0: t itself, a plain step). Written once for `kinegen analyze` and Solver::step,
+// which so take the same sub-steps bit for bit. No allocation.
+template <class Scalar, class Attempt, class Restore>
+bool substeps(Scalar t_from, Scalar t, int halvings, Attempt&& attempt, Restore&& restore,
+              Scalar& failed_at) {
+  halvings = std::clamp(halvings, 0, kMaxSubstepHalvings);
+  Scalar shortest = t - t_from;  // |a refused step| at most this fails: (t - t_from) / 2^halvings
+  for (int k = 0; k < halvings; ++k) shortest /= Scalar(2);
+  Scalar pending[kMaxSubstepHalvings + 1];  // the times still to reach, the nearest last
+  int n = 0;
+  pending[n++] = t;
+  Scalar from = t_from;
+  while (n > 0) {
+    const Scalar to = pending[n - 1];
+    if (attempt(to)) {
+      from = to;
+      --n;
+      continue;
+    }
+    restore();
+    const Scalar mid = from + (to - from) / Scalar(2);
+    using std::abs;
+    if (!(abs(to - from) > abs(shortest)) || !(mid != from && mid != to) ||
+        n > kMaxSubstepHalvings) {
+      failed_at = to;
+      return false;
+    }
+    pending[n++] = mid;
+  }
+  return true;
 }
 
 }  // namespace kinegen

@@ -98,6 +98,13 @@ struct SolverOptions {
   // more than this fraction of the motion over it is a jump to another branch
   // (Status::kBranchJump; check_motion in motion.hpp, as `kinegen analyze` applies it).
   double jump_fraction = 0.25;
+  // Solver::step only: when positive, a refused step (its solve failed, or it jumped) is retried
+  // in halves, each halved again while refused, down to 1 / 2^substep_halvings of its length
+  // (substeps in motion.hpp); only the last sub-step lands on t. `kinegen analyze` always
+  // sub-steps (kAnalyzeSubstepHalvings), and a Solver with the same count takes the same
+  // sub-steps bit for bit. 0, the default: a refused step fails at once, for a fixed cost per
+  // step (real-time loops).
+  int substep_halvings = 0;
 };
 
 // SolverOptions whose tolerances follow the precision of Scalar (its real type), as the block

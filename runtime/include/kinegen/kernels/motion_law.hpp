@@ -1,6 +1,8 @@
 // Motion laws (mechanism format 6.3): cycloidal, harmonic, 3-4-5 and 4-5-6-7 polynomial rises
-// from 0 to 1 on [0, 1], clamped outside it (0 for x <= 0 and 1 for x >= 1, every derivative 0
-// there). See report.hpp for how kernel files are used: the generator pastes this text into
+// from 0 to 1, each its formula on [0, 1) and clamped outside it (0 for x < 0 and 1 for x >= 1,
+// every derivative 0 there): a value exactly at 0 or 1 is the limit from the right, as a
+// driver's pieces take the later piece at a boundary, so that laws that join smoothly (a
+// harmonic rise and its return) give the true f' and f'' at the joint. See report.hpp for how kernel files are used: the generator pastes this text into
 // headers whose model calls a law, and the in-process evaluator calls it directly. It stands
 // alone (no other kernel), since a header without a block solver may need it too.
 #pragma once
@@ -24,13 +26,14 @@ struct MotionLawKernel {
     }
   }
   // d^order/dx^order of motion law `law` (0 cycloidal, 1 harmonic, 2 poly345, 3 poly4567) at x
-  // (order >= 0), clamped outside (0, 1).
+  // (order >= 0): the formula on [0, 1), clamped outside it.
   template <class T>
   static T _motion_law(int law, int order, const T& x) noexcept {
     using std::cos, std::sin;
     using R = std::decay_t<decltype(_law_re(x))>;
     const R xr = _law_re(x);
-    if (!(xr > R(0))) return T(xr == xr ? R(0) : xr);  // NaN stays NaN
+    if (!(xr == xr)) return T(xr);  // NaN stays NaN
+    if (xr < R(0)) return T(R(0));
     if (!(xr < R(1))) return T(order == 0 ? R(1) : R(0));
     const R pi = R(3.14159265358979323846264338327950288L);
     switch (law) {
@@ -106,7 +109,7 @@ struct MotionLawKernel {
   // kinegen-kernel-end motion_law
 };
 
-// d^order/dx^order of `law` at x (order >= 0), clamped outside (0, 1).
+// d^order/dx^order of `law` at x (order >= 0): the formula on [0, 1), clamped outside it.
 template <class T>
 T motion_law(int law, int order, const T& x) noexcept {
   return MotionLawKernel::_motion_law(law, order, x);

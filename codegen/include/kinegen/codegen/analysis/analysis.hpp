@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <kinegen/motion.hpp>
+
 #include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/base/format.hpp"  // format_number, which CSV rows use
 
@@ -56,6 +58,13 @@ struct AnalysisOptions {
   // Off: neither the jump check nor the det(Phi_q) sign check (for tests that show what they
   // prevent).
   bool check_jumps = true;
+  // A refused step (its solve failed, or it jumped) is taken in halves, each halved again while
+  // refused, down to 1 / 2^substep_halvings of the step (kinegen::substeps, motion.hpp); the
+  // rows are still those of the grid. The analysis fails where a sub-step that short is
+  // refused: a singular configuration, or a motion the mechanism cannot follow. A generated
+  // Solver with the same SolverOptions::substep_halvings takes the same sub-steps bit for bit.
+  // 0: a refused step fails at once.
+  int substep_halvings = kAnalyzeSubstepHalvings;
   // A solved position whose scaled Phi_q has a larger condition estimate is treated as
   // singular (a toggle that Newton converged onto): cond * eps would reach 1e-8.
   double max_condition = 1e8;

@@ -83,7 +83,8 @@ DECLARE_FUNCTION_3P(kinegen_law)
 bool is_motion_law(const GiNaC::ex& e, int& law, int& order);
 
 // The law's value in CLN arithmetic at the precision of x (the reference; an exact x gets the
-// current Digits, the polynomials stay exact). Clamped on the real part, like the kernel.
+// current Digits, the polynomials stay exact). The formula on [0, 1), clamped outside it (a
+// value at 0 or 1 is the limit from the right), chosen on the real part, like the kernel.
 GiNaC::numeric motion_law_high_precision(int law, int order, const GiNaC::numeric& x);
 
 // The parser's readers of the laws' names, one argument each (symbol_table.cpp).

@@ -83,6 +83,10 @@ class SymbolTable {
 
  private:
   static bool has_symbol(const GiNaC::ex& e);
+  // What an "unknown symbol" message adds: a velocity's name read as one (omega_<body>), or
+  // the nearest name the scope allows.
+  std::string unknown_symbol_hint(const std::string& name, Scope scope,
+                                  const std::string& item) const;
 
   std::string source_;
   std::vector<GiNaC::realsymbol> q_, qd_, params_, extra_;
