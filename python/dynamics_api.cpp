@@ -11,6 +11,7 @@
 #include "kinegen/codegen/analysis/simulate.hpp"
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/model/table.hpp"
+#include "locked.hpp"
 
 namespace kinegen::python {
 
@@ -52,6 +53,13 @@ std::string joined(const std::vector<std::string>& names) {
   std::string s;
   for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
   return s.empty() ? "none" : s;
+}
+
+// f() under the library's lock, without the GIL (locked.hpp): f touches no Python object.
+template <class F>
+auto under_lock(F&& f) {
+  Locked locked;
+  return f();
 }
 
 }  // namespace
@@ -106,30 +114,33 @@ py::dict DynamicsApi::simulate(const SimulateArgs& a) {
     throw kc::UsageError("method must be 'minimal' or 'augmented', not '" + a.method + "'");
   if (a.integrator != "auto" && a.integrator != "bdf" && a.integrator != "adams")
     throw kc::UsageError("integrator must be 'auto', 'bdf' or 'adams', not '" + a.integrator + "'");
-  {
-    kc::Mechanism copy = model_.mechanism();
-    kc::apply_inputs(copy, {}, true, true);
-  }
-  if (!forces_) forces_ = std::make_unique<kc::ForceModel>(kc::derive_forces(model_));
-  kc::SimulateOptions options;
-  options.rtol = a.rtol;
-  options.atol = a.atol;
-  options.method = a.method == "augmented" ? kc::Method::kAugmented : kc::Method::kMinimal;
-  options.integrator = a.integrator == "bdf"     ? kc::Integrator::kBdf
-                       : a.integrator == "adams" ? kc::Integrator::kAdams
-                                                 : kc::Integrator::kAuto;
-  std::vector<std::string> force_names;
-  if (a.forces) {
-    options.forces_columns = forces_.get();
-    force_names = kc::force_columns(model_.mechanism());
-  }
-  std::string header = kc::simulate_csv_header(model_.mechanism(), force_names);
-  header.pop_back();
-  const std::vector<std::string> columns = split(header);
+  std::vector<std::string> columns;
   std::vector<std::vector<double>> rows;
-  const int nb = static_cast<int>(model_.mechanism().bodies.size());
   {
-    py::gil_scoped_release release;
+    Locked locked;  // the library's work; the Python result is built after it
+    {
+      kc::Mechanism copy = model_.mechanism();
+      kc::apply_inputs(copy, {}, true, true);
+    }
+    if (!forces_) forces_ = std::make_unique<kc::ForceModel>(kc::derive_forces(model_));
+    kc::SimulateOptions options;
+    options.rtol = a.rtol;
+    options.atol = a.atol;
+    options.method = a.method == "augmented" ? kc::Method::kAugmented : kc::Method::kMinimal;
+    options.integrator = a.integrator == "bdf"     ? kc::Integrator::kBdf
+                         : a.integrator == "adams" ? kc::Integrator::kAdams
+                                                   : kc::Integrator::kAuto;
+    std::vector<std::string> force_names;
+    if (a.forces) {
+      options.forces_columns = forces_.get();
+      force_names = kc::force_columns(model_.mechanism());
+    }
+    std::string header = kc::simulate_csv_header(model_.mechanism(), force_names);
+    header.pop_back();
+    columns = split(header);
+    // The rows are kept to be returned (the command line streams them): bounded as analyze's.
+    kc::require_kept_rows("simulate", a.steps + 1LL, columns.size());
+    const int nb = static_cast<int>(model_.mechanism().bodies.size());
     // As the CSV: the text parsed back (17 digits round-trip a double), so bit for bit.
     kc::run_simulation(
         model_, *forces_, {a.t0, a.t1, a.steps},
@@ -153,22 +164,29 @@ py::dict DynamicsApi::simulate(const SimulateArgs& a) {
 
 py::array_t<double> DynamicsApi::dynamics(double t, const std::vector<double>& z,
                                           const std::vector<double>& zd, const OptionalValues& u) {
-  kc::Linearizer& lin = linearizer(linearizer_ ? t0_ : t, "dynamics");
-  const kc::OperatingPoint p = point(lin, t, z, zd, u);
-  kc::MotionState state;
-  if (!lin.evaluate(p, state))
-    throw kc::AnalysisError(model_.mechanism().source + ": dynamics at " + kc::format_time(t) +
-                            ": " + lin.reason());
-  return vector(state.zdd);
+  const Eigen::VectorXd zdd = under_lock([&] {
+    kc::Linearizer& lin = linearizer(linearizer_ ? t0_ : t, "dynamics");
+    const kc::OperatingPoint p = point(lin, t, z, zd, u);
+    kc::MotionState state;
+    if (!lin.evaluate(p, state))
+      throw kc::AnalysisError(model_.mechanism().source + ": dynamics at " + kc::format_time(t) +
+                              ": " + lin.reason());
+    return state.zdd;
+  });
+  return vector(zdd);
 }
 
 py::dict DynamicsApi::equilibrium(double t, const OptionalValues& u) {
-  kc::Linearizer& lin = linearizer(t, "equilibrium");
-  const kc::Equilibrium e = kc::find_equilibrium(lin, point(lin, t, std::nullopt, std::nullopt, u));
-  kc::ForceSolver solver(model_, *forces_);
-  solver.set_inputs(lin.dynamics().input_slots());
   std::vector<double> columns;
-  solver.solve(e.at.t, e.state.q, e.state.qd, e.state.qdd, columns);
+  const kc::Equilibrium e = under_lock([&] {
+    kc::Linearizer& lin = linearizer(t, "equilibrium");
+    kc::Equilibrium found =
+        kc::find_equilibrium(lin, point(lin, t, std::nullopt, std::nullopt, u));
+    kc::ForceSolver solver(model_, *forces_);
+    solver.set_inputs(lin.dynamics().input_slots());
+    solver.solve(found.at.t, found.state.q, found.state.qd, found.state.qdd, columns);
+    return found;
+  });
   py::dict forces;
   const auto names = kc::force_columns(model_.mechanism());
   for (std::size_t k = 0; k < names.size(); ++k) forces[py::str(names[k])] = columns[k];
@@ -192,13 +210,17 @@ py::dict DynamicsApi::equilibrium(double t, const OptionalValues& u) {
 }
 
 py::dict DynamicsApi::modes(double t, const OptionalValues& z, const OptionalValues& u) {
-  kc::Linearizer& lin = linearizer(t, "modes");
-  kc::OperatingPoint p = point(lin, t, z, std::nullopt, u);
-  if (!z) p = kc::find_equilibrium(lin, p).at;
-  const kc::ModalAnalysis a = kc::modal_analysis(lin, p);
+  int nf = 0;
+  const kc::ModalAnalysis a = under_lock([&] {
+    kc::Linearizer& lin = linearizer(t, "modes");
+    nf = lin.nf();
+    kc::OperatingPoint p = point(lin, t, z, std::nullopt, u);
+    if (!z) p = kc::find_equilibrium(lin, p).at;
+    return kc::modal_analysis(lin, p);
+  });
   const Eigen::Index n = static_cast<Eigen::Index>(a.modes.size());
   Eigen::VectorXd f(n), fd(n), zeta(n);
-  Eigen::MatrixXd shapes(n, model_.nq()), shapes_z(n, lin.nf());
+  Eigen::MatrixXd shapes(n, model_.nq()), shapes_z(n, nf);
   std::vector<std::string> kinds;
   for (Eigen::Index k = 0; k < n; ++k) {
     const kc::Mode& m = a.modes[k];
@@ -231,8 +253,10 @@ py::dict DynamicsApi::modes(double t, const OptionalValues& z, const OptionalVal
 
 py::dict DynamicsApi::linearize(double t, const OptionalValues& z, const OptionalValues& zd,
                                 const OptionalValues& u) {
-  kc::Linearizer& lin = linearizer(t, "linearize");
-  const kc::LinearModel l = kc::linearize(lin, point(lin, t, z, zd, u));
+  const kc::LinearModel l = under_lock([&] {
+    kc::Linearizer& lin = linearizer(t, "linearize");
+    return kc::linearize(lin, point(lin, t, z, zd, u));
+  });
   py::dict out;
   out["t"] = l.at.t;
   out["states"] = l.states;

@@ -5,6 +5,10 @@
 // bit (17 significant digits round-trip a double) and follow its column order by construction.
 // Errors raise kinegen.InputError (exit 2 on the command line), kinegen.UsageError (2) or
 // kinegen.AnalysisError (1), each carrying the text of the command line's `error:` line.
+// Threads: every method does its library work inside a `Locked` scope (locked.hpp): the GIL
+// released, then the process-wide library lock taken, Ctrl-C checked; no Python object is
+// touched inside. A new method follows the same pattern: `translate(path_, [&] { Locked
+// locked; ... })`, then builds its Python result.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -26,14 +30,17 @@
 #include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "kinegen/codegen/model/table.hpp"
 #include "dynamics_api.hpp"
+#include "locked.hpp"
 #include "view_page.hpp"
 
 namespace py = pybind11;
 namespace kc = kinegen::codegen;
 namespace fs = std::filesystem;
+using kinegen::python::Locked;
 
 namespace {
 
@@ -63,13 +70,18 @@ std::string python_names(std::string text) {
 py::handle input_error, usage_error, analysis_error;
 
 // Runs `f`, turning the library's errors into the Python exceptions with the command line's
-// message (cli/main.cpp: usage errors found after reading a file are prefixed with it).
+// message (cli/main.cpp: usage errors found after reading a file are prefixed with it), and an
+// interrupted call into the exception its signal handler raised (KeyboardInterrupt). Runs with
+// the GIL; a `Locked` scope inside `f` has given it back by the time an error arrives here.
 template <class F>
 auto translate(const std::string& file, F&& f) -> decltype(f()) {
   std::string message;
   py::handle* type = nullptr;
   try {
     return f();
+  } catch (const kc::Interrupted&) {
+    if (!PyErr_Occurred()) PyErr_SetNone(PyExc_KeyboardInterrupt);
+    throw py::error_already_set();
   } catch (const kc::InputError& e) {
     message = one_line(e.what());
     type = &input_error;
@@ -152,19 +164,39 @@ class Mechanism {
     overrides_ = overrides_of(params);
     for (const auto& [name, file] : inputs)
       build_.inputs.emplace_back(py::str(name), py::str(file));
-    model_ = translate(path_,
-                       [&] { return kc::CompiledModel::from_file(path_, overrides_, build_); });
+    std::vector<std::string> warnings;
+    translate(path_, [&] {
+      Locked locked;
+      model_ = kc::CompiledModel::from_file(path_, overrides_, build_);
+      // What the properties read, kept here so that they need neither lock nor GiNaC.
+      name_ = model_->mechanism().name;
+      nq_ = model_->nq();
+      nc_ = model_->nc();
+      coordinates_ = kc::coordinate_labels(model_->mechanism());
+      parameters_ = model_->parameter_table();
+      warnings = model_->symbolic().warnings;
+    });
     // The file's warnings (a jump at a driver's boundary), as the command line prints them
     // when it loads the file.
-    warn_all(model_->symbolic().warnings);
+    warn_all(warnings);
   }
+
+  // A CompiledModel holds GiNaC expressions, whose reference counts other threads' calls share:
+  // it is destroyed under the library's lock too.
+  ~Mechanism() {
+    Locked locked(false);
+    model_.reset();
+  }
+  Mechanism(const Mechanism&) = delete;
+  Mechanism& operator=(const Mechanism&) = delete;
 
   // Column name -> numpy array, in the CSV's column order (a dict keeps insertion order).
   py::dict analyze(double t0, double t1, int steps, bool forces,
                    const std::vector<std::string>& sensitivity) {
-    std::vector<std::string> columns;
-    std::vector<std::vector<double>> rows;
+    std::vector<std::string> columns, warnings;
+    std::vector<double> values;  // rows x columns, row-major
     translate(path_, [&] {
+      Locked locked;
       // The model analysed: this one, or with derived parameters named for sensitivities made
       // base ones.
       std::unique_ptr<kc::CompiledModel> base;
@@ -195,33 +227,29 @@ class Mechanism {
         force_names = kc::force_columns(m->mechanism());
         options.forces = force_model.get();
       }
-      std::vector<std::string> warnings;
       options.warn = [&](const std::string& w) { warnings.push_back(one_line(w)); };
       std::string header = kc::csv_header(m->mechanism(), force_names, sens.names);
       header.pop_back();
       columns = split(header);
-      {
-        py::gil_scoped_release release;
-        kc::run_analysis(
-            *m, {t0, t1, steps},
-            [&](const kc::StateRow& row) {
-              std::string line = kc::csv_row(row, static_cast<int>(m->mechanism().bodies.size()));
-              line.pop_back();
-              std::vector<double> values;
-              for (const auto& item : split(line))
-                values.push_back(std::strtod(item.c_str(), nullptr));
-              rows.push_back(std::move(values));
-            },
-            options);
-      }
-      warn_all(warnings);
-      return 0;
+      // The rows are kept (unlike the command line's, which stream): bounded as tolerance's.
+      kc::require_kept_rows("analyze", steps + 1LL, columns.size());
+      kc::run_analysis(
+          *m, {t0, t1, steps},
+          [&](const kc::StateRow& row) {
+            std::string line = kc::csv_row(row, static_cast<int>(m->mechanism().bodies.size()));
+            line.pop_back();
+            for (const auto& item : split(line))
+              values.push_back(std::strtod(item.c_str(), nullptr));
+          },
+          options);
     });
+    warn_all(warnings);
     py::dict out;
-    for (std::size_t c = 0; c < columns.size(); ++c) {
-      py::array_t<double> a(static_cast<py::ssize_t>(rows.size()));
+    const std::size_t n = columns.size(), rows = n ? values.size() / n : 0;
+    for (std::size_t c = 0; c < n; ++c) {
+      py::array_t<double> a(static_cast<py::ssize_t>(rows));
       double* d = a.mutable_data();
-      for (std::size_t r = 0; r < rows.size(); ++r) d[r] = rows[r][c];
+      for (std::size_t r = 0; r < rows; ++r) d[r] = values[r * n + c];
       out[py::str(columns[c])] = a;
     }
     return out;
@@ -230,7 +258,7 @@ class Mechanism {
   // Phi, Phi_q, nu and gamma at (q, qd, t), as `kinegen eval` computes them.
   py::dict eval(std::optional<std::vector<double>> q_arg, std::optional<std::vector<double>> qd_arg,
                 double t) {
-    const int nq = model_->nq(), nc = model_->nc();
+    const int nq = nq_, nc = nc_;
     const auto vector = [&](const std::optional<std::vector<double>>& v, const char* name,
                             const Eigen::VectorXd& fallback) -> Eigen::VectorXd {
       if (!v) return fallback;
@@ -239,10 +267,14 @@ class Mechanism {
                              " values (one per coordinate), got " + std::to_string(v->size()));
       return Eigen::Map<const Eigen::VectorXd>(v->data(), nq);
     };
-    return translate(path_, [&] {
+    kc::EvalResult e;
+    translate(path_, [&] {
+      Locked locked;
       const Eigen::VectorXd q = vector(q_arg, "q", model_->q0());
       const Eigen::VectorXd qd = vector(qd_arg, "qd", Eigen::VectorXd::Zero(nq));
-      const kc::EvalResult e = kc::evaluate(*model_, q, qd, t);
+      e = kc::evaluate(*model_, q, qd, t);
+    });
+    {
       py::array_t<double> j({nc, nq});
       for (int r = 0; r < nc; ++r)
         for (int c = 0; c < nq; ++c) j.mutable_at(r, c) = e.phi_q(r, c);
@@ -254,13 +286,15 @@ class Mechanism {
       // Outputs' values (format 6.4), as `kinegen eval` adds them.
       if (e.outputs.size() > 0) out["outputs"] = to_numpy(e.outputs);
       return out;
-    });
+    }
   }
 
   // `kinegen check`: one dict per block and method; raises AnalysisError (the command line's
   // exit 1) when a block is beyond its bound.
   py::list check(int samples, unsigned seed, double t, double turns, int digits) {
-    return translate(path_, [&] {
+    std::vector<kc::CheckRow> rows;
+    translate(path_, [&] {
+      Locked locked;
       if (samples < 1) throw kc::UsageError("--samples must be at least 1");
       kc::CheckOptions options;
       options.samples = samples;
@@ -268,30 +302,31 @@ class Mechanism {
       options.t = t;
       options.turns = turns;
       options.digits = digits;
-      py::list out;
-      bool ok = true;
-      for (const auto& r : kc::check_derivatives(*model_, options)) {
-        py::dict d;
-        d["block"] = r.block;
-        d["method"] = r.method;
-        d["max_abs"] = r.max_abs;
-        d["max_rel"] = r.max_rel;
-        d["bound"] = r.bound;
-        d["ok"] = r.ok();
-        out.append(d);
-        ok = ok && r.ok();
-      }
-      if (!ok)
-        throw kc::AnalysisError(path_ +
-                                ": check: the symbolic derivatives differ from the numeric ones "
-                                "beyond their bounds");
-      return out;
+      rows = kc::check_derivatives(*model_, options);
+      for (const auto& r : rows)
+        if (!r.ok())
+          throw kc::AnalysisError(path_ +
+                                  ": check: the symbolic derivatives differ from the numeric "
+                                  "ones beyond their bounds");
     });
+    py::list out;
+    for (const auto& r : rows) {
+      py::dict d;
+      d["block"] = r.block;
+      d["method"] = r.method;
+      d["max_abs"] = r.max_abs;
+      d["max_rel"] = r.max_rel;
+      d["bound"] = r.bound;
+      d["ok"] = r.ok();
+      out.append(d);
+    }
+    return out;
   }
 
   // `kinegen generate`: writes DIR/<name>.hpp (through a temporary file) and returns its path.
   std::string generate(const std::string& dir, bool fold_params) {
     return translate(path_, [&] {
+      Locked locked;
       std::unique_ptr<kc::CompiledModel> folded;
       if (fold_params) {
         kc::BuildOptions build;
@@ -335,7 +370,8 @@ class Mechanism {
     std::string html = translate(
         path_, [&] { return kinegen::python::view_html(*model_, args, &warnings, &failure); });
     warn_all(warnings);
-    py::object page = translate(path_, [&] { return kinegen::python::make_page(html, path); });
+    py::object page =
+        translate(path_, [&] { return kinegen::python::make_page(std::move(html), path); });
     if (!failure.empty()) {  // as the command line: the page of the rows so far, and exit 1
       PyErr_SetString(analysis_error.ptr(), python_names(one_line(failure)).c_str());
       throw py::error_already_set();
@@ -345,18 +381,17 @@ class Mechanism {
 
   // Every coordinate, the bodies' x, y, phi and then the extra ones (format 6.1), as the
   // CSV's position columns name them.
-  std::vector<std::string> coordinates() const {
-    return kc::coordinate_labels(model_->mechanism());
-  }
+  const std::vector<std::string>& coordinates() const { return coordinates_; }
 
   py::dict parameters() const {
     py::dict out;
-    for (const auto& [name, value] : model_->parameter_table()) out[py::str(name)] = value;
+    for (const auto& [name, value] : parameters_) out[py::str(name)] = value;
     return out;
   }
 
   // Forward dynamics and its linearization (format 7.3-7.5, dynamics_api.hpp), their errors
-  // turned into the module's exceptions.
+  // turned into the module's exceptions. Its methods take the library's lock themselves
+  // around their library work, and build their Python results after it.
   template <class F>
   auto with_dynamics(F&& f) {
     return translate(path_, [&] {
@@ -365,23 +400,34 @@ class Mechanism {
     });
   }
 
-  std::string name() const { return model_->mechanism().name; }
+  const std::string& name() const { return name_; }
   const std::string& path() const { return path_; }
-  int nq() const { return model_->nq(); }
-  int nc() const { return model_->nc(); }
+  int nq() const { return nq_; }
+  int nc() const { return nc_; }
 
  private:
   std::string path_;
   std::vector<kc::ParamOverride> overrides_;
   kc::BuildOptions build_;
-  std::unique_ptr<kc::CompiledModel> model_;
-  std::unique_ptr<kinegen::python::DynamicsApi> dynamics_;
+  std::unique_ptr<kc::CompiledModel> model_;  // touched only under the library's lock
+  std::unique_ptr<kinegen::python::DynamicsApi> dynamics_;  // the same
+  std::string name_;
+  int nq_ = 0, nc_ = 0;
+  std::vector<std::string> coordinates_;
+  std::vector<std::pair<std::string, double>> parameters_;
 };
 
 }  // namespace
 
 PYBIND11_MODULE(kinegen, m) {
   m.doc() = "kinegen: planar mechanism kinematics (the kinegen command line, in-process)";
+  // Function-local statics that run Python code when first used (numpy's C API table imports
+  // numpy, which may let another thread take the GIL) are made here, at import, where no other
+  // thread can be inside this module: two threads' first calls would otherwise wait for each
+  // other, one on the static's guard while holding the GIL, the other for the GIL.
+  py::detail::npy_api::get();
+  py::module_::import("warnings");
+  kinegen::python::init_signal_checks();
   m.attr("__version__") = kc::kVersion;
 
   const py::handle error = PyErr_NewExceptionWithDoc(

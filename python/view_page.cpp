@@ -6,6 +6,7 @@
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/io/output_file.hpp"
 #include "kinegen/codegen/io/view.hpp"
+#include "locked.hpp"
 
 namespace py = pybind11;
 namespace kc = kinegen::codegen;
@@ -48,6 +49,7 @@ struct Page {
 };
 
 void write(const std::string& path, const std::string& html) {
+  Locked locked;  // the library's files (OutputFile), like all of it, under its lock
   kc::OutputFile out(path);
   out.stream() << html;
   out.commit();
@@ -57,6 +59,7 @@ void write(const std::string& path, const std::string& html) {
 
 std::string view_html(const kc::CompiledModel& model, const ViewArgs& a,
                       std::vector<std::string>* warnings, std::string* failure) {
+  Locked locked;
   // The command line's checks (cli/view.cpp), in its words.
   const bool grid = a.t0 || a.t1 || a.steps;
   if (static_cast<int>(!a.csv.empty()) + static_cast<int>(!a.modes.empty()) + grid != 1)
@@ -69,7 +72,6 @@ std::string view_html(const kc::CompiledModel& model, const ViewArgs& a,
   if (a.max_rows < 2) throw kc::UsageError("max_rows must be at least 2");
   if (grid && *a.steps < 0) throw kc::UsageError("--steps must be 0 or more");
   kc::require_viewer();
-  py::gil_scoped_release release;
   kc::ViewOptions options;
   options.width = a.width;
   if (!a.modes.empty())

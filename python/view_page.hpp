@@ -23,7 +23,7 @@ struct ViewArgs {
 
 // The page's text; the analysis' warnings in *warnings, a failure after some rows (the page
 // then shows the rows before it) in *failure. Throws the library's errors (UsageError, ...).
-// Runs without the GIL.
+// Runs its work without the GIL, under the library's lock (Locked).
 std::string view_html(const codegen::CompiledModel& model, const ViewArgs& args,
                       std::vector<std::string>* warnings, std::string* failure);
 

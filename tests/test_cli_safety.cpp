@@ -81,55 +81,20 @@ void require_one_error_line(const CommandResult& r) {
   REQUIRE(std::count(r.err.begin(), r.err.end(), '\n') == 1);
 }
 
-// A child process with standard output sent to `out_path` and, optionally, bounded CPU time
-// and address space: a run that would abort, swap or take minutes fails the test instead.
-// AddressSanitizer reserves terabytes of address space for its shadow memory, so a child built
-// with it cannot run under an address-space limit; the ordinary build checks the memory bound.
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kLimitAddressSpace = false;
-#else
-constexpr bool kLimitAddressSpace = true;
-#endif
-
-struct Child {
-  pid_t pid = -1;
+// A kinegen child process (support/run_command.hpp: ChildProcess) with standard input from
+// /dev/null and standard output sent to `out_path`.
+struct Child : kinegen::test::ChildProcess {
   fs::path err_path;
 
   Child(const std::vector<std::string>& args, const std::string& out_path, const fs::path& err,
         rlim_t cpu_seconds = 0, rlim_t address_bytes = 0)
-      : err_path(err) {
+      : ChildProcess(with_exe(args), "/dev/null", out_path, err.string(), cpu_seconds,
+                     address_bytes),
+        err_path(err) {}
+  static std::vector<std::string> with_exe(const std::vector<std::string>& args) {
     std::vector<std::string> full{KINEGEN_EXE};
     full.insert(full.end(), args.begin(), args.end());
-    std::vector<char*> argv;
-    for (auto& a : full) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    pid = ::fork();
-    REQUIRE(pid >= 0);
-    if (pid == 0) {
-      const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-      const int er = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      const int in = ::open("/dev/null", O_RDONLY);
-      if (out < 0 || er < 0 || in < 0 || ::dup2(out, 1) < 0 || ::dup2(er, 2) < 0 ||
-          ::dup2(in, 0) < 0)
-        ::_exit(126);
-      if (cpu_seconds) {
-        const rlimit cpu{cpu_seconds, cpu_seconds};
-        ::setrlimit(RLIMIT_CPU, &cpu);
-      }
-      if (address_bytes && kLimitAddressSpace) {
-        const rlimit as{address_bytes, address_bytes};
-        ::setrlimit(RLIMIT_AS, &as);
-      }
-      ::execv(argv[0], argv.data());
-      ::_exit(127);
-    }
-  }
-  // The exit status, or 128 + the signal.
-  int wait() {
-    int status = 0;
-    while (::waitpid(pid, &status, 0) < 0)
-      if (errno != EINTR) return -1;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    return full;
   }
   std::string err() const { return read_text(err_path); }
 };
@@ -252,9 +217,10 @@ TEST_CASE("item 9: a pipe and a device node are written in place, never replaced
   }
 }
 
+// SIGINT stops a run at its next row instead, keeping the rows (test_hostile_use.cpp, item 3).
 TEST_CASE("item 9: an interrupted run removes its temporary file and keeps the target",
           "[cli-safety]") {
-  for (int sig : {SIGINT, SIGTERM}) {
+  for (int sig : {SIGTERM, SIGHUP}) {
     const fs::path dir = scratch_dir("interrupted_" + std::to_string(sig));
     const fs::path target = dir / "out.csv";
     write_text(target, "old\n");

@@ -199,7 +199,8 @@ TEST_CASE("a missing file is one error line naming it, exit 2, no output", "[hos
                                               "--steps", "1", "-o", (dir / "x.csv").string()}}) {
     const auto r = run_kinegen(args);
     CHECK(r.exit_code == 2);
-    CHECK(r.err == "error: " + mech.string() + ": file: cannot open the mechanism file\n");
+    CHECK(r.err == "error: " + mech.string() +
+                       ": file: cannot open the mechanism file: No such file or directory\n");
   }
   CHECK(fs::is_empty(dir));
 }

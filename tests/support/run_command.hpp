@@ -7,6 +7,7 @@
 #define KINEGEN_TESTS_SUPPORT_RUN_COMMAND_HPP
 
 #include <fcntl.h>
+#include <sys/resource.h>
 #include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -90,6 +91,57 @@ inline CommandResult run_command(const std::vector<std::string>& args,
   if (null_fd >= 0) ::close(null_fd);
   return result;
 }
+
+// AddressSanitizer reserves terabytes of address space for its shadow memory, so a child built
+// with it cannot run under an address-space limit; the ordinary build checks the memory bound.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kLimitAddressSpace = false;
+#else
+constexpr bool kLimitAddressSpace = true;
+#endif
+
+// A child started now and waited for later (so that a test can signal it meanwhile): argv[0]
+// (a path) with argv[1..], standard input from `in_path`, standard output appended to
+// `out_path`, standard error to `err_path`, and optionally bounded CPU time and address space:
+// a run that would abort, swap or take minutes fails the test instead.
+struct ChildProcess {
+  pid_t pid = -1;
+
+  ChildProcess(const std::vector<std::string>& args, const std::string& in_path,
+               const std::string& out_path, const std::string& err_path, rlim_t cpu_seconds = 0,
+               rlim_t address_bytes = 0) {
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    pid = ::fork();
+    if (pid < 0) throw std::runtime_error("ChildProcess: fork failed");
+    if (pid == 0) {
+      const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+      const int er = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      const int in = ::open(in_path.c_str(), O_RDONLY);
+      if (out < 0 || er < 0 || in < 0 || ::dup2(out, 1) < 0 || ::dup2(er, 2) < 0 ||
+          ::dup2(in, 0) < 0)
+        ::_exit(126);
+      if (cpu_seconds) {
+        const rlimit cpu{cpu_seconds, cpu_seconds};
+        ::setrlimit(RLIMIT_CPU, &cpu);
+      }
+      if (address_bytes && kLimitAddressSpace) {
+        const rlimit as{address_bytes, address_bytes};
+        ::setrlimit(RLIMIT_AS, &as);
+      }
+      ::execv(argv[0], argv.data());
+      ::_exit(127);
+    }
+  }
+  // The exit status, or 128 + the signal.
+  int wait() {
+    int status = 0;
+    while (::waitpid(pid, &status, 0) < 0)
+      if (errno != EINTR) return -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+};
 
 }  // namespace kinegen::test
 

@@ -16,6 +16,7 @@
 #include "kinegen/codegen/analysis/block_interpreter.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/model/table.hpp"
 
 namespace kinegen::codegen {
@@ -118,6 +119,7 @@ class TimeLoop {
 
   void run(const TimeGrid& grid, const std::function<void(const StateRow&)>& sink) {
     for (int k = 0; k <= grid.steps; ++k) {
+      interruption_point();  // Ctrl-C: the rows so far are the caller's
       const double t = grid.at(k);
       if (const std::string table = table_outside(model_.mechanism(), t); !table.empty())
         throw AnalysisError(file_ + ": position analysis failed at " + format_time(t) +
@@ -331,13 +333,18 @@ class TimeLoop {
   }
 
   void solve_forces(double t) {
-    if (!force_solver_->solve(t, row_.q, row_.qd, row_.qdd, row_.forces))
+    if (!force_solver_->solve(t, row_.q, row_.qd, row_.qdd, row_.forces)) {
+      // Singular, or a value that is not finite (a load, a weight): each its own message.
+      if (!force_solver_->singular())
+        throw AnalysisError(file_ + ": force analysis failed at " + format_time(t) + ": " +
+                            force_solver_->failure_cause(t, row_.q, row_.qd, row_.qdd));
       throw AnalysisError(file_ + ": force analysis failed at " + format_time(t) +
                           ": Phi_q is singular (scaled condition estimate " +
                           format_estimate(force_solver_->condition()) + ", the limit " +
                           format_estimate(1 / force_min_rcond<double>()) +
                           "), so no finite efforts hold the motion (a toggle or dead-centre "
                           "position)");
+    }
     if (!force_warned_ && force_solver_->condition() > options_.force_warning && options_.warn) {
       options_.warn(file_ + ": at " + format_time(t) +
                     " the scaled condition estimate of Phi_q is " +
@@ -367,7 +374,14 @@ class TimeLoop {
                  format_estimate(r.condition) + " at the last iterate)";
     }
     if (r.status == Status::kSingular) message += singular_message(stage, t, r);
-    if (first_solve_ && std::string(stage) == "position") message += first_solve_hint();
+    // Where the value that is not finite comes from, at the last solved state and this t.
+    if (r.status == Status::kNonFinite) {
+      const bool before = last_.q.size() > 0;  // a row solved before this one
+      message += nonfinite_rows(model_, before ? last_.q : model_.q0(),
+                                before ? last_.qd : Eigen::VectorXd(model_.nq()).setZero(), t);
+    }
+    if (first_solve_ && std::string(stage) == "position" && r.status != Status::kNonFinite)
+      message += first_solve_hint();
     throw AnalysisError(message);
   }
 

@@ -7,8 +7,10 @@
 #include <random>
 #include <sstream>
 
+#include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/reference.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/model/table.hpp"
 
 namespace kinegen::codegen {
@@ -264,10 +266,14 @@ std::vector<CheckRow> check_derivatives(const CompiledModel& model, const CheckO
   if (options.digits < kMinReferenceDigits || options.digits > kMaxReferenceDigits)
     throw UsageError("--digits must be between " + std::to_string(kMinReferenceDigits) + " and " +
                      std::to_string(kMaxReferenceDigits));
+  require_kept_rows("check", options.samples, static_cast<std::size_t>(model.nq()), "--samples");
   double growth = 1;
   const std::vector<Sample> samples = draw_samples(model, options, growth);
   DerivativeChecker checker(model, options, growth);
-  for (const Sample& x : samples) checker.check(x);
+  for (const Sample& x : samples) {
+    interruption_point();
+    checker.check(x);
+  }
   return checker.rows();
 }
 

@@ -94,6 +94,29 @@ std::string largest_residual(const CompiledModel& model, const Eigen::VectorXd& 
          model.row_label(static_cast<int>(row)) + others;
 }
 
+std::string nonfinite_rows(const CompiledModel& model, const Eigen::VectorXd& q,
+                           const Eigen::VectorXd& qd, double t) {
+  ModelEvaluator<double> eval(model);
+  const int nc = model.nc();
+  Eigen::VectorXd phi(nc), nu(nc), gamma(nc);
+  eval.phi(q.data(), t, phi.data());
+  const Eigen::MatrixXd jac = jacobian_at(model, q, t);
+  eval.nu(q.data(), t, nu.data());
+  eval.gamma(q.data(), qd.data(), t, gamma.data());
+  std::string found;
+  for (int r = 0; r < nc && found.empty(); ++r) {
+    const char* what = !std::isfinite(phi[r])     ? "Phi"
+                       : !jac.row(r).allFinite()  ? "Phi_q"
+                       : !std::isfinite(nu[r])    ? "nu (the velocity's right-hand side)"
+                       : !std::isfinite(gamma[r]) ? "gamma (the acceleration's right-hand side)"
+                                                  : nullptr;
+    if (what) found = std::string(what) + " of " + model.row_label(r);
+  }
+  if (found.empty()) return "";
+  return "; not finite at " + format_time(t) + ": " + found +
+         " (a driver's law, a table, a curve or a parameter beyond a double there)";
+}
+
 // At the assembled configuration: the rank of Phi_q, and the equations that repeat earlier
 // ones. Consistent redundancy is solved by least squares with a warning (an error under
 // --strict); a rank below nq is left to the solver, which reports it as singular.
@@ -203,6 +226,19 @@ void require_driven(const CompiledModel& model) {
   if (free_bodies.size() == m.bodies.size()) throw InputError(m.source, "drivers", {}, what);
   throw InputError(m.source, (free_bodies.size() == 1 ? "body " : "bodies ") + names,
                    m.bodies[free_bodies[0]].loc, what);
+}
+
+void require_kept_rows(const std::string& what, long long rows, std::size_t per_row,
+                       const std::string& option) {
+  const std::size_t per = std::max<std::size_t>(per_row, 1);
+  if (rows <= 0 || static_cast<unsigned long long>(rows) <= kMaxKeptValues / per) return;
+  const bool steps = option == "--steps";  // N steps are N + 1 rows
+  const long long fits = static_cast<long long>(kMaxKeptValues / per) - (steps ? 1 : 0);
+  throw UsageError(what + " keeps its rows in memory, at most " + std::to_string(kMaxKeptValues) +
+                   " numbers: " + std::to_string(rows) + " rows of " + std::to_string(per) +
+                   " are more; " + option + " " + std::to_string(fits) +
+                   " is the most that fits here" +
+                   (steps ? " (kinegen analyze streams its rows to a file instead)" : ""));
 }
 
 std::string redundant_constraints(const CompiledModel& model, const Eigen::VectorXd& q, double t) {

@@ -52,6 +52,13 @@ std::string singular_rows(const CompiledModel& model, const Eigen::MatrixXd& jac
 
 std::string largest_residual(const CompiledModel& model, const Eigen::VectorXd& q, double t);
 
+// After a non-finite value: which of Phi, Phi_q, nu and gamma is not finite at (q, qd, t)
+// (the last solved state, so that only t is new), in which rows, named: a driver's law, a
+// table or a parameter beyond a double there. "" when all are finite (then the solve's own
+// arithmetic overflowed).
+std::string nonfinite_rows(const CompiledModel& model, const Eigen::VectorXd& q,
+                           const Eigen::VectorXd& qd, double t);
+
 // At the assembled configuration: the rank of Phi_q, and the equations that repeat earlier
 // ones. Consistent redundancy is solved by least squares with a warning (an error under
 // --strict); a rank below nq is left to the solver, which reports it as singular.

@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/base/format.hpp"
 
 namespace kinegen::codegen {
 
@@ -86,6 +87,71 @@ bool ForceSolver::solve(double t, const Eigen::VectorXd& q, const Eigen::VectorX
   columns_from_lambda(m, *forces_, forces_->numbers, q.data(), jac_row_major_, lambda_values_,
                       columns);
   return true;
+}
+
+namespace {
+
+// Q^A of `spec` alone at (q, qd, t), or empty when it is all finite.
+Eigen::VectorXd applied_of(const CompiledModel& model, const ForceSpec& spec, double t,
+                           const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
+  const ForceModel part = derive_forces(model, spec);
+  const Program program = lower(part.applied, model.symbols());
+  ProgramEvaluator<double> eval(program);
+  Eigen::VectorXd out(model.nq());
+  eval.run(q.data(), qd.data(), t, model.params().data(), out.data());
+  return out;
+}
+
+// The first value of v that is not finite, with the coordinate it acts on.
+std::string first_nonfinite(const CompiledModel& model, const Eigen::VectorXd& v) {
+  const auto labels = coordinate_labels(model.mechanism());
+  for (Eigen::Index k = 0; k < v.size(); ++k)
+    if (!std::isfinite(v[k]))
+      return format_number(v[k]) + " in the generalized force on " + labels[k];
+  return "";
+}
+
+}  // namespace
+
+std::string ForceSolver::failure_cause(double t, const Eigen::VectorXd& q,
+                                       const Eigen::VectorXd& qd,
+                                       const Eigen::VectorXd& qdd) const {
+  const Mechanism& m = model_->mechanism();
+  const ForceSpec& spec = m.forces;
+  const auto line = [](const SourceLoc& loc) {
+    return loc.line > 0 ? " (line " + std::to_string(loc.line) + ")" : std::string();
+  };
+  for (const Load& load : spec.loads) {
+    ForceSpec one;
+    one.loads = {load};
+    const std::string value = first_nonfinite(*model_, applied_of(*model_, one, t, q, qd));
+    if (!value.empty())
+      return "the load " + load.item + line(load.loc) + " is not finite here: " + value;
+  }
+  const int nb = static_cast<int>(m.bodies.size());
+  for (int b = 0; b < nb; ++b) {
+    ForceSpec weight;  // this body's mass data and the gravity, nothing else
+    weight.bodies.resize(m.bodies.size());
+    if (b < static_cast<int>(spec.bodies.size())) weight.bodies[b] = spec.bodies[b];
+    weight.gravity = spec.gravity;
+    const std::string what = "body '" + m.bodies[b].name + "' (mass " +
+                             format_number(forces_->numbers.mass[b]) + ", inertia " +
+                             format_number(forces_->numbers.inertia[b]) + ")";
+    std::string value = first_nonfinite(*model_, applied_of(*model_, weight, t, q, qd));
+    if (!value.empty()) return "the weight of " + what + " overflows: " + value;
+    ForceData<double> alone = forces_->numbers;
+    for (int k = 0; k < nb; ++k)
+      if (k != b) alone.mass[k] = alone.inertia[k] = 0;
+    Eigen::VectorXd inertia = Eigen::VectorXd::Zero(model_->nq());
+    add_inertia_forces(alone, nb, q.data(), qd.data(), qdd.data(), inertia.data());
+    value = first_nonfinite(*model_, inertia);
+    if (!value.empty()) return "the inertia force of " + what + " overflows: " + value;
+  }
+  if (!q_total_.allFinite())
+    return "the generalized force overflows: " + first_nonfinite(*model_, q_total_);
+  return "the efforts and reactions overflow a double (largest |Q| " +
+         format_number(q_total_.cwiseAbs().maxCoeff()) + ", scaled condition estimate " +
+         format_estimate(condition_) + ")";
 }
 
 }  // namespace kinegen::codegen

@@ -14,6 +14,7 @@
 #include "kinegen/codegen/analysis/kinematics.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/model/table.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
 #include "kinegen/kernels/newton.hpp"
@@ -251,6 +252,7 @@ class ReferenceRun {
       }
       complete_row(t);
       sink(row_);
+      interruption_point();
     }
   }
 

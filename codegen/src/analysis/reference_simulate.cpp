@@ -11,6 +11,7 @@
 #include "kinegen/codegen/analysis/reference_dynamics.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/program/program.hpp"
 
 namespace kinegen::codegen {
@@ -472,6 +473,7 @@ ReferenceSimulationStats run_reference_simulation_exact(
   const auto emit = [&](const StepPoint& at) {
     sink(rows.row(at));
     if (options.progress) options.progress(at.t.to_double());
+    interruption_point();
   };
   emit(p);
   numeric g = stop.active() ? stop(p.state) : numeric(0);

@@ -12,9 +12,11 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 
 namespace kinegen::codegen {
 
@@ -184,6 +186,7 @@ class Integration {
     double reached = t;
     const int flag = CVode(cvode_, t, y_, &reached, CV_NORMAL);
     rooted = flag == CV_ROOT_RETURN;
+    if (interrupt_) throw *interrupt_;
     if (flag < 0) {
       double now = reached;
       CVodeGetCurrentTime(cvode_, &now);
@@ -279,6 +282,12 @@ class Integration {
       self->last_failure_ = "interrupted";
       return -1;
     }
+    try {  // Ctrl-C between rows far apart; no exception may cross CVODE's C frames
+      interruption_point();
+    } catch (const Interrupted& e) {
+      self->interrupt_ = std::make_unique<Interrupted>(e);
+      return -1;
+    }
     const double* yv = N_VGetArrayPointer(y);
     double* dv = N_VGetArrayPointer(ydot);
     if (!self->f_.rhs(t, yv, dv)) {
@@ -333,6 +342,7 @@ class Integration {
   SUNNonlinearSolver nls_ = nullptr;
   double energy0_ = 0, kinetic0_ = 0, potential0_ = 0, energy_scale_ = 0, t0_ = 0;
   std::string last_failure_;
+  std::unique_ptr<Interrupted> interrupt_;  // the rhs saw an interruption point throw
   std::unique_ptr<Program> stop_;
   std::unique_ptr<ProgramEvaluator<double>> stop_eval_;
   std::unique_ptr<ForceSolver> stop_forces_;
@@ -371,6 +381,7 @@ void run_simulation(const CompiledModel& model, const ForceModel& forces, const 
     outputs.evaluate(t, r.state.q, r.state.qd, r.state.qdd, r.state.outputs);
     sink(r);
     if (options.progress) options.progress(t);
+    interruption_point();
   };
   emit(grid.t0);
   for (int k = 1; k <= grid.steps; ++k) {

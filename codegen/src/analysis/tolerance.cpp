@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <random>
 #include <set>
 #include <stdexcept>
@@ -54,6 +55,44 @@ std::vector<Tolerance> parse_tolerances(const std::vector<std::string>& items) {
 
 namespace {
 
+// The samples' deviations of one row, summed without overflow: Welford's mean and sum of
+// squared differences kept in units of `scale`, the largest |deviation| so far (which is the
+// spread), so that deviations up to the largest double give a finite standard deviation.
+struct ScaledMoments {
+  Eigen::VectorXd scale, mean, m2;  // mean * scale and m2 * scale^2 are the true ones
+
+  explicit ScaledMoments(Eigen::Index n)
+      : scale(Eigen::VectorXd::Zero(n)), mean(Eigen::VectorXd::Zero(n)), m2(mean) {}
+
+  // Sample number `count` (1, 2, ...).
+  void add(const Eigen::VectorXd& dev, int count) {
+    for (Eigen::Index k = 0; k < dev.size(); ++k) {
+      const double a = std::abs(dev[k]);
+      if (!std::isfinite(a)) {  // the deviation itself is beyond a double: so are both figures
+        scale[k] = mean[k] = m2[k] = std::numeric_limits<double>::infinity();
+        continue;
+      }
+      if (a > scale[k]) {  // a new unit: rescale what is summed so far (exact for powers of 2)
+        const double ratio = scale[k] / a;
+        mean[k] *= ratio;
+        m2[k] *= ratio * ratio;
+        scale[k] = a;
+      }
+      if (scale[k] == 0 || !std::isfinite(scale[k])) continue;
+      const double x = dev[k] / scale[k];
+      const double step = x - mean[k];
+      mean[k] += step / count;
+      m2[k] += step * (x - mean[k]);
+    }
+  }
+
+  // The standard deviation of n samples: scale sqrt(m2 / (n - 1)), finite when the scale is.
+  double std_dev(Eigen::Index k, int n) const {
+    if (scale[k] == 0) return 0;
+    return scale[k] * std::sqrt(std::max(m2[k], 0.0) / (n - 1));
+  }
+};
+
 // Monte Carlo (options.monte_carlo samples, each parameter uniform in +-delta): the spread
 // and standard deviation of each quantity's deviation from the `nominal` motion.
 void monte_carlo(const CompiledModel& model, const ToleranceOptions& options,
@@ -64,7 +103,7 @@ void monte_carlo(const CompiledModel& model, const ToleranceOptions& options,
   const Mechanism& m = model.mechanism();
   const std::size_t nqty = result.quantities.size();
   const std::size_t rows = result.t.size();
-  std::vector<Eigen::VectorXd> mean(rows, Eigen::VectorXd::Zero(nqty)), m2 = mean, spread = mean;
+  std::vector<ScaledMoments> moments(rows, ScaledMoments(static_cast<Eigen::Index>(nqty)));
   std::mt19937_64 rng(options.seed);
   for (int s = 0; s < n; ++s) {
     std::vector<ParamOverride> overrides = options.overrides;
@@ -79,12 +118,7 @@ void monte_carlo(const CompiledModel& model, const ToleranceOptions& options,
       const auto sample = CompiledModel::from_mechanism(m, overrides);
       std::size_t r = 0;
       run_analysis(*sample, options.grid, [&](const StateRow& row) {
-        // Welford's update of the deviations from the nominal motion.
-        const Eigen::VectorXd dev = row_values(row) - nominal[r];
-        const Eigen::VectorXd step = dev - mean[r];
-        mean[r] += step / (s + 1);
-        m2[r] += step.cwiseProduct(dev - mean[r]);
-        spread[r] = spread[r].cwiseMax(dev.cwiseAbs());
+        moments[r].add(row_values(row) - nominal[r], s + 1);  // deviations from the nominal
         ++r;
       });
     } catch (const AnalysisError& e) {
@@ -98,9 +132,11 @@ void monte_carlo(const CompiledModel& model, const ToleranceOptions& options,
     if (options.progress) options.progress(s + 1, n);
   }
   for (std::size_t r = 0; r < rows; ++r) {
-    const Eigen::VectorXd sd = (m2[r] / (n - 1)).cwiseSqrt();
-    result.mc_spread.emplace_back(spread[r].data(), spread[r].data() + nqty);
-    result.mc_std.emplace_back(sd.data(), sd.data() + nqty);
+    const ScaledMoments& m = moments[r];
+    result.mc_spread.emplace_back(m.scale.data(), m.scale.data() + nqty);
+    std::vector<double> sd(nqty);
+    for (std::size_t k = 0; k < nqty; ++k) sd[k] = m.std_dev(static_cast<Eigen::Index>(k), n);
+    result.mc_std.push_back(std::move(sd));
   }
   result.samples = n;
 }
@@ -131,6 +167,8 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
   const Mechanism& m = model.mechanism();
   result.quantities = position_quantities(m);
   const std::size_t nqty = result.quantities.size();
+  // Every row's figures are kept (the summary's largest values and their times, the CSV).
+  require_kept_rows("tolerance", options.grid.steps + 1LL, nqty);
 
   std::vector<Eigen::VectorXd> nominal;
   AnalysisOptions analysis;
@@ -147,7 +185,10 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
         d << row.dq_dp, row.dpoints_dp;
         const Eigen::MatrixXd scaled = d * delta.asDiagonal();  // dC/dp delta per parameter
         const Eigen::VectorXd worst = scaled.cwiseAbs().rowwise().sum();
-        const Eigen::VectorXd rss = scaled.rowwise().norm();
+        // Scaled by the largest term (stableNorm), so that squares beyond 1e308 do not
+        // overflow; never above the worst case, as |x|_2 <= |x|_1 (a rounding could say
+        // otherwise).
+        const Eigen::VectorXd rss = scaled.rowwise().stableNorm().cwiseMin(worst);
         result.t.push_back(row.t);
         result.worst.emplace_back(worst.data(), worst.data() + nqty);
         result.rss.emplace_back(rss.data(), rss.data() + nqty);

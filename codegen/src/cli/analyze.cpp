@@ -11,6 +11,7 @@
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/reference.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/io/output_file.hpp"
 
 namespace kinegen::cli {
@@ -58,11 +59,13 @@ int run_analyze(const Common& c, const Options& o) {
   out << kc::csv_header(model->mechanism(), force_names, sensitivity.names);
   int status = 0;
   int rows = 0;
+  double t_last = 0;
   try {
     const auto sink = [&](const kc::StateRow& row) {
       out << kc::csv_row(row, static_cast<int>(model->mechanism().bodies.size()));
       file.check();  // a full disk or a closed pipe ends the run now, not after it
       ++rows;
+      t_last = row.t;
     };
     if (o.reference_digits != 0 && forces) {
       // The forces of the reference come from its own high-precision rows.
@@ -88,6 +91,8 @@ int run_analyze(const Common& c, const Options& o) {
   } catch (const kc::AnalysisError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
     status = kExitFailed;  // the rows solved so far are kept
+  } catch (const kc::Interrupted&) {
+    status = interrupted(c.file, rows, t_last);  // as a failure: the rows so far are kept
   }
   // Nothing solved: a file is left as it was; standard output gets the header, as before.
   if (rows > 0 || status == 0 || !file.replaces_target()) file.commit();

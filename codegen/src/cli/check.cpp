@@ -5,6 +5,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -33,11 +34,14 @@ std::string printf_text(const char* format, ...) {
 
 struct Options {
   kc::CheckOptions check;
+  std::string seed = "1";
   bool structure = false;
 };
 
 int run_check(const Common& c, const Options& o) {
-  const kc::CheckOptions& options = o.check;
+  kc::CheckOptions options = o.check;
+  options.seed =
+      static_cast<unsigned>(parse_seed(o.seed, std::numeric_limits<decltype(options.seed)>::max()));
   if (!(std::abs(options.turns) <= kMaxCheckTurns) || !(std::abs(options.t) <= kMaxCheckTurns))
     throw kc::UsageError("--turns and --t must be within +-" + kc::format_number(kMaxCheckTurns) +
                          ": beyond it the inputs' rounding makes the bounds meaningless");
@@ -76,7 +80,7 @@ Subcommand add_check(CLI::App& app, Common& common) {
   auto* check = app.add_subcommand("check", "Compare Phi_q, nu and gamma with numeric derivatives");
   add_common(check, common);
   check->add_option("--samples", o->check.samples, "Random configurations (default 5)");
-  check->add_option("--seed", o->check.seed, "Random seed (default 1)");
+  check->add_option("--seed", o->seed, "Random seed, 0 to 4294967295 (default 1)");
   check->add_option("--t", o->check.t, "Time around which to sample (default 0)");
   check->add_flag("--structure", o->structure, "Also print the structure of Phi_q");
   check->add_option("--turns", o->check.turns,

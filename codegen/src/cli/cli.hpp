@@ -1,7 +1,7 @@
 // The cli stage: the `kinegen` command line. Each subcommand's file (generate.cpp, analyze.cpp,
 // eval.cpp, check.cpp, animate.cpp, tolerance.cpp) registers its options (add_<name>) and runs
-// it; main.cpp holds the global flags, the parse, the dispatch, the mapping of errors to exit
-// statuses, and the helpers declared here.
+// it; main.cpp holds the global flags, the signal handlers, the parse, the dispatch, the mapping of
+// errors to exit statuses, and the helpers declared here.
 //
 // Takes: argv. Gives: an exit status (0 success, 1 the analysis or a check failed, 2 invalid
 // input or usage), files written atomically (io/output_file.hpp), one `error:` line per error.
@@ -9,6 +9,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -22,6 +23,11 @@ namespace kc = kinegen::codegen;
 
 constexpr int kExitFailed = 1;
 constexpr int kExitInvalid = 2;
+constexpr int kExitInterrupted = 130;  // 128 + SIGINT, as a shell reports a run Ctrl-C ended
+
+// The `error:` line of a run stopped by SIGINT (base/interrupt.hpp), and its exit status.
+// `rows`: how many rows a streaming command wrote (and kept), or -1.
+int interrupted(const std::string& file, long long rows = -1, double t_last = 0);
 
 struct Common {
   std::string file;
@@ -33,6 +39,10 @@ std::vector<kc::ParamOverride> parse_overrides(const std::vector<std::string>& a
 
 // Messages quote user text, which may hold line breaks; an error stays one line.
 std::string one_line(std::string text);
+
+// A --seed: decimal digits only, 0 to `max`; anything else (a sign, a fraction, a value beyond
+// max) is a UsageError naming the range, never wrapped around.
+std::uint64_t parse_seed(const std::string& text, std::uint64_t max);
 
 // Every time t0 + k (t1 - t0) / N must be a number: finite ends and a finite span.
 void check_grid(double t0, double t1, int steps);

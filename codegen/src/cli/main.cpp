@@ -1,8 +1,8 @@
 // kinegen: generate | analyze | eval | check | animate | tolerance. Exit status: 0 success, 1 the
-// analysis (or a check) failed, 2 invalid input or usage. Every error is one `error:` line on
-// stderr. This file: the global flags (-q, -v, --version), the parse, the dispatch, the errors,
-// and the helpers the subcommands share (cli.hpp); each subcommand's options and run are in its
-// own file (add_<name>).
+// analysis (or a check) failed, 2 invalid input or usage, 130 interrupted (SIGINT). Every error is
+// one `error:` line on stderr. This file: the global flags (-q, -v, --version), the parse, the
+// dispatch, the errors, and the helpers the subcommands share (cli.hpp); each subcommand's options
+// and run are in its own file (add_<name>).
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -13,8 +13,10 @@
 #include "cli.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/base/log.hpp"
 #include "kinegen/codegen/base/version.hpp"
+#include "kinegen/codegen/io/output_file.hpp"
 
 namespace kinegen::cli {
 
@@ -34,6 +36,21 @@ std::string one_line(std::string text) {
   for (char& ch : text)
     if (ch == '\n' || ch == '\r' || ch == '\t') ch = ' ';
   return text;
+}
+
+std::uint64_t parse_seed(const std::string& text, std::uint64_t max) {
+  std::uint64_t value = 0;
+  bool ok = !text.empty() && text.size() <= 20;
+  for (const char ch : text) {
+    if (!ok) break;
+    const auto digit = static_cast<std::uint64_t>(ch - '0');
+    ok = ch >= '0' && ch <= '9' && value <= (max - digit) / 10;
+    value = value * 10 + digit;
+  }
+  if (!ok)
+    throw kc::UsageError("--seed must be a whole number from 0 to " + std::to_string(max) +
+                         ", not '" + text + "'");
+  return value;
 }
 
 // Every time t0 + k (t1 - t0) / N must be a number: finite ends and a finite span.
@@ -91,6 +108,17 @@ std::function<void(int, int)> terminal_progress(const std::string& what) {
   };
 }
 
+int interrupted(const std::string& file, long long rows, double t_last) {
+  std::string message = file + ": interrupted (SIGINT)";
+  if (rows > 0)
+    message += " after " + std::to_string(rows) + " rows, the last at " + kc::format_time(t_last) +
+               "; they are kept";
+  else if (rows == 0)
+    message += " before the first row";
+  std::cerr << "error: " << one_line(message) << "\n";
+  return kExitInterrupted;
+}
+
 std::function<void(const std::string&)> warning_sink() {
   return [](const std::string& w) { kc::Log::global().warning(one_line(w)); };
 }
@@ -131,6 +159,7 @@ int main(int argc, char** argv) {
     return kExitInvalid;
   }
 
+  kc::install_signal_handlers();  // Ctrl-C stops a run at its next row (interrupted())
   kc::Log::global().set_verbosity(quiet     ? kc::Verbosity::kQuiet
                                   : verbose ? kc::Verbosity::kVerbose
                                             : kc::Verbosity::kNormal);
@@ -150,6 +179,8 @@ int main(int argc, char** argv) {
   } catch (const kc::OutputError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
     return kExitFailed;
+  } catch (const kc::Interrupted&) {
+    return interrupted(common.file);  // nothing is written: no file was committed
   } catch (const std::exception& e) {
     std::cerr << "error: " << one_line(common.file + ": internal error: " + e.what()) << "\n";
     return kExitFailed;

@@ -11,6 +11,7 @@
 #include "cli.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/reference_dynamics.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/io/output_file.hpp"
 
 namespace kinegen::cli {
@@ -81,6 +82,7 @@ int run_simulate(const Common& c, const Options& o) {
   kc::OutputFile file(o.output.empty() ? "-" : o.output);
   std::ostream& out = file.stream();
   int status = 0, rows = 0;
+  double t_last = 0;
   bool header = false;
   const auto sink = [&](const kc::SimulatedRow& row) {
     if (!header) out << kc::simulate_csv_header(model->mechanism(), force_names);
@@ -88,6 +90,7 @@ int run_simulate(const Common& c, const Options& o) {
     out << kc::simulate_csv_row(row, nb);
     file.check();
     ++rows;
+    t_last = row.state.t;
   };
   try {
     if (o.reference_digits != 0) {
@@ -99,6 +102,8 @@ int run_simulate(const Common& c, const Options& o) {
   } catch (const kc::AnalysisError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
     status = kExitFailed;  // the rows so far are kept
+  } catch (const kc::Interrupted&) {
+    status = interrupted(c.file, rows, t_last);  // as a failure: the rows so far are kept
   }
   if (rows > 0 || status == 0 || !file.replaces_target()) file.commit();
   return status;

@@ -16,12 +16,14 @@ namespace {
 
 struct Options {
   kc::ToleranceOptions tolerance;
+  std::string seed = "1";
   std::vector<std::string> tol;  // NAME=DELTA
   std::string output;            // empty: no CSV
 };
 
 int run_tolerance(const Common& c, const Options& o) {
   kc::ToleranceOptions options = o.tolerance;
+  options.seed = parse_seed(o.seed, std::numeric_limits<std::uint64_t>::max());
   options.overrides = parse_overrides(c.params);
   auto model = load(c);
   kc::require_driven(*model);
@@ -65,7 +67,8 @@ Subcommand add_tolerance(CLI::App& app, Common& common) {
                    "Also N >= 2 analyses with parameters drawn uniformly in [p - DELTA, "
                    "p + DELTA]")
       ->check(CLI::Range(2, std::numeric_limits<int>::max()));
-  tolerance->add_option("--seed", t.seed, "Monte Carlo seed (default 1)");
+  tolerance->add_option("--seed", o->seed,
+                        "Monte Carlo seed, 0 to 18446744073709551615 (default 1)");
   tolerance->add_option("-o,--output", o->output, "CSV file of the per-row figures");
   return {tolerance, [&common, o] { return run_tolerance(common, *o); }};
 }

@@ -47,7 +47,8 @@ inline void draw_ground_pivots(const TwoPoints& p, Sketch& sketch) {
 // A direction key as a unit vector (zero stays zero: the equations refuse it).
 inline Eigen::Vector2d unit_direction(const DrawContext& c, const std::string& key) {
   Eigen::Vector2d v = c.vector(key);
-  if (v.norm() > 0) v.normalize();
+  // stableNorm: [1e-300, 0] is a direction too (its squares underflow).
+  if (const double n = v.stableNorm(); n > 0) v /= n;
   return v;
 }
 

@@ -16,6 +16,11 @@ void Picture::solve() {
                      std::to_string(g.steps) + ")");
   if (options_.width < 50 || options_.width > 20000)
     throw UsageError("--width must be between 50 and 20000 pixels");
+  // Every frame's q (and forces) is kept, and the SVG animates each drawn value over them.
+  const Mechanism& m = model_.mechanism();
+  require_kept_rows("animate", g.steps + 1LL,
+                    static_cast<std::size_t>(m.nq()) + 2 * m.points.size() +
+                        (options_.forces ? force_columns(m).size() : 0));
   if (!options_.positions.empty()) {  // given (a mode): drawn as they are, at the grid's times
     q_ = options_.positions;
     for (std::size_t k = 0; k < q_.size(); ++k)

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 
 namespace kinegen::codegen {
 
@@ -31,32 +32,22 @@ struct PendingSlot {
 };
 std::array<PendingSlot, kMaxPending> g_pending;
 
+// The first SIGINT asks the run to stop at its next interruption point (base/interrupt.hpp),
+// which keeps what a streaming command wrote; a second one, or SIGTERM, SIGHUP, SIGQUIT, ends
+// the process at once. Either way no temporary file is left behind.
 extern "C" void remove_pending_and_reraise(int sig) {
+  if (sig == SIGINT && !interrupt_requested()) {
+    request_interrupt();
+    return;
+  }
   for (auto& slot : g_pending)
     if (slot.used.load()) ::unlink(slot.path);
   std::signal(sig, SIG_DFL);
   std::raise(sig);
 }
 
-void install_handlers() {
-  static const bool installed = [] {
-    for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) {
-      struct sigaction old {};
-      ::sigaction(sig, nullptr, &old);
-      if (old.sa_handler == SIG_IGN) continue;  // nohup and friends keep their choice
-      struct sigaction sa {};
-      sa.sa_handler = remove_pending_and_reraise;
-      sigemptyset(&sa.sa_mask);
-      ::sigaction(sig, &sa, nullptr);
-    }
-    return true;
-  }();
-  (void)installed;
-}
-
 int register_pending(const std::string& path) {
   if (path.size() >= kMaxPath) return -1;
-  install_handlers();
   for (int k = 0; k < kMaxPending; ++k) {
     if (g_pending[k].used.load()) continue;
     std::memcpy(g_pending[k].path, path.c_str(), path.size() + 1);
@@ -131,6 +122,18 @@ mode_t default_mode() {
 }
 
 }  // namespace
+
+void install_signal_handlers() {
+  for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) {
+    struct sigaction old {};
+    ::sigaction(sig, nullptr, &old);
+    if (old.sa_handler == SIG_IGN) continue;  // nohup and friends keep their choice
+    struct sigaction sa {};
+    sa.sa_handler = remove_pending_and_reraise;
+    sigemptyset(&sa.sa_mask);
+    ::sigaction(sig, &sa, nullptr);  // no SA_RESTART: a blocked read or open returns EINTR
+  }
+}
 
 struct OutputFile::Impl {
   std::string name;  // for messages

@@ -1,4 +1,5 @@
 // The runs `kinegen view` shows: a CSV read back, an analysis run in-process, a set of modes.
+#include <sys/stat.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -6,9 +7,12 @@
 #include <cmath>
 #include <fstream>
 #include <set>
+#include <sstream>
 
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
+#include "kinegen/codegen/base/read_file.hpp"
 #include "kinegen/codegen/io/view.hpp"
 
 namespace kinegen::codegen {
@@ -35,13 +39,67 @@ bool blank(std::string_view line) {
   return line.find_first_not_of(" \r\t") == std::string_view::npos;
 }
 
+// A run's CSV, read twice (its rows counted, then read): a regular file from the disk, anything
+// else (a pipe, a device, standard input) held in memory, at most kMaxStreamedRunBytes.
+class RunSource {
+ public:
+  explicit RunSource(const std::string& path) : path_(path) {
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
+      throw UsageError("cannot read '" + path + "': it is a directory");
+    if (::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode)) {
+      file_.open(path, std::ios::binary);
+      if (!file_) throw UsageError("cannot read '" + path + "'");
+      in_ = &file_;
+      return;
+    }
+    FileText text = read_bounded(path, kMaxStreamedRunBytes);
+    if (!text.ok())
+      throw UsageError(text.problem("'" + path + "'", kMaxStreamedRunBytes) +
+                       (text.status == FileText::Status::kTooLarge
+                            ? " (a run that is not a regular file is held in memory; write it "
+                              "to a file first)"
+                            : ""));
+    memory_.str(std::move(text.text));
+    in_ = &memory_;
+  }
+
+  // The next line (false at the end), with its 1-based number; a line beyond kMaxCsvLineBytes
+  // is refused.
+  bool next(std::string& line) {
+    bool too_long = false;
+    if (!getline_bounded(*in_, line, kMaxCsvLineBytes, &too_long)) return false;
+    ++line_number_;
+    if (too_long)
+      throw InputError(path_, "line " + std::to_string(line_number_), {line_number_},
+                       "longer than " + std::to_string(kMaxCsvLineBytes) +
+                           " bytes; a run's CSV line is far shorter");
+    if (line_number_ % 4096 == 0) interruption_point();
+    return true;
+  }
+  int line_number() const { return line_number_; }
+
+  void rewind() {
+    in_->clear();
+    in_->seekg(0);
+    line_number_ = 0;
+  }
+
+ private:
+  std::string path_;
+  std::ifstream file_;
+  std::istringstream memory_;
+  std::istream* in_ = nullptr;
+  int line_number_ = 0;
+};
+
 // The rows below the header: non-blank lines after the first non-blank one.
-std::size_t count_rows(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
+std::size_t count_rows(RunSource& in) {
+  in.rewind();
   std::string line;
   std::size_t lines = 0;
   bool header = false;
-  while (std::getline(in, line)) {
+  while (in.next(line)) {
     if (blank(line)) continue;
     if (header) ++lines;
     header = true;
@@ -59,15 +117,14 @@ std::size_t decimation_stride(std::size_t total, std::size_t max_rows) {
 }
 
 RunTable read_run_csv(const std::string& path, std::size_t max_rows) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw UsageError("cannot read '" + path + "'");
+  RunSource in(path);
   RunTable run;
   run.source = path;
   std::string line;
   std::vector<std::string_view> fields;
   int line_number = 0;
-  while (run.columns.empty() && std::getline(in, line)) {
-    ++line_number;
+  while (run.columns.empty() && in.next(line)) {
+    line_number = in.line_number();
     if (blank(line)) continue;
     split_fields(line, fields);
     std::set<std::string_view> seen;
@@ -80,7 +137,15 @@ RunTable read_run_csv(const std::string& path, std::size_t max_rows) {
     }
   }
   if (run.columns.empty()) throw InputError(path, "header", {}, "the file is empty");
-  run.total_rows = count_rows(path);
+  const int header_line = line_number;
+  run.total_rows = count_rows(in);
+  require_kept_rows("view", static_cast<long long>(std::min(run.total_rows, max_rows)),
+                    run.columns.size(), "--max-rows");
+  // Back to the line after the header.
+  in.rewind();
+  while (in.line_number() < header_line && in.next(line)) {
+  }
+  line_number = header_line;
   if (run.total_rows == 0)
     throw InputError(path, "rows", {line_number}, "a header but no rows: nothing to show");
   run.stride = decimation_stride(run.total_rows, max_rows);
@@ -88,8 +153,8 @@ RunTable read_run_csv(const std::string& path, std::size_t max_rows) {
   const std::size_t kept = (run.total_rows - 1 + run.stride - 1) / run.stride + 1;
   for (auto& v : run.values) v.reserve(std::min(kept, run.total_rows));
   std::size_t row = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
+  while (in.next(line)) {
+    line_number = in.line_number();
     if (blank(line)) continue;
     split_fields(line, fields);
     if (fields.size() != run.columns.size())
@@ -139,6 +204,8 @@ RunTable analysis_table(const CompiledModel& model, const TimeGrid& grid, bool f
   for (const auto& f : fields) run.columns.emplace_back(f);
   run.values.assign(run.columns.size(), {});
   run.total_rows = static_cast<std::size_t>(grid.steps) + 1;
+  require_kept_rows("view", static_cast<long long>(std::min(run.total_rows, max_rows)),
+                    run.columns.size(), "--max-rows");
   run.stride = decimation_stride(run.total_rows, max_rows);
   // Values as the CSV holds them (csv_row, 17 digits, read back): one column order.
   std::vector<double> last;
@@ -169,11 +236,11 @@ RunTable analysis_table(const CompiledModel& model, const TimeGrid& grid, bool f
 }
 
 ModeSet read_modes_json(const std::string& path, const CompiledModel& model) {
+  const FileText text = read_bounded(path, kMaxModesBytes);
+  if (!text.ok()) throw UsageError(text.problem("'" + path + "'", kMaxModesBytes));
   YAML::Node root;
   try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw UsageError("cannot read '" + path + "'");
+    root = YAML::Load(text.text);
   } catch (const YAML::Exception& e) {
     throw InputError(path, "modes", {e.mark.line + 1}, e.msg);
   }

@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "kinegen/codegen/base/read_file.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 
@@ -23,7 +24,7 @@ SourceLoc loc_of(const YAML::Node& node);
 constexpr std::size_t kMaxExpressionLength = 4096;
 constexpr int kMaxNesting = 64;
 constexpr std::size_t kMaxPieces = 1000;
-constexpr std::size_t kMaxFileSize = 1 << 20;
+constexpr std::size_t kMaxFileSize = kMaxMechanismBytes;  // base/read_file.hpp
 
 class Loader {
  public:

@@ -188,7 +188,9 @@ void Loader::read_law(const YAML::Node& c, const std::string& item, Constraint& 
       fail(
           item + " table", loc_of(table),
           "a periodic table must start at t = 0 (its first t is " + format_number(t.front()) + ")");
-    law.table_id = register_table(law.period ? fit_periodic(t, v) : fit_not_a_knot(t, v));
+    const Spline spline = law.period ? fit_periodic(t, v) : fit_not_a_knot(t, v);
+    check_spline(spline, law.table, src);
+    law.table_id = register_table(spline);
     return;
   }
   const YAML::Node f = c["f"];

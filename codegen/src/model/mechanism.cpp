@@ -8,13 +8,12 @@
 
 #include <algorithm>
 #include <cctype>
-#include <fstream>
 #include <set>
-#include <sstream>
 #include <stdexcept>
 #include <unordered_set>
 
 #include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/base/read_file.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/model/table.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
@@ -139,11 +138,15 @@ Mechanism parse_mechanism(const std::string& yaml_text, const std::string& sourc
 }
 
 Mechanism load_mechanism(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "file", {}, "cannot open the mechanism file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse_mechanism(text.str(), path);
+  // Bounded whatever the path names (a device, a FIFO, standard input): parse_mechanism's
+  // limit, applied while reading.
+  const FileText file = read_bounded(path, kMaxFileSize);
+  if (!file.ok()) {
+    std::string problem = file.problem("the mechanism file", kMaxFileSize);
+    if (file.status == FileText::Status::kTooLarge) problem += "; a mechanism file is far smaller";
+    throw InputError(path, "file", {}, problem);
+  }
+  return parse_mechanism(file.text, path);
 }
 
 std::vector<std::string> coordinate_labels(const Mechanism& m) {

@@ -10,7 +10,6 @@
 #include <cstdlib>
 #include <deque>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <mutex>
 #include <set>
@@ -18,6 +17,7 @@
 #include <stdexcept>
 
 #include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/base/read_file.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "kinegen/kernels/spline.hpp"
 
@@ -214,7 +214,9 @@ void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::st
     driver->law.input = false;
     driver->free.reset();  // a free coordinate given its motion is a prescribed driver
     driver->law.table = path;
-    driver->law.table_id = register_table(fit_not_a_knot(t, v));
+    const Spline spline = fit_not_a_knot(t, v);
+    check_spline(spline, path, src);
+    driver->law.table_id = register_table(spline);
   }
   if (!required) return;
   for (const Constraint& d : m.drivers) {
@@ -246,14 +248,10 @@ bool Spline::eval(double x, double* f) const {
 void read_table(const std::string& path, const TableSource& src, std::vector<double>& t,
                 std::vector<double>& value) {
   const fs::path file = resolve(path, src);
-  std::error_code ec;
-  const auto size = fs::file_size(file, ec);
-  if (ec) fail(src, "cannot read the table file '" + path + "'");
-  if (size > kMaxTableBytes)
-    fail(src, "the table file '" + path + "' is larger than " +
-                  std::to_string(kMaxTableBytes >> 20) + " MiB");
-  std::ifstream in(file, std::ios::binary);
-  if (!in) fail(src, "cannot open the table file '" + path + "'");
+  // Bounded whatever the path names (a device, a FIFO, standard input).
+  const FileText text = read_bounded(file.string(), kMaxTableBytes);
+  if (!text.ok()) fail(src, text.problem("the table file '" + path + "'", kMaxTableBytes));
+  std::istringstream in(text.text);
   std::string line;
   int row = 0;  // 1-based line in the CSV
   bool header = false;
@@ -290,6 +288,23 @@ void read_table(const std::string& path, const TableSource& src, std::vector<dou
   if (t.size() < 4)
     fail(src, "table '" + path + "' has " + std::to_string(t.size()) +
                   " rows; a cubic spline needs at least 4");
+}
+
+void check_spline(const Spline& spline, const std::string& path, const TableSource& src) {
+  const std::vector<double>& t = spline.t;
+  const char* what[3] = {"value", "slope", "second derivative"};
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    for (const double x : {t[k], k + 1 < t.size() ? t[k] + (t[k + 1] - t[k]) / 2 : t[k]}) {
+      double f[3] = {0, 0, 0};
+      if (!spline.eval(x, f)) continue;
+      for (int o = 0; o < 3; ++o)
+        if (!std::isfinite(f[o]))
+          fail(src, "table '" + path + "': its spline's " + what[o] +
+                        " at t = " + format_number(x) + " is " + format_number(f[o]) +
+                        ", beyond a double: values near 1e308, or rows whose t are too close "
+                        "for their values' differences (slopes overflow); scale the table");
+    }
+  }
 }
 
 Spline fit_not_a_knot(std::vector<double> t, std::vector<double> y) {

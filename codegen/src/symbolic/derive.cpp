@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/symbolic/forces.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
@@ -185,6 +186,7 @@ void derive_rates(const Mechanism& m, const SymbolTable& s, SymbolicModel& model
   std::vector<std::vector<int>> row_coords(nc);
   std::vector<std::size_t> row_begin(nc + 1, 0);  // row r's entries: [row_begin[r], row_begin[r+1])
   for (int r = 0; r < nc; ++r) {
+    interruption_point();
     row_coords[r] = coordinates_in(model.phi[r], s);
     row_begin[r] = model.phi_q.size();
     for (int k : row_coords[r]) {
@@ -198,6 +200,7 @@ void derive_rates(const Mechanism& m, const SymbolTable& s, SymbolicModel& model
   // of velocities as a hand derivation writes it: the coefficient of qd_i qd_k is
   // Phi_{q_i q_k} (i = k) or 2 Phi_{q_i q_k} (i < k, the symmetric pair at once).
   for (int r = 0; r < nc; ++r) {
+    interruption_point();
     const ex phi_t = diff(model.phi[r], s.t(), r);
     model.nu.push_back(-phi_t);
     ex quadratic = 0, mixed = 0;
@@ -266,13 +269,12 @@ void derive_outputs(const Mechanism& m, const SymbolTable& s, SymbolicModel& mod
 // set how precisely a link must close. A body without such geometry (a slider pinned at its
 // origin) takes the largest of the bodies joined to it, else the largest body scale; a
 // mechanism without any, 1.
-void derive_scales(const Mechanism& m, const SymbolTable& s, const Builder& builder,
-                   SymbolicModel& model) {
-  const int num_bodies = static_cast<int>(m.bodies.size());
-  std::vector<double> body_scale(num_bodies, 0.0);
+std::vector<double> body_scales(const Mechanism& m, const SymbolTable& s, const Builder& builder,
+                                const std::vector<GiNaC::numeric>& values) {
+  std::vector<double> body_scale(m.bodies.size(), 0.0);
   const auto grow = [&](int body, const ex& e) {
     if (body == kGround) return;
-    const double v = std::abs(to_double(substitute_params(e, s, model.param_values)));
+    const double v = std::abs(to_double(substitute_params(e, s, values)));
     if (std::isfinite(v)) body_scale[body] = std::max(body_scale[body], v);
   };
   for (const auto* c : m.constraints()) {
@@ -287,9 +289,20 @@ void derive_scales(const Mechanism& m, const SymbolTable& s, const Builder& buil
       grow(c->j, length);
     }
   }
+  return body_scale;
+}
+
+// The mechanism's length scale: the largest body scale, 1 without any.
+double length_scale_of(const std::vector<double>& body_scale) {
   double largest = 0;
   for (double v : body_scale) largest = std::max(largest, v);
-  model.length_scale = largest > 0 ? largest : 1.0;
+  return largest > 0 ? largest : 1.0;
+}
+
+void derive_scales(const Mechanism& m, const std::vector<double>& body_scale,
+                   SymbolicModel& model) {
+  const int num_bodies = static_cast<int>(m.bodies.size());
+  model.length_scale = length_scale_of(body_scale);
   // A body without geometry of its own moves with the bodies it is joined to.
   std::vector<double> joined(num_bodies, 0.0);
   for (const auto* c : m.constraints())
@@ -335,7 +348,6 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
                      const std::vector<ParamOverride>& overrides) {
   SymbolicModel model;
   model.param_values = parameter_values(m, s, overrides);
-  model.warnings = driver_law_warnings(m, s, model.param_values);
   const Builder builder(m, s, model.param_values);
 
   for (const auto* c : m.constraints()) {
@@ -349,7 +361,10 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
   derive_rates(m, s, model);
   derive_geometry(m, s, builder, model);
   derive_outputs(m, s, model);
-  derive_scales(m, s, builder, model);
+  derive_scales(m, body_scales(m, s, builder, model.param_values), model);
+  // The laws' boundaries, once the length scale is known: a driven length's jumps are
+  // measured against it (the equations above took the laws unchecked).
+  model.warnings = driver_law_warnings(m, s, model.param_values, model.length_scale);
   return model;
 }
 

@@ -1,7 +1,5 @@
 // A driver's law in pieces, with a period, from a table or a run-time input (format 6.3):
 // DriverLawBuilder, which also checks its boundaries and seams.
-#include <cln/cln.h>
-
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -13,6 +11,7 @@
 #include <stdexcept>
 
 #include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/model/table.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
 #include "symbolic_detail.hpp"
@@ -26,14 +25,16 @@ using namespace symbolic_detail;
 namespace {
 
 // A driver's law in pieces, with a period, from a table or a run-time input (format 6.3), as
-// one expression in t. Checks the pieces' order, the period and, at every boundary and seam,
-// f, f' and f'' from either side: a jump in f throws, one in f' or f'' is added to
-// `warnings` when given.
+// one expression in t. Checks the pieces' order, the period and, with `warnings`, at every
+// boundary and seam, f, f' and f'' from either side: a jump in f throws, one in f' or f'' is
+// added to `warnings`.
 class DriverLawBuilder {
  public:
+  // unit: the driven quantity's (1 rad for an angle, the mechanism's length scale for a
+  // length, 1 for an expression), the least scale a jump is measured against.
   DriverLawBuilder(const Constraint& c, const Mechanism& m, const SymbolTable& s,
-                   const std::vector<GiNaC::numeric>& values)
-      : c_(c), m_(m), s_(s), values_(values) {}
+                   const std::vector<GiNaC::numeric>& values, double unit = 1)
+      : c_(c), m_(m), s_(s), values_(values), unit_(unit) {}
 
   ex build(std::vector<std::string>* warnings) const {
     const DriverLaw& law = c_.law;
@@ -93,21 +94,7 @@ class DriverLawBuilder {
                         "the period's seam t = " + format_number(number(*period)),
                         law.period->loc});
     }
-    // Where the law's magnitudes are sampled (the scale of its jumps): inside each piece.
-    std::vector<std::pair<ex, ex>> spans;  // a piece and a time inside it
-    {
-      const double first = n > 1 ? at[0] : 0, last = n > 1 ? at[n - 2] : 0;
-      const double length = period  ? number(*period) / n
-                            : n > 2 ? (last - first) / (n - 2)
-                                    : std::max(1.0, std::abs(first));
-      for (std::size_t k = 0; k < n; ++k) {
-        const double lo = k == 0 ? (period ? 0.0 : first - length) : at[k - 1];
-        const double hi = k + 1 < n ? at[k] : (period ? number(*period) : last + length);
-        for (int i = 1; i <= 3; ++i)
-          spans.emplace_back(f[k], GiNaC::numeric(exact_double(lo + (hi - lo) * i / 4)));
-      }
-    }
-    check_joints(joints, spans, warnings);
+    if (warnings) check_joints(joints, *warnings);
     return value;
   }
 
@@ -119,22 +106,17 @@ class DriverLawBuilder {
     SourceLoc loc;  // the piece after it
   };
 
-  // f, f', f'' across each joint; a difference above 1e-9 of the law's largest magnitude of
-  // that derivative (over the joints and `samples`, times inside each piece) counts. At 40
-  // digits, so rounding never does.
-  // An exact rational of a double, for a sampling time.
-  static GiNaC::numeric exact_double(double v) {
-    return GiNaC::numeric(cln::rational(cln::the<cln::cl_R>(GiNaC::numeric(v).to_cl_N())));
-  }
-
-  void check_joints(const std::vector<Joint>& joints, const std::vector<std::pair<ex, ex>>& samples,
-                    std::vector<std::string>* warnings) const {
+  // f, f', f'' across each joint; a difference above 1e-9 of the local scale counts: the
+  // larger of the two sides' magnitudes of that derivative there and the driven quantity's
+  // unit (format 6.3 as amended in version 3: the law's largest magnitude anywhere, which a
+  // later piece's growth far from the boundary raises, could hide a real jump). At 40 digits,
+  // so rounding never counts.
+  void check_joints(const std::vector<Joint>& joints, std::vector<std::string>& warnings) const {
     if (joints.empty()) return;
     const ex t = s_.t();
     const DigitsGuard digits(kEvalDigits);
     double left[3][kMaxJoints], right[3][kMaxJoints];
     const std::size_t count = std::min(joints.size(), kMaxJoints);
-    double scale[3] = {0, 0, 0};
     // Each side is taken a hair inside its piece (1e-25 of the time's size, far below the
     // 1e-9 that counts), so that a clamped law's corner at the boundary (harmonic'' at 0)
     // is seen as its piece's one-sided limit, not as the clamped value.
@@ -147,33 +129,24 @@ class DriverLawBuilder {
       for (int o = 0; o < 3; ++o) {
         left[o][j] = number(a.subs(t == before));
         right[o][j] = number(b.subs(t == after));
-        scale[o] = std::max({scale[o], std::abs(left[o][j]), std::abs(right[o][j])});
         a = a.diff(GiNaC::ex_to<GiNaC::symbol>(t));
         b = b.diff(GiNaC::ex_to<GiNaC::symbol>(t));
-      }
-    }
-    for (const auto& [piece, at] : samples) {
-      ex e = piece;
-      for (int o = 0; o < 3; ++o) {
-        const double v = std::abs(number(e.subs(t == at)));
-        if (std::isfinite(v)) scale[o] = std::max(scale[o], v);
-        e = e.diff(GiNaC::ex_to<GiNaC::symbol>(t));
       }
     }
     const char* what[3] = {"f", "f'", "f''"};
     for (std::size_t j = 0; j < count; ++j)
       for (int o = 0; o < 3; ++o) {
-        if (!(std::abs(left[o][j] - right[o][j]) > 1e-9 * scale[o]) &&
-            std::isfinite(left[o][j] - right[o][j]))
-          continue;
+        const double scale = std::max({std::abs(left[o][j]), std::abs(right[o][j]), unit_});
+        // Halves: a difference of two values near the largest double must not overflow.
+        const double half = left[o][j] / 2 - right[o][j] / 2;
+        if (!(std::abs(half) > 0.5e-9 * scale) && std::isfinite(half)) continue;
         const std::string message = std::string(what[o]) + " jumps at " + joints[j].name + ": " +
-                                    format_number(shown(left[o][j], scale[o])) + " before it, " +
-                                    format_number(shown(right[o][j], scale[o])) + " after it";
+                                    format_number(shown(left[o][j], scale)) + " before it, " +
+                                    format_number(shown(right[o][j], scale)) + " after it";
         if (o == 0) fail(joints[j].loc, message);
-        if (warnings)
-          warnings->push_back(m_.source + ":" + std::to_string(joints[j].loc.line) + ": " +
-                              c_.item + ": " + message +
-                              (o == 1 ? "; velocities jump there" : "; accelerations jump there"));
+        warnings.push_back(m_.source + ":" + std::to_string(joints[j].loc.line) + ": " + c_.item +
+                           ": " + message +
+                           (o == 1 ? "; velocities jump there" : "; accelerations jump there"));
       }
   }
 
@@ -205,6 +178,7 @@ class DriverLawBuilder {
   const Mechanism& m_;
   const SymbolTable& s_;
   const std::vector<GiNaC::numeric>& values_;
+  double unit_;
 };
 
 }  // namespace
@@ -212,15 +186,21 @@ class DriverLawBuilder {
 namespace symbolic_detail {
 
 ex driver_law(const Constraint& c, const Mechanism& m, const SymbolTable& s,
-              const std::vector<GiNaC::numeric>& values, std::vector<std::string>* warnings) {
-  return DriverLawBuilder(c, m, s, values).build(warnings);
+              const std::vector<GiNaC::numeric>& values) {
+  return DriverLawBuilder(c, m, s, values).build(nullptr);
 }
 
 std::vector<std::string> driver_law_warnings(const Mechanism& m, const SymbolTable& s,
-                                             const std::vector<GiNaC::numeric>& values) {
+                                             const std::vector<GiNaC::numeric>& values,
+                                             double length_scale) {
   std::vector<std::string> warnings;
-  for (const Constraint& c : m.drivers)
-    if (!c.law.pieces.empty()) DriverLawBuilder(c, m, s, values).build(&warnings);
+  for (const Constraint& c : m.drivers) {
+    if (c.law.pieces.empty()) continue;
+    const std::string type = c.kind->name;
+    const bool angle = type == "absolute_angle" || type == "relative_angle";
+    const bool length = type == "absolute_x" || type == "absolute_y" || type == "distance";
+    DriverLawBuilder(c, m, s, values, angle ? 1.0 : length ? length_scale : 1.0).build(&warnings);
+  }
   return warnings;
 }
 

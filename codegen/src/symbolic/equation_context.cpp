@@ -105,15 +105,16 @@ EquationContext::Vec EquationContext::d_ij() const {
 
 ex EquationContext::perpendicular(const Vec& d) const {
   const Vec v = vector("vi");
-  if (to_double(substitute_params(GiNaC::pow(v.first, 2) + GiNaC::pow(v.second, 2), s_, values_)) ==
-      0.0)
+  // Each component on its own: a sum of squares underflows to 0 for vi = [1e-300, 0], which is
+  // a direction all the same (its length enters the equations exactly).
+  if (number(v.first) == 0.0 && number(v.second) == 0.0)
     throw InputError(m_.source, c_.item, c_.vector("vi").x.loc, "vi must not be the zero vector");
   const Vec av = rotate(frame_i().phi, v);
   return -av.second * d.first + av.first * d.second;
 }
 
 ex EquationContext::value() const {
-  if (c_.is_driver && !c_.law.plain()) return driver_law(c_, m_, s_, values_, nullptr);
+  if (c_.is_driver && !c_.law.plain()) return driver_law(c_, m_, s_, values_);
   const std::string item = c_.item + (c_.is_driver ? " f" : " value");
   const ex v = s_.parse(c_.value, c_.is_driver ? Scope::kDriverTime : Scope::kGeometry, item);
   if (!c_.is_driver) check_finite(v, c_.value, item);

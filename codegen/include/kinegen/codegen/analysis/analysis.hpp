@@ -47,6 +47,15 @@ struct ForceModel;
 // equations are allowed: run_analysis checks them for redundancy at the assembled position.
 void require_driven(const CompiledModel& model);
 
+// What keeps its rows in memory (tolerance, animate, the Python module's analyze, the rows
+// view's page keeps) holds at most this many numbers: 2^24, 128 MiB of doubles per copy.
+// `analyze` and `simulate` on the command line stream their rows and have no such bound.
+inline constexpr std::size_t kMaxKeptValues = std::size_t{1} << 24;
+// Throws UsageError when `rows` rows of `per_row` numbers exceed kMaxKeptValues, naming `what`
+// and the largest value of `option` that fits (--steps N keeps N + 1 rows).
+void require_kept_rows(const std::string& what, long long rows, std::size_t per_row,
+                       const std::string& option = "--steps");
+
 struct AnalysisOptions {
   // Redundant (consistent) constraints are an error (InputError, exit 2) rather than a warning.
   bool strict = false;

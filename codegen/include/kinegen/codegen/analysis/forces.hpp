@@ -150,6 +150,15 @@ class ForceSolver {
   // (then `columns` is NaN).
   bool solve(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
              const Eigen::VectorXd& qdd, std::vector<double>& columns);
+  // Whether the last failed solve failed by the singularity rule (else by a value that is not
+  // finite: a load, a weight, an inertia force, or efforts beyond a double).
+  bool singular() const { return !(1 / condition_ > min_rcond_); }
+  // After a failed solve that is not singular(), at the same state: what is not finite, named
+  // ("the load forces[0] (torque) 'bad' (line 12) is nan here", "the weight of body 'a' (mass
+  // 1e+308) overflows"); each load and each body's weight and inertia force are evaluated on
+  // their own.
+  std::string failure_cause(double t, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                            const Eigen::VectorXd& qdd) const;
 
   // Q = Q^A + inertia forces at the last solve, lambda, and the scaled condition estimate of
   // Phi_q there (infinity when singular).

@@ -3,7 +3,8 @@
 // A regular file (or a new name) is written to a temporary file created exclusively beside it
 // (mkostemp: O_CREAT | O_EXCL, so a planted link is never followed) and renamed over the target
 // on commit; until then the target is untouched, and an uncommitted, failed or interrupted
-// (SIGINT, SIGTERM, SIGHUP, SIGQUIT) run removes the temporary file. A symbolic link at the
+// run removes the temporary file (with install_signal_handlers, also one that SIGTERM,
+// SIGHUP, SIGQUIT or a second SIGINT ends). A symbolic link at the
 // target is replaced, not followed. Standard output ("-" or /dev/stdout), devices, pipes and
 // anything under /dev or /proc are written in place, never replaced. Every write, fsync and
 // close error is an OutputError (exit 1).
@@ -14,6 +15,14 @@
 #include <string>
 
 namespace kinegen::codegen {
+
+// The command line's signal handling, installed once at its start: the first SIGINT asks the
+// run to stop at its next interruption point (base/interrupt.hpp: request_interrupt), so that
+// analyze and simulate keep the rows written; a second SIGINT, SIGTERM, SIGHUP or SIGQUIT
+// removes the pending temporary files and ends the process by that signal. Signals the process
+// ignores (nohup) stay ignored. A program embedding the library (the Python module) does not
+// call it and keeps its own handlers.
+void install_signal_handlers();
 
 class OutputFile {
  public:

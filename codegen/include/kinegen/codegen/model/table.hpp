@@ -81,4 +81,9 @@ Spline fit_not_a_knot(std::vector<double> t, std::vector<double> y);
 // are interpolated by a spline whose value, slope and curvature match across the seam.
 Spline fit_periodic(std::vector<double> t, std::vector<double> y);
 
+// Refuses a fitted spline that is not finite (InputError naming the table `path` and the t):
+// values near 1e308 or knots 1e-300 apart give slopes and curvatures beyond a double. Checks
+// f, f' and f'' at every knot and midway between knots.
+void check_spline(const Spline& spline, const std::string& path, const TableSource& source);
+
 }  // namespace kinegen::codegen
