@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Fuzzes the loader, the expression parser and the symbolic pipeline with libFuzzer, under
-# AddressSanitizer and UndefinedBehaviorSanitizer.
+# Fuzzes the loader, the expression parser, the symbolic pipeline, the emitter and a short run
+# (analyze, or simulate for a file with free:) with libFuzzer, under AddressSanitizer and
+# UndefinedBehaviorSanitizer.
 #   scripts/fuzz.sh [SECONDS] [extra libFuzzer options...]   (default 600 s)
 # Builds with clang in build-fuzz/; the seed corpus is examples/*.yaml, examples/*/*.yaml,
 # tests/mechanisms/*.yaml, tests/stability/*.yaml and fuzz/seeds/*.yaml (format 6.3's driver
@@ -11,8 +12,10 @@ cd "$(dirname "$0")/.."
 seconds="${1:-600}"
 shift || true
 cxx="${CXX_FUZZ:-$(command -v clang++ || command -v clang++-14)}"
-flags="-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined -g -O1"
+flags="-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined"
+# RelWithDebInfo's own flags (-O2 -g) would follow CMAKE_CXX_FLAGS and win: set them here.
 cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER="$cxx" \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DKINEGEN_BUILD_PYTHON=OFF \
   -DCMAKE_CXX_FLAGS="$flags" -DKINEGEN_BUILD_TESTS=OFF -DKINEGEN_BUILD_BENCHMARKS=OFF \
   -DKINEGEN_BUILD_FUZZ=ON >/dev/null
 cmake --build build-fuzz -j2 --target fuzz_mechanism

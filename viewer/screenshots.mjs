@@ -1,6 +1,7 @@
 // Screenshots of kinegen view's page for the README (docs/figures/view_*.png): the four-bar
-// with a read-out under the mouse and a plot of the coupler point against the crank angle, and
-// the planetary train. Run by scripts/make_figures.sh when viewer/node_modules is there.
+// with a read-out under the mouse and a plot of the coupler point against the crank angle, the
+// planetary train, and the simulated press with a flywheel: its crank speed, which drops at each
+// forming stroke, beside the energy balance. Run by scripts/make_figures.sh when viewer/node_modules is there.
 //   node viewer/screenshots.mjs [path/to/kinegen]
 import path from 'node:path';
 
@@ -38,4 +39,15 @@ await shot('four_bar', ['examples/four_bar.yaml', '--t0', '0', '--t1', TURN,
 await shot('planetary', ['examples/gears/planetary.yaml', '--t0', '0',
                          '--t1', '4', '--steps', '240', '--width', '640'], async (page) => {
   await slide(page, 50);
+});
+const press = path.join(dir, 'press_flywheel.csv');
+const run = kinegen('simulate', 'examples/dynamics/press_flywheel.yaml', '--t1', '6', '--steps',
+                    '600', '--forces', '-q', '-o', press);
+if (run.code !== 0) throw new Error(run.err);
+await shot('press_flywheel', ['examples/dynamics/press_flywheel.yaml', '--csv', press],
+           async (page) => {
+  await page.selectOption('#kg-x', { label: 't' });
+  await page.selectOption('#kg-y', [{ label: 'crank.omega' }, { label: 'energy.balance' }]);
+  await page.click('#kg-add');
+  await slide(page, 420);
 });

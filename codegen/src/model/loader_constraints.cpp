@@ -44,7 +44,7 @@ void Loader::read_constraints(const YAML::Node& node, const std::string& list, b
     con.kind = kind;
     con.is_driver = driver;
     con.loc = loc_of(c);
-    if (free) con.free.emplace();
+    if (free) con.free = Constraint::Free{};  // not emplace(): clang sees Free as incomplete here
     item += " (" + type_name + ")";
     if (c["name"]) {
       con.name = name_of(c["name"], item);
