@@ -333,6 +333,41 @@ test('modes: each plays as an oscillation about the equilibrium', async () => {
   }
 });
 
+test('a simulated run: the press drawn where kinegen simulate puts it, its energy plotted',
+     async () => {
+  // A mechanism with free: coordinates, viewed from its simulation's CSV (the free coordinate is
+  // state there, not an input that needs a table).
+  const dir = scratch('simulated');
+  const yaml = path.join(SOURCE, 'examples/dynamics/press_flywheel.yaml');
+  const csvFile = path.join(dir, 'press_flywheel.csv'), html = path.join(dir, 'press.html');
+  const r = kinegen('simulate', yaml, '--t1', '2', '--steps', '100', '-q', '-o', csvFile);
+  assert.equal(r.code, 0, r.err);
+  view(yaml, '--csv', csvFile, '-o', html);
+  const csv = readCsv(csvFile);
+  const { page, log, close } = await open(html);
+  try {
+    assert.deepEqual(await notes(page), { error: '', notes: [] });
+    await page.selectOption('#kg-x', { label: 't' });
+    await page.selectOption('#kg-y', [{ label: 'theta.v' }, { label: 'energy.balance' }]);
+    await page.click('#kg-add');
+    for (const k of [0, 37, 100]) {
+      await slide(page, k);
+      const q = rowOf(csv, k), d = await drawn(page);
+      const pin = (name) => d.pins.find((p) => p.name.startsWith(name + ':'));
+      near([pin('crank_pin').x, pin('crank_pin').y], toPixels(d.map, world(q, 'crank', [0.05, 0])),
+           `row ${k} crank_pin`);
+      near([pin('wrist_pin').x, pin('wrist_pin').y], toPixels(d.map, world(q, 'rod', [0.2, 0])),
+           `row ${k} wrist_pin`);
+      const legend = (await legends(page)).find((l) => 'energy.balance' in l);
+      assert.equal(Number(legend['energy.balance']), q['energy.balance'], `row ${k}`);
+      assert.equal(Number(legend['theta.v']), q['theta.v'], `row ${k}`);
+    }
+    clean(log);
+  } finally {
+    await close();
+  }
+});
+
 test('bad input: a clear error and no page', () => {
   const dir = scratch('bad');
   const four = fourBarCsv(dir, 36);

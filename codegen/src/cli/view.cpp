@@ -35,7 +35,11 @@ int run_view(const Common& c, const Options& o) {
   if (o.forces && !grid) throw kc::UsageError("--forces belongs to an analysis (--t0 ...)");
   if (o.max_rows < 2) throw kc::UsageError("--max-rows must be at least 2");
   kc::require_viewer();  // before any work
-  const auto model = load(c);
+  // A run read from a file (a simulation's CSV, a modes JSON) has the free coordinates' values
+  // in it: they are state, not inputs needing tables as in an analysis.
+  kc::BuildOptions build;
+  build.free_as_state = !grid;
+  const auto model = load(c, build);
   kc::ViewOptions options;
   options.width = o.width;
   std::string html;
