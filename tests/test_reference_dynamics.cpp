@@ -233,7 +233,9 @@ double worst_gap(const Run& a, const Run& b) {
 
 TEST_CASE("reference dynamics: energy and power balances hold to ~D - 5 digits",
           "[reference_dynamics]") {
-  constexpr int kDigits = 30;
+  // 25 digits: a balance to 1e-20 is far beyond what double arithmetic could give, at a
+  // third of the cost of 30 (the sanitizer pass runs this too).
+  constexpr int kDigits = 25;
   const double bound = std::pow(10.0, -(kDigits - 5));
   SECTION("a four-bar under gravity conserves its energy") {
     const Run r = reference(four_bar_file("four_bar_gravity", "0"), {0, 1, 10}, kDigits);
@@ -262,12 +264,13 @@ TEST_CASE("reference dynamics: energy and power balances hold to ~D - 5 digits",
 TEST_CASE("reference dynamics: D and D + 10 digits agree to ~D - 5 digits",
           "[reference_dynamics]") {
   const std::string file = four_bar_file("four_bar_gravity", "0.05");
-  const Run a = reference(file, {0, 1, 5}, 30), b = reference(file, {0, 1, 5}, 40);
+  // 20 against 30 digits (the pendulum's test above reaches 60 against a closed form).
+  const Run a = reference(file, {0, 1, 5}, 20), b = reference(file, {0, 1, 5}, 30);
   REQUIRE(a.rows.size() == b.rows.size());
   const double worst = worst_gap(a, b);
-  WARN("four-bar with damper to t = 1: 30 against 40 digits " << worst << " (" << a.seconds
+  WARN("four-bar with damper to t = 1: 20 against 30 digits " << worst << " (" << a.seconds
                                                               << " s and " << b.seconds << " s)");
-  CHECK(worst < 1e-25);
+  CHECK(worst < 1e-15);
 }
 
 TEST_CASE("reference dynamics: the double simulation converges to the reference",
@@ -279,7 +282,7 @@ TEST_CASE("reference dynamics: the double simulation converges to the reference"
        {std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/pendulum.yaml",
         four_bar_file("four_bar_gravity", "0"), cart_pendulum_file()}) {
     const cg::TimeGrid grid{0, 1, 10};
-    const Run r = reference(file, grid, 30);
+    const Run r = reference(file, grid, 20);  // its error, ~1e-15, is far below double's here
     const auto error = [&](double tol) {
       const std::vector<cg::SimulatedRow> d = in_double(file, grid, tol, tol);
       REQUIRE(d.size() == r.rows.size());
