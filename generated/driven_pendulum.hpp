@@ -143,6 +143,8 @@ struct driven_pendulum {
   static constexpr std::array<int, nq> coordinate_block = {2, 0, 1, 3, 4, 5};
   static constexpr std::array<int, nq> coordinate_slot = {2, 0, 1, 3, 4, 5};
   static constexpr std::array<int, nc + 1> jac_row_begin = {0, 1, 2, 4, 6, 7, 8};
+  // Where each block's K x K factors start when all are kept (_block_factor_all).
+  static constexpr std::array<int, num_blocks + 1> block_factor_begin = {0, 1, 2, 3, 4, 5, 6};
   using _model = driven_pendulum;
 
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
@@ -494,28 +496,77 @@ struct driven_pendulum {
   template <class S, class T, class R>
   static BlockReport<R> _block_forward(const T* jac, const T* b, T* x, int m,
                                        const BasicBlockOptions<R>& o) noexcept {
-    return _each_factored_block<S, false>(jac, o, [&](auto size, int k, const T* a,
-                                                      const int* piv) {
-      constexpr int K = decltype(size)::value;
-      const int b0 = S::block_begin[k];
-      for (int col = 0; col < m; ++col) {
-        const T* bc = b + col * S::nq;
-        T* xc = x + col * S::nq;
-        T v[K];
-        for (int i = 0; i < K; ++i) {
-          const int row = S::block_rows[b0 + i];
-          v[i] = bc[row];
-          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
-            const int c = S::jac_cols[e];
-            if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
-          }
+    return _each_factored_block<S, false>(
+        jac, o, [&](auto size, int k, const T* a, const int* piv) {
+          return _forward_block<S, decltype(size)::value>(k, jac, a, piv, b, x, m);
+        });
+  }
+  // Block k (K x K, factors a, piv) of Phi_q X = B for m columns, earlier blocks solved.
+  template <class S, int K, class T>
+  static bool _forward_block(int k, const T* jac, const T* a, const int* piv, const T* b, T* x,
+                             int m) noexcept {
+    const int b0 = S::block_begin[k];
+    for (int col = 0; col < m; ++col) {
+      const T* bc = b + col * S::nq;
+      T* xc = x + col * S::nq;
+      T v[K];
+      for (int i = 0; i < K; ++i) {
+        const int row = S::block_rows[b0 + i];
+        v[i] = bc[row];
+        for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+          const int c = S::jac_cols[e];
+          if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
         }
-        _lu_solve<K>(a, piv, v);
-        if (!_all_finite<K>(v)) return false;
-        for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
       }
-      return true;
-    });
+      _lu_solve<K>(a, piv, v);
+      if (!_all_finite<K>(v)) return false;
+      for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
+    }
+    return true;
+  }
+
+  // Several solves at one Phi_q with each block factored once: _block_factor_all keeps every
+  // block's factors (block k's K x K at a + S::block_factor_begin[k], its pivots at piv +
+  // S::block_begin[k]), checked as _block_forward checks them; then _block_forward_factored and
+  // _block_transposed_factored give _block_forward's and _block_transposed's numbers bit for
+  // bit. False from those: a solution that is not finite.
+  template <class S, class T, class R>
+  static BlockReport<R> _block_factor_all(const T* jac, T* a, int* piv,
+                                          const BasicBlockOptions<R>& o) noexcept {
+    BlockReport<R> r;
+    bool ok = true;
+    for (int k = 0; ok && k < S::num_blocks; ++k)
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        ok = _block_factor<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                     piv + S::block_begin[k], r, o.min_rcond);
+      });
+    return r;
+  }
+  template <class S, class T>
+  static bool _block_forward_factored(const T* jac, const T* a, const int* piv, const T* b, T* x,
+                                      int m) noexcept {
+    bool ok = true;
+    for (int k = 0; ok && k < S::num_blocks; ++k)
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        ok = _forward_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                      piv + S::block_begin[k], b, x, m);
+      });
+    return ok;
+  }
+  template <class S, class T>
+  static bool _block_transposed_factored(const T* jac, const T* a, const int* piv, T* b, T* y,
+                                         int m) noexcept {
+    bool ok = true;
+    for (int n = 0; ok && n < S::num_blocks; ++n) {
+      const int k = S::num_blocks - 1 - n;
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        constexpr int K = decltype(size)::value;
+        for (int col = 0; ok && col < m; ++col)
+          ok = _transposed_block<S, K>(k, jac, a + S::block_factor_begin[k],
+                                       piv + S::block_begin[k], b + col * S::nq, y + col * S::nq);
+      });
+    }
+    return ok;
   }
 
   // y of `row` is v: recorded, and subtracted from the equations of the coordinates the row
@@ -1447,6 +1498,8 @@ struct driven_pendulum {
     T q[nq], qd[nq], qdd[nq], state[3 * nf];
     signed char block_signs[num_blocks];
     T jac[jac_nnz], e[nq * nf], b[nq * nf], mb[nq * nf], g[nq], f[nq], mz[nf * nf];
+    T factors[block_factor_begin[num_blocks]];  // Phi_q's blocks at q
+    int pivots[nq];
     T geometry[12], mass[num_bodies], inertia[num_bodies], ax[num_bodies], ay[num_bodies];
     DynamicsWork() noexcept { reset(); }
     // Back to the file's q0 and no recorded branch (a new start, far from the last).
@@ -1474,15 +1527,17 @@ struct driven_pendulum {
     BlockReport<R> r = solve_step(w.q, t, pz, w.qd, w.qdd, o, static_cast<T*>(nullptr),
                                   w.block_signs);
     if (r.status != 0) return r;
-    // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), one
-    // factorization per block for all columns.
+    // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), each block
+    // factored once (the factors kept for dynamics_jacobians' solves at this q).
     phi_q(w.q, t, pz, w.jac);
     for (int i = 0; i < nq * nf; ++i) w.e[i] = T(0);
     for (int k = 0; k < nf; ++k)
       w.e[k * nq + free_rows[k]] = free_distance[k] ? T(2) * z[k] : T(1);
-    const BlockReport<R> rb = _block_forward<_model>(w.jac, w.e, w.b, nf, o);
+    const BlockReport<R> rb = _block_factor_all<_model>(w.jac, w.factors, w.pivots, o);
     if (rb.status != 0) return _fail(r, rb.status, rb.block);
     if (rb.rcond < r.rcond) r.rcond = rb.rcond;
+    if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
+      return _fail(r, 3, -1);
     // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
     // (the same products; the geometry computed once for both).
     _force_geometry(w.q, t, pz, w.geometry);
@@ -1577,13 +1632,12 @@ struct driven_pendulum {
   // there, each column-major (d_z[j * nf + i] = d zdd_i / d z_j; d_u: nf x num_inputs), any
   // of them nullptr when not wanted: A = [0 I; d_z d_zd] and B = [0; d_u] of x' = f(x, u),
   // x = (z, zd), as `kinegen linearize` gives them. The linearize kernel on the block solves
-  // (each block factored once per solve). Status as dynamics()', or the tangent's (2, 3).
+  // (on dynamics()' factors). Status as dynamics()', or the tangent's (2, 3).
   template <class T, class U>
   static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
       T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options, DynamicsWork<T>& w,
       JacobianWork<T>& j) noexcept {
     using R = _real<T>;
-    const BasicBlockOptions<R> o = _options_as<R>(options);
     BlockReport<R> r = dynamics(z, zd, t, p, zdd, options, w);
     if (r.status != 0) return r;
     Params pz = p;
@@ -1622,8 +1676,8 @@ struct driven_pendulum {
     tp.applied_q = sparse(_applied_q_row, _applied_q_col, 8);
     tp.applied_qd = sparse(_applied_qd_row, _applied_qd_col, 9);
     tp.applied_w = sparse(_applied_w_row, _applied_w_col, 10);
-    // Phi_q's entries at q are dynamics()' (w.jac); x is copied aside: the solves
-    // need x apart from the right-hand side.
+    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors); x is
+    // copied aside: the solves need x apart from the right-hand side.
     const auto copy = [&](const T* x, int m) {
       for (int i = 0; i < nq * m; ++i) j.scratch[i] = x[i];
     };
@@ -1631,11 +1685,13 @@ struct driven_pendulum {
         tp, ndir, slots, j.out, j.work,
         [&](T* x, int m) {
           copy(x, m);
-          return _block_forward<_model>(w.jac, j.scratch, x, m, o).status;
+          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x, m)
+                     ? 0 : 3;
         },
         [&](T* x, int m) {
           copy(x, m);
-          return _block_transposed<_model>(w.jac, j.scratch, x, m, o).status;
+          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x,
+                                                    m) ? 0 : 3;
         });
     if (s != 0) return _fail(r, s, -1);
     int dir = 0;

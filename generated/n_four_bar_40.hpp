@@ -1453,6 +1453,8 @@ struct n_four_bar_40 {
   static constexpr std::array<int, nq> coordinate_block = {0, 1, 82, 2, 3, 85, 4, 5, 88, 6, 7, 91, 8, 9, 94, 10, 11, 97, 12, 13, 100, 14, 15, 103, 16, 17, 106, 18, 19, 109, 20, 21, 112, 22, 23, 115, 24, 25, 118, 26, 27, 121, 28, 29, 124, 30, 31, 127, 32, 33, 130, 34, 35, 133, 36, 37, 136, 38, 39, 139, 40, 41, 142, 42, 43, 145, 44, 45, 148, 46, 47, 151, 48, 49, 154, 50, 51, 157, 52, 53, 160, 54, 55, 163, 56, 57, 166, 58, 59, 169, 60, 61, 172, 62, 63, 175, 64, 65, 178, 66, 67, 181, 68, 69, 184, 70, 71, 187, 72, 73, 190, 74, 75, 193, 76, 77, 196, 78, 79, 199, 80, 81, 202, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 112, 113, 114, 115, 116, 117, 118, 119, 120, 121, 122, 123, 124, 125, 126, 127, 128, 129, 130, 131, 132, 133, 134, 135, 136, 137, 138, 139, 140, 141, 142, 143, 144, 145, 146, 147, 148, 149, 150, 151, 152, 153, 154, 155, 156, 157, 158, 159, 160, 161, 162, 163, 164, 165, 166, 167, 168, 169, 170, 171, 172, 173, 174, 175, 176, 177, 178, 179, 180, 181, 182, 183, 184, 185, 186, 187, 188, 189, 190, 191, 192, 193, 194, 195, 196, 197, 198, 199, 200, 201, 202};
   static constexpr std::array<int, nq> coordinate_slot = {0, 1, 82, 2, 3, 85, 4, 5, 89, 6, 7, 93, 8, 9, 97, 10, 11, 101, 12, 13, 105, 14, 15, 109, 16, 17, 113, 18, 19, 117, 20, 21, 121, 22, 23, 125, 24, 25, 129, 26, 27, 133, 28, 29, 137, 30, 31, 141, 32, 33, 145, 34, 35, 149, 36, 37, 153, 38, 39, 157, 40, 41, 161, 42, 43, 165, 44, 45, 169, 46, 47, 173, 48, 49, 177, 50, 51, 181, 52, 53, 185, 54, 55, 189, 56, 57, 193, 58, 59, 197, 60, 61, 201, 62, 63, 205, 64, 65, 209, 66, 67, 213, 68, 69, 217, 70, 71, 221, 72, 73, 225, 74, 75, 229, 76, 77, 233, 78, 79, 237, 80, 81, 241, 83, 84, 86, 87, 88, 90, 91, 92, 94, 95, 96, 98, 99, 100, 102, 103, 104, 106, 107, 108, 110, 111, 112, 114, 115, 116, 118, 119, 120, 122, 123, 124, 126, 127, 128, 130, 131, 132, 134, 135, 136, 138, 139, 140, 142, 143, 144, 146, 147, 148, 150, 151, 152, 154, 155, 156, 158, 159, 160, 162, 163, 164, 166, 167, 168, 170, 171, 172, 174, 175, 176, 178, 179, 180, 182, 183, 184, 186, 187, 188, 190, 191, 192, 194, 195, 196, 198, 199, 200, 202, 203, 204, 206, 207, 208, 210, 211, 212, 214, 215, 216, 218, 219, 220, 222, 223, 224, 226, 227, 228, 230, 231, 232, 234, 235, 236, 238, 239, 240, 242};
   static constexpr std::array<int, nc + 1> jac_row_begin = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 85, 88, 92, 96, 99, 102, 106, 110, 113, 116, 120, 124, 127, 130, 134, 138, 141, 144, 148, 152, 155, 158, 162, 166, 169, 172, 176, 180, 183, 186, 190, 194, 197, 200, 204, 208, 211, 214, 218, 222, 225, 228, 232, 236, 239, 242, 246, 250, 253, 256, 260, 264, 267, 270, 274, 278, 281, 284, 288, 292, 295, 298, 302, 306, 309, 312, 316, 320, 323, 326, 330, 334, 337, 340, 344, 348, 351, 354, 358, 362, 365, 368, 372, 376, 379, 382, 386, 390, 393, 396, 400, 404, 407, 410, 414, 418, 421, 424, 428, 432, 435, 438, 442, 446, 449, 452, 456, 460, 463, 466, 470, 474, 477, 480, 484, 488, 491, 494, 498, 502, 505, 508, 512, 516, 519, 522, 526, 530, 533, 536, 540, 544, 547, 550, 554, 558, 561, 564, 568, 572, 575, 578, 582, 586, 589, 592, 596, 600, 603, 606, 610, 614, 617, 620, 624, 628, 631, 634, 638, 642, 643};
+  // Where each block's K x K factors start when all are kept (_block_factor_all).
+  static constexpr std::array<int, num_blocks + 1> block_factor_begin = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 89, 90, 91, 95, 96, 97, 101, 102, 103, 107, 108, 109, 113, 114, 115, 119, 120, 121, 125, 126, 127, 131, 132, 133, 137, 138, 139, 143, 144, 145, 149, 150, 151, 155, 156, 157, 161, 162, 163, 167, 168, 169, 173, 174, 175, 179, 180, 181, 185, 186, 187, 191, 192, 193, 197, 198, 199, 203, 204, 205, 209, 210, 211, 215, 216, 217, 221, 222, 223, 227, 228, 229, 233, 234, 235, 239, 240, 241, 245, 246, 247, 251, 252, 253, 257, 258, 259, 263, 264, 265, 269, 270, 271, 275, 276, 277, 281, 282, 283, 287, 288, 289, 293, 294, 295, 299, 300, 301, 305, 306, 307, 311, 312, 313, 317, 318, 319, 323};
   using _model = n_four_bar_40;
 
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
@@ -2011,28 +2013,77 @@ struct n_four_bar_40 {
   template <class S, class T, class R>
   static BlockReport<R> _block_forward(const T* jac, const T* b, T* x, int m,
                                        const BasicBlockOptions<R>& o) noexcept {
-    return _each_factored_block<S, false>(jac, o, [&](auto size, int k, const T* a,
-                                                      const int* piv) {
-      constexpr int K = decltype(size)::value;
-      const int b0 = S::block_begin[k];
-      for (int col = 0; col < m; ++col) {
-        const T* bc = b + col * S::nq;
-        T* xc = x + col * S::nq;
-        T v[K];
-        for (int i = 0; i < K; ++i) {
-          const int row = S::block_rows[b0 + i];
-          v[i] = bc[row];
-          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
-            const int c = S::jac_cols[e];
-            if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
-          }
+    return _each_factored_block<S, false>(
+        jac, o, [&](auto size, int k, const T* a, const int* piv) {
+          return _forward_block<S, decltype(size)::value>(k, jac, a, piv, b, x, m);
+        });
+  }
+  // Block k (K x K, factors a, piv) of Phi_q X = B for m columns, earlier blocks solved.
+  template <class S, int K, class T>
+  static bool _forward_block(int k, const T* jac, const T* a, const int* piv, const T* b, T* x,
+                             int m) noexcept {
+    const int b0 = S::block_begin[k];
+    for (int col = 0; col < m; ++col) {
+      const T* bc = b + col * S::nq;
+      T* xc = x + col * S::nq;
+      T v[K];
+      for (int i = 0; i < K; ++i) {
+        const int row = S::block_rows[b0 + i];
+        v[i] = bc[row];
+        for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+          const int c = S::jac_cols[e];
+          if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
         }
-        _lu_solve<K>(a, piv, v);
-        if (!_all_finite<K>(v)) return false;
-        for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
       }
-      return true;
-    });
+      _lu_solve<K>(a, piv, v);
+      if (!_all_finite<K>(v)) return false;
+      for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
+    }
+    return true;
+  }
+
+  // Several solves at one Phi_q with each block factored once: _block_factor_all keeps every
+  // block's factors (block k's K x K at a + S::block_factor_begin[k], its pivots at piv +
+  // S::block_begin[k]), checked as _block_forward checks them; then _block_forward_factored and
+  // _block_transposed_factored give _block_forward's and _block_transposed's numbers bit for
+  // bit. False from those: a solution that is not finite.
+  template <class S, class T, class R>
+  static BlockReport<R> _block_factor_all(const T* jac, T* a, int* piv,
+                                          const BasicBlockOptions<R>& o) noexcept {
+    BlockReport<R> r;
+    bool ok = true;
+    for (int k = 0; ok && k < S::num_blocks; ++k)
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        ok = _block_factor<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                     piv + S::block_begin[k], r, o.min_rcond);
+      });
+    return r;
+  }
+  template <class S, class T>
+  static bool _block_forward_factored(const T* jac, const T* a, const int* piv, const T* b, T* x,
+                                      int m) noexcept {
+    bool ok = true;
+    for (int k = 0; ok && k < S::num_blocks; ++k)
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        ok = _forward_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                      piv + S::block_begin[k], b, x, m);
+      });
+    return ok;
+  }
+  template <class S, class T>
+  static bool _block_transposed_factored(const T* jac, const T* a, const int* piv, T* b, T* y,
+                                         int m) noexcept {
+    bool ok = true;
+    for (int n = 0; ok && n < S::num_blocks; ++n) {
+      const int k = S::num_blocks - 1 - n;
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        constexpr int K = decltype(size)::value;
+        for (int col = 0; ok && col < m; ++col)
+          ok = _transposed_block<S, K>(k, jac, a + S::block_factor_begin[k],
+                                       piv + S::block_begin[k], b + col * S::nq, y + col * S::nq);
+      });
+    }
+    return ok;
   }
 
   // y of `row` is v: recorded, and subtracted from the equations of the coordinates the row
@@ -9070,6 +9121,8 @@ struct n_four_bar_40 {
     T q[nq], qd[nq], qdd[nq], state[3 * nf];
     signed char block_signs[num_blocks];
     T jac[jac_nnz], e[nq * nf], b[nq * nf], mb[nq * nf], g[nq], f[nq], mz[nf * nf];
+    T factors[block_factor_begin[num_blocks]];  // Phi_q's blocks at q
+    int pivots[nq];
     T geometry[566], mass[num_bodies], inertia[num_bodies], ax[num_bodies], ay[num_bodies];
     DynamicsWork() noexcept { reset(); }
     // Back to the file's q0 and no recorded branch (a new start, far from the last).
@@ -9097,15 +9150,17 @@ struct n_four_bar_40 {
     BlockReport<R> r = solve_step(w.q, t, pz, w.qd, w.qdd, o, static_cast<T*>(nullptr),
                                   w.block_signs);
     if (r.status != 0) return r;
-    // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), one
-    // factorization per block for all columns.
+    // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), each block
+    // factored once (the factors kept for dynamics_jacobians' solves at this q).
     phi_q(w.q, t, pz, w.jac);
     for (int i = 0; i < nq * nf; ++i) w.e[i] = T(0);
     for (int k = 0; k < nf; ++k)
       w.e[k * nq + free_rows[k]] = free_distance[k] ? T(2) * z[k] : T(1);
-    const BlockReport<R> rb = _block_forward<_model>(w.jac, w.e, w.b, nf, o);
+    const BlockReport<R> rb = _block_factor_all<_model>(w.jac, w.factors, w.pivots, o);
     if (rb.status != 0) return _fail(r, rb.status, rb.block);
     if (rb.rcond < r.rcond) r.rcond = rb.rcond;
+    if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
+      return _fail(r, 3, -1);
     // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
     // (the same products; the geometry computed once for both).
     _force_geometry(w.q, t, pz, w.geometry);
@@ -11030,13 +11085,12 @@ struct n_four_bar_40 {
   // there, each column-major (d_z[j * nf + i] = d zdd_i / d z_j; d_u: nf x num_inputs), any
   // of them nullptr when not wanted: A = [0 I; d_z d_zd] and B = [0; d_u] of x' = f(x, u),
   // x = (z, zd), as `kinegen linearize` gives them. The linearize kernel on the block solves
-  // (each block factored once per solve). Status as dynamics()', or the tangent's (2, 3).
+  // (on dynamics()' factors). Status as dynamics()', or the tangent's (2, 3).
   template <class T, class U>
   static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
       T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options, DynamicsWork<T>& w,
       JacobianWork<T>& j) noexcept {
     using R = _real<T>;
-    const BasicBlockOptions<R> o = _options_as<R>(options);
     BlockReport<R> r = dynamics(z, zd, t, p, zdd, options, w);
     if (r.status != 0) return r;
     Params pz = p;
@@ -11075,8 +11129,8 @@ struct n_four_bar_40 {
     tp.applied_q = sparse(_applied_q_row, _applied_q_col, 8);
     tp.applied_qd = sparse(_applied_qd_row, _applied_qd_col, 9);
     tp.applied_w = sparse(_applied_w_row, _applied_w_col, 10);
-    // Phi_q's entries at q are dynamics()' (w.jac); x is copied aside: the solves
-    // need x apart from the right-hand side.
+    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors); x is
+    // copied aside: the solves need x apart from the right-hand side.
     const auto copy = [&](const T* x, int m) {
       for (int i = 0; i < nq * m; ++i) j.scratch[i] = x[i];
     };
@@ -11084,11 +11138,13 @@ struct n_four_bar_40 {
         tp, ndir, slots, j.out, j.work,
         [&](T* x, int m) {
           copy(x, m);
-          return _block_forward<_model>(w.jac, j.scratch, x, m, o).status;
+          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x, m)
+                     ? 0 : 3;
         },
         [&](T* x, int m) {
           copy(x, m);
-          return _block_transposed<_model>(w.jac, j.scratch, x, m, o).status;
+          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x,
+                                                    m) ? 0 : 3;
         });
     if (s != 0) return _fail(r, s, -1);
     int dir = 0;

@@ -188,7 +188,7 @@ std::pair<double, double> check_jacobians(const char* name, Offset at, double u 
   set_input<M>(p, u);
   typename M::template DynamicsWork<double> w;
   for (int k = 0; k < M::nq; ++k) w.q[k] = first.state.q[k];
-  double zdd[nf], dz[nf * nf], dzd[nf * nf], du[nf * (nu > 0 ? nu : 1)];
+  double zdd[nf] = {}, dz[nf * nf] = {}, dzd[nf * nf] = {}, du[nf * (nu > 0 ? nu : 1)] = {};
   REQUIRE(M::dynamics_jacobians(op.z.data(), op.zd.data(), op.t, p, zdd, dz, dzd,
                                 nu > 0 ? du : nullptr, typename M::BlockOptions{}, w)
               .status == 0);
@@ -272,7 +272,7 @@ double float_against_double(const char* name, Offset at) {
   Cli cli(example(name));
   const kc::MotionState& s0 = cli.dynamics->initial();
   double z[M::nf], zd[M::nf], zdd[M::nf];
-  float zf[M::nf], zdf[M::nf], zddf[M::nf];
+  float zf[M::nf], zdf[M::nf], zddf[M::nf] = {};
   for (int k = 0; k < M::nf; ++k) {
     z[k] = s0.z[k] + at.dz;
     zd[k] = s0.zd[k] + at.dzd;

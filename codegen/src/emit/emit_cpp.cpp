@@ -128,8 +128,12 @@ bool linear_blocks_supported(const Structure& st) {
 void emit_structure_tables(std::ostringstream& os, const std::string& name, const Structure& st,
                            const ModelPrograms& programs) {
   std::vector<std::string> begin{"0"}, rows, cols, block(programs.nq), slot(programs.nq);
+  std::vector<std::string> factor_begin{"0"};
+  std::size_t factors = 0;
   for (std::size_t k = 0; k < st.order.blocks.size(); ++k) {
     const Block& b = st.order.blocks[k];
+    factors += b.cols.size() * b.cols.size();
+    factor_begin.push_back(std::to_string(factors));
     for (std::size_t i = 0; i < b.cols.size(); ++i) {
       block[b.cols[i]] = std::to_string(k);
       slot[b.cols[i]] = std::to_string(cols.size());
@@ -159,6 +163,9 @@ void emit_structure_tables(std::ostringstream& os, const std::string& name, cons
      << "  static constexpr std::array<int, nq> coordinate_slot = {" << join(slot) << "};\n"
      << "  static constexpr std::array<int, nc + 1> jac_row_begin = {" << join(row_begin)
      << "};\n"
+     << "  // Where each block's K x K factors start when all are kept (_block_factor_all).\n"
+     << "  static constexpr std::array<int, num_blocks + 1> block_factor_begin = {"
+     << join(factor_begin) << "};\n"
      // The kernel's S, named so that a function parameter named like the model (q, options)
      // cannot hide it; no model's name starts with '_'.
      << "  using _model = " << name << ";\n\n";

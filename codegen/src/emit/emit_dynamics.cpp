@@ -60,6 +60,8 @@ void emit_dynamics_tables(std::ostringstream& os, const Mechanism& m,
      << "    T q[nq], qd[nq], qdd[nq], state[3 * nf];\n"
      << "    signed char block_signs[num_blocks];\n"
      << "    T jac[jac_nnz], e[nq * nf], b[nq * nf], mb[nq * nf], g[nq], f[nq], mz[nf * nf];\n"
+     << "    T factors[block_factor_begin[num_blocks]];  // Phi_q's blocks at q\n"
+     << "    int pivots[nq];\n"
      << "    T geometry[" << geometry_size << "], mass[num_bodies], inertia[num_bodies], "
      << "ax[num_bodies], ay[num_bodies];\n"
      << "    DynamicsWork() noexcept { reset(); }\n"
@@ -90,15 +92,17 @@ void emit_dynamics_function(std::ostringstream& os) {
     BlockReport<R> r = solve_step(w.q, t, pz, w.qd, w.qdd, o, static_cast<T*>(nullptr),
                                   w.block_signs);
     if (r.status != 0) return r;
-    // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), one
-    // factorization per block for all columns.
+    // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), each block
+    // factored once (the factors kept for dynamics_jacobians' solves at this q).
     phi_q(w.q, t, pz, w.jac);
     for (int i = 0; i < nq * nf; ++i) w.e[i] = T(0);
     for (int k = 0; k < nf; ++k)
       w.e[k * nq + free_rows[k]] = free_distance[k] ? T(2) * z[k] : T(1);
-    const BlockReport<R> rb = _block_forward<_model>(w.jac, w.e, w.b, nf, o);
+    const BlockReport<R> rb = _block_factor_all<_model>(w.jac, w.factors, w.pivots, o);
     if (rb.status != 0) return _fail(r, rb.status, rb.block);
     if (rb.rcond < r.rcond) r.rcond = rb.rcond;
+    if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
+      return _fail(r, 3, -1);
     // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
     // (the same products; the geometry computed once for both).
     _force_geometry(w.q, t, pz, w.geometry);
@@ -186,8 +190,8 @@ std::vector<int> tangent_slots(const Mechanism& m) {
 
 // The rest of dynamics_jacobians: the kernel on the block solves, the columns copied out.
 void emit_jacobians_solve(std::ostringstream& os) {
-  os << R"(    // Phi_q's entries at q are dynamics()' (w.jac); x is copied aside: the solves
-    // need x apart from the right-hand side.
+  os << R"(    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors); x is
+    // copied aside: the solves need x apart from the right-hand side.
     const auto copy = [&](const T* x, int m) {
       for (int i = 0; i < nq * m; ++i) j.scratch[i] = x[i];
     };
@@ -195,11 +199,13 @@ void emit_jacobians_solve(std::ostringstream& os) {
         tp, ndir, slots, j.out, j.work,
         [&](T* x, int m) {
           copy(x, m);
-          return _block_forward<_model>(w.jac, j.scratch, x, m, o).status;
+          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x, m)
+                     ? 0 : 3;
         },
         [&](T* x, int m) {
           copy(x, m);
-          return _block_transposed<_model>(w.jac, j.scratch, x, m, o).status;
+          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x,
+                                                    m) ? 0 : 3;
         });
     if (s != 0) return _fail(r, s, -1);
     int dir = 0;
@@ -237,13 +243,12 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
   // there, each column-major (d_z[j * nf + i] = d zdd_i / d z_j; d_u: nf x num_inputs), any
   // of them nullptr when not wanted: A = [0 I; d_z d_zd] and B = [0; d_u] of x' = f(x, u),
   // x = (z, zd), as `kinegen linearize` gives them. The linearize kernel on the block solves
-  // (each block factored once per solve). Status as dynamics()', or the tangent's (2, 3).
+  // (on dynamics()' factors). Status as dynamics()', or the tangent's (2, 3).
   template <class T, class U>
   static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
       T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options, DynamicsWork<T>& w,
       JacobianWork<T>& j) noexcept {
     using R = _real<T>;
-    const BasicBlockOptions<R> o = _options_as<R>(options);
     BlockReport<R> r = dynamics(z, zd, t, p, zdd, options, w);
     if (r.status != 0) return r;
     Params pz = p;
