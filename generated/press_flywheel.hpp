@@ -2125,13 +2125,17 @@ struct press_flywheel {
     signed char block_signs[num_blocks];
     T jac[jac_nnz], e[nq * nf], b[nq * nf], mb[nq * nf], g[nq], f[nq], mz[nf * nf];
     T factors[block_factor_begin[num_blocks]];  // Phi_q's blocks at q
+    // The position solves' sin/cos cache, kept from call to call as the command line
+    // keeps it (so that the solves are the same bits) and as kinegen::Solver does.
+    T trig[trig_cache_size > 0 ? trig_cache_size : 1];
     int pivots[nq];
     T geometry[20], mass[num_bodies], inertia[num_bodies], ax[num_bodies], ay[num_bodies];
     DynamicsWork() noexcept { reset(); }
-    // Back to the file's q0 and no recorded branch (a new start, far from the last).
+    // Back to the file's q0, no recorded branch, an empty cache (a new start).
     void reset() noexcept {
       for (int k = 0; k < nq; ++k) q[k] = T(q0[k]);
       for (int k = 0; k < num_blocks; ++k) block_signs[k] = 0;
+      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty
     }
   };
 
@@ -2150,8 +2154,7 @@ struct press_flywheel {
       w.state[2 * nf + k] = T(0);  // qdd = c first: the accelerations at zdd = 0
     }
     pz._free = w.state;
-    BlockReport<R> r = solve_step(w.q, t, pz, w.qd, w.qdd, o, static_cast<T*>(nullptr),
-                                  w.block_signs);
+    BlockReport<R> r = solve_step(w.q, t, pz, w.qd, w.qdd, o, w.trig, w.block_signs);
     if (r.status != 0) return r;
     // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), each block
     // factored once (the factors kept for dynamics_jacobians' solves at this q).

@@ -61,14 +61,18 @@ void emit_dynamics_tables(std::ostringstream& os, const Mechanism& m,
      << "    signed char block_signs[num_blocks];\n"
      << "    T jac[jac_nnz], e[nq * nf], b[nq * nf], mb[nq * nf], g[nq], f[nq], mz[nf * nf];\n"
      << "    T factors[block_factor_begin[num_blocks]];  // Phi_q's blocks at q\n"
+     << "    // The position solves' sin/cos cache, kept from call to call as the command line\n"
+     << "    // keeps it (so that the solves are the same bits) and as kinegen::Solver does.\n"
+     << "    T trig[trig_cache_size > 0 ? trig_cache_size : 1];\n"
      << "    int pivots[nq];\n"
      << "    T geometry[" << geometry_size << "], mass[num_bodies], inertia[num_bodies], "
      << "ax[num_bodies], ay[num_bodies];\n"
      << "    DynamicsWork() noexcept { reset(); }\n"
-     << "    // Back to the file's q0 and no recorded branch (a new start, far from the last).\n"
+     << "    // Back to the file's q0, no recorded branch, an empty cache (a new start).\n"
      << "    void reset() noexcept {\n"
      << "      for (int k = 0; k < nq; ++k) q[k] = T(q0[k]);\n"
      << "      for (int k = 0; k < num_blocks; ++k) block_signs[k] = 0;\n"
+     << "      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty\n"
      << "    }\n"
      << "  };\n\n";
 }
@@ -89,8 +93,7 @@ void emit_dynamics_function(std::ostringstream& os) {
       w.state[2 * nf + k] = T(0);  // qdd = c first: the accelerations at zdd = 0
     }
     pz._free = w.state;
-    BlockReport<R> r = solve_step(w.q, t, pz, w.qd, w.qdd, o, static_cast<T*>(nullptr),
-                                  w.block_signs);
+    BlockReport<R> r = solve_step(w.q, t, pz, w.qd, w.qdd, o, w.trig, w.block_signs);
     if (r.status != 0) return r;
     // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), each block
     // factored once (the factors kept for dynamics_jacobians' solves at this q).
