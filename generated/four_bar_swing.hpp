@@ -2273,7 +2273,8 @@ struct four_bar_swing {
   // fails (its report). step_rk4: classical Runge-Kutta (4 dynamics() a step, explicit);
   // step_implicit: the L-stable SDIRK2 for stiff springs, Newton on the exact Jacobians, each
   // stage until its update (per scale: angles in radians, lengths over length_scale) is at
-  // most newton_tolerance (status 1 after newton_iterations).
+  // most newton_tolerance (the scalar's position tolerance by default; status 1 after
+  // newton_iterations).
   template <class T, class U>
   static BlockReport<_real<T>> step_rk4(T* z, T* zd, T& t, T h, const Params& p,
       const BasicBlockOptions<U>& options, DynamicsWork<T>& w) noexcept {
@@ -2291,7 +2292,8 @@ struct four_bar_swing {
   template <class T, class U>
   static BlockReport<_real<T>> step_implicit(T* z, T* zd, T& t, T h, const Params& p,
       const BasicBlockOptions<U>& options, DynamicsWork<T>& w, JacobianWork<T>& j,
-      int newton_iterations = 10, _real<T> newton_tolerance = _real<T>(1e-10)) noexcept {
+      int newton_iterations = 10,
+      _real<T> newton_tolerance = BasicBlockOptions<_real<T>>().tolerance) noexcept {
     using R = _real<T>;
     T x[2 * nf];
     R scale[2 * nf];

@@ -61,6 +61,10 @@ TEST_CASE("Simulator: the pendulum reaches the other horizontal at half its peri
   CHECK(energy < 1e-4 * energy_scale);  // L-stable: it loses a little, never gains
   const double single = half_period_theta<float>(kinegen::Integrator::kRungeKutta4, 500, &energy);
   CHECK(std::abs(single + kPi) < 2e-3);
+  // The implicit step's Newton tolerance follows the scalar (float: 3.1e-5).
+  const double single_implicit =
+      half_period_theta<float>(kinegen::Integrator::kImplicit, 2000, &energy);
+  CHECK(std::abs(single_implicit + kPi) < 5e-3);
 }
 
 TEST_CASE("Simulator: the implicit step on exact Jacobians agrees with RK4 on the spring four-bar",
