@@ -50,7 +50,16 @@ struct cam_liftoff {
     double L0 = 0.09;
     // Input driver theta (f: input): its value, rate and acceleration, set at run time
     double theta = 0, theta_v = 0, theta_a = 0;
+    // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,
+    // which the functions then read instead of the free items' members above.
+    const void* _free = nullptr;
   };
+
+  // A free item's value (i < nf), rate or acceleration, as dynamics() set it.
+  template <class T>
+  static T _free_in(const Params& p, int i, double member) noexcept {
+    return p._free ? static_cast<const T*>(p._free)[i] : T(member);
+  }
 
   // Phi(q, t)
   template <class T>
@@ -75,7 +84,7 @@ struct cam_liftoff {
     out[4] = -_t1*_t2 - q[0] + _t3*q[7] + T(p.R)*_t4*_t5 + q[3];
     out[5] = -_t1*_t4 - _t2*T(p.R)*_t5 - q[1] + q[7]*_t6 + q[4];
     out[6] = -(_t2*_t0*T(p.R) - T(p.R)*_t4*_t5)*_t3 - (_t2*T(p.R)*_t5 + _t0*T(p.R)*_t4)*_t6;
-    out[7] = q[2] - T(p.theta);
+    out[7] = q[2] - _free_in<T>(p, 0, p.theta);
   }
 
   // Phi_q(q, t) at (jac_rows[k], jac_cols[k])
@@ -133,7 +142,7 @@ struct cam_liftoff {
     out[4] = T(0);
     out[5] = T(0);
     out[6] = T(0);
-    out[7] = T(p.theta_v);
+    out[7] = _free_in<T>(p, 1, p.theta_v);
   }
 
   // gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt
@@ -167,7 +176,7 @@ struct cam_liftoff {
     out[4] = -(_t2 + _t4*_t5)*_t6 - _t7*_t8 - T(2)*_t7*qd[2]*qd[6] + _t9*_t10*q[7] + T(2)*_t11*qd[5]*qd[7];
     out[5] = -(_t4*_t0 + _t12)*_t6 - _t13*_t8 - T(2)*_t13*qd[2]*qd[6] - T(2)*_t10*qd[5]*qd[7] + _t9*q[7]*_t11;
     out[6] = -_t14*_t6 - _t14*_t9 - _t14*_t8 - T(2)*_t14*qd[2]*qd[6] + T(2)*_t14*qd[2]*qd[5] + T(2)*_t14*qd[5]*qd[6];
-    out[7] = T(p.theta_a);
+    out[7] = _free_in<T>(p, 2, p.theta_a);
   }
 
   // Outputs (in this order): lift.
@@ -243,6 +252,8 @@ struct cam_liftoff {
   static constexpr std::array<int, nq> coordinate_block = {0, 1, 4, 2, 7, 3, 5, 6};
   static constexpr std::array<int, nq> coordinate_slot = {0, 1, 4, 2, 7, 3, 5, 6};
   static constexpr std::array<int, nc + 1> jac_row_begin = {0, 1, 2, 3, 4, 10, 16, 19, 20};
+  // Where each block's K x K factors start when all are kept (_block_factor_all).
+  static constexpr std::array<int, num_blocks + 1> block_factor_begin = {0, 1, 2, 3, 4, 5, 6, 7, 8};
   using _model = cam_liftoff;
 
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
@@ -801,28 +812,77 @@ struct cam_liftoff {
   template <class S, class T, class R>
   static BlockReport<R> _block_forward(const T* jac, const T* b, T* x, int m,
                                        const BasicBlockOptions<R>& o) noexcept {
-    return _each_factored_block<S, false>(jac, o, [&](auto size, int k, const T* a,
-                                                      const int* piv) {
-      constexpr int K = decltype(size)::value;
-      const int b0 = S::block_begin[k];
-      for (int col = 0; col < m; ++col) {
-        const T* bc = b + col * S::nq;
-        T* xc = x + col * S::nq;
-        T v[K];
-        for (int i = 0; i < K; ++i) {
-          const int row = S::block_rows[b0 + i];
-          v[i] = bc[row];
-          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
-            const int c = S::jac_cols[e];
-            if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
-          }
+    return _each_factored_block<S, false>(
+        jac, o, [&](auto size, int k, const T* a, const int* piv) {
+          return _forward_block<S, decltype(size)::value>(k, jac, a, piv, b, x, m);
+        });
+  }
+  // Block k (K x K, factors a, piv) of Phi_q X = B for m columns, earlier blocks solved.
+  template <class S, int K, class T>
+  static bool _forward_block(int k, const T* jac, const T* a, const int* piv, const T* b, T* x,
+                             int m) noexcept {
+    const int b0 = S::block_begin[k];
+    for (int col = 0; col < m; ++col) {
+      const T* bc = b + col * S::nq;
+      T* xc = x + col * S::nq;
+      T v[K];
+      for (int i = 0; i < K; ++i) {
+        const int row = S::block_rows[b0 + i];
+        v[i] = bc[row];
+        for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+          const int c = S::jac_cols[e];
+          if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
         }
-        _lu_solve<K>(a, piv, v);
-        if (!_all_finite<K>(v)) return false;
-        for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
       }
-      return true;
-    });
+      _lu_solve<K>(a, piv, v);
+      if (!_all_finite<K>(v)) return false;
+      for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
+    }
+    return true;
+  }
+
+  // Several solves at one Phi_q with each block factored once: _block_factor_all keeps every
+  // block's factors (block k's K x K at a + S::block_factor_begin[k], its pivots at piv +
+  // S::block_begin[k]), checked as _block_forward checks them; then _block_forward_factored and
+  // _block_transposed_factored give _block_forward's and _block_transposed's numbers bit for
+  // bit. False from those: a solution that is not finite.
+  template <class S, class T, class R>
+  static BlockReport<R> _block_factor_all(const T* jac, T* a, int* piv,
+                                          const BasicBlockOptions<R>& o) noexcept {
+    BlockReport<R> r;
+    bool ok = true;
+    for (int k = 0; ok && k < S::num_blocks; ++k)
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        ok = _block_factor<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                     piv + S::block_begin[k], r, o.min_rcond);
+      });
+    return r;
+  }
+  template <class S, class T>
+  static bool _block_forward_factored(const T* jac, const T* a, const int* piv, const T* b, T* x,
+                                      int m) noexcept {
+    bool ok = true;
+    for (int k = 0; ok && k < S::num_blocks; ++k)
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        ok = _forward_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                      piv + S::block_begin[k], b, x, m);
+      });
+    return ok;
+  }
+  template <class S, class T>
+  static bool _block_transposed_factored(const T* jac, const T* a, const int* piv, T* b, T* y,
+                                         int m) noexcept {
+    bool ok = true;
+    for (int n = 0; ok && n < S::num_blocks; ++n) {
+      const int k = S::num_blocks - 1 - n;
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        constexpr int K = decltype(size)::value;
+        for (int col = 0; ok && col < m; ++col)
+          ok = _transposed_block<S, K>(k, jac, a + S::block_factor_begin[k],
+                                       piv + S::block_begin[k], b + col * S::nq, y + col * S::nq);
+      });
+    }
+    return ok;
   }
 
   // y of `row` is v: recorded, and subtracted from the equations of the coordinates the row
@@ -962,6 +1022,384 @@ struct cam_liftoff {
   }
   // ---- end of kinegen kernel block_linear
 
+  // ---- kinegen kernel dynamics (kinegen/kernels/dynamics.hpp)
+  // out = M v for nb bodies (each q_b = [x, y, phi] with the frame at its origin): per body
+  // its mass m, inertia j about the centre of mass and the centre's offset A s = (ax, ay) in
+  // global axes. The centre moves at (vx - w ay, vy + w ax), so the body's rows of M v are
+  // m times that, and ax m (vy + w ax) - ay m (vx - w ay) + j w. Coordinates after the
+  // bodies' (extra coordinates, format 6.1) carry no mass: their rows are 0.
+  template <class T>
+  static void _mass_times(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
+                          const T* v, T* out) noexcept {
+    for (int b = 0; b < nb; ++b) {
+      const T& vx = v[3 * b];
+      const T& vy = v[3 * b + 1];
+      const T& w = v[3 * b + 2];
+      const T px = m[b] * (vx - w * ay[b]);
+      const T py = m[b] * (vy + w * ax[b]);
+      out[3 * b] = px;
+      out[3 * b + 1] = py;
+      out[3 * b + 2] = ax[b] * py - ay[b] * px + j[b] * w;
+    }
+    for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
+  }
+
+  // In-place LDL^T of a symmetric positive definite n x n matrix (row-major; the lower
+  // triangle is read): L below the diagonal, D's reciprocals on it. Returns the smallest over
+  // the largest pivot (real parts), 0 when a pivot is not positive (a reduced mass that is
+  // singular or not positive definite), NaN when a value is not finite. No pivoting: M_z is
+  // positive definite wherever the free coordinates carry inertia.
+  template <class T>
+  static _real<T> _ldlt_factor(int n, T* a) noexcept {
+    using R = _real<T>;
+    R smallest = R(0), largest = R(0);
+    for (int k = 0; k < n; ++k) {
+      T d = a[k * n + k];
+      for (int p = 0; p < k; ++p) d -= a[k * n + p] * a[k * n + p] / a[p * n + p];
+      const R dr = _re(d);
+      if (!_finite(_mag(d))) return dr - dr;  // NaN
+      if (!(dr > R(0))) return R(0);
+      smallest = k == 0 ? dr : (dr < smallest ? dr : smallest);
+      largest = dr > largest ? dr : largest;
+      // Rows below: l_ik = (a_ik - sum_p l_ip d_p l_kp) / d_k, with l_ip d_p kept in a_ip
+      // until row i is reached (a[i * n + p] holds l_ip d_p for p < k here).
+      for (int i = k + 1; i < n; ++i) {
+        T s = a[i * n + k];
+        for (int p = 0; p < k; ++p) s -= a[i * n + p] * a[k * n + p] / a[p * n + p];
+        a[i * n + k] = s;  // l_ik d_k
+      }
+      a[k * n + k] = d;
+    }
+    // Turn l_ik d_k into l_ik and the diagonal into 1 / d_k.
+    for (int k = 0; k < n; ++k) {
+      const T inv = T(1) / a[k * n + k];
+      for (int i = k + 1; i < n; ++i) a[i * n + k] *= inv;
+      a[k * n + k] = inv;
+    }
+    return smallest / largest;
+  }
+
+  // Solves L D L^T x = b in place with _ldlt_factor's factors.
+  template <class T>
+  static void _ldlt_solve(int n, const T* a, T* b) noexcept {
+    for (int i = 0; i < n; ++i)
+      for (int p = 0; p < i; ++p) b[i] -= a[i * n + p] * b[p];
+    for (int i = 0; i < n; ++i) b[i] *= a[i * n + i];
+    for (int i = n - 1; i >= 0; --i)
+      for (int p = i + 1; p < n; ++p) b[i] -= a[p * n + i] * b[p];
+  }
+
+  // The reduction: with B (nq x nf, column k at b + k nq: dq/dz_k), mb = M B (the same
+  // layout), g = Q^A + the inertia forces of the motion at qdd = c (the generalized force
+  // whose projection B^T g must vanish with zdd = 0 taken out), solves M_z zdd = B^T g for
+  // zdd and adds B zdd to qdd (which holds c). work: nf * nf T's (receives M_z's factors).
+  // Returns _ldlt_factor's pivot ratio; zdd and qdd are valid only where it is positive.
+  template <class T>
+  static _real<T> _reduced_accelerations(int nq, int nf, const T* b, const T* mb, const T* g,
+                                         T* work, T* zdd, T* qdd) noexcept {
+    for (int i = 0; i < nf; ++i) {
+      T r = T(0);
+      for (int k = 0; k < nq; ++k) r += b[i * nq + k] * g[k];
+      zdd[i] = r;
+      for (int j = 0; j <= i; ++j) {
+        T s = T(0);
+        for (int k = 0; k < nq; ++k) s += b[i * nq + k] * mb[j * nq + k];
+        work[i * nf + j] = s;
+        work[j * nf + i] = s;
+      }
+    }
+    const _real<T> ratio = _ldlt_factor(nf, work);
+    if (!(ratio > _real<T>(0))) return ratio;
+    _ldlt_solve(nf, work, zdd);
+    for (int i = 0; i < nf; ++i)
+      for (int k = 0; k < nq; ++k) qdd[k] += b[i * nq + k] * zdd[i];
+    return ratio;
+  }
+  // ---- end of kinegen kernel dynamics
+
+  // ---- kinegen kernel linearize (kinegen/kernels/linearize.hpp)
+  // A sparse matrix: n entries (row[e], col[e], value[e]).
+  template <class T>
+  struct _Sparse {
+    int n = 0;
+    const int* row = nullptr;
+    const int* col = nullptr;
+    const T* value = nullptr;
+  };
+  // Phi's second derivatives d^2 Phi_row / dq_j dq_k for j <= k.
+  template <class T>
+  struct _Hessian {
+    int n = 0;
+    const int* row = nullptr;
+    const int* j = nullptr;
+    const int* k = nullptr;
+    const T* value = nullptr;
+  };
+  // A solved state and the derivatives there.
+  template <class T>
+  struct _TangentPoint {
+    int nq = 0, nf = 0, nb = 0;
+    const T* q = nullptr;  // the state: q, qd and the accelerations qdd
+    const T* qd = nullptr;
+    const T* qdd = nullptr;
+    const T* b = nullptr;     // dq/dz, nq x nf (column k at b + k nq)
+    const T* mass = nullptr;  // per body, as _mass_times reads them
+    const T* inertia = nullptr;
+    const T* ax = nullptr;
+    const T* ay = nullptr;
+    const T* applied = nullptr;  // Q^A at the state (nq)
+    _Hessian<T> phi_qq;
+    _Sparse<T> nu_q, gamma_q, gamma_qd, phi_w, nu_w, gamma_w, applied_q, applied_qd, applied_w;
+  };
+
+  // out += s a x.
+  template <class T>
+  static void _sparse_add(const _Sparse<T>& a, const T& s, const T* x, T* out) noexcept {
+    for (int e = 0; e < a.n; ++e) out[a.row[e]] += s * a.value[e] * x[a.col[e]];
+  }
+  // out += s times column `col` of a.
+  template <class T>
+  static void _sparse_column(const _Sparse<T>& a, int col, const T& s, T* out) noexcept {
+    for (int e = 0; e < a.n; ++e)
+      if (a.col[e] == col) out[a.row[e]] += s * a.value[e];
+  }
+  // out += (Phi_q v)_q dq: row r gets sum_jk Phi_r,jk v_j dq_k.
+  template <class T>
+  static void _hessian_times(const _Hessian<T>& h, const T* v, const T* dq, T* out) noexcept {
+    for (int e = 0; e < h.n; ++e) {
+      const int j = h.j[e], k = h.k[e];
+      T s = v[j] * dq[k];
+      if (j != k) s += v[k] * dq[j];
+      out[h.row[e]] += h.value[e] * s;
+    }
+  }
+  // out += (Phi_q^T lambda)_q dq: coordinate j gets sum_rk lambda_r Phi_r,jk dq_k.
+  template <class T>
+  static void _hessian_transposed(const _Hessian<T>& h, const T* lambda, const T* dq,
+                                  T* out) noexcept {
+    for (int e = 0; e < h.n; ++e) {
+      const int j = h.j[e], k = h.k[e];
+      const T s = lambda[h.row[e]] * h.value[e];
+      out[j] += s * dq[k];
+      if (j != k) out[k] += s * dq[j];
+    }
+  }
+
+  // out = M qdd + h(q, qd), the inertia forces' negative: per body the centre of mass's
+  // acceleration (xdd - alpha ay - w^2 ax, ydd + alpha ax - w^2 ay) times m, and about the
+  // frame's origin (ax, ay) x that + j alpha. Extra coordinates' rows are 0.
+  template <class T>
+  static void _inertia_forces(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
+                              const T* qd, const T* qdd, T* out) noexcept {
+    for (int b = 0; b < nb; ++b) {
+      const T& w = qd[3 * b + 2];
+      const T& alpha = qdd[3 * b + 2];
+      const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
+      const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
+      out[3 * b] = fx;
+      out[3 * b + 1] = fy;
+      out[3 * b + 2] = ax[b] * fy - ay[b] * fx + j[b] * alpha;
+    }
+    for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
+  }
+  // out += d(M qdd + h)/dq dq + dh/dqd dqd at fixed qdd: each body's forces depend on q only
+  // through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w (the w^2 terms).
+  template <class T>
+  static void _inertia_tangent(int nb, const T* m, const T* ax, const T* ay, const T* qd,
+                               const T* qdd, const T* dq, const T* dqd, T* out) noexcept {
+    for (int b = 0; b < nb; ++b) {
+      const T& w = qd[3 * b + 2];
+      const T& alpha = qdd[3 * b + 2];
+      const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
+      const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
+      const T dphi = dq[3 * b + 2], dw = dqd[3 * b + 2];
+      const T dfx = m[b] * ((w * w * ay[b] - alpha * ax[b]) * dphi - T(2) * w * ax[b] * dw);
+      const T dfy = m[b] * (-(alpha * ay[b] + w * w * ax[b]) * dphi - T(2) * w * ay[b] * dw);
+      out[3 * b] += dfx;
+      out[3 * b + 1] += dfy;
+      out[3 * b + 2] += (-ay[b] * fy - ax[b] * fx) * dphi + ax[b] * dfy - ay[b] * dfx;
+    }
+  }
+
+  // The work space _dynamics_tangent needs for ndir directions, in T's.
+  static constexpr int _tangent_work_size(int nq, int nf, int ndir) noexcept {
+    return nq * nf + nq * (nf + 1) + nf * nf + 2 * nq * ndir + 2 * nq;
+  }
+
+  // d(zdd)/d(w_slot) for each of the ndir slots (slots[i]: a free item's z or zd, or a
+  // run-time input's; never a zdd), into dzdd (nf per slot, slot i's at dzdd + i nf). solve(x,
+  // m) solves Phi_q X = X in place for m columns (each nq long); solve_transposed(x, m) solves
+  // Phi_q^T Y = X in place (X by coordinate, Y by row); both return 0 or their status. Three
+  // calls in all (nf + 1 transposed columns, then ndir, then ndir), so that a solver factors
+  // Phi_q's blocks once per call. work: _tangent_work_size T's. Returns 0; 2 when
+  // M_z = B^T M B is not positive definite; 3 when a value is not finite; or a solve's status.
+  template <class T, class Solve, class SolveTransposed>
+  static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir, const int* slots, T* dzdd,
+                               T* work, Solve&& solve,
+                               SolveTransposed&& solve_transposed) noexcept {
+    const int nq = p.nq, nf = p.nf;
+    T* mb = work;
+    T* y = mb + nq * nf;  // Phi_q^-T M B, then lambda in column nf
+    T* mz = y + nq * (nf + 1);
+    T* dq = mz + nf * nf;
+    T* dqd = dq + nq * ndir;
+    T* r = dqd + nq * ndir;
+    T* f = r + nq;
+    for (int k = 0; k < nf; ++k)
+      _mass_times(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.b + k * nq, mb + k * nq);
+    for (int i = 0; i < nf; ++i)
+      for (int k = 0; k < nf; ++k) mz[i * nf + k] = _dot(nq, p.b + i * nq, mb + k * nq);
+    const _real<T> ratio = _ldlt_factor(nf, mz);
+    if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+    // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
+    T* lambda = y + nq * nf;
+    for (int k = 0; k < nq * nf; ++k) y[k] = mb[k];
+    _inertia_forces(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, f);
+    for (int k = 0; k < nq; ++k) lambda[k] = p.applied[k] - f[k];
+    if (const int s = solve_transposed(y, nf + 1)) return s;
+    // dq = -Phi_q^-1 Phi_w (B e_k for z_k), then dqd = -Phi_q^-1 r_v, all directions at once.
+    for (int i = 0; i < ndir * nq; ++i) dq[i] = T(0);
+    for (int i = 0; i < ndir; ++i) _sparse_column(p.phi_w, slots[i], T(-1), dq + i * nq);
+    if (const int s = solve(dq, ndir)) return s;
+    for (int i = 0; i < ndir; ++i) {
+      T* v = dqd + i * nq;
+      for (int k = 0; k < nq; ++k) v[k] = T(0);
+      _hessian_times(p.phi_qq, p.qd, dq + i * nq, v);
+      _sparse_add(p.nu_q, T(-1), dq + i * nq, v);
+      _sparse_column(p.nu_w, slots[i], T(-1), v);
+      for (int k = 0; k < nq; ++k) v[k] = -v[k];
+    }
+    if (const int s = solve(dqd, ndir)) return s;
+    for (int i = 0; i < ndir; ++i) {
+      _tangent_residuals(p, slots[i], lambda, dq + i * nq, dqd + i * nq, r, f);
+      T* out = dzdd + i * nf;
+      for (int k = 0; k < nf; ++k) out[k] = _dot(nq, y + k * nq, r) - _dot(nq, p.b + k * nq, f);
+      _ldlt_solve(nf, mz, out);
+      for (int k = 0; k < nf; ++k)
+        if (!_finite(_mag(out[k]))) return 3;
+    }
+    return 0;
+  }
+
+  template <class T>
+  static T _dot(int n, const T* a, const T* b) noexcept {
+    T s = T(0);
+    for (int k = 0; k < n; ++k) s += a[k] * b[k];
+    return s;
+  }
+
+  // One direction's acceleration residual r (r_a) and force f, as _dynamics_tangent describes
+  // them, from its dq and dqd.
+  template <class T>
+  static void _tangent_residuals(const _TangentPoint<T>& p, int slot, const T* lambda, const T* dq,
+                                 const T* dqd, T* r, T* f) noexcept {
+    for (int k = 0; k < p.nq; ++k) r[k] = f[k] = T(0);
+    _hessian_times(p.phi_qq, p.qdd, dq, r);
+    _sparse_add(p.gamma_q, T(-1), dq, r);
+    _sparse_add(p.gamma_qd, T(-1), dqd, r);
+    _sparse_column(p.gamma_w, slot, T(-1), r);
+    _inertia_tangent(p.nb, p.mass, p.ax, p.ay, p.qd, p.qdd, dq, dqd, f);
+    _hessian_transposed(p.phi_qq, lambda, dq, f);
+    _sparse_add(p.applied_q, T(-1), dq, f);
+    _sparse_add(p.applied_qd, T(-1), dqd, f);
+    _sparse_column(p.applied_w, slot, T(-1), f);
+  }
+  // ---- end of kinegen kernel linearize
+
+  // ---- kinegen kernel integrate (kinegen/kernels/integrate.hpp)
+  // One classical Runge-Kutta step of x' = f(t, x) over h, x (N values) in place. f(t, x, xd)
+  // writes x' and returns 0, or a status that ends the step at once with x unchanged.
+  template <int N, class T, class F>
+  static int _rk4_step(T t, T h, T* x, F&& f) noexcept {
+    T k[4][N], y[N];
+    const T half = h / T(2);
+    if (const int s = f(t, x, k[0])) return s;
+    for (int i = 0; i < N; ++i) y[i] = x[i] + half * k[0][i];
+    if (const int s = f(t + half, y, k[1])) return s;
+    for (int i = 0; i < N; ++i) y[i] = x[i] + half * k[1][i];
+    if (const int s = f(t + half, y, k[2])) return s;
+    for (int i = 0; i < N; ++i) y[i] = x[i] + h * k[2][i];
+    if (const int s = f(t + h, y, k[3])) return s;
+    for (int i = 0; i < N; ++i) x[i] += h / T(6) * (k[0][i] + T(2) * (k[1][i] + k[2][i]) + k[3][i]);
+    return 0;
+  }
+
+  // df/dx (N x N, row-major: jac[i * N + j] = d f_i / d x_j) by forward differences, the
+  // fallback where no exact Jacobian is at hand: step sqrt(eps) max(|x_j|, scale_j), about
+  // sqrt(eps) relative accuracy, which Newton on the stages needs no more than. fx = f(t, x).
+  template <int N, class T, class F>
+  static int _difference_jacobian(T t, const T* x, const T* fx, const _real<T>* scale, T* jac,
+                                  F&& f) noexcept {
+    using R = _real<T>;
+    const R root_eps = std::sqrt(std::numeric_limits<R>::epsilon());
+    T y[N], fy[N];
+    for (int i = 0; i < N; ++i) y[i] = x[i];
+    for (int j = 0; j < N; ++j) {
+      const R size = _mag(x[j]) > scale[j] ? _mag(x[j]) : scale[j];
+      const T d = T(root_eps * size);
+      y[j] = x[j] + d;
+      if (const int s = f(t, y, fy)) return s;
+      for (int i = 0; i < N; ++i) jac[i * N + j] = (fy[i] - fx[i]) / d;
+      y[j] = x[j];
+    }
+    return 0;
+  }
+
+  // One step over h of the two-stage SDIRK of Alexander (1977): gamma = 1 - 1/sqrt(2),
+  // c = (gamma, 1), a = [gamma 0; 1 - gamma gamma], b = the last row, so L-stable (stiff
+  // springs decay, never ring) and of order 2. Stage i solves Y = x + h (sum a_ij k_j), k_i =
+  // f(t + c_i h, Y_i), by simplified Newton on (I - h gamma J) dY = -G(Y) with J = df/dx at
+  // (t, x): jacobian(t, x, fx, J) fills it (row-major) from fx = f(t, x) and returns 0 or a
+  // status. Newton stops when the largest |dY_i| / scale_i is at most tolerance, or fails with
+  // status 1 after max_iterations; 2 when I - h gamma J is singular. x (N values) in place,
+  // unchanged on failure. iterations (optional) receives the Newton iterations taken.
+  template <int N, class T, class F, class J>
+  static int _sdirk2_step(T t, T h, T* x, const _real<T>* scale, F&& f, J&& jacobian,
+                          int max_iterations, _real<T> tolerance,
+                          int* iterations = nullptr) noexcept {
+    using R = _real<T>;
+    const R g = R(1) - std::sqrt(R(2)) / R(2);
+    T fx[N], jac[N * N], a[N * N], k1[N], y[N], fy[N], r[N];
+    int piv[N];
+    if (const int s = f(t, x, fx)) return s;
+    if (const int s = jacobian(t, x, fx, jac)) return s;
+    for (int i = 0; i < N * N; ++i) a[i] = -T(h * g) * jac[i];
+    for (int i = 0; i < N; ++i) a[i * N + i] += T(1);
+    const R ratio = _lu_factor<N>(a, piv);
+    if (!(ratio == ratio)) return 3;
+    if (!(ratio > R(0))) return 2;
+    int taken = 0;
+    // Stage i: base = x + h sum_{j<i} a_ij k_j; Y from the explicit guess base + h g f(t, x).
+    for (int stage = 0; stage < 2; ++stage) {
+      const T tc = stage == 0 ? t + T(g) * h : t + h;
+      T base[N];
+      for (int i = 0; i < N; ++i) base[i] = stage == 0 ? x[i] : x[i] + h * T(R(1) - g) * k1[i];
+      for (int i = 0; i < N; ++i) y[i] = base[i] + h * T(g) * fx[i];
+      bool converged = false;
+      for (int it = 0; it < max_iterations && !converged; ++it, ++taken) {
+        if (const int s = f(tc, y, fy)) return s;
+        for (int i = 0; i < N; ++i) r[i] = base[i] + h * T(g) * fy[i] - y[i];  // -G(Y)
+        _lu_solve<N>(a, piv, r);
+        R size = R(0);
+        for (int i = 0; i < N; ++i) {
+          y[i] += r[i];
+          const R s = _mag(r[i]) / scale[i];
+          size = s > size ? s : size;
+        }
+        if (!(size == size)) return 3;
+        converged = size <= tolerance;
+      }
+      if (!converged) return 1;
+      // k_i from the converged Y (no further evaluation of f): (Y - base) / (h gamma).
+      if (stage == 0)
+        for (int i = 0; i < N; ++i) k1[i] = (y[i] - base[i]) / (h * T(g));
+    }
+    for (int i = 0; i < N; ++i) x[i] = y[i];  // stiffly accurate: x_new = Y_2
+    if (iterations) *iterations = taken;
+    return 0;
+  }
+  // ---- end of kinegen kernel integrate
+
   // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then cache.data().
   template <class T>
   using TrigCache = BasicTrigCache<T, trig_cache_size>;
@@ -1014,7 +1452,7 @@ struct cam_liftoff {
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
     // Block 4: rows 7 -> q[2] (explicit)
-    q[2] = T(p.theta);
+    q[2] = _free_in<T>(p, 0, p.theta);
     T _sin2, _cos2;
     _trig(_sin2, _cos2, q[2], trig, 0);
     // Block 5: rows 6 -> q[6] (newton)
@@ -1110,7 +1548,7 @@ struct cam_liftoff {
     // Block 3: rows 3 -> q[5]
     qd[5] = T(0);
     // Block 4: rows 7 -> q[2]
-    qd[2] = T(p.theta_v);
+    qd[2] = _free_in<T>(p, 1, p.theta_v);
     // Block 5: rows 6 -> q[6]
     const T _t0 = sin(q[2]);
     const T _t1 = sin(q[6]);
@@ -1179,7 +1617,7 @@ struct cam_liftoff {
     qdd[1] = T(0);
     qdd[3] = (T(0)) / T(-1);
     qdd[5] = T(0);
-    qdd[2] = T(p.theta_a);
+    qdd[2] = _free_in<T>(p, 2, p.theta_a);
     const T _t11 = _t5*_t9 + _t8*_t6;
     const T _t12 = qd[2]*qd[2];
     const T _t13 = qd[5]*qd[5];
@@ -1216,7 +1654,7 @@ struct cam_liftoff {
     // Block 3: rows 3 -> q[5]
     qd[5] = T(0);
     // Block 4: rows 7 -> q[2]
-    qd[2] = T(p.theta_v);
+    qd[2] = _free_in<T>(p, 1, p.theta_v);
     // Block 5: rows 6 -> q[6]
     const T _t0 = sin(q[2]);
     const T _t1 = sin(q[6]);
@@ -1249,7 +1687,7 @@ struct cam_liftoff {
     qdd[1] = T(0);
     qdd[3] = (T(0)) / T(-1);
     qdd[5] = T(0);
-    qdd[2] = T(p.theta_a);
+    qdd[2] = _free_in<T>(p, 2, p.theta_a);
     const T _t17 = _t5*_t9 + _t8*_t6;
     const T _t18 = qd[2]*qd[2];
     const T _t19 = qd[5]*qd[5];
@@ -1286,7 +1724,7 @@ struct cam_liftoff {
     T _sin5, _cos5;
     _trig(_sin5, _cos5, q[5], trig, 1);
     // Block 4: rows 7 -> q[2] (explicit)
-    q[2] = T(p.theta);
+    q[2] = _free_in<T>(p, 0, p.theta);
     T _sin2, _cos2;
     _trig(_sin2, _cos2, q[2], trig, 0);
     // Block 5: rows 6 -> q[6] (newton)
@@ -1370,7 +1808,7 @@ struct cam_liftoff {
     // Block 3: rows 3 -> q[5]
     qd[5] = T(0);
     // Block 4: rows 7 -> q[2]
-    qd[2] = T(p.theta_v);
+    qd[2] = _free_in<T>(p, 1, p.theta_v);
     // Block 5: rows 6 -> q[6]
     const T _a5 = _t9;
     if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
@@ -1386,7 +1824,7 @@ struct cam_liftoff {
     qdd[1] = T(0);
     qdd[3] = (T(0)) / T(-1);
     qdd[5] = T(0);
-    qdd[2] = T(p.theta_a);
+    qdd[2] = _free_in<T>(p, 2, p.theta_a);
     const T _t16 = _t6*_cos5 + _t8*_sin5;
     const T _t17 = qd[2]*qd[2];
     const T _t18 = qd[5]*qd[5];
@@ -1675,6 +2113,419 @@ struct cam_liftoff {
       out[9] = (fx * ty - fy * tx) / sqrt(tx * tx + ty * ty);  // normal force
     }
   }
+
+  // ---- Forward dynamics in minimal coordinates (mechanism format 7.2, 7.5): the free
+  // items are the coordinates z; q(z, t) by the block solver with z as drivers' values,
+  // qd = B zd + b and qdd = B zdd + c with B = dq/dz, then (B^T M B) zdd = B^T (Q^A - M c)
+  // by the dynamics kernel: what `kinegen simulate` computes.
+  static constexpr bool has_dynamics = true;
+  static constexpr int nf = 1;  // free coordinates
+  static constexpr int num_bodies = 2;
+  static constexpr std::array<const char*, nf> free_names = {"theta"};
+  // Each free item's row of Phi: quantity - z, or for a distance |d|^2 - z^2.
+  static constexpr std::array<int, nf> free_rows = {7};
+  static constexpr std::array<bool, nf> free_distance = {false};
+  // Where each body's m, J and A com start in _force_geometry's output (-1: no mass).
+  static constexpr std::array<int, num_bodies> _mass_at = {0, 4};
+
+  // dynamics()' state and work space, caller-owned (no heap). q, qd and qdd are the last
+  // call's (q: the next position solve's start, the file's q0 at first); state holds
+  // z, zd and zdd, block_signs each Newton block's determinant sign (a change: status 6).
+  template <class T>
+  struct DynamicsWork {
+    T q[nq], qd[nq], qdd[nq], state[3 * nf];
+    signed char block_signs[num_blocks];
+    T jac[jac_nnz], e[nq * nf], b[nq * nf], mb[nq * nf], g[nq], f[nq], mz[nf * nf];
+    T factors[block_factor_begin[num_blocks]];  // Phi_q's blocks at q
+    // The position solves' sin/cos cache, kept from call to call as the command line
+    // keeps it (so that the solves are the same bits) and as kinegen::Solver does.
+    T trig[trig_cache_size > 0 ? trig_cache_size : 1];
+    int pivots[nq];
+    T geometry[14], mass[num_bodies], inertia[num_bodies], ax[num_bodies], ay[num_bodies];
+    DynamicsWork() noexcept { reset(); }
+    // Back to the file's q0, no recorded branch, an empty cache (a new start).
+    void reset() noexcept {
+      for (int k = 0; k < nq; ++k) q[k] = T(q0[k]);
+      for (int k = 0; k < num_blocks; ++k) block_signs[k] = 0;
+      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty
+    }
+  };
+
+  // zdd[nf] at (z, zd, t) and, in w, q, qd, qdd. The status is solve_step's, or 2 where
+  // B^T M B's LDL^T pivot ratio is at most options.singular_pivot_ratio (a free coordinate
+  // that moves no mass), 3 where a value is not finite; block -1 for the reduction.
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics(const T* z, const T* zd, T t, const Params& p, T* zdd,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w) noexcept {
+    using R = _real<T>;
+    const BasicBlockOptions<R> o = _options_as<R>(options);
+    Params pz = p;
+    for (int k = 0; k < nf; ++k) {
+      w.state[k] = z[k];
+      w.state[nf + k] = zd[k];
+      w.state[2 * nf + k] = T(0);  // qdd = c first: the accelerations at zdd = 0
+    }
+    pz._free = w.state;
+    BlockReport<R> r = solve_step(w.q, t, pz, w.qd, w.qdd, o, w.trig, w.block_signs);
+    if (r.status != 0) return r;
+    // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), each block
+    // factored once (the factors kept for dynamics_jacobians' solves at this q).
+    phi_q(w.q, t, pz, w.jac);
+    for (int i = 0; i < nq * nf; ++i) w.e[i] = T(0);
+    for (int k = 0; k < nf; ++k)
+      w.e[k * nq + free_rows[k]] = free_distance[k] ? T(2) * z[k] : T(1);
+    const BlockReport<R> rb = _block_factor_all<_model>(w.jac, w.factors, w.pivots, o);
+    if (rb.status != 0) return _fail(r, rb.status, rb.block);
+    if (rb.rcond < r.rcond) r.rcond = rb.rcond;
+    if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
+      return _fail(r, 3, -1);
+    // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
+    // (the same products; the geometry computed once for both).
+    _force_geometry(w.q, t, pz, w.geometry);
+    for (int i = 0; i < num_bodies; ++i) {
+      const int a = _mass_at[i];
+      w.mass[i] = a < 0 ? T(0) : w.geometry[a];
+      w.inertia[i] = a < 0 ? T(0) : w.geometry[a + 1];
+      w.ax[i] = a < 0 ? T(0) : w.geometry[a + 2];
+      w.ay[i] = a < 0 ? T(0) : w.geometry[a + 3];
+    }
+    applied_force(w.q, w.qd, t, pz, w.g);
+    _inertia_forces(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.qd, w.qdd, w.f);
+    for (int k = 0; k < nq; ++k) w.g[k] -= w.f[k];
+    for (int k = 0; k < nf; ++k)
+      _mass_times(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.b + k * nq, w.mb + k * nq);
+    const R ratio = _reduced_accelerations(nq, nf, w.b, w.mb, w.g, w.mz, zdd, w.qdd);
+    if (!(ratio == ratio)) return _fail(r, 3, -1);
+    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
+    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
+    for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
+    return r;
+  }
+
+  // The same from the file's q0, with no state kept: the first call of a motion, or a test.
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics(const T* z, const T* zd, T t, const Params& p, T* zdd,
+      const BasicBlockOptions<U>& options) noexcept {
+    DynamicsWork<T> w;
+    return dynamics(z, zd, t, p, zdd, options, w);
+  }
+
+  // ---- The exact Jacobians of zdd(z, zd, u) (format 7.5), for linear-quadratic and
+  // model-predictive control: the run-time inputs u are the loads' (Params members).
+  static constexpr bool has_dynamics_jacobians = true;
+  static constexpr int num_inputs = 0;
+  static constexpr std::array<const char*, num_inputs> input_names = {};
+
+ private:
+  // The tangent's derivatives (symbolic/tangent.hpp): Phi_qq, nu_q, gamma_q, gamma_qd,
+  // Phi_w, nu_w, gamma_w, Q^A, Q^A_q, Q^A_qd and Q^A_w (w: the input slots, 3 per driver
+  // then the loads' inputs), each starting at _tangent_begin[piece], and their places.
+  static constexpr std::array<int, 12> _tangent_begin = {0, 16, 16, 27, 38, 39, 40, 41, 49, 53, 54, 54};
+  static constexpr std::array<int, 16> _phi_qq_row = {4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6};
+  static constexpr std::array<int, 16> _phi_qq_j = {2, 2, 5, 5, 6, 2, 2, 5, 5, 6, 2, 2, 2, 5, 5, 6};
+  static constexpr std::array<int, 16> _phi_qq_k = {2, 6, 5, 7, 6, 2, 6, 5, 7, 6, 2, 5, 6, 5, 6, 6};
+  static constexpr std::array<int, 0> _nu_q_row = {};
+  static constexpr std::array<int, 0> _nu_q_col = {};
+  static constexpr std::array<int, 11> _gamma_q_row = {4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6};
+  static constexpr std::array<int, 11> _gamma_q_col = {2, 5, 6, 7, 2, 5, 6, 7, 2, 5, 6};
+  static constexpr std::array<int, 11> _gamma_qd_row = {4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6};
+  static constexpr std::array<int, 11> _gamma_qd_col = {2, 5, 6, 7, 2, 5, 6, 7, 2, 5, 6};
+  static constexpr std::array<int, 1> _phi_w_row = {7};
+  static constexpr std::array<int, 1> _phi_w_col = {0};
+  static constexpr std::array<int, 1> _nu_w_row = {7};
+  static constexpr std::array<int, 1> _nu_w_col = {1};
+  static constexpr std::array<int, 1> _gamma_w_row = {7};
+  static constexpr std::array<int, 1> _gamma_w_col = {2};
+  static constexpr std::array<int, 4> _applied_q_row = {3, 3, 4, 4};
+  static constexpr std::array<int, 4> _applied_q_col = {3, 4, 3, 4};
+  static constexpr std::array<int, 1> _applied_qd_row = {2};
+  static constexpr std::array<int, 1> _applied_qd_col = {2};
+  static constexpr std::array<int, 0> _applied_w_row = {};
+  static constexpr std::array<int, 0> _applied_w_col = {};
+  static constexpr std::array<int, 2> _tangent_slots = {0, 1};
+  template <class T>
+  static void _tangent_values([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+    // out[54]; 124 operations
+    using std::cos, std::pow, std::sin, std::sqrt;
+    // Intermediate terms (38)
+    const T _t0 = sin(q[2]);
+    const T _t1 = sin(q[6]);
+    const T _t2 = -T(p.R)*_t0*_t1;
+    const T _t3 = cos(q[6]);
+    const T _t4 = _t3*T(p.R) + T(p.e);
+    const T _t5 = cos(q[2]);
+    const T _t6 = _t2 + _t4*_t5;
+    const T _t7 = _t2 + _t5*_t3*T(p.R);
+    const T _t8 = cos(q[5]);
+    const T _t9 = sin(q[5]);
+    const T _t10 = _t5*T(p.R)*_t1;
+    const T _t11 = _t4*_t0 + _t10;
+    const T _t12 = _t10 + _t3*T(p.R)*_t0;
+    const T _t13 = _t7*_t8 + _t12*_t9;
+    const T _t14 = -_t7*_t8 - _t12*_t9;
+    const T _t15 = qd[2]*qd[2];
+    const T _t16 = qd[6]*qd[6];
+    const T _t17 = _t12*_t16;
+    const T _t18 = T(2)*_t12*qd[2]*qd[6];
+    const T _t19 = qd[5]*qd[5];
+    const T _t20 = -_t7*_t16;
+    const T _t21 = T(-2)*_t7*qd[2]*qd[6];
+    const T _t22 = _t7*_t9 - _t12*_t8;
+    const T _t23 = -_t22*_t15 - _t22*_t19 - _t22*_t16 - T(2)*_t22*qd[2]*qd[6] + T(2)*_t22*qd[2]*qd[5] + T(2)*_t22*qd[5]*qd[6];
+    const T _t24 = T(-2)*_t7*qd[6];
+    const T _t25 = T(-2)*_t12*qd[6];
+    const T _t26 = -T(2)*_t13*qd[2] - T(2)*_t13*qd[6] + T(2)*_t13*qd[5];
+    const T _t27 = T(1)/T(p.omega0);
+    const T _t28 = T(p.H) - q[4];
+    const T _t29 = _t28*_t28;
+    const T _t30 = q[3]*q[3];
+    const T _t31 = _t29 + _t30;
+    const T _t32 = sqrt(_t31) - T(p.L0);
+    const T _t33 = T(1)/sqrt(_t31);
+    const T _t34 = -_t32*_t33*T(p.k);
+    const T _t35 = T(1)/_t31;
+    const T _t36 = pow(_t31, T(-3)/T(2));
+    const T _t37 = _t28*_t35*T(p.k)*q[3] - _t32*_t28*_t36*T(p.k)*q[3];
+
+    // Output terms (54)
+    out[0] = _t6;
+    out[1] = _t7;
+    out[2] = -_t8*q[7];
+    out[3] = -_t9;
+    out[4] = _t7;
+    out[5] = _t11;
+    out[6] = _t12;
+    out[7] = -q[7]*_t9;
+    out[8] = _t8;
+    out[9] = _t12;
+    out[10] = _t13;
+    out[11] = _t14;
+    out[12] = _t13;
+    out[13] = _t13;
+    out[14] = _t14;
+    out[15] = _t13;
+    out[16] = _t11*_t15 + _t17 + _t18;
+    out[17] = T(2)*_t8*qd[5]*qd[7] - _t19*q[7]*_t9;
+    out[18] = _t12*_t15 + _t17 + _t18;
+    out[19] = _t19*_t8;
+    out[20] = _t20 - _t6*_t15 + _t21;
+    out[21] = _t19*_t8*q[7] + T(2)*_t9*qd[5]*qd[7];
+    out[22] = _t20 - _t7*_t15 + _t21;
+    out[23] = _t19*_t9;
+    out[24] = _t23;
+    out[25] = -T(2)*_t22*qd[2]*qd[5] - T(2)*_t22*qd[5]*qd[6] + _t22*_t15 + _t22*_t19 + _t22*_t16 + T(2)*_t22*qd[2]*qd[6];
+    out[26] = _t23;
+    out[27] = _t24 - T(2)*_t6*qd[2];
+    out[28] = T(2)*_t8*q[7]*qd[5] + T(2)*_t9*qd[7];
+    out[29] = _t24 - T(2)*_t7*qd[2];
+    out[30] = T(2)*_t9*qd[5];
+    out[31] = _t25 - T(2)*_t11*qd[2];
+    out[32] = T(2)*q[7]*_t9*qd[5] - T(2)*_t8*qd[7];
+    out[33] = _t25 - T(2)*_t12*qd[2];
+    out[34] = T(-2)*_t8*qd[5];
+    out[35] = _t26;
+    out[36] = T(2)*_t13*qd[2] - T(2)*_t13*qd[5] + T(2)*_t13*qd[6];
+    out[37] = _t26;
+    out[38] = T(-1);
+    out[39] = T(1);
+    out[40] = T(1);
+    out[41] = T(0);
+    out[42] = T(0);
+    out[43] = (T(1) - _t27*qd[2])*T(p.T0);
+    out[44] = -_t32*_t33*T(p.k)*q[3];
+    out[45] = _t32*_t28*_t33*T(p.k) - (T(981)/T(100))*T(p.m);
+    out[46] = T(0);
+    out[47] = T(0);
+    out[48] = T(0);
+    out[49] = _t34 - _t35*_t30*T(p.k) + _t32*_t36*_t30*T(p.k);
+    out[50] = _t37;
+    out[51] = _t37;
+    out[52] = _t34 - _t29*_t35*T(p.k) + _t32*_t29*_t36*T(p.k);
+    out[53] = -_t27*T(p.T0);
+  }
+
+ public:
+  // dynamics_jacobians' work space, caller-owned (no heap).
+  template <class T>
+  struct JacobianWork {
+    T values[54];  // _tangent_values
+    T out[nf * 2], scratch[nq * 2];
+    T work[73];  // _tangent_work_size(nq, nf, 2)
+  };
+
+  // dynamics() and the exact d(zdd)/dz (d_z), d(zdd)/dzd (d_zd) and d(zdd)/du (d_u)
+  // there, each column-major (d_z[j * nf + i] = d zdd_i / d z_j; d_u: nf x num_inputs), any
+  // of them nullptr when not wanted: A = [0 I; d_z d_zd] and B = [0; d_u] of x' = f(x, u),
+  // x = (z, zd), as `kinegen linearize` gives them. The linearize kernel on the block solves
+  // (on dynamics()' factors). Status as dynamics()', or the tangent's (2, 3).
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
+      T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options, DynamicsWork<T>& w,
+      JacobianWork<T>& j) noexcept {
+    using R = _real<T>;
+    BlockReport<R> r = dynamics(z, zd, t, p, zdd, options, w);
+    if (r.status != 0) return r;
+    Params pz = p;
+    pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
+    _tangent_values(w.q, w.qd, t, pz, j.values);
+    int slots[2 * nf + num_inputs], ndir = 0;
+    for (int i = 0; i < 2 * nf + num_inputs; ++i)
+      if (i < nf ? d_z != nullptr : i < 2 * nf ? d_zd != nullptr : d_u != nullptr)
+        slots[ndir++] = _tangent_slots[i];
+    if (ndir == 0) return r;
+    const auto at = [&](int piece) { return j.values + _tangent_begin[piece]; };
+    _TangentPoint<T> tp;
+    tp.nq = nq;
+    tp.nf = nf;
+    tp.nb = num_bodies;
+    tp.q = w.q;
+    tp.qd = w.qd;
+    tp.qdd = w.qdd;
+    tp.b = w.b;
+    tp.mass = w.mass;
+    tp.inertia = w.inertia;
+    tp.ax = w.ax;
+    tp.ay = w.ay;
+    tp.applied = at(7);
+    tp.phi_qq = {static_cast<int>(_phi_qq_row.size()), _phi_qq_row.data(), _phi_qq_j.data(),
+                 _phi_qq_k.data(), at(0)};
+    const auto sparse = [&](const auto& row, const auto& col, int piece) {
+      return _Sparse<T>{static_cast<int>(row.size()), row.data(), col.data(), at(piece)};
+    };
+    tp.nu_q = sparse(_nu_q_row, _nu_q_col, 1);
+    tp.gamma_q = sparse(_gamma_q_row, _gamma_q_col, 2);
+    tp.gamma_qd = sparse(_gamma_qd_row, _gamma_qd_col, 3);
+    tp.phi_w = sparse(_phi_w_row, _phi_w_col, 4);
+    tp.nu_w = sparse(_nu_w_row, _nu_w_col, 5);
+    tp.gamma_w = sparse(_gamma_w_row, _gamma_w_col, 6);
+    tp.applied_q = sparse(_applied_q_row, _applied_q_col, 8);
+    tp.applied_qd = sparse(_applied_qd_row, _applied_qd_col, 9);
+    tp.applied_w = sparse(_applied_w_row, _applied_w_col, 10);
+    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors); x is
+    // copied aside: the solves need x apart from the right-hand side.
+    const auto copy = [&](const T* x, int m) {
+      for (int i = 0; i < nq * m; ++i) j.scratch[i] = x[i];
+    };
+    const int s = _dynamics_tangent(
+        tp, ndir, slots, j.out, j.work,
+        [&](T* x, int m) {
+          copy(x, m);
+          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x, m)
+                     ? 0 : 3;
+        },
+        [&](T* x, int m) {
+          copy(x, m);
+          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x,
+                                                    m) ? 0 : 3;
+        });
+    if (s != 0) return _fail(r, s, -1);
+    int dir = 0;
+    for (T* d : {d_z, d_zd}) {
+      if (!d) continue;
+      for (int i = 0; i < nf * nf; ++i) d[i] = j.out[dir * nf + i];
+      dir += nf;
+    }
+    if (d_u)
+      for (int i = 0; i < nf * num_inputs; ++i) d_u[i] = j.out[dir * nf + i];
+    return r;
+  }
+
+  // The same with the work space on the stack.
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
+      T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options,
+      DynamicsWork<T>& w) noexcept {
+    JacobianWork<T> j;
+    return dynamics_jacobians(z, zd, t, p, zdd, d_z, d_zd, d_u, options, w, j);
+  }
+
+  // ---- Fixed-step integrators for a control loop (format 7.5; kinegen::Simulator wraps them
+  // with more care): z, zd and t advance by h in place, or stay as they were when a dynamics()
+  // fails (its report). step_rk4: classical Runge-Kutta (4 dynamics() a step, explicit);
+  // step_implicit: the L-stable SDIRK2 for stiff springs, Newton on the exact Jacobians, each
+  // stage until its update (per scale: angles in radians, lengths over length_scale) is at
+  // most newton_tolerance (the scalar's position tolerance by default; status 1 after
+  // newton_iterations).
+  template <class T, class U>
+  static BlockReport<_real<T>> step_rk4(T* z, T* zd, T& t, T h, const Params& p,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w) noexcept {
+    T x[2 * nf];
+    BlockReport<_real<T>> r;
+    const auto f = [&](T at, const T* y, T* yd) {
+      for (int k = 0; k < nf; ++k) yd[k] = y[nf + k];
+      r = dynamics(y, y + nf, at, p, yd + nf, options, w);
+      return r.status;
+    };
+    const int status = _rk4_step<2 * nf>(t, h, _state_in(z, zd, x), f);
+    return _step_with(z, zd, t, h, x, r, status);
+  }
+
+  template <class T, class U>
+  static BlockReport<_real<T>> step_implicit(T* z, T* zd, T& t, T h, const Params& p,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w, JacobianWork<T>& j,
+      int newton_iterations = 10,
+      _real<T> newton_tolerance = BasicBlockOptions<_real<T>>().tolerance) noexcept {
+    using R = _real<T>;
+    T x[2 * nf];
+    R scale[2 * nf];
+    for (int k = 0; k < nf; ++k)
+      scale[k] = scale[nf + k] = free_distance[k] || coordinate_kinds[_free_column(k)] != 1
+                                     ? R(length_scale) : R(1);
+    BlockReport<R> r;
+    const auto f = [&](T at, const T* y, T* yd) {
+      for (int k = 0; k < nf; ++k) yd[k] = y[nf + k];
+      r = dynamics(y, y + nf, at, p, yd + nf, options, w);
+      return r.status;
+    };
+    const auto jacobian = [&](T at, const T* y, const T*, T* a) {
+      T zdd[nf], dz[nf * nf], dzd[nf * nf];
+      r = dynamics_jacobians(y, y + nf, at, p, zdd, dz, dzd, static_cast<T*>(nullptr), options,
+                             w, j);
+      for (int i = 0; i < nf; ++i)  // row-major [0 I; dz dzd] from column-major blocks
+        for (int c = 0; c < nf; ++c) {
+          a[i * 2 * nf + c] = T(0);
+          a[i * 2 * nf + nf + c] = T(i == c ? 1 : 0);
+          a[(nf + i) * 2 * nf + c] = dz[c * nf + i];
+          a[(nf + i) * 2 * nf + nf + c] = dzd[c * nf + i];
+        }
+      return r.status;
+    };
+    const int status = _sdirk2_step<2 * nf>(t, h, _state_in(z, zd, x), scale, f, jacobian,
+                                            newton_iterations, newton_tolerance);
+    return _step_with(z, zd, t, h, x, r, status);
+  }
+
+ private:
+  template <class T>
+  static T* _state_in(const T* z, const T* zd, T* x) noexcept {
+    for (int k = 0; k < nf; ++k) {
+      x[k] = z[k];
+      x[nf + k] = zd[k];
+    }
+    return x;
+  }
+  // The step's end: x back into z and zd and t + h, or the failure (a dynamics() report, or
+  // the kernel's status: 1 Newton, 2 singular, 3 not finite).
+  template <class T, class R>
+  static BlockReport<R> _step_with(T* z, T* zd, T& t, T h, const T* x, BlockReport<R> r,
+                                   int status) noexcept {
+    if (status != 0) return r.status != 0 ? r : _fail(r, status, -1);
+    for (int k = 0; k < nf; ++k) {
+      z[k] = x[k];
+      zd[k] = x[nf + k];
+    }
+    t += h;
+    return r;
+  }
+  // The coordinate a free item's row reads first, for its kind (angle or length).
+  static constexpr int _free_column(int k) noexcept {
+    for (int e = 0; e < jac_nnz; ++e)
+      if (jac_rows[e] == free_rows[k]) return jac_cols[e];
+    return 0;
+  }
+
+ public:
 };
 
 }  // namespace kinegen::models

@@ -240,7 +240,16 @@ struct n_four_bar_40 {
     double g = 9.81;
     // Input driver theta (f: input): its value, rate and acceleration, set at run time
     double theta = 0, theta_v = 0, theta_a = 0;
+    // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,
+    // which the functions then read instead of the free items' members above.
+    const void* _free = nullptr;
   };
+
+  // A free item's value (i < nf), rate or acceleration, as dynamics() set it.
+  template <class T>
+  static T _free_in(const Params& p, int i, double member) noexcept {
+    return p._free ? static_cast<const T*>(p._free)[i] : T(member);
+  }
 
   // Phi(q, t)
  private:
@@ -520,7 +529,7 @@ struct n_four_bar_40 {
     out[79] = q[118];
     out[80] = q[120] - T(40)*T(p.l);
     out[81] = q[121];
-    out[242] = q[2] - T(p.theta);
+    out[242] = q[2] - _free_in<T>(p, 0, p.theta);
     for (int _m = 0; _m < 40; ++_m)
       _phi_roll0(q, t, p, out, _phi_roll0_i[_m], _phi_roll0_o[_m]);
     for (int _m = 0; _m < 40; ++_m)
@@ -1100,7 +1109,7 @@ struct n_four_bar_40 {
   static void nu([[maybe_unused]] const T* q,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
     // out[nc]; 1 operations
-    out[242] = T(p.theta_v);
+    out[242] = _free_in<T>(p, 1, p.theta_v);
     for (int _m = 0; _m < 121; ++_m)
       _nu_roll0(q, t, p, out, _nu_roll0_i[_m], _nu_roll0_o[_m]);
   }
@@ -1405,7 +1414,7 @@ struct n_four_bar_40 {
   static void gamma([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
     // out[nc]; 1 operations
-    out[242] = T(p.theta_a);
+    out[242] = _free_in<T>(p, 2, p.theta_a);
     for (int _m = 0; _m < 41; ++_m)
       _gamma_roll0(q, qd, t, p, out, _gamma_roll0_i[_m], _gamma_roll0_o[_m]);
     for (int _m = 0; _m < 40; ++_m)
@@ -1444,6 +1453,8 @@ struct n_four_bar_40 {
   static constexpr std::array<int, nq> coordinate_block = {0, 1, 82, 2, 3, 85, 4, 5, 88, 6, 7, 91, 8, 9, 94, 10, 11, 97, 12, 13, 100, 14, 15, 103, 16, 17, 106, 18, 19, 109, 20, 21, 112, 22, 23, 115, 24, 25, 118, 26, 27, 121, 28, 29, 124, 30, 31, 127, 32, 33, 130, 34, 35, 133, 36, 37, 136, 38, 39, 139, 40, 41, 142, 42, 43, 145, 44, 45, 148, 46, 47, 151, 48, 49, 154, 50, 51, 157, 52, 53, 160, 54, 55, 163, 56, 57, 166, 58, 59, 169, 60, 61, 172, 62, 63, 175, 64, 65, 178, 66, 67, 181, 68, 69, 184, 70, 71, 187, 72, 73, 190, 74, 75, 193, 76, 77, 196, 78, 79, 199, 80, 81, 202, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 112, 113, 114, 115, 116, 117, 118, 119, 120, 121, 122, 123, 124, 125, 126, 127, 128, 129, 130, 131, 132, 133, 134, 135, 136, 137, 138, 139, 140, 141, 142, 143, 144, 145, 146, 147, 148, 149, 150, 151, 152, 153, 154, 155, 156, 157, 158, 159, 160, 161, 162, 163, 164, 165, 166, 167, 168, 169, 170, 171, 172, 173, 174, 175, 176, 177, 178, 179, 180, 181, 182, 183, 184, 185, 186, 187, 188, 189, 190, 191, 192, 193, 194, 195, 196, 197, 198, 199, 200, 201, 202};
   static constexpr std::array<int, nq> coordinate_slot = {0, 1, 82, 2, 3, 85, 4, 5, 89, 6, 7, 93, 8, 9, 97, 10, 11, 101, 12, 13, 105, 14, 15, 109, 16, 17, 113, 18, 19, 117, 20, 21, 121, 22, 23, 125, 24, 25, 129, 26, 27, 133, 28, 29, 137, 30, 31, 141, 32, 33, 145, 34, 35, 149, 36, 37, 153, 38, 39, 157, 40, 41, 161, 42, 43, 165, 44, 45, 169, 46, 47, 173, 48, 49, 177, 50, 51, 181, 52, 53, 185, 54, 55, 189, 56, 57, 193, 58, 59, 197, 60, 61, 201, 62, 63, 205, 64, 65, 209, 66, 67, 213, 68, 69, 217, 70, 71, 221, 72, 73, 225, 74, 75, 229, 76, 77, 233, 78, 79, 237, 80, 81, 241, 83, 84, 86, 87, 88, 90, 91, 92, 94, 95, 96, 98, 99, 100, 102, 103, 104, 106, 107, 108, 110, 111, 112, 114, 115, 116, 118, 119, 120, 122, 123, 124, 126, 127, 128, 130, 131, 132, 134, 135, 136, 138, 139, 140, 142, 143, 144, 146, 147, 148, 150, 151, 152, 154, 155, 156, 158, 159, 160, 162, 163, 164, 166, 167, 168, 170, 171, 172, 174, 175, 176, 178, 179, 180, 182, 183, 184, 186, 187, 188, 190, 191, 192, 194, 195, 196, 198, 199, 200, 202, 203, 204, 206, 207, 208, 210, 211, 212, 214, 215, 216, 218, 219, 220, 222, 223, 224, 226, 227, 228, 230, 231, 232, 234, 235, 236, 238, 239, 240, 242};
   static constexpr std::array<int, nc + 1> jac_row_begin = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 85, 88, 92, 96, 99, 102, 106, 110, 113, 116, 120, 124, 127, 130, 134, 138, 141, 144, 148, 152, 155, 158, 162, 166, 169, 172, 176, 180, 183, 186, 190, 194, 197, 200, 204, 208, 211, 214, 218, 222, 225, 228, 232, 236, 239, 242, 246, 250, 253, 256, 260, 264, 267, 270, 274, 278, 281, 284, 288, 292, 295, 298, 302, 306, 309, 312, 316, 320, 323, 326, 330, 334, 337, 340, 344, 348, 351, 354, 358, 362, 365, 368, 372, 376, 379, 382, 386, 390, 393, 396, 400, 404, 407, 410, 414, 418, 421, 424, 428, 432, 435, 438, 442, 446, 449, 452, 456, 460, 463, 466, 470, 474, 477, 480, 484, 488, 491, 494, 498, 502, 505, 508, 512, 516, 519, 522, 526, 530, 533, 536, 540, 544, 547, 550, 554, 558, 561, 564, 568, 572, 575, 578, 582, 586, 589, 592, 596, 600, 603, 606, 610, 614, 617, 620, 624, 628, 631, 634, 638, 642, 643};
+  // Where each block's K x K factors start when all are kept (_block_factor_all).
+  static constexpr std::array<int, num_blocks + 1> block_factor_begin = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 89, 90, 91, 95, 96, 97, 101, 102, 103, 107, 108, 109, 113, 114, 115, 119, 120, 121, 125, 126, 127, 131, 132, 133, 137, 138, 139, 143, 144, 145, 149, 150, 151, 155, 156, 157, 161, 162, 163, 167, 168, 169, 173, 174, 175, 179, 180, 181, 185, 186, 187, 191, 192, 193, 197, 198, 199, 203, 204, 205, 209, 210, 211, 215, 216, 217, 221, 222, 223, 227, 228, 229, 233, 234, 235, 239, 240, 241, 245, 246, 247, 251, 252, 253, 257, 258, 259, 263, 264, 265, 269, 270, 271, 275, 276, 277, 281, 282, 283, 287, 288, 289, 293, 294, 295, 299, 300, 301, 305, 306, 307, 311, 312, 313, 317, 318, 319, 323};
   using _model = n_four_bar_40;
 
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
@@ -2002,28 +2013,77 @@ struct n_four_bar_40 {
   template <class S, class T, class R>
   static BlockReport<R> _block_forward(const T* jac, const T* b, T* x, int m,
                                        const BasicBlockOptions<R>& o) noexcept {
-    return _each_factored_block<S, false>(jac, o, [&](auto size, int k, const T* a,
-                                                      const int* piv) {
-      constexpr int K = decltype(size)::value;
-      const int b0 = S::block_begin[k];
-      for (int col = 0; col < m; ++col) {
-        const T* bc = b + col * S::nq;
-        T* xc = x + col * S::nq;
-        T v[K];
-        for (int i = 0; i < K; ++i) {
-          const int row = S::block_rows[b0 + i];
-          v[i] = bc[row];
-          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
-            const int c = S::jac_cols[e];
-            if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
-          }
+    return _each_factored_block<S, false>(
+        jac, o, [&](auto size, int k, const T* a, const int* piv) {
+          return _forward_block<S, decltype(size)::value>(k, jac, a, piv, b, x, m);
+        });
+  }
+  // Block k (K x K, factors a, piv) of Phi_q X = B for m columns, earlier blocks solved.
+  template <class S, int K, class T>
+  static bool _forward_block(int k, const T* jac, const T* a, const int* piv, const T* b, T* x,
+                             int m) noexcept {
+    const int b0 = S::block_begin[k];
+    for (int col = 0; col < m; ++col) {
+      const T* bc = b + col * S::nq;
+      T* xc = x + col * S::nq;
+      T v[K];
+      for (int i = 0; i < K; ++i) {
+        const int row = S::block_rows[b0 + i];
+        v[i] = bc[row];
+        for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+          const int c = S::jac_cols[e];
+          if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
         }
-        _lu_solve<K>(a, piv, v);
-        if (!_all_finite<K>(v)) return false;
-        for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
       }
-      return true;
-    });
+      _lu_solve<K>(a, piv, v);
+      if (!_all_finite<K>(v)) return false;
+      for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
+    }
+    return true;
+  }
+
+  // Several solves at one Phi_q with each block factored once: _block_factor_all keeps every
+  // block's factors (block k's K x K at a + S::block_factor_begin[k], its pivots at piv +
+  // S::block_begin[k]), checked as _block_forward checks them; then _block_forward_factored and
+  // _block_transposed_factored give _block_forward's and _block_transposed's numbers bit for
+  // bit. False from those: a solution that is not finite.
+  template <class S, class T, class R>
+  static BlockReport<R> _block_factor_all(const T* jac, T* a, int* piv,
+                                          const BasicBlockOptions<R>& o) noexcept {
+    BlockReport<R> r;
+    bool ok = true;
+    for (int k = 0; ok && k < S::num_blocks; ++k)
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        ok = _block_factor<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                     piv + S::block_begin[k], r, o.min_rcond);
+      });
+    return r;
+  }
+  template <class S, class T>
+  static bool _block_forward_factored(const T* jac, const T* a, const int* piv, const T* b, T* x,
+                                      int m) noexcept {
+    bool ok = true;
+    for (int k = 0; ok && k < S::num_blocks; ++k)
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        ok = _forward_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                      piv + S::block_begin[k], b, x, m);
+      });
+    return ok;
+  }
+  template <class S, class T>
+  static bool _block_transposed_factored(const T* jac, const T* a, const int* piv, T* b, T* y,
+                                         int m) noexcept {
+    bool ok = true;
+    for (int n = 0; ok && n < S::num_blocks; ++n) {
+      const int k = S::num_blocks - 1 - n;
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        constexpr int K = decltype(size)::value;
+        for (int col = 0; ok && col < m; ++col)
+          ok = _transposed_block<S, K>(k, jac, a + S::block_factor_begin[k],
+                                       piv + S::block_begin[k], b + col * S::nq, y + col * S::nq);
+      });
+    }
+    return ok;
   }
 
   // y of `row` is v: recorded, and subtracted from the equations of the coordinates the row
@@ -2162,6 +2222,384 @@ struct n_four_bar_40 {
     return r;
   }
   // ---- end of kinegen kernel block_linear
+
+  // ---- kinegen kernel dynamics (kinegen/kernels/dynamics.hpp)
+  // out = M v for nb bodies (each q_b = [x, y, phi] with the frame at its origin): per body
+  // its mass m, inertia j about the centre of mass and the centre's offset A s = (ax, ay) in
+  // global axes. The centre moves at (vx - w ay, vy + w ax), so the body's rows of M v are
+  // m times that, and ax m (vy + w ax) - ay m (vx - w ay) + j w. Coordinates after the
+  // bodies' (extra coordinates, format 6.1) carry no mass: their rows are 0.
+  template <class T>
+  static void _mass_times(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
+                          const T* v, T* out) noexcept {
+    for (int b = 0; b < nb; ++b) {
+      const T& vx = v[3 * b];
+      const T& vy = v[3 * b + 1];
+      const T& w = v[3 * b + 2];
+      const T px = m[b] * (vx - w * ay[b]);
+      const T py = m[b] * (vy + w * ax[b]);
+      out[3 * b] = px;
+      out[3 * b + 1] = py;
+      out[3 * b + 2] = ax[b] * py - ay[b] * px + j[b] * w;
+    }
+    for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
+  }
+
+  // In-place LDL^T of a symmetric positive definite n x n matrix (row-major; the lower
+  // triangle is read): L below the diagonal, D's reciprocals on it. Returns the smallest over
+  // the largest pivot (real parts), 0 when a pivot is not positive (a reduced mass that is
+  // singular or not positive definite), NaN when a value is not finite. No pivoting: M_z is
+  // positive definite wherever the free coordinates carry inertia.
+  template <class T>
+  static _real<T> _ldlt_factor(int n, T* a) noexcept {
+    using R = _real<T>;
+    R smallest = R(0), largest = R(0);
+    for (int k = 0; k < n; ++k) {
+      T d = a[k * n + k];
+      for (int p = 0; p < k; ++p) d -= a[k * n + p] * a[k * n + p] / a[p * n + p];
+      const R dr = _re(d);
+      if (!_finite(_mag(d))) return dr - dr;  // NaN
+      if (!(dr > R(0))) return R(0);
+      smallest = k == 0 ? dr : (dr < smallest ? dr : smallest);
+      largest = dr > largest ? dr : largest;
+      // Rows below: l_ik = (a_ik - sum_p l_ip d_p l_kp) / d_k, with l_ip d_p kept in a_ip
+      // until row i is reached (a[i * n + p] holds l_ip d_p for p < k here).
+      for (int i = k + 1; i < n; ++i) {
+        T s = a[i * n + k];
+        for (int p = 0; p < k; ++p) s -= a[i * n + p] * a[k * n + p] / a[p * n + p];
+        a[i * n + k] = s;  // l_ik d_k
+      }
+      a[k * n + k] = d;
+    }
+    // Turn l_ik d_k into l_ik and the diagonal into 1 / d_k.
+    for (int k = 0; k < n; ++k) {
+      const T inv = T(1) / a[k * n + k];
+      for (int i = k + 1; i < n; ++i) a[i * n + k] *= inv;
+      a[k * n + k] = inv;
+    }
+    return smallest / largest;
+  }
+
+  // Solves L D L^T x = b in place with _ldlt_factor's factors.
+  template <class T>
+  static void _ldlt_solve(int n, const T* a, T* b) noexcept {
+    for (int i = 0; i < n; ++i)
+      for (int p = 0; p < i; ++p) b[i] -= a[i * n + p] * b[p];
+    for (int i = 0; i < n; ++i) b[i] *= a[i * n + i];
+    for (int i = n - 1; i >= 0; --i)
+      for (int p = i + 1; p < n; ++p) b[i] -= a[p * n + i] * b[p];
+  }
+
+  // The reduction: with B (nq x nf, column k at b + k nq: dq/dz_k), mb = M B (the same
+  // layout), g = Q^A + the inertia forces of the motion at qdd = c (the generalized force
+  // whose projection B^T g must vanish with zdd = 0 taken out), solves M_z zdd = B^T g for
+  // zdd and adds B zdd to qdd (which holds c). work: nf * nf T's (receives M_z's factors).
+  // Returns _ldlt_factor's pivot ratio; zdd and qdd are valid only where it is positive.
+  template <class T>
+  static _real<T> _reduced_accelerations(int nq, int nf, const T* b, const T* mb, const T* g,
+                                         T* work, T* zdd, T* qdd) noexcept {
+    for (int i = 0; i < nf; ++i) {
+      T r = T(0);
+      for (int k = 0; k < nq; ++k) r += b[i * nq + k] * g[k];
+      zdd[i] = r;
+      for (int j = 0; j <= i; ++j) {
+        T s = T(0);
+        for (int k = 0; k < nq; ++k) s += b[i * nq + k] * mb[j * nq + k];
+        work[i * nf + j] = s;
+        work[j * nf + i] = s;
+      }
+    }
+    const _real<T> ratio = _ldlt_factor(nf, work);
+    if (!(ratio > _real<T>(0))) return ratio;
+    _ldlt_solve(nf, work, zdd);
+    for (int i = 0; i < nf; ++i)
+      for (int k = 0; k < nq; ++k) qdd[k] += b[i * nq + k] * zdd[i];
+    return ratio;
+  }
+  // ---- end of kinegen kernel dynamics
+
+  // ---- kinegen kernel linearize (kinegen/kernels/linearize.hpp)
+  // A sparse matrix: n entries (row[e], col[e], value[e]).
+  template <class T>
+  struct _Sparse {
+    int n = 0;
+    const int* row = nullptr;
+    const int* col = nullptr;
+    const T* value = nullptr;
+  };
+  // Phi's second derivatives d^2 Phi_row / dq_j dq_k for j <= k.
+  template <class T>
+  struct _Hessian {
+    int n = 0;
+    const int* row = nullptr;
+    const int* j = nullptr;
+    const int* k = nullptr;
+    const T* value = nullptr;
+  };
+  // A solved state and the derivatives there.
+  template <class T>
+  struct _TangentPoint {
+    int nq = 0, nf = 0, nb = 0;
+    const T* q = nullptr;  // the state: q, qd and the accelerations qdd
+    const T* qd = nullptr;
+    const T* qdd = nullptr;
+    const T* b = nullptr;     // dq/dz, nq x nf (column k at b + k nq)
+    const T* mass = nullptr;  // per body, as _mass_times reads them
+    const T* inertia = nullptr;
+    const T* ax = nullptr;
+    const T* ay = nullptr;
+    const T* applied = nullptr;  // Q^A at the state (nq)
+    _Hessian<T> phi_qq;
+    _Sparse<T> nu_q, gamma_q, gamma_qd, phi_w, nu_w, gamma_w, applied_q, applied_qd, applied_w;
+  };
+
+  // out += s a x.
+  template <class T>
+  static void _sparse_add(const _Sparse<T>& a, const T& s, const T* x, T* out) noexcept {
+    for (int e = 0; e < a.n; ++e) out[a.row[e]] += s * a.value[e] * x[a.col[e]];
+  }
+  // out += s times column `col` of a.
+  template <class T>
+  static void _sparse_column(const _Sparse<T>& a, int col, const T& s, T* out) noexcept {
+    for (int e = 0; e < a.n; ++e)
+      if (a.col[e] == col) out[a.row[e]] += s * a.value[e];
+  }
+  // out += (Phi_q v)_q dq: row r gets sum_jk Phi_r,jk v_j dq_k.
+  template <class T>
+  static void _hessian_times(const _Hessian<T>& h, const T* v, const T* dq, T* out) noexcept {
+    for (int e = 0; e < h.n; ++e) {
+      const int j = h.j[e], k = h.k[e];
+      T s = v[j] * dq[k];
+      if (j != k) s += v[k] * dq[j];
+      out[h.row[e]] += h.value[e] * s;
+    }
+  }
+  // out += (Phi_q^T lambda)_q dq: coordinate j gets sum_rk lambda_r Phi_r,jk dq_k.
+  template <class T>
+  static void _hessian_transposed(const _Hessian<T>& h, const T* lambda, const T* dq,
+                                  T* out) noexcept {
+    for (int e = 0; e < h.n; ++e) {
+      const int j = h.j[e], k = h.k[e];
+      const T s = lambda[h.row[e]] * h.value[e];
+      out[j] += s * dq[k];
+      if (j != k) out[k] += s * dq[j];
+    }
+  }
+
+  // out = M qdd + h(q, qd), the inertia forces' negative: per body the centre of mass's
+  // acceleration (xdd - alpha ay - w^2 ax, ydd + alpha ax - w^2 ay) times m, and about the
+  // frame's origin (ax, ay) x that + j alpha. Extra coordinates' rows are 0.
+  template <class T>
+  static void _inertia_forces(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
+                              const T* qd, const T* qdd, T* out) noexcept {
+    for (int b = 0; b < nb; ++b) {
+      const T& w = qd[3 * b + 2];
+      const T& alpha = qdd[3 * b + 2];
+      const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
+      const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
+      out[3 * b] = fx;
+      out[3 * b + 1] = fy;
+      out[3 * b + 2] = ax[b] * fy - ay[b] * fx + j[b] * alpha;
+    }
+    for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
+  }
+  // out += d(M qdd + h)/dq dq + dh/dqd dqd at fixed qdd: each body's forces depend on q only
+  // through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w (the w^2 terms).
+  template <class T>
+  static void _inertia_tangent(int nb, const T* m, const T* ax, const T* ay, const T* qd,
+                               const T* qdd, const T* dq, const T* dqd, T* out) noexcept {
+    for (int b = 0; b < nb; ++b) {
+      const T& w = qd[3 * b + 2];
+      const T& alpha = qdd[3 * b + 2];
+      const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
+      const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
+      const T dphi = dq[3 * b + 2], dw = dqd[3 * b + 2];
+      const T dfx = m[b] * ((w * w * ay[b] - alpha * ax[b]) * dphi - T(2) * w * ax[b] * dw);
+      const T dfy = m[b] * (-(alpha * ay[b] + w * w * ax[b]) * dphi - T(2) * w * ay[b] * dw);
+      out[3 * b] += dfx;
+      out[3 * b + 1] += dfy;
+      out[3 * b + 2] += (-ay[b] * fy - ax[b] * fx) * dphi + ax[b] * dfy - ay[b] * dfx;
+    }
+  }
+
+  // The work space _dynamics_tangent needs for ndir directions, in T's.
+  static constexpr int _tangent_work_size(int nq, int nf, int ndir) noexcept {
+    return nq * nf + nq * (nf + 1) + nf * nf + 2 * nq * ndir + 2 * nq;
+  }
+
+  // d(zdd)/d(w_slot) for each of the ndir slots (slots[i]: a free item's z or zd, or a
+  // run-time input's; never a zdd), into dzdd (nf per slot, slot i's at dzdd + i nf). solve(x,
+  // m) solves Phi_q X = X in place for m columns (each nq long); solve_transposed(x, m) solves
+  // Phi_q^T Y = X in place (X by coordinate, Y by row); both return 0 or their status. Three
+  // calls in all (nf + 1 transposed columns, then ndir, then ndir), so that a solver factors
+  // Phi_q's blocks once per call. work: _tangent_work_size T's. Returns 0; 2 when
+  // M_z = B^T M B is not positive definite; 3 when a value is not finite; or a solve's status.
+  template <class T, class Solve, class SolveTransposed>
+  static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir, const int* slots, T* dzdd,
+                               T* work, Solve&& solve,
+                               SolveTransposed&& solve_transposed) noexcept {
+    const int nq = p.nq, nf = p.nf;
+    T* mb = work;
+    T* y = mb + nq * nf;  // Phi_q^-T M B, then lambda in column nf
+    T* mz = y + nq * (nf + 1);
+    T* dq = mz + nf * nf;
+    T* dqd = dq + nq * ndir;
+    T* r = dqd + nq * ndir;
+    T* f = r + nq;
+    for (int k = 0; k < nf; ++k)
+      _mass_times(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.b + k * nq, mb + k * nq);
+    for (int i = 0; i < nf; ++i)
+      for (int k = 0; k < nf; ++k) mz[i * nf + k] = _dot(nq, p.b + i * nq, mb + k * nq);
+    const _real<T> ratio = _ldlt_factor(nf, mz);
+    if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+    // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
+    T* lambda = y + nq * nf;
+    for (int k = 0; k < nq * nf; ++k) y[k] = mb[k];
+    _inertia_forces(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, f);
+    for (int k = 0; k < nq; ++k) lambda[k] = p.applied[k] - f[k];
+    if (const int s = solve_transposed(y, nf + 1)) return s;
+    // dq = -Phi_q^-1 Phi_w (B e_k for z_k), then dqd = -Phi_q^-1 r_v, all directions at once.
+    for (int i = 0; i < ndir * nq; ++i) dq[i] = T(0);
+    for (int i = 0; i < ndir; ++i) _sparse_column(p.phi_w, slots[i], T(-1), dq + i * nq);
+    if (const int s = solve(dq, ndir)) return s;
+    for (int i = 0; i < ndir; ++i) {
+      T* v = dqd + i * nq;
+      for (int k = 0; k < nq; ++k) v[k] = T(0);
+      _hessian_times(p.phi_qq, p.qd, dq + i * nq, v);
+      _sparse_add(p.nu_q, T(-1), dq + i * nq, v);
+      _sparse_column(p.nu_w, slots[i], T(-1), v);
+      for (int k = 0; k < nq; ++k) v[k] = -v[k];
+    }
+    if (const int s = solve(dqd, ndir)) return s;
+    for (int i = 0; i < ndir; ++i) {
+      _tangent_residuals(p, slots[i], lambda, dq + i * nq, dqd + i * nq, r, f);
+      T* out = dzdd + i * nf;
+      for (int k = 0; k < nf; ++k) out[k] = _dot(nq, y + k * nq, r) - _dot(nq, p.b + k * nq, f);
+      _ldlt_solve(nf, mz, out);
+      for (int k = 0; k < nf; ++k)
+        if (!_finite(_mag(out[k]))) return 3;
+    }
+    return 0;
+  }
+
+  template <class T>
+  static T _dot(int n, const T* a, const T* b) noexcept {
+    T s = T(0);
+    for (int k = 0; k < n; ++k) s += a[k] * b[k];
+    return s;
+  }
+
+  // One direction's acceleration residual r (r_a) and force f, as _dynamics_tangent describes
+  // them, from its dq and dqd.
+  template <class T>
+  static void _tangent_residuals(const _TangentPoint<T>& p, int slot, const T* lambda, const T* dq,
+                                 const T* dqd, T* r, T* f) noexcept {
+    for (int k = 0; k < p.nq; ++k) r[k] = f[k] = T(0);
+    _hessian_times(p.phi_qq, p.qdd, dq, r);
+    _sparse_add(p.gamma_q, T(-1), dq, r);
+    _sparse_add(p.gamma_qd, T(-1), dqd, r);
+    _sparse_column(p.gamma_w, slot, T(-1), r);
+    _inertia_tangent(p.nb, p.mass, p.ax, p.ay, p.qd, p.qdd, dq, dqd, f);
+    _hessian_transposed(p.phi_qq, lambda, dq, f);
+    _sparse_add(p.applied_q, T(-1), dq, f);
+    _sparse_add(p.applied_qd, T(-1), dqd, f);
+    _sparse_column(p.applied_w, slot, T(-1), f);
+  }
+  // ---- end of kinegen kernel linearize
+
+  // ---- kinegen kernel integrate (kinegen/kernels/integrate.hpp)
+  // One classical Runge-Kutta step of x' = f(t, x) over h, x (N values) in place. f(t, x, xd)
+  // writes x' and returns 0, or a status that ends the step at once with x unchanged.
+  template <int N, class T, class F>
+  static int _rk4_step(T t, T h, T* x, F&& f) noexcept {
+    T k[4][N], y[N];
+    const T half = h / T(2);
+    if (const int s = f(t, x, k[0])) return s;
+    for (int i = 0; i < N; ++i) y[i] = x[i] + half * k[0][i];
+    if (const int s = f(t + half, y, k[1])) return s;
+    for (int i = 0; i < N; ++i) y[i] = x[i] + half * k[1][i];
+    if (const int s = f(t + half, y, k[2])) return s;
+    for (int i = 0; i < N; ++i) y[i] = x[i] + h * k[2][i];
+    if (const int s = f(t + h, y, k[3])) return s;
+    for (int i = 0; i < N; ++i) x[i] += h / T(6) * (k[0][i] + T(2) * (k[1][i] + k[2][i]) + k[3][i]);
+    return 0;
+  }
+
+  // df/dx (N x N, row-major: jac[i * N + j] = d f_i / d x_j) by forward differences, the
+  // fallback where no exact Jacobian is at hand: step sqrt(eps) max(|x_j|, scale_j), about
+  // sqrt(eps) relative accuracy, which Newton on the stages needs no more than. fx = f(t, x).
+  template <int N, class T, class F>
+  static int _difference_jacobian(T t, const T* x, const T* fx, const _real<T>* scale, T* jac,
+                                  F&& f) noexcept {
+    using R = _real<T>;
+    const R root_eps = std::sqrt(std::numeric_limits<R>::epsilon());
+    T y[N], fy[N];
+    for (int i = 0; i < N; ++i) y[i] = x[i];
+    for (int j = 0; j < N; ++j) {
+      const R size = _mag(x[j]) > scale[j] ? _mag(x[j]) : scale[j];
+      const T d = T(root_eps * size);
+      y[j] = x[j] + d;
+      if (const int s = f(t, y, fy)) return s;
+      for (int i = 0; i < N; ++i) jac[i * N + j] = (fy[i] - fx[i]) / d;
+      y[j] = x[j];
+    }
+    return 0;
+  }
+
+  // One step over h of the two-stage SDIRK of Alexander (1977): gamma = 1 - 1/sqrt(2),
+  // c = (gamma, 1), a = [gamma 0; 1 - gamma gamma], b = the last row, so L-stable (stiff
+  // springs decay, never ring) and of order 2. Stage i solves Y = x + h (sum a_ij k_j), k_i =
+  // f(t + c_i h, Y_i), by simplified Newton on (I - h gamma J) dY = -G(Y) with J = df/dx at
+  // (t, x): jacobian(t, x, fx, J) fills it (row-major) from fx = f(t, x) and returns 0 or a
+  // status. Newton stops when the largest |dY_i| / scale_i is at most tolerance, or fails with
+  // status 1 after max_iterations; 2 when I - h gamma J is singular. x (N values) in place,
+  // unchanged on failure. iterations (optional) receives the Newton iterations taken.
+  template <int N, class T, class F, class J>
+  static int _sdirk2_step(T t, T h, T* x, const _real<T>* scale, F&& f, J&& jacobian,
+                          int max_iterations, _real<T> tolerance,
+                          int* iterations = nullptr) noexcept {
+    using R = _real<T>;
+    const R g = R(1) - std::sqrt(R(2)) / R(2);
+    T fx[N], jac[N * N], a[N * N], k1[N], y[N], fy[N], r[N];
+    int piv[N];
+    if (const int s = f(t, x, fx)) return s;
+    if (const int s = jacobian(t, x, fx, jac)) return s;
+    for (int i = 0; i < N * N; ++i) a[i] = -T(h * g) * jac[i];
+    for (int i = 0; i < N; ++i) a[i * N + i] += T(1);
+    const R ratio = _lu_factor<N>(a, piv);
+    if (!(ratio == ratio)) return 3;
+    if (!(ratio > R(0))) return 2;
+    int taken = 0;
+    // Stage i: base = x + h sum_{j<i} a_ij k_j; Y from the explicit guess base + h g f(t, x).
+    for (int stage = 0; stage < 2; ++stage) {
+      const T tc = stage == 0 ? t + T(g) * h : t + h;
+      T base[N];
+      for (int i = 0; i < N; ++i) base[i] = stage == 0 ? x[i] : x[i] + h * T(R(1) - g) * k1[i];
+      for (int i = 0; i < N; ++i) y[i] = base[i] + h * T(g) * fx[i];
+      bool converged = false;
+      for (int it = 0; it < max_iterations && !converged; ++it, ++taken) {
+        if (const int s = f(tc, y, fy)) return s;
+        for (int i = 0; i < N; ++i) r[i] = base[i] + h * T(g) * fy[i] - y[i];  // -G(Y)
+        _lu_solve<N>(a, piv, r);
+        R size = R(0);
+        for (int i = 0; i < N; ++i) {
+          y[i] += r[i];
+          const R s = _mag(r[i]) / scale[i];
+          size = s > size ? s : size;
+        }
+        if (!(size == size)) return 3;
+        converged = size <= tolerance;
+      }
+      if (!converged) return 1;
+      // k_i from the converged Y (no further evaluation of f): (Y - base) / (h gamma).
+      if (stage == 0)
+        for (int i = 0; i < N; ++i) k1[i] = (y[i] - base[i]) / (h * T(g));
+    }
+    for (int i = 0; i < N; ++i) x[i] = y[i];  // stiffly accurate: x_new = Y_2
+    if (iterations) *iterations = taken;
+    return 0;
+  }
+  // ---- end of kinegen kernel integrate
 
   // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then cache.data().
   template <class T>
@@ -2396,7 +2834,7 @@ struct n_four_bar_40 {
     // Block 81: rows 81 -> q[121] (explicit)
     q[121] = T(0);
     // Block 82: rows 242 -> q[2] (explicit)
-    q[2] = T(p.theta);
+    q[2] = _free_in<T>(p, 0, p.theta);
     T _sin2, _cos2;
     _trig(_sin2, _cos2, q[2], trig, 0);
     // Block 83: rows 82 -> q[123] (explicit)
@@ -3052,7 +3490,7 @@ struct n_four_bar_40 {
     // Block 81: rows 81 -> q[121]
     qd[121] = T(0);
     // Block 82: rows 242 -> q[2]
-    qd[2] = T(p.theta_v);
+    qd[2] = _free_in<T>(p, 1, p.theta_v);
     // Block 83: rows 82 -> q[123]
     T _sin2, _cos2;
     _trig(_sin2, _cos2, q[2], trig, 0);
@@ -3672,7 +4110,7 @@ struct n_four_bar_40 {
     // Block 81: rows 81 -> q[121]
     qdd[121] = T(0);
     // Block 82: rows 242 -> q[2]
-    qdd[2] = T(p.theta_a);
+    qdd[2] = _free_in<T>(p, 2, p.theta_a);
     // Block 83: rows 82 -> q[123]
     T _sin2, _cos2;
     _trig(_sin2, _cos2, q[2], trig, 0);
@@ -4416,8 +4854,8 @@ struct n_four_bar_40 {
     qd[121] = T(0);
     qdd[121] = T(0);
     // Block 82: rows 242 -> q[2]
-    qd[2] = T(p.theta_v);
-    qdd[2] = T(p.theta_a);
+    qd[2] = _free_in<T>(p, 1, p.theta_v);
+    qdd[2] = _free_in<T>(p, 2, p.theta_a);
     // Block 83: rows 82 -> q[123]
     T _sin2, _cos2;
     _trig(_sin2, _cos2, q[2], trig, 0);
@@ -8660,6 +9098,2164 @@ struct n_four_bar_40 {
       out[362] = -jac[635] * lambda[240] - jac[639] * lambda[241] - (g[564] * fy - g[565] * fx);  // about the point
     }
   }
+
+  // ---- Forward dynamics in minimal coordinates (mechanism format 7.2, 7.5): the free
+  // items are the coordinates z; q(z, t) by the block solver with z as drivers' values,
+  // qd = B zd + b and qdd = B zdd + c with B = dq/dz, then (B^T M B) zdd = B^T (Q^A - M c)
+  // by the dynamics kernel: what `kinegen simulate` computes.
+  static constexpr bool has_dynamics = true;
+  static constexpr int nf = 1;  // free coordinates
+  static constexpr int num_bodies = 81;
+  static constexpr std::array<const char*, nf> free_names = {"theta"};
+  // Each free item's row of Phi: quantity - z, or for a distance |d|^2 - z^2.
+  static constexpr std::array<int, nf> free_rows = {242};
+  static constexpr std::array<bool, nf> free_distance = {false};
+  // Where each body's m, J and A com start in _force_geometry's output (-1: no mass).
+  static constexpr std::array<int, num_bodies> _mass_at = {0, 4, 8, 12, 16, 20, 24, 28, 32, 36, 40, 44, 48, 52, 56, 60, 64, 68, 72, 76, 80, 84, 88, 92, 96, 100, 104, 108, 112, 116, 120, 124, 128, 132, 136, 140, 144, 148, 152, 156, 160, 164, 168, 172, 176, 180, 184, 188, 192, 196, 200, 204, 208, 212, 216, 220, 224, 228, 232, 236, 240, 244, 248, 252, 256, 260, 264, 268, 272, 276, 280, 284, 288, 292, 296, 300, 304, 308, 312, 316, 320};
+
+  // dynamics()' state and work space, caller-owned (no heap). q, qd and qdd are the last
+  // call's (q: the next position solve's start, the file's q0 at first); state holds
+  // z, zd and zdd, block_signs each Newton block's determinant sign (a change: status 6).
+  template <class T>
+  struct DynamicsWork {
+    T q[nq], qd[nq], qdd[nq], state[3 * nf];
+    signed char block_signs[num_blocks];
+    T jac[jac_nnz], e[nq * nf], b[nq * nf], mb[nq * nf], g[nq], f[nq], mz[nf * nf];
+    T factors[block_factor_begin[num_blocks]];  // Phi_q's blocks at q
+    // The position solves' sin/cos cache, kept from call to call as the command line
+    // keeps it (so that the solves are the same bits) and as kinegen::Solver does.
+    T trig[trig_cache_size > 0 ? trig_cache_size : 1];
+    int pivots[nq];
+    T geometry[566], mass[num_bodies], inertia[num_bodies], ax[num_bodies], ay[num_bodies];
+    DynamicsWork() noexcept { reset(); }
+    // Back to the file's q0, no recorded branch, an empty cache (a new start).
+    void reset() noexcept {
+      for (int k = 0; k < nq; ++k) q[k] = T(q0[k]);
+      for (int k = 0; k < num_blocks; ++k) block_signs[k] = 0;
+      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty
+    }
+  };
+
+  // zdd[nf] at (z, zd, t) and, in w, q, qd, qdd. The status is solve_step's, or 2 where
+  // B^T M B's LDL^T pivot ratio is at most options.singular_pivot_ratio (a free coordinate
+  // that moves no mass), 3 where a value is not finite; block -1 for the reduction.
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics(const T* z, const T* zd, T t, const Params& p, T* zdd,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w) noexcept {
+    using R = _real<T>;
+    const BasicBlockOptions<R> o = _options_as<R>(options);
+    Params pz = p;
+    for (int k = 0; k < nf; ++k) {
+      w.state[k] = z[k];
+      w.state[nf + k] = zd[k];
+      w.state[2 * nf + k] = T(0);  // qdd = c first: the accelerations at zdd = 0
+    }
+    pz._free = w.state;
+    BlockReport<R> r = solve_step(w.q, t, pz, w.qd, w.qdd, o, w.trig, w.block_signs);
+    if (r.status != 0) return r;
+    // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), each block
+    // factored once (the factors kept for dynamics_jacobians' solves at this q).
+    phi_q(w.q, t, pz, w.jac);
+    for (int i = 0; i < nq * nf; ++i) w.e[i] = T(0);
+    for (int k = 0; k < nf; ++k)
+      w.e[k * nq + free_rows[k]] = free_distance[k] ? T(2) * z[k] : T(1);
+    const BlockReport<R> rb = _block_factor_all<_model>(w.jac, w.factors, w.pivots, o);
+    if (rb.status != 0) return _fail(r, rb.status, rb.block);
+    if (rb.rcond < r.rcond) r.rcond = rb.rcond;
+    if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
+      return _fail(r, 3, -1);
+    // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
+    // (the same products; the geometry computed once for both).
+    _force_geometry(w.q, t, pz, w.geometry);
+    for (int i = 0; i < num_bodies; ++i) {
+      const int a = _mass_at[i];
+      w.mass[i] = a < 0 ? T(0) : w.geometry[a];
+      w.inertia[i] = a < 0 ? T(0) : w.geometry[a + 1];
+      w.ax[i] = a < 0 ? T(0) : w.geometry[a + 2];
+      w.ay[i] = a < 0 ? T(0) : w.geometry[a + 3];
+    }
+    applied_force(w.q, w.qd, t, pz, w.g);
+    _inertia_forces(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.qd, w.qdd, w.f);
+    for (int k = 0; k < nq; ++k) w.g[k] -= w.f[k];
+    for (int k = 0; k < nf; ++k)
+      _mass_times(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.b + k * nq, w.mb + k * nq);
+    const R ratio = _reduced_accelerations(nq, nf, w.b, w.mb, w.g, w.mz, zdd, w.qdd);
+    if (!(ratio == ratio)) return _fail(r, 3, -1);
+    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
+    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
+    for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
+    return r;
+  }
+
+  // The same from the file's q0, with no state kept: the first call of a motion, or a test.
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics(const T* z, const T* zd, T t, const Params& p, T* zdd,
+      const BasicBlockOptions<U>& options) noexcept {
+    DynamicsWork<T> w;
+    return dynamics(z, zd, t, p, zdd, options, w);
+  }
+
+  // ---- The exact Jacobians of zdd(z, zd, u) (format 7.5), for linear-quadratic and
+  // model-predictive control: the run-time inputs u are the loads' (Params members).
+  static constexpr bool has_dynamics_jacobians = true;
+  static constexpr int num_inputs = 0;
+  static constexpr std::array<const char*, num_inputs> input_names = {};
+
+ private:
+  // The tangent's derivatives (symbolic/tangent.hpp): Phi_qq, nu_q, gamma_q, gamma_qd,
+  // Phi_w, nu_w, gamma_w, Q^A, Q^A_q, Q^A_qd and Q^A_w (w: the input slots, 3 per driver
+  // then the loads' inputs), each starting at _tangent_begin[piece], and their places.
+  static constexpr std::array<int, 12> _tangent_begin = {0, 240, 240, 480, 720, 721, 722, 723, 966, 1047, 1047, 1047};
+  static constexpr std::array<int, 240> _phi_qq_row = {82, 83, 84, 84, 85, 85, 86, 87, 88, 88, 89, 89, 90, 91, 92, 92, 93, 93, 94, 95, 96, 96, 97, 97, 98, 99, 100, 100, 101, 101, 102, 103, 104, 104, 105, 105, 106, 107, 108, 108, 109, 109, 110, 111, 112, 112, 113, 113, 114, 115, 116, 116, 117, 117, 118, 119, 120, 120, 121, 121, 122, 123, 124, 124, 125, 125, 126, 127, 128, 128, 129, 129, 130, 131, 132, 132, 133, 133, 134, 135, 136, 136, 137, 137, 138, 139, 140, 140, 141, 141, 142, 143, 144, 144, 145, 145, 146, 147, 148, 148, 149, 149, 150, 151, 152, 152, 153, 153, 154, 155, 156, 156, 157, 157, 158, 159, 160, 160, 161, 161, 162, 163, 164, 164, 165, 165, 166, 167, 168, 168, 169, 169, 170, 171, 172, 172, 173, 173, 174, 175, 176, 176, 177, 177, 178, 179, 180, 180, 181, 181, 182, 183, 184, 184, 185, 185, 186, 187, 188, 188, 189, 189, 190, 191, 192, 192, 193, 193, 194, 195, 196, 196, 197, 197, 198, 199, 200, 200, 201, 201, 202, 203, 204, 204, 205, 205, 206, 207, 208, 208, 209, 209, 210, 211, 212, 212, 213, 213, 214, 215, 216, 216, 217, 217, 218, 219, 220, 220, 221, 221, 222, 223, 224, 224, 225, 225, 226, 227, 228, 228, 229, 229, 230, 231, 232, 232, 233, 233, 234, 235, 236, 236, 237, 237, 238, 239, 240, 240, 241, 241};
+  static constexpr std::array<int, 240> _phi_qq_j = {2, 2, 5, 125, 5, 125, 5, 5, 8, 128, 8, 128, 8, 8, 11, 131, 11, 131, 11, 11, 14, 134, 14, 134, 14, 14, 17, 137, 17, 137, 17, 17, 20, 140, 20, 140, 20, 20, 23, 143, 23, 143, 23, 23, 26, 146, 26, 146, 26, 26, 29, 149, 29, 149, 29, 29, 32, 152, 32, 152, 32, 32, 35, 155, 35, 155, 35, 35, 38, 158, 38, 158, 38, 38, 41, 161, 41, 161, 41, 41, 44, 164, 44, 164, 44, 44, 47, 167, 47, 167, 47, 47, 50, 170, 50, 170, 50, 50, 53, 173, 53, 173, 53, 53, 56, 176, 56, 176, 56, 56, 59, 179, 59, 179, 59, 59, 62, 182, 62, 182, 62, 62, 65, 185, 65, 185, 65, 65, 68, 188, 68, 188, 68, 68, 71, 191, 71, 191, 71, 71, 74, 194, 74, 194, 74, 74, 77, 197, 77, 197, 77, 77, 80, 200, 80, 200, 80, 80, 83, 203, 83, 203, 83, 83, 86, 206, 86, 206, 86, 86, 89, 209, 89, 209, 89, 89, 92, 212, 92, 212, 92, 92, 95, 215, 95, 215, 95, 95, 98, 218, 98, 218, 98, 98, 101, 221, 101, 221, 101, 101, 104, 224, 104, 224, 104, 104, 107, 227, 107, 227, 107, 107, 110, 230, 110, 230, 110, 110, 113, 233, 113, 233, 113, 113, 116, 236, 116, 236, 116, 116, 119, 239, 119, 239, 119, 119, 122, 242, 122, 242};
+  static constexpr std::array<int, 240> _phi_qq_k = {2, 2, 5, 125, 5, 125, 5, 5, 8, 128, 8, 128, 8, 8, 11, 131, 11, 131, 11, 11, 14, 134, 14, 134, 14, 14, 17, 137, 17, 137, 17, 17, 20, 140, 20, 140, 20, 20, 23, 143, 23, 143, 23, 23, 26, 146, 26, 146, 26, 26, 29, 149, 29, 149, 29, 29, 32, 152, 32, 152, 32, 32, 35, 155, 35, 155, 35, 35, 38, 158, 38, 158, 38, 38, 41, 161, 41, 161, 41, 41, 44, 164, 44, 164, 44, 44, 47, 167, 47, 167, 47, 47, 50, 170, 50, 170, 50, 50, 53, 173, 53, 173, 53, 53, 56, 176, 56, 176, 56, 56, 59, 179, 59, 179, 59, 59, 62, 182, 62, 182, 62, 62, 65, 185, 65, 185, 65, 65, 68, 188, 68, 188, 68, 68, 71, 191, 71, 191, 71, 71, 74, 194, 74, 194, 74, 74, 77, 197, 77, 197, 77, 77, 80, 200, 80, 200, 80, 80, 83, 203, 83, 203, 83, 83, 86, 206, 86, 206, 86, 86, 89, 209, 89, 209, 89, 89, 92, 212, 92, 212, 92, 92, 95, 215, 95, 215, 95, 95, 98, 218, 98, 218, 98, 98, 101, 221, 101, 221, 101, 101, 104, 224, 104, 224, 104, 104, 107, 227, 107, 227, 107, 107, 110, 230, 110, 230, 110, 110, 113, 233, 113, 233, 113, 113, 116, 236, 116, 236, 116, 116, 119, 239, 119, 239, 119, 119, 122, 242, 122, 242};
+  static constexpr std::array<int, 0> _nu_q_row = {};
+  static constexpr std::array<int, 0> _nu_q_col = {};
+  static constexpr std::array<int, 240> _gamma_q_row = {82, 83, 84, 84, 85, 85, 86, 87, 88, 88, 89, 89, 90, 91, 92, 92, 93, 93, 94, 95, 96, 96, 97, 97, 98, 99, 100, 100, 101, 101, 102, 103, 104, 104, 105, 105, 106, 107, 108, 108, 109, 109, 110, 111, 112, 112, 113, 113, 114, 115, 116, 116, 117, 117, 118, 119, 120, 120, 121, 121, 122, 123, 124, 124, 125, 125, 126, 127, 128, 128, 129, 129, 130, 131, 132, 132, 133, 133, 134, 135, 136, 136, 137, 137, 138, 139, 140, 140, 141, 141, 142, 143, 144, 144, 145, 145, 146, 147, 148, 148, 149, 149, 150, 151, 152, 152, 153, 153, 154, 155, 156, 156, 157, 157, 158, 159, 160, 160, 161, 161, 162, 163, 164, 164, 165, 165, 166, 167, 168, 168, 169, 169, 170, 171, 172, 172, 173, 173, 174, 175, 176, 176, 177, 177, 178, 179, 180, 180, 181, 181, 182, 183, 184, 184, 185, 185, 186, 187, 188, 188, 189, 189, 190, 191, 192, 192, 193, 193, 194, 195, 196, 196, 197, 197, 198, 199, 200, 200, 201, 201, 202, 203, 204, 204, 205, 205, 206, 207, 208, 208, 209, 209, 210, 211, 212, 212, 213, 213, 214, 215, 216, 216, 217, 217, 218, 219, 220, 220, 221, 221, 222, 223, 224, 224, 225, 225, 226, 227, 228, 228, 229, 229, 230, 231, 232, 232, 233, 233, 234, 235, 236, 236, 237, 237, 238, 239, 240, 240, 241, 241};
+  static constexpr std::array<int, 240> _gamma_q_col = {2, 2, 5, 125, 5, 125, 5, 5, 8, 128, 8, 128, 8, 8, 11, 131, 11, 131, 11, 11, 14, 134, 14, 134, 14, 14, 17, 137, 17, 137, 17, 17, 20, 140, 20, 140, 20, 20, 23, 143, 23, 143, 23, 23, 26, 146, 26, 146, 26, 26, 29, 149, 29, 149, 29, 29, 32, 152, 32, 152, 32, 32, 35, 155, 35, 155, 35, 35, 38, 158, 38, 158, 38, 38, 41, 161, 41, 161, 41, 41, 44, 164, 44, 164, 44, 44, 47, 167, 47, 167, 47, 47, 50, 170, 50, 170, 50, 50, 53, 173, 53, 173, 53, 53, 56, 176, 56, 176, 56, 56, 59, 179, 59, 179, 59, 59, 62, 182, 62, 182, 62, 62, 65, 185, 65, 185, 65, 65, 68, 188, 68, 188, 68, 68, 71, 191, 71, 191, 71, 71, 74, 194, 74, 194, 74, 74, 77, 197, 77, 197, 77, 77, 80, 200, 80, 200, 80, 80, 83, 203, 83, 203, 83, 83, 86, 206, 86, 206, 86, 86, 89, 209, 89, 209, 89, 89, 92, 212, 92, 212, 92, 92, 95, 215, 95, 215, 95, 95, 98, 218, 98, 218, 98, 98, 101, 221, 101, 221, 101, 101, 104, 224, 104, 224, 104, 104, 107, 227, 107, 227, 107, 107, 110, 230, 110, 230, 110, 110, 113, 233, 113, 233, 113, 113, 116, 236, 116, 236, 116, 116, 119, 239, 119, 239, 119, 119, 122, 242, 122, 242};
+  static constexpr std::array<int, 240> _gamma_qd_row = {82, 83, 84, 84, 85, 85, 86, 87, 88, 88, 89, 89, 90, 91, 92, 92, 93, 93, 94, 95, 96, 96, 97, 97, 98, 99, 100, 100, 101, 101, 102, 103, 104, 104, 105, 105, 106, 107, 108, 108, 109, 109, 110, 111, 112, 112, 113, 113, 114, 115, 116, 116, 117, 117, 118, 119, 120, 120, 121, 121, 122, 123, 124, 124, 125, 125, 126, 127, 128, 128, 129, 129, 130, 131, 132, 132, 133, 133, 134, 135, 136, 136, 137, 137, 138, 139, 140, 140, 141, 141, 142, 143, 144, 144, 145, 145, 146, 147, 148, 148, 149, 149, 150, 151, 152, 152, 153, 153, 154, 155, 156, 156, 157, 157, 158, 159, 160, 160, 161, 161, 162, 163, 164, 164, 165, 165, 166, 167, 168, 168, 169, 169, 170, 171, 172, 172, 173, 173, 174, 175, 176, 176, 177, 177, 178, 179, 180, 180, 181, 181, 182, 183, 184, 184, 185, 185, 186, 187, 188, 188, 189, 189, 190, 191, 192, 192, 193, 193, 194, 195, 196, 196, 197, 197, 198, 199, 200, 200, 201, 201, 202, 203, 204, 204, 205, 205, 206, 207, 208, 208, 209, 209, 210, 211, 212, 212, 213, 213, 214, 215, 216, 216, 217, 217, 218, 219, 220, 220, 221, 221, 222, 223, 224, 224, 225, 225, 226, 227, 228, 228, 229, 229, 230, 231, 232, 232, 233, 233, 234, 235, 236, 236, 237, 237, 238, 239, 240, 240, 241, 241};
+  static constexpr std::array<int, 240> _gamma_qd_col = {2, 2, 5, 125, 5, 125, 5, 5, 8, 128, 8, 128, 8, 8, 11, 131, 11, 131, 11, 11, 14, 134, 14, 134, 14, 14, 17, 137, 17, 137, 17, 17, 20, 140, 20, 140, 20, 20, 23, 143, 23, 143, 23, 23, 26, 146, 26, 146, 26, 26, 29, 149, 29, 149, 29, 29, 32, 152, 32, 152, 32, 32, 35, 155, 35, 155, 35, 35, 38, 158, 38, 158, 38, 38, 41, 161, 41, 161, 41, 41, 44, 164, 44, 164, 44, 44, 47, 167, 47, 167, 47, 47, 50, 170, 50, 170, 50, 50, 53, 173, 53, 173, 53, 53, 56, 176, 56, 176, 56, 56, 59, 179, 59, 179, 59, 59, 62, 182, 62, 182, 62, 62, 65, 185, 65, 185, 65, 65, 68, 188, 68, 188, 68, 68, 71, 191, 71, 191, 71, 71, 74, 194, 74, 194, 74, 74, 77, 197, 77, 197, 77, 77, 80, 200, 80, 200, 80, 80, 83, 203, 83, 203, 83, 83, 86, 206, 86, 206, 86, 86, 89, 209, 89, 209, 89, 89, 92, 212, 92, 212, 92, 92, 95, 215, 95, 215, 95, 95, 98, 218, 98, 218, 98, 98, 101, 221, 101, 221, 101, 101, 104, 224, 104, 224, 104, 104, 107, 227, 107, 227, 107, 107, 110, 230, 110, 230, 110, 110, 113, 233, 113, 233, 113, 113, 116, 236, 116, 236, 116, 116, 119, 239, 119, 239, 119, 119, 122, 242, 122, 242};
+  static constexpr std::array<int, 1> _phi_w_row = {242};
+  static constexpr std::array<int, 1> _phi_w_col = {0};
+  static constexpr std::array<int, 1> _nu_w_row = {242};
+  static constexpr std::array<int, 1> _nu_w_col = {1};
+  static constexpr std::array<int, 1> _gamma_w_row = {242};
+  static constexpr std::array<int, 1> _gamma_w_col = {2};
+  static constexpr std::array<int, 81> _applied_q_row = {2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 41, 44, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 83, 86, 89, 92, 95, 98, 101, 104, 107, 110, 113, 116, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 152, 155, 158, 161, 164, 167, 170, 173, 176, 179, 182, 185, 188, 191, 194, 197, 200, 203, 206, 209, 212, 215, 218, 221, 224, 227, 230, 233, 236, 239, 242};
+  static constexpr std::array<int, 81> _applied_q_col = {2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 41, 44, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 83, 86, 89, 92, 95, 98, 101, 104, 107, 110, 113, 116, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 152, 155, 158, 161, 164, 167, 170, 173, 176, 179, 182, 185, 188, 191, 194, 197, 200, 203, 206, 209, 212, 215, 218, 221, 224, 227, 230, 233, 236, 239, 242};
+  static constexpr std::array<int, 0> _applied_qd_row = {};
+  static constexpr std::array<int, 0> _applied_qd_col = {};
+  static constexpr std::array<int, 0> _applied_w_row = {};
+  static constexpr std::array<int, 0> _applied_w_col = {};
+  static constexpr std::array<int, 2> _tangent_slots = {0, 1};
+ private:
+  template <class T>
+  static void __tangent_values_part0([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+    // out[0..199]; 334 operations
+    using std::cos, std::sin;
+    // Intermediate terms (134)
+    const T _t0 = cos(q[2]);
+    const T _t1 = sin(q[2]);
+    const T _t2 = cos(q[5]);
+    const T _t3 = cos(q[125]);
+    const T _t4 = sin(q[5]);
+    const T _t5 = sin(q[125]);
+    const T _t6 = cos(q[8]);
+    const T _t7 = cos(q[128]);
+    const T _t8 = sin(q[8]);
+    const T _t9 = sin(q[128]);
+    const T _t10 = cos(q[11]);
+    const T _t11 = cos(q[131]);
+    const T _t12 = sin(q[11]);
+    const T _t13 = sin(q[131]);
+    const T _t14 = cos(q[14]);
+    const T _t15 = cos(q[134]);
+    const T _t16 = sin(q[14]);
+    const T _t17 = sin(q[134]);
+    const T _t18 = cos(q[17]);
+    const T _t19 = cos(q[137]);
+    const T _t20 = sin(q[17]);
+    const T _t21 = sin(q[137]);
+    const T _t22 = cos(q[20]);
+    const T _t23 = cos(q[140]);
+    const T _t24 = sin(q[20]);
+    const T _t25 = sin(q[140]);
+    const T _t26 = cos(q[23]);
+    const T _t27 = cos(q[143]);
+    const T _t28 = sin(q[23]);
+    const T _t29 = sin(q[143]);
+    const T _t30 = cos(q[26]);
+    const T _t31 = cos(q[146]);
+    const T _t32 = sin(q[26]);
+    const T _t33 = sin(q[146]);
+    const T _t34 = cos(q[29]);
+    const T _t35 = cos(q[149]);
+    const T _t36 = sin(q[29]);
+    const T _t37 = sin(q[149]);
+    const T _t38 = cos(q[32]);
+    const T _t39 = cos(q[152]);
+    const T _t40 = sin(q[32]);
+    const T _t41 = sin(q[152]);
+    const T _t42 = cos(q[35]);
+    const T _t43 = cos(q[155]);
+    const T _t44 = sin(q[35]);
+    const T _t45 = sin(q[155]);
+    const T _t46 = cos(q[38]);
+    const T _t47 = cos(q[158]);
+    const T _t48 = sin(q[38]);
+    const T _t49 = sin(q[158]);
+    const T _t50 = cos(q[41]);
+    const T _t51 = cos(q[161]);
+    const T _t52 = sin(q[41]);
+    const T _t53 = sin(q[161]);
+    const T _t54 = cos(q[44]);
+    const T _t55 = cos(q[164]);
+    const T _t56 = sin(q[44]);
+    const T _t57 = sin(q[164]);
+    const T _t58 = cos(q[47]);
+    const T _t59 = cos(q[167]);
+    const T _t60 = sin(q[47]);
+    const T _t61 = sin(q[167]);
+    const T _t62 = cos(q[50]);
+    const T _t63 = cos(q[170]);
+    const T _t64 = sin(q[50]);
+    const T _t65 = sin(q[170]);
+    const T _t66 = cos(q[53]);
+    const T _t67 = cos(q[173]);
+    const T _t68 = sin(q[53]);
+    const T _t69 = sin(q[173]);
+    const T _t70 = cos(q[56]);
+    const T _t71 = cos(q[176]);
+    const T _t72 = sin(q[56]);
+    const T _t73 = sin(q[176]);
+    const T _t74 = cos(q[59]);
+    const T _t75 = cos(q[179]);
+    const T _t76 = sin(q[59]);
+    const T _t77 = sin(q[179]);
+    const T _t78 = cos(q[62]);
+    const T _t79 = cos(q[182]);
+    const T _t80 = sin(q[62]);
+    const T _t81 = sin(q[182]);
+    const T _t82 = cos(q[65]);
+    const T _t83 = cos(q[185]);
+    const T _t84 = sin(q[65]);
+    const T _t85 = sin(q[185]);
+    const T _t86 = cos(q[68]);
+    const T _t87 = cos(q[188]);
+    const T _t88 = sin(q[68]);
+    const T _t89 = sin(q[188]);
+    const T _t90 = cos(q[71]);
+    const T _t91 = cos(q[191]);
+    const T _t92 = sin(q[71]);
+    const T _t93 = sin(q[191]);
+    const T _t94 = cos(q[74]);
+    const T _t95 = cos(q[194]);
+    const T _t96 = sin(q[74]);
+    const T _t97 = sin(q[194]);
+    const T _t98 = cos(q[77]);
+    const T _t99 = cos(q[197]);
+    const T _t100 = sin(q[77]);
+    const T _t101 = sin(q[197]);
+    const T _t102 = cos(q[80]);
+    const T _t103 = cos(q[200]);
+    const T _t104 = sin(q[80]);
+    const T _t105 = sin(q[200]);
+    const T _t106 = cos(q[83]);
+    const T _t107 = cos(q[203]);
+    const T _t108 = sin(q[83]);
+    const T _t109 = sin(q[203]);
+    const T _t110 = cos(q[86]);
+    const T _t111 = cos(q[206]);
+    const T _t112 = sin(q[86]);
+    const T _t113 = sin(q[206]);
+    const T _t114 = cos(q[89]);
+    const T _t115 = cos(q[209]);
+    const T _t116 = sin(q[89]);
+    const T _t117 = sin(q[209]);
+    const T _t118 = cos(q[92]);
+    const T _t119 = cos(q[212]);
+    const T _t120 = sin(q[92]);
+    const T _t121 = sin(q[212]);
+    const T _t122 = cos(q[95]);
+    const T _t123 = cos(q[215]);
+    const T _t124 = sin(q[95]);
+    const T _t125 = sin(q[215]);
+    const T _t126 = cos(q[98]);
+    const T _t127 = cos(q[218]);
+    const T _t128 = sin(q[98]);
+    const T _t129 = sin(q[218]);
+    const T _t130 = cos(q[101]);
+    const T _t131 = cos(q[221]);
+    const T _t132 = sin(q[101]);
+    const T _t133 = sin(q[221]);
+
+    // Output terms (200)
+    out[0] = _t0*T(p.l);
+    out[1] = T(p.l)*_t1;
+    out[2] = -_t2*T(p.l);
+    out[3] = _t3*T(p.l);
+    out[4] = -T(p.l)*_t4;
+    out[5] = T(p.l)*_t5;
+    out[6] = _t2*T(p.l);
+    out[7] = T(p.l)*_t4;
+    out[8] = -_t6*T(p.l);
+    out[9] = _t7*T(p.l);
+    out[10] = -T(p.l)*_t8;
+    out[11] = T(p.l)*_t9;
+    out[12] = _t6*T(p.l);
+    out[13] = T(p.l)*_t8;
+    out[14] = -_t10*T(p.l);
+    out[15] = _t11*T(p.l);
+    out[16] = -T(p.l)*_t12;
+    out[17] = T(p.l)*_t13;
+    out[18] = _t10*T(p.l);
+    out[19] = T(p.l)*_t12;
+    out[20] = -_t14*T(p.l);
+    out[21] = _t15*T(p.l);
+    out[22] = -T(p.l)*_t16;
+    out[23] = T(p.l)*_t17;
+    out[24] = _t14*T(p.l);
+    out[25] = T(p.l)*_t16;
+    out[26] = -_t18*T(p.l);
+    out[27] = _t19*T(p.l);
+    out[28] = -T(p.l)*_t20;
+    out[29] = T(p.l)*_t21;
+    out[30] = _t18*T(p.l);
+    out[31] = T(p.l)*_t20;
+    out[32] = -_t22*T(p.l);
+    out[33] = _t23*T(p.l);
+    out[34] = -T(p.l)*_t24;
+    out[35] = T(p.l)*_t25;
+    out[36] = _t22*T(p.l);
+    out[37] = T(p.l)*_t24;
+    out[38] = -_t26*T(p.l);
+    out[39] = _t27*T(p.l);
+    out[40] = -T(p.l)*_t28;
+    out[41] = T(p.l)*_t29;
+    out[42] = _t26*T(p.l);
+    out[43] = T(p.l)*_t28;
+    out[44] = -_t30*T(p.l);
+    out[45] = _t31*T(p.l);
+    out[46] = -T(p.l)*_t32;
+    out[47] = T(p.l)*_t33;
+    out[48] = _t30*T(p.l);
+    out[49] = T(p.l)*_t32;
+    out[50] = -_t34*T(p.l);
+    out[51] = _t35*T(p.l);
+    out[52] = -T(p.l)*_t36;
+    out[53] = T(p.l)*_t37;
+    out[54] = _t34*T(p.l);
+    out[55] = T(p.l)*_t36;
+    out[56] = -_t38*T(p.l);
+    out[57] = _t39*T(p.l);
+    out[58] = -T(p.l)*_t40;
+    out[59] = T(p.l)*_t41;
+    out[60] = _t38*T(p.l);
+    out[61] = T(p.l)*_t40;
+    out[62] = -_t42*T(p.l);
+    out[63] = _t43*T(p.l);
+    out[64] = -T(p.l)*_t44;
+    out[65] = T(p.l)*_t45;
+    out[66] = _t42*T(p.l);
+    out[67] = T(p.l)*_t44;
+    out[68] = -_t46*T(p.l);
+    out[69] = _t47*T(p.l);
+    out[70] = -T(p.l)*_t48;
+    out[71] = T(p.l)*_t49;
+    out[72] = _t46*T(p.l);
+    out[73] = T(p.l)*_t48;
+    out[74] = -_t50*T(p.l);
+    out[75] = _t51*T(p.l);
+    out[76] = -T(p.l)*_t52;
+    out[77] = T(p.l)*_t53;
+    out[78] = _t50*T(p.l);
+    out[79] = T(p.l)*_t52;
+    out[80] = -_t54*T(p.l);
+    out[81] = _t55*T(p.l);
+    out[82] = -T(p.l)*_t56;
+    out[83] = T(p.l)*_t57;
+    out[84] = _t54*T(p.l);
+    out[85] = T(p.l)*_t56;
+    out[86] = -_t58*T(p.l);
+    out[87] = _t59*T(p.l);
+    out[88] = -T(p.l)*_t60;
+    out[89] = T(p.l)*_t61;
+    out[90] = _t58*T(p.l);
+    out[91] = T(p.l)*_t60;
+    out[92] = -_t62*T(p.l);
+    out[93] = _t63*T(p.l);
+    out[94] = -T(p.l)*_t64;
+    out[95] = T(p.l)*_t65;
+    out[96] = _t62*T(p.l);
+    out[97] = T(p.l)*_t64;
+    out[98] = -_t66*T(p.l);
+    out[99] = _t67*T(p.l);
+    out[100] = -T(p.l)*_t68;
+    out[101] = T(p.l)*_t69;
+    out[102] = _t66*T(p.l);
+    out[103] = T(p.l)*_t68;
+    out[104] = -_t70*T(p.l);
+    out[105] = _t71*T(p.l);
+    out[106] = -T(p.l)*_t72;
+    out[107] = T(p.l)*_t73;
+    out[108] = _t70*T(p.l);
+    out[109] = T(p.l)*_t72;
+    out[110] = -_t74*T(p.l);
+    out[111] = _t75*T(p.l);
+    out[112] = -T(p.l)*_t76;
+    out[113] = T(p.l)*_t77;
+    out[114] = _t74*T(p.l);
+    out[115] = T(p.l)*_t76;
+    out[116] = -_t78*T(p.l);
+    out[117] = _t79*T(p.l);
+    out[118] = -T(p.l)*_t80;
+    out[119] = T(p.l)*_t81;
+    out[120] = _t78*T(p.l);
+    out[121] = T(p.l)*_t80;
+    out[122] = -_t82*T(p.l);
+    out[123] = _t83*T(p.l);
+    out[124] = -T(p.l)*_t84;
+    out[125] = T(p.l)*_t85;
+    out[126] = _t82*T(p.l);
+    out[127] = T(p.l)*_t84;
+    out[128] = -_t86*T(p.l);
+    out[129] = _t87*T(p.l);
+    out[130] = -T(p.l)*_t88;
+    out[131] = T(p.l)*_t89;
+    out[132] = _t86*T(p.l);
+    out[133] = T(p.l)*_t88;
+    out[134] = -_t90*T(p.l);
+    out[135] = _t91*T(p.l);
+    out[136] = -T(p.l)*_t92;
+    out[137] = T(p.l)*_t93;
+    out[138] = _t90*T(p.l);
+    out[139] = T(p.l)*_t92;
+    out[140] = -_t94*T(p.l);
+    out[141] = _t95*T(p.l);
+    out[142] = -T(p.l)*_t96;
+    out[143] = T(p.l)*_t97;
+    out[144] = _t94*T(p.l);
+    out[145] = T(p.l)*_t96;
+    out[146] = -_t98*T(p.l);
+    out[147] = _t99*T(p.l);
+    out[148] = -T(p.l)*_t100;
+    out[149] = T(p.l)*_t101;
+    out[150] = _t98*T(p.l);
+    out[151] = T(p.l)*_t100;
+    out[152] = -_t102*T(p.l);
+    out[153] = _t103*T(p.l);
+    out[154] = -T(p.l)*_t104;
+    out[155] = T(p.l)*_t105;
+    out[156] = _t102*T(p.l);
+    out[157] = T(p.l)*_t104;
+    out[158] = -_t106*T(p.l);
+    out[159] = _t107*T(p.l);
+    out[160] = -T(p.l)*_t108;
+    out[161] = T(p.l)*_t109;
+    out[162] = _t106*T(p.l);
+    out[163] = T(p.l)*_t108;
+    out[164] = -_t110*T(p.l);
+    out[165] = _t111*T(p.l);
+    out[166] = -T(p.l)*_t112;
+    out[167] = T(p.l)*_t113;
+    out[168] = _t110*T(p.l);
+    out[169] = T(p.l)*_t112;
+    out[170] = -_t114*T(p.l);
+    out[171] = _t115*T(p.l);
+    out[172] = -T(p.l)*_t116;
+    out[173] = T(p.l)*_t117;
+    out[174] = _t114*T(p.l);
+    out[175] = T(p.l)*_t116;
+    out[176] = -_t118*T(p.l);
+    out[177] = _t119*T(p.l);
+    out[178] = -T(p.l)*_t120;
+    out[179] = T(p.l)*_t121;
+    out[180] = _t118*T(p.l);
+    out[181] = T(p.l)*_t120;
+    out[182] = -_t122*T(p.l);
+    out[183] = _t123*T(p.l);
+    out[184] = -T(p.l)*_t124;
+    out[185] = T(p.l)*_t125;
+    out[186] = _t122*T(p.l);
+    out[187] = T(p.l)*_t124;
+    out[188] = -_t126*T(p.l);
+    out[189] = _t127*T(p.l);
+    out[190] = -T(p.l)*_t128;
+    out[191] = T(p.l)*_t129;
+    out[192] = _t126*T(p.l);
+    out[193] = T(p.l)*_t128;
+    out[194] = -_t130*T(p.l);
+    out[195] = _t131*T(p.l);
+    out[196] = -T(p.l)*_t132;
+    out[197] = T(p.l)*_t133;
+    out[198] = _t130*T(p.l);
+    out[199] = T(p.l)*_t132;
+  }
+  template <class T>
+  static void __tangent_values_part1([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+    // out[200..399]; 391 operations
+    using std::cos, std::sin;
+    // Intermediate terms (191)
+    const T _t0 = cos(q[2]);
+    const T _t1 = sin(q[2]);
+    const T _t2 = cos(q[5]);
+    const T _t3 = cos(q[125]);
+    const T _t4 = sin(q[5]);
+    const T _t5 = sin(q[125]);
+    const T _t6 = cos(q[8]);
+    const T _t7 = cos(q[128]);
+    const T _t8 = sin(q[8]);
+    const T _t9 = sin(q[128]);
+    const T _t10 = cos(q[11]);
+    const T _t11 = cos(q[131]);
+    const T _t12 = sin(q[11]);
+    const T _t13 = sin(q[131]);
+    const T _t14 = cos(q[14]);
+    const T _t15 = cos(q[134]);
+    const T _t16 = sin(q[14]);
+    const T _t17 = sin(q[134]);
+    const T _t18 = cos(q[17]);
+    const T _t19 = cos(q[137]);
+    const T _t20 = sin(q[17]);
+    const T _t21 = sin(q[137]);
+    const T _t22 = cos(q[20]);
+    const T _t23 = cos(q[140]);
+    const T _t24 = sin(q[20]);
+    const T _t25 = sin(q[140]);
+    const T _t26 = cos(q[23]);
+    const T _t27 = cos(q[143]);
+    const T _t28 = sin(q[23]);
+    const T _t29 = sin(q[143]);
+    const T _t30 = cos(q[26]);
+    const T _t31 = cos(q[146]);
+    const T _t32 = sin(q[26]);
+    const T _t33 = sin(q[146]);
+    const T _t34 = cos(q[29]);
+    const T _t35 = cos(q[149]);
+    const T _t36 = sin(q[29]);
+    const T _t37 = sin(q[149]);
+    const T _t38 = cos(q[32]);
+    const T _t39 = cos(q[152]);
+    const T _t40 = sin(q[32]);
+    const T _t41 = sin(q[152]);
+    const T _t42 = cos(q[35]);
+    const T _t43 = cos(q[155]);
+    const T _t44 = sin(q[35]);
+    const T _t45 = sin(q[155]);
+    const T _t46 = cos(q[38]);
+    const T _t47 = cos(q[158]);
+    const T _t48 = sin(q[38]);
+    const T _t49 = sin(q[158]);
+    const T _t50 = cos(q[41]);
+    const T _t51 = cos(q[161]);
+    const T _t52 = sin(q[41]);
+    const T _t53 = sin(q[161]);
+    const T _t54 = cos(q[44]);
+    const T _t55 = cos(q[164]);
+    const T _t56 = sin(q[44]);
+    const T _t57 = sin(q[164]);
+    const T _t58 = cos(q[47]);
+    const T _t59 = cos(q[167]);
+    const T _t60 = sin(q[47]);
+    const T _t61 = sin(q[167]);
+    const T _t62 = cos(q[50]);
+    const T _t63 = cos(q[170]);
+    const T _t64 = sin(q[50]);
+    const T _t65 = sin(q[170]);
+    const T _t66 = cos(q[53]);
+    const T _t67 = cos(q[173]);
+    const T _t68 = sin(q[53]);
+    const T _t69 = sin(q[173]);
+    const T _t70 = cos(q[56]);
+    const T _t71 = cos(q[176]);
+    const T _t72 = sin(q[56]);
+    const T _t73 = sin(q[176]);
+    const T _t74 = cos(q[59]);
+    const T _t75 = cos(q[179]);
+    const T _t76 = sin(q[59]);
+    const T _t77 = sin(q[179]);
+    const T _t78 = cos(q[62]);
+    const T _t79 = cos(q[182]);
+    const T _t80 = sin(q[62]);
+    const T _t81 = sin(q[182]);
+    const T _t82 = cos(q[65]);
+    const T _t83 = cos(q[185]);
+    const T _t84 = sin(q[65]);
+    const T _t85 = sin(q[185]);
+    const T _t86 = cos(q[68]);
+    const T _t87 = cos(q[188]);
+    const T _t88 = sin(q[68]);
+    const T _t89 = sin(q[188]);
+    const T _t90 = cos(q[71]);
+    const T _t91 = cos(q[191]);
+    const T _t92 = sin(q[71]);
+    const T _t93 = sin(q[191]);
+    const T _t94 = cos(q[74]);
+    const T _t95 = cos(q[194]);
+    const T _t96 = sin(q[74]);
+    const T _t97 = sin(q[194]);
+    const T _t98 = cos(q[77]);
+    const T _t99 = cos(q[197]);
+    const T _t100 = sin(q[77]);
+    const T _t101 = sin(q[197]);
+    const T _t102 = cos(q[80]);
+    const T _t103 = cos(q[200]);
+    const T _t104 = sin(q[80]);
+    const T _t105 = sin(q[200]);
+    const T _t106 = sin(q[83]);
+    const T _t107 = sin(q[203]);
+    const T _t108 = cos(q[104]);
+    const T _t109 = cos(q[224]);
+    const T _t110 = sin(q[104]);
+    const T _t111 = sin(q[224]);
+    const T _t112 = cos(q[107]);
+    const T _t113 = cos(q[227]);
+    const T _t114 = sin(q[107]);
+    const T _t115 = sin(q[227]);
+    const T _t116 = cos(q[110]);
+    const T _t117 = cos(q[230]);
+    const T _t118 = sin(q[110]);
+    const T _t119 = sin(q[230]);
+    const T _t120 = cos(q[113]);
+    const T _t121 = cos(q[233]);
+    const T _t122 = sin(q[113]);
+    const T _t123 = sin(q[233]);
+    const T _t124 = cos(q[116]);
+    const T _t125 = cos(q[236]);
+    const T _t126 = sin(q[116]);
+    const T _t127 = sin(q[236]);
+    const T _t128 = cos(q[119]);
+    const T _t129 = cos(q[239]);
+    const T _t130 = sin(q[119]);
+    const T _t131 = sin(q[239]);
+    const T _t132 = cos(q[122]);
+    const T _t133 = cos(q[242]);
+    const T _t134 = sin(q[122]);
+    const T _t135 = sin(q[242]);
+    const T _t136 = qd[2]*qd[2];
+    const T _t137 = qd[5]*qd[5];
+    const T _t138 = qd[125]*qd[125];
+    const T _t139 = qd[8]*qd[8];
+    const T _t140 = qd[128]*qd[128];
+    const T _t141 = qd[11]*qd[11];
+    const T _t142 = qd[131]*qd[131];
+    const T _t143 = qd[14]*qd[14];
+    const T _t144 = qd[134]*qd[134];
+    const T _t145 = qd[17]*qd[17];
+    const T _t146 = qd[137]*qd[137];
+    const T _t147 = qd[20]*qd[20];
+    const T _t148 = qd[140]*qd[140];
+    const T _t149 = qd[23]*qd[23];
+    const T _t150 = qd[143]*qd[143];
+    const T _t151 = qd[26]*qd[26];
+    const T _t152 = qd[146]*qd[146];
+    const T _t153 = qd[29]*qd[29];
+    const T _t154 = qd[149]*qd[149];
+    const T _t155 = qd[32]*qd[32];
+    const T _t156 = qd[152]*qd[152];
+    const T _t157 = qd[35]*qd[35];
+    const T _t158 = qd[155]*qd[155];
+    const T _t159 = qd[38]*qd[38];
+    const T _t160 = qd[158]*qd[158];
+    const T _t161 = qd[41]*qd[41];
+    const T _t162 = qd[161]*qd[161];
+    const T _t163 = qd[44]*qd[44];
+    const T _t164 = qd[164]*qd[164];
+    const T _t165 = qd[47]*qd[47];
+    const T _t166 = qd[167]*qd[167];
+    const T _t167 = qd[50]*qd[50];
+    const T _t168 = qd[170]*qd[170];
+    const T _t169 = qd[53]*qd[53];
+    const T _t170 = qd[173]*qd[173];
+    const T _t171 = qd[56]*qd[56];
+    const T _t172 = qd[176]*qd[176];
+    const T _t173 = qd[59]*qd[59];
+    const T _t174 = qd[179]*qd[179];
+    const T _t175 = qd[62]*qd[62];
+    const T _t176 = qd[182]*qd[182];
+    const T _t177 = qd[65]*qd[65];
+    const T _t178 = qd[185]*qd[185];
+    const T _t179 = qd[68]*qd[68];
+    const T _t180 = qd[188]*qd[188];
+    const T _t181 = qd[71]*qd[71];
+    const T _t182 = qd[191]*qd[191];
+    const T _t183 = qd[74]*qd[74];
+    const T _t184 = qd[194]*qd[194];
+    const T _t185 = qd[77]*qd[77];
+    const T _t186 = qd[197]*qd[197];
+    const T _t187 = qd[80]*qd[80];
+    const T _t188 = qd[200]*qd[200];
+    const T _t189 = qd[83]*qd[83];
+    const T _t190 = qd[203]*qd[203];
+
+    // Output terms (200)
+    out[200] = -_t108*T(p.l);
+    out[201] = _t109*T(p.l);
+    out[202] = -T(p.l)*_t110;
+    out[203] = T(p.l)*_t111;
+    out[204] = _t108*T(p.l);
+    out[205] = T(p.l)*_t110;
+    out[206] = -_t112*T(p.l);
+    out[207] = _t113*T(p.l);
+    out[208] = -T(p.l)*_t114;
+    out[209] = T(p.l)*_t115;
+    out[210] = _t112*T(p.l);
+    out[211] = T(p.l)*_t114;
+    out[212] = -_t116*T(p.l);
+    out[213] = _t117*T(p.l);
+    out[214] = -T(p.l)*_t118;
+    out[215] = T(p.l)*_t119;
+    out[216] = _t116*T(p.l);
+    out[217] = T(p.l)*_t118;
+    out[218] = -_t120*T(p.l);
+    out[219] = _t121*T(p.l);
+    out[220] = -T(p.l)*_t122;
+    out[221] = T(p.l)*_t123;
+    out[222] = _t120*T(p.l);
+    out[223] = T(p.l)*_t122;
+    out[224] = -_t124*T(p.l);
+    out[225] = _t125*T(p.l);
+    out[226] = -T(p.l)*_t126;
+    out[227] = T(p.l)*_t127;
+    out[228] = _t124*T(p.l);
+    out[229] = T(p.l)*_t126;
+    out[230] = -_t128*T(p.l);
+    out[231] = _t129*T(p.l);
+    out[232] = -T(p.l)*_t130;
+    out[233] = T(p.l)*_t131;
+    out[234] = _t128*T(p.l);
+    out[235] = T(p.l)*_t130;
+    out[236] = -_t132*T(p.l);
+    out[237] = _t133*T(p.l);
+    out[238] = -T(p.l)*_t134;
+    out[239] = T(p.l)*_t135;
+    out[240] = _t136*T(p.l)*_t1;
+    out[241] = -_t136*_t0*T(p.l);
+    out[242] = -_t137*T(p.l)*_t4;
+    out[243] = _t138*T(p.l)*_t5;
+    out[244] = _t137*_t2*T(p.l);
+    out[245] = -_t138*_t3*T(p.l);
+    out[246] = _t137*T(p.l)*_t4;
+    out[247] = -_t137*_t2*T(p.l);
+    out[248] = -_t139*T(p.l)*_t8;
+    out[249] = _t140*T(p.l)*_t9;
+    out[250] = _t139*_t6*T(p.l);
+    out[251] = -_t140*_t7*T(p.l);
+    out[252] = _t139*T(p.l)*_t8;
+    out[253] = -_t139*_t6*T(p.l);
+    out[254] = -_t141*T(p.l)*_t12;
+    out[255] = _t142*T(p.l)*_t13;
+    out[256] = _t141*_t10*T(p.l);
+    out[257] = -_t142*_t11*T(p.l);
+    out[258] = _t141*T(p.l)*_t12;
+    out[259] = -_t141*_t10*T(p.l);
+    out[260] = -_t143*T(p.l)*_t16;
+    out[261] = _t144*T(p.l)*_t17;
+    out[262] = _t143*_t14*T(p.l);
+    out[263] = -_t144*_t15*T(p.l);
+    out[264] = _t143*T(p.l)*_t16;
+    out[265] = -_t143*_t14*T(p.l);
+    out[266] = -_t145*T(p.l)*_t20;
+    out[267] = _t146*T(p.l)*_t21;
+    out[268] = _t145*_t18*T(p.l);
+    out[269] = -_t146*_t19*T(p.l);
+    out[270] = _t145*T(p.l)*_t20;
+    out[271] = -_t145*_t18*T(p.l);
+    out[272] = -_t147*T(p.l)*_t24;
+    out[273] = _t148*T(p.l)*_t25;
+    out[274] = _t147*_t22*T(p.l);
+    out[275] = -_t148*_t23*T(p.l);
+    out[276] = _t147*T(p.l)*_t24;
+    out[277] = -_t147*_t22*T(p.l);
+    out[278] = -_t149*T(p.l)*_t28;
+    out[279] = _t150*T(p.l)*_t29;
+    out[280] = _t149*_t26*T(p.l);
+    out[281] = -_t150*_t27*T(p.l);
+    out[282] = _t149*T(p.l)*_t28;
+    out[283] = -_t149*_t26*T(p.l);
+    out[284] = -_t151*T(p.l)*_t32;
+    out[285] = _t152*T(p.l)*_t33;
+    out[286] = _t151*_t30*T(p.l);
+    out[287] = -_t152*_t31*T(p.l);
+    out[288] = _t151*T(p.l)*_t32;
+    out[289] = -_t151*_t30*T(p.l);
+    out[290] = -_t153*T(p.l)*_t36;
+    out[291] = _t154*T(p.l)*_t37;
+    out[292] = _t153*_t34*T(p.l);
+    out[293] = -_t154*_t35*T(p.l);
+    out[294] = _t153*T(p.l)*_t36;
+    out[295] = -_t153*_t34*T(p.l);
+    out[296] = -_t155*T(p.l)*_t40;
+    out[297] = _t156*T(p.l)*_t41;
+    out[298] = _t155*_t38*T(p.l);
+    out[299] = -_t156*_t39*T(p.l);
+    out[300] = _t155*T(p.l)*_t40;
+    out[301] = -_t155*_t38*T(p.l);
+    out[302] = -_t157*T(p.l)*_t44;
+    out[303] = _t158*T(p.l)*_t45;
+    out[304] = _t157*_t42*T(p.l);
+    out[305] = -_t158*_t43*T(p.l);
+    out[306] = _t157*T(p.l)*_t44;
+    out[307] = -_t157*_t42*T(p.l);
+    out[308] = -_t159*T(p.l)*_t48;
+    out[309] = _t160*T(p.l)*_t49;
+    out[310] = _t159*_t46*T(p.l);
+    out[311] = -_t160*_t47*T(p.l);
+    out[312] = _t159*T(p.l)*_t48;
+    out[313] = -_t159*_t46*T(p.l);
+    out[314] = -_t161*T(p.l)*_t52;
+    out[315] = _t162*T(p.l)*_t53;
+    out[316] = _t161*_t50*T(p.l);
+    out[317] = -_t162*_t51*T(p.l);
+    out[318] = _t161*T(p.l)*_t52;
+    out[319] = -_t161*_t50*T(p.l);
+    out[320] = -_t163*T(p.l)*_t56;
+    out[321] = _t164*T(p.l)*_t57;
+    out[322] = _t163*_t54*T(p.l);
+    out[323] = -_t164*_t55*T(p.l);
+    out[324] = _t163*T(p.l)*_t56;
+    out[325] = -_t163*_t54*T(p.l);
+    out[326] = -_t165*T(p.l)*_t60;
+    out[327] = _t166*T(p.l)*_t61;
+    out[328] = _t165*_t58*T(p.l);
+    out[329] = -_t166*_t59*T(p.l);
+    out[330] = _t165*T(p.l)*_t60;
+    out[331] = -_t165*_t58*T(p.l);
+    out[332] = -_t167*T(p.l)*_t64;
+    out[333] = _t168*T(p.l)*_t65;
+    out[334] = _t167*_t62*T(p.l);
+    out[335] = -_t168*_t63*T(p.l);
+    out[336] = _t167*T(p.l)*_t64;
+    out[337] = -_t167*_t62*T(p.l);
+    out[338] = -_t169*T(p.l)*_t68;
+    out[339] = _t170*T(p.l)*_t69;
+    out[340] = _t169*_t66*T(p.l);
+    out[341] = -_t170*_t67*T(p.l);
+    out[342] = _t169*T(p.l)*_t68;
+    out[343] = -_t169*_t66*T(p.l);
+    out[344] = -_t171*T(p.l)*_t72;
+    out[345] = _t172*T(p.l)*_t73;
+    out[346] = _t171*_t70*T(p.l);
+    out[347] = -_t172*_t71*T(p.l);
+    out[348] = _t171*T(p.l)*_t72;
+    out[349] = -_t171*_t70*T(p.l);
+    out[350] = -_t173*T(p.l)*_t76;
+    out[351] = _t174*T(p.l)*_t77;
+    out[352] = _t173*_t74*T(p.l);
+    out[353] = -_t174*_t75*T(p.l);
+    out[354] = _t173*T(p.l)*_t76;
+    out[355] = -_t173*_t74*T(p.l);
+    out[356] = -_t175*T(p.l)*_t80;
+    out[357] = _t176*T(p.l)*_t81;
+    out[358] = _t175*_t78*T(p.l);
+    out[359] = -_t176*_t79*T(p.l);
+    out[360] = _t175*T(p.l)*_t80;
+    out[361] = -_t175*_t78*T(p.l);
+    out[362] = -_t177*T(p.l)*_t84;
+    out[363] = _t178*T(p.l)*_t85;
+    out[364] = _t177*_t82*T(p.l);
+    out[365] = -_t178*_t83*T(p.l);
+    out[366] = _t177*T(p.l)*_t84;
+    out[367] = -_t177*_t82*T(p.l);
+    out[368] = -_t179*T(p.l)*_t88;
+    out[369] = _t180*T(p.l)*_t89;
+    out[370] = _t179*_t86*T(p.l);
+    out[371] = -_t180*_t87*T(p.l);
+    out[372] = _t179*T(p.l)*_t88;
+    out[373] = -_t179*_t86*T(p.l);
+    out[374] = -_t181*T(p.l)*_t92;
+    out[375] = _t182*T(p.l)*_t93;
+    out[376] = _t181*_t90*T(p.l);
+    out[377] = -_t182*_t91*T(p.l);
+    out[378] = _t181*T(p.l)*_t92;
+    out[379] = -_t181*_t90*T(p.l);
+    out[380] = -_t183*T(p.l)*_t96;
+    out[381] = _t184*T(p.l)*_t97;
+    out[382] = _t183*_t94*T(p.l);
+    out[383] = -_t184*_t95*T(p.l);
+    out[384] = _t183*T(p.l)*_t96;
+    out[385] = -_t183*_t94*T(p.l);
+    out[386] = -_t185*T(p.l)*_t100;
+    out[387] = _t186*T(p.l)*_t101;
+    out[388] = _t185*_t98*T(p.l);
+    out[389] = -_t186*_t99*T(p.l);
+    out[390] = _t185*T(p.l)*_t100;
+    out[391] = -_t185*_t98*T(p.l);
+    out[392] = -_t187*T(p.l)*_t104;
+    out[393] = _t188*T(p.l)*_t105;
+    out[394] = _t187*_t102*T(p.l);
+    out[395] = -_t188*_t103*T(p.l);
+    out[396] = _t187*T(p.l)*_t104;
+    out[397] = -_t187*_t102*T(p.l);
+    out[398] = -_t189*T(p.l)*_t106;
+    out[399] = _t190*T(p.l)*_t107;
+  }
+  template <class T>
+  static void __tangent_values_part2([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+    // out[400..599]; 365 operations
+    using std::cos, std::sin;
+    // Intermediate terms (165)
+    const T _t0 = cos(q[2]);
+    const T _t1 = sin(q[2]);
+    const T _t2 = cos(q[5]);
+    const T _t3 = cos(q[125]);
+    const T _t4 = sin(q[5]);
+    const T _t5 = sin(q[125]);
+    const T _t6 = cos(q[8]);
+    const T _t7 = cos(q[128]);
+    const T _t8 = sin(q[8]);
+    const T _t9 = sin(q[128]);
+    const T _t10 = cos(q[11]);
+    const T _t11 = cos(q[131]);
+    const T _t12 = sin(q[11]);
+    const T _t13 = sin(q[131]);
+    const T _t14 = cos(q[14]);
+    const T _t15 = cos(q[134]);
+    const T _t16 = sin(q[14]);
+    const T _t17 = sin(q[134]);
+    const T _t18 = cos(q[17]);
+    const T _t19 = cos(q[137]);
+    const T _t20 = sin(q[17]);
+    const T _t21 = sin(q[137]);
+    const T _t22 = cos(q[20]);
+    const T _t23 = cos(q[140]);
+    const T _t24 = sin(q[20]);
+    const T _t25 = sin(q[140]);
+    const T _t26 = cos(q[23]);
+    const T _t27 = cos(q[143]);
+    const T _t28 = sin(q[23]);
+    const T _t29 = sin(q[143]);
+    const T _t30 = cos(q[26]);
+    const T _t31 = cos(q[146]);
+    const T _t32 = sin(q[26]);
+    const T _t33 = sin(q[146]);
+    const T _t34 = cos(q[29]);
+    const T _t35 = cos(q[149]);
+    const T _t36 = sin(q[29]);
+    const T _t37 = sin(q[149]);
+    const T _t38 = cos(q[32]);
+    const T _t39 = cos(q[152]);
+    const T _t40 = sin(q[32]);
+    const T _t41 = sin(q[152]);
+    const T _t42 = cos(q[35]);
+    const T _t43 = cos(q[155]);
+    const T _t44 = sin(q[35]);
+    const T _t45 = sin(q[155]);
+    const T _t46 = cos(q[38]);
+    const T _t47 = cos(q[158]);
+    const T _t48 = sin(q[38]);
+    const T _t49 = sin(q[158]);
+    const T _t50 = cos(q[41]);
+    const T _t51 = cos(q[161]);
+    const T _t52 = sin(q[41]);
+    const T _t53 = sin(q[161]);
+    const T _t54 = cos(q[44]);
+    const T _t55 = cos(q[164]);
+    const T _t56 = sin(q[44]);
+    const T _t57 = sin(q[164]);
+    const T _t58 = cos(q[47]);
+    const T _t59 = cos(q[167]);
+    const T _t60 = sin(q[47]);
+    const T _t61 = sin(q[167]);
+    const T _t62 = cos(q[50]);
+    const T _t63 = cos(q[170]);
+    const T _t64 = sin(q[50]);
+    const T _t65 = sin(q[170]);
+    const T _t66 = cos(q[53]);
+    const T _t67 = cos(q[173]);
+    const T _t68 = sin(q[53]);
+    const T _t69 = sin(q[173]);
+    const T _t70 = cos(q[56]);
+    const T _t71 = cos(q[176]);
+    const T _t72 = sin(q[56]);
+    const T _t73 = sin(q[176]);
+    const T _t74 = cos(q[59]);
+    const T _t75 = cos(q[179]);
+    const T _t76 = sin(q[59]);
+    const T _t77 = sin(q[179]);
+    const T _t78 = cos(q[62]);
+    const T _t79 = cos(q[182]);
+    const T _t80 = sin(q[62]);
+    const T _t81 = sin(q[182]);
+    const T _t82 = cos(q[83]);
+    const T _t83 = cos(q[203]);
+    const T _t84 = sin(q[83]);
+    const T _t85 = cos(q[86]);
+    const T _t86 = cos(q[206]);
+    const T _t87 = sin(q[86]);
+    const T _t88 = sin(q[206]);
+    const T _t89 = cos(q[89]);
+    const T _t90 = cos(q[209]);
+    const T _t91 = sin(q[89]);
+    const T _t92 = sin(q[209]);
+    const T _t93 = cos(q[92]);
+    const T _t94 = cos(q[212]);
+    const T _t95 = sin(q[92]);
+    const T _t96 = sin(q[212]);
+    const T _t97 = cos(q[95]);
+    const T _t98 = cos(q[215]);
+    const T _t99 = sin(q[95]);
+    const T _t100 = sin(q[215]);
+    const T _t101 = cos(q[98]);
+    const T _t102 = cos(q[218]);
+    const T _t103 = sin(q[98]);
+    const T _t104 = sin(q[218]);
+    const T _t105 = cos(q[101]);
+    const T _t106 = cos(q[221]);
+    const T _t107 = sin(q[101]);
+    const T _t108 = sin(q[221]);
+    const T _t109 = cos(q[104]);
+    const T _t110 = cos(q[224]);
+    const T _t111 = sin(q[104]);
+    const T _t112 = sin(q[224]);
+    const T _t113 = cos(q[107]);
+    const T _t114 = cos(q[227]);
+    const T _t115 = sin(q[107]);
+    const T _t116 = sin(q[227]);
+    const T _t117 = cos(q[110]);
+    const T _t118 = cos(q[230]);
+    const T _t119 = sin(q[110]);
+    const T _t120 = sin(q[230]);
+    const T _t121 = cos(q[113]);
+    const T _t122 = cos(q[233]);
+    const T _t123 = sin(q[113]);
+    const T _t124 = sin(q[233]);
+    const T _t125 = cos(q[116]);
+    const T _t126 = cos(q[236]);
+    const T _t127 = sin(q[116]);
+    const T _t128 = sin(q[236]);
+    const T _t129 = cos(q[119]);
+    const T _t130 = cos(q[239]);
+    const T _t131 = sin(q[119]);
+    const T _t132 = sin(q[239]);
+    const T _t133 = cos(q[122]);
+    const T _t134 = cos(q[242]);
+    const T _t135 = sin(q[122]);
+    const T _t136 = sin(q[242]);
+    const T _t137 = qd[83]*qd[83];
+    const T _t138 = qd[203]*qd[203];
+    const T _t139 = qd[86]*qd[86];
+    const T _t140 = qd[206]*qd[206];
+    const T _t141 = qd[89]*qd[89];
+    const T _t142 = qd[209]*qd[209];
+    const T _t143 = qd[92]*qd[92];
+    const T _t144 = qd[212]*qd[212];
+    const T _t145 = qd[95]*qd[95];
+    const T _t146 = qd[215]*qd[215];
+    const T _t147 = qd[98]*qd[98];
+    const T _t148 = qd[218]*qd[218];
+    const T _t149 = qd[101]*qd[101];
+    const T _t150 = qd[221]*qd[221];
+    const T _t151 = qd[104]*qd[104];
+    const T _t152 = qd[224]*qd[224];
+    const T _t153 = qd[107]*qd[107];
+    const T _t154 = qd[227]*qd[227];
+    const T _t155 = qd[110]*qd[110];
+    const T _t156 = qd[230]*qd[230];
+    const T _t157 = qd[113]*qd[113];
+    const T _t158 = qd[233]*qd[233];
+    const T _t159 = qd[116]*qd[116];
+    const T _t160 = qd[236]*qd[236];
+    const T _t161 = qd[119]*qd[119];
+    const T _t162 = qd[239]*qd[239];
+    const T _t163 = qd[122]*qd[122];
+    const T _t164 = qd[242]*qd[242];
+
+    // Output terms (200)
+    out[400] = _t137*_t82*T(p.l);
+    out[401] = -_t138*_t83*T(p.l);
+    out[402] = _t137*T(p.l)*_t84;
+    out[403] = -_t137*_t82*T(p.l);
+    out[404] = -_t139*T(p.l)*_t87;
+    out[405] = _t140*T(p.l)*_t88;
+    out[406] = _t139*_t85*T(p.l);
+    out[407] = -_t140*_t86*T(p.l);
+    out[408] = _t139*T(p.l)*_t87;
+    out[409] = -_t139*_t85*T(p.l);
+    out[410] = -_t141*T(p.l)*_t91;
+    out[411] = _t142*T(p.l)*_t92;
+    out[412] = _t141*_t89*T(p.l);
+    out[413] = -_t142*_t90*T(p.l);
+    out[414] = _t141*T(p.l)*_t91;
+    out[415] = -_t141*_t89*T(p.l);
+    out[416] = -_t143*T(p.l)*_t95;
+    out[417] = _t144*T(p.l)*_t96;
+    out[418] = _t143*_t93*T(p.l);
+    out[419] = -_t144*_t94*T(p.l);
+    out[420] = _t143*T(p.l)*_t95;
+    out[421] = -_t143*_t93*T(p.l);
+    out[422] = -_t145*T(p.l)*_t99;
+    out[423] = _t146*T(p.l)*_t100;
+    out[424] = _t145*_t97*T(p.l);
+    out[425] = -_t146*_t98*T(p.l);
+    out[426] = _t145*T(p.l)*_t99;
+    out[427] = -_t145*_t97*T(p.l);
+    out[428] = -_t147*T(p.l)*_t103;
+    out[429] = _t148*T(p.l)*_t104;
+    out[430] = _t147*_t101*T(p.l);
+    out[431] = -_t148*_t102*T(p.l);
+    out[432] = _t147*T(p.l)*_t103;
+    out[433] = -_t147*_t101*T(p.l);
+    out[434] = -_t149*T(p.l)*_t107;
+    out[435] = _t150*T(p.l)*_t108;
+    out[436] = _t149*_t105*T(p.l);
+    out[437] = -_t150*_t106*T(p.l);
+    out[438] = _t149*T(p.l)*_t107;
+    out[439] = -_t149*_t105*T(p.l);
+    out[440] = -_t151*T(p.l)*_t111;
+    out[441] = _t152*T(p.l)*_t112;
+    out[442] = _t151*_t109*T(p.l);
+    out[443] = -_t152*_t110*T(p.l);
+    out[444] = _t151*T(p.l)*_t111;
+    out[445] = -_t151*_t109*T(p.l);
+    out[446] = -_t153*T(p.l)*_t115;
+    out[447] = _t154*T(p.l)*_t116;
+    out[448] = _t153*_t113*T(p.l);
+    out[449] = -_t154*_t114*T(p.l);
+    out[450] = _t153*T(p.l)*_t115;
+    out[451] = -_t153*_t113*T(p.l);
+    out[452] = -_t155*T(p.l)*_t119;
+    out[453] = _t156*T(p.l)*_t120;
+    out[454] = _t155*_t117*T(p.l);
+    out[455] = -_t156*_t118*T(p.l);
+    out[456] = _t155*T(p.l)*_t119;
+    out[457] = -_t155*_t117*T(p.l);
+    out[458] = -_t157*T(p.l)*_t123;
+    out[459] = _t158*T(p.l)*_t124;
+    out[460] = _t157*_t121*T(p.l);
+    out[461] = -_t158*_t122*T(p.l);
+    out[462] = _t157*T(p.l)*_t123;
+    out[463] = -_t157*_t121*T(p.l);
+    out[464] = -_t159*T(p.l)*_t127;
+    out[465] = _t160*T(p.l)*_t128;
+    out[466] = _t159*_t125*T(p.l);
+    out[467] = -_t160*_t126*T(p.l);
+    out[468] = _t159*T(p.l)*_t127;
+    out[469] = -_t159*_t125*T(p.l);
+    out[470] = -_t161*T(p.l)*_t131;
+    out[471] = _t162*T(p.l)*_t132;
+    out[472] = _t161*_t129*T(p.l);
+    out[473] = -_t162*_t130*T(p.l);
+    out[474] = _t161*T(p.l)*_t131;
+    out[475] = -_t161*_t129*T(p.l);
+    out[476] = -_t163*T(p.l)*_t135;
+    out[477] = _t164*T(p.l)*_t136;
+    out[478] = _t163*_t133*T(p.l);
+    out[479] = -_t164*_t134*T(p.l);
+    out[480] = T(-2)*_t0*T(p.l)*qd[2];
+    out[481] = T(-2)*T(p.l)*_t1*qd[2];
+    out[482] = T(2)*_t2*T(p.l)*qd[5];
+    out[483] = T(-2)*_t3*T(p.l)*qd[125];
+    out[484] = T(2)*T(p.l)*_t4*qd[5];
+    out[485] = T(-2)*T(p.l)*_t5*qd[125];
+    out[486] = T(-2)*_t2*T(p.l)*qd[5];
+    out[487] = T(-2)*T(p.l)*_t4*qd[5];
+    out[488] = T(2)*_t6*T(p.l)*qd[8];
+    out[489] = T(-2)*_t7*T(p.l)*qd[128];
+    out[490] = T(2)*T(p.l)*_t8*qd[8];
+    out[491] = T(-2)*T(p.l)*_t9*qd[128];
+    out[492] = T(-2)*_t6*T(p.l)*qd[8];
+    out[493] = T(-2)*T(p.l)*_t8*qd[8];
+    out[494] = T(2)*_t10*T(p.l)*qd[11];
+    out[495] = T(-2)*_t11*T(p.l)*qd[131];
+    out[496] = T(2)*T(p.l)*_t12*qd[11];
+    out[497] = T(-2)*T(p.l)*_t13*qd[131];
+    out[498] = T(-2)*_t10*T(p.l)*qd[11];
+    out[499] = T(-2)*T(p.l)*_t12*qd[11];
+    out[500] = T(2)*_t14*T(p.l)*qd[14];
+    out[501] = T(-2)*_t15*T(p.l)*qd[134];
+    out[502] = T(2)*T(p.l)*_t16*qd[14];
+    out[503] = T(-2)*T(p.l)*_t17*qd[134];
+    out[504] = T(-2)*_t14*T(p.l)*qd[14];
+    out[505] = T(-2)*T(p.l)*_t16*qd[14];
+    out[506] = T(2)*_t18*T(p.l)*qd[17];
+    out[507] = T(-2)*_t19*T(p.l)*qd[137];
+    out[508] = T(2)*T(p.l)*_t20*qd[17];
+    out[509] = T(-2)*T(p.l)*_t21*qd[137];
+    out[510] = T(-2)*_t18*T(p.l)*qd[17];
+    out[511] = T(-2)*T(p.l)*_t20*qd[17];
+    out[512] = T(2)*_t22*T(p.l)*qd[20];
+    out[513] = T(-2)*_t23*T(p.l)*qd[140];
+    out[514] = T(2)*T(p.l)*_t24*qd[20];
+    out[515] = T(-2)*T(p.l)*_t25*qd[140];
+    out[516] = T(-2)*_t22*T(p.l)*qd[20];
+    out[517] = T(-2)*T(p.l)*_t24*qd[20];
+    out[518] = T(2)*_t26*T(p.l)*qd[23];
+    out[519] = T(-2)*_t27*T(p.l)*qd[143];
+    out[520] = T(2)*T(p.l)*_t28*qd[23];
+    out[521] = T(-2)*T(p.l)*_t29*qd[143];
+    out[522] = T(-2)*_t26*T(p.l)*qd[23];
+    out[523] = T(-2)*T(p.l)*_t28*qd[23];
+    out[524] = T(2)*_t30*T(p.l)*qd[26];
+    out[525] = T(-2)*_t31*T(p.l)*qd[146];
+    out[526] = T(2)*T(p.l)*_t32*qd[26];
+    out[527] = T(-2)*T(p.l)*_t33*qd[146];
+    out[528] = T(-2)*_t30*T(p.l)*qd[26];
+    out[529] = T(-2)*T(p.l)*_t32*qd[26];
+    out[530] = T(2)*_t34*T(p.l)*qd[29];
+    out[531] = T(-2)*_t35*T(p.l)*qd[149];
+    out[532] = T(2)*T(p.l)*_t36*qd[29];
+    out[533] = T(-2)*T(p.l)*_t37*qd[149];
+    out[534] = T(-2)*_t34*T(p.l)*qd[29];
+    out[535] = T(-2)*T(p.l)*_t36*qd[29];
+    out[536] = T(2)*_t38*T(p.l)*qd[32];
+    out[537] = T(-2)*_t39*T(p.l)*qd[152];
+    out[538] = T(2)*T(p.l)*_t40*qd[32];
+    out[539] = T(-2)*T(p.l)*_t41*qd[152];
+    out[540] = T(-2)*_t38*T(p.l)*qd[32];
+    out[541] = T(-2)*T(p.l)*_t40*qd[32];
+    out[542] = T(2)*_t42*T(p.l)*qd[35];
+    out[543] = T(-2)*_t43*T(p.l)*qd[155];
+    out[544] = T(2)*T(p.l)*_t44*qd[35];
+    out[545] = T(-2)*T(p.l)*_t45*qd[155];
+    out[546] = T(-2)*_t42*T(p.l)*qd[35];
+    out[547] = T(-2)*T(p.l)*_t44*qd[35];
+    out[548] = T(2)*_t46*T(p.l)*qd[38];
+    out[549] = T(-2)*_t47*T(p.l)*qd[158];
+    out[550] = T(2)*T(p.l)*_t48*qd[38];
+    out[551] = T(-2)*T(p.l)*_t49*qd[158];
+    out[552] = T(-2)*_t46*T(p.l)*qd[38];
+    out[553] = T(-2)*T(p.l)*_t48*qd[38];
+    out[554] = T(2)*_t50*T(p.l)*qd[41];
+    out[555] = T(-2)*_t51*T(p.l)*qd[161];
+    out[556] = T(2)*T(p.l)*_t52*qd[41];
+    out[557] = T(-2)*T(p.l)*_t53*qd[161];
+    out[558] = T(-2)*_t50*T(p.l)*qd[41];
+    out[559] = T(-2)*T(p.l)*_t52*qd[41];
+    out[560] = T(2)*_t54*T(p.l)*qd[44];
+    out[561] = T(-2)*_t55*T(p.l)*qd[164];
+    out[562] = T(2)*T(p.l)*_t56*qd[44];
+    out[563] = T(-2)*T(p.l)*_t57*qd[164];
+    out[564] = T(-2)*_t54*T(p.l)*qd[44];
+    out[565] = T(-2)*T(p.l)*_t56*qd[44];
+    out[566] = T(2)*_t58*T(p.l)*qd[47];
+    out[567] = T(-2)*_t59*T(p.l)*qd[167];
+    out[568] = T(2)*T(p.l)*_t60*qd[47];
+    out[569] = T(-2)*T(p.l)*_t61*qd[167];
+    out[570] = T(-2)*_t58*T(p.l)*qd[47];
+    out[571] = T(-2)*T(p.l)*_t60*qd[47];
+    out[572] = T(2)*_t62*T(p.l)*qd[50];
+    out[573] = T(-2)*_t63*T(p.l)*qd[170];
+    out[574] = T(2)*T(p.l)*_t64*qd[50];
+    out[575] = T(-2)*T(p.l)*_t65*qd[170];
+    out[576] = T(-2)*_t62*T(p.l)*qd[50];
+    out[577] = T(-2)*T(p.l)*_t64*qd[50];
+    out[578] = T(2)*_t66*T(p.l)*qd[53];
+    out[579] = T(-2)*_t67*T(p.l)*qd[173];
+    out[580] = T(2)*T(p.l)*_t68*qd[53];
+    out[581] = T(-2)*T(p.l)*_t69*qd[173];
+    out[582] = T(-2)*_t66*T(p.l)*qd[53];
+    out[583] = T(-2)*T(p.l)*_t68*qd[53];
+    out[584] = T(2)*_t70*T(p.l)*qd[56];
+    out[585] = T(-2)*_t71*T(p.l)*qd[176];
+    out[586] = T(2)*T(p.l)*_t72*qd[56];
+    out[587] = T(-2)*T(p.l)*_t73*qd[176];
+    out[588] = T(-2)*_t70*T(p.l)*qd[56];
+    out[589] = T(-2)*T(p.l)*_t72*qd[56];
+    out[590] = T(2)*_t74*T(p.l)*qd[59];
+    out[591] = T(-2)*_t75*T(p.l)*qd[179];
+    out[592] = T(2)*T(p.l)*_t76*qd[59];
+    out[593] = T(-2)*T(p.l)*_t77*qd[179];
+    out[594] = T(-2)*_t74*T(p.l)*qd[59];
+    out[595] = T(-2)*T(p.l)*_t76*qd[59];
+    out[596] = T(2)*_t78*T(p.l)*qd[62];
+    out[597] = T(-2)*_t79*T(p.l)*qd[182];
+    out[598] = T(2)*T(p.l)*_t80*qd[62];
+    out[599] = T(-2)*T(p.l)*_t81*qd[182];
+  }
+  template <class T>
+  static void __tangent_values_part3([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+    // out[600..799]; 248 operations
+    using std::cos, std::sin;
+    // Intermediate terms (103)
+    const T _t0 = cos(q[2]);
+    const T _t1 = cos(q[5]);
+    const T _t2 = cos(q[8]);
+    const T _t3 = cos(q[11]);
+    const T _t4 = cos(q[14]);
+    const T _t5 = cos(q[17]);
+    const T _t6 = cos(q[20]);
+    const T _t7 = cos(q[23]);
+    const T _t8 = cos(q[26]);
+    const T _t9 = cos(q[29]);
+    const T _t10 = cos(q[32]);
+    const T _t11 = cos(q[35]);
+    const T _t12 = cos(q[38]);
+    const T _t13 = cos(q[41]);
+    const T _t14 = cos(q[44]);
+    const T _t15 = cos(q[47]);
+    const T _t16 = cos(q[50]);
+    const T _t17 = cos(q[53]);
+    const T _t18 = cos(q[56]);
+    const T _t19 = cos(q[59]);
+    const T _t20 = cos(q[62]);
+    const T _t21 = sin(q[62]);
+    const T _t22 = cos(q[65]);
+    const T _t23 = cos(q[185]);
+    const T _t24 = sin(q[65]);
+    const T _t25 = sin(q[185]);
+    const T _t26 = cos(q[68]);
+    const T _t27 = cos(q[188]);
+    const T _t28 = sin(q[68]);
+    const T _t29 = sin(q[188]);
+    const T _t30 = cos(q[71]);
+    const T _t31 = cos(q[191]);
+    const T _t32 = sin(q[71]);
+    const T _t33 = sin(q[191]);
+    const T _t34 = cos(q[74]);
+    const T _t35 = cos(q[194]);
+    const T _t36 = sin(q[74]);
+    const T _t37 = sin(q[194]);
+    const T _t38 = cos(q[77]);
+    const T _t39 = cos(q[197]);
+    const T _t40 = sin(q[77]);
+    const T _t41 = sin(q[197]);
+    const T _t42 = cos(q[80]);
+    const T _t43 = cos(q[200]);
+    const T _t44 = sin(q[80]);
+    const T _t45 = sin(q[200]);
+    const T _t46 = cos(q[83]);
+    const T _t47 = cos(q[203]);
+    const T _t48 = sin(q[83]);
+    const T _t49 = sin(q[203]);
+    const T _t50 = cos(q[86]);
+    const T _t51 = cos(q[206]);
+    const T _t52 = sin(q[86]);
+    const T _t53 = sin(q[206]);
+    const T _t54 = cos(q[89]);
+    const T _t55 = cos(q[209]);
+    const T _t56 = sin(q[89]);
+    const T _t57 = sin(q[209]);
+    const T _t58 = cos(q[92]);
+    const T _t59 = cos(q[212]);
+    const T _t60 = sin(q[92]);
+    const T _t61 = sin(q[212]);
+    const T _t62 = cos(q[95]);
+    const T _t63 = cos(q[215]);
+    const T _t64 = sin(q[95]);
+    const T _t65 = sin(q[215]);
+    const T _t66 = cos(q[98]);
+    const T _t67 = cos(q[218]);
+    const T _t68 = sin(q[98]);
+    const T _t69 = sin(q[218]);
+    const T _t70 = cos(q[101]);
+    const T _t71 = cos(q[221]);
+    const T _t72 = sin(q[101]);
+    const T _t73 = sin(q[221]);
+    const T _t74 = cos(q[104]);
+    const T _t75 = cos(q[224]);
+    const T _t76 = sin(q[104]);
+    const T _t77 = sin(q[224]);
+    const T _t78 = cos(q[107]);
+    const T _t79 = cos(q[227]);
+    const T _t80 = sin(q[107]);
+    const T _t81 = sin(q[227]);
+    const T _t82 = cos(q[110]);
+    const T _t83 = cos(q[230]);
+    const T _t84 = sin(q[110]);
+    const T _t85 = sin(q[230]);
+    const T _t86 = cos(q[113]);
+    const T _t87 = cos(q[233]);
+    const T _t88 = sin(q[113]);
+    const T _t89 = sin(q[233]);
+    const T _t90 = cos(q[116]);
+    const T _t91 = cos(q[236]);
+    const T _t92 = sin(q[116]);
+    const T _t93 = sin(q[236]);
+    const T _t94 = cos(q[119]);
+    const T _t95 = cos(q[239]);
+    const T _t96 = sin(q[119]);
+    const T _t97 = sin(q[239]);
+    const T _t98 = cos(q[122]);
+    const T _t99 = cos(q[242]);
+    const T _t100 = sin(q[122]);
+    const T _t101 = sin(q[242]);
+    const T _t102 = -T(p.m)*T(p.g);
+
+    // Output terms (200)
+    out[600] = T(-2)*_t20*T(p.l)*qd[62];
+    out[601] = T(-2)*T(p.l)*_t21*qd[62];
+    out[602] = T(2)*_t22*T(p.l)*qd[65];
+    out[603] = T(-2)*_t23*T(p.l)*qd[185];
+    out[604] = T(2)*T(p.l)*_t24*qd[65];
+    out[605] = T(-2)*T(p.l)*_t25*qd[185];
+    out[606] = T(-2)*_t22*T(p.l)*qd[65];
+    out[607] = T(-2)*T(p.l)*_t24*qd[65];
+    out[608] = T(2)*_t26*T(p.l)*qd[68];
+    out[609] = T(-2)*_t27*T(p.l)*qd[188];
+    out[610] = T(2)*T(p.l)*_t28*qd[68];
+    out[611] = T(-2)*T(p.l)*_t29*qd[188];
+    out[612] = T(-2)*_t26*T(p.l)*qd[68];
+    out[613] = T(-2)*T(p.l)*_t28*qd[68];
+    out[614] = T(2)*_t30*T(p.l)*qd[71];
+    out[615] = T(-2)*_t31*T(p.l)*qd[191];
+    out[616] = T(2)*T(p.l)*_t32*qd[71];
+    out[617] = T(-2)*T(p.l)*_t33*qd[191];
+    out[618] = T(-2)*_t30*T(p.l)*qd[71];
+    out[619] = T(-2)*T(p.l)*_t32*qd[71];
+    out[620] = T(2)*_t34*T(p.l)*qd[74];
+    out[621] = T(-2)*_t35*T(p.l)*qd[194];
+    out[622] = T(2)*T(p.l)*_t36*qd[74];
+    out[623] = T(-2)*T(p.l)*_t37*qd[194];
+    out[624] = T(-2)*_t34*T(p.l)*qd[74];
+    out[625] = T(-2)*T(p.l)*_t36*qd[74];
+    out[626] = T(2)*_t38*T(p.l)*qd[77];
+    out[627] = T(-2)*_t39*T(p.l)*qd[197];
+    out[628] = T(2)*T(p.l)*_t40*qd[77];
+    out[629] = T(-2)*T(p.l)*_t41*qd[197];
+    out[630] = T(-2)*_t38*T(p.l)*qd[77];
+    out[631] = T(-2)*T(p.l)*_t40*qd[77];
+    out[632] = T(2)*_t42*T(p.l)*qd[80];
+    out[633] = T(-2)*_t43*T(p.l)*qd[200];
+    out[634] = T(2)*T(p.l)*_t44*qd[80];
+    out[635] = T(-2)*T(p.l)*_t45*qd[200];
+    out[636] = T(-2)*_t42*T(p.l)*qd[80];
+    out[637] = T(-2)*T(p.l)*_t44*qd[80];
+    out[638] = T(2)*_t46*T(p.l)*qd[83];
+    out[639] = T(-2)*_t47*T(p.l)*qd[203];
+    out[640] = T(2)*T(p.l)*_t48*qd[83];
+    out[641] = T(-2)*T(p.l)*_t49*qd[203];
+    out[642] = T(-2)*_t46*T(p.l)*qd[83];
+    out[643] = T(-2)*T(p.l)*_t48*qd[83];
+    out[644] = T(2)*_t50*T(p.l)*qd[86];
+    out[645] = T(-2)*_t51*T(p.l)*qd[206];
+    out[646] = T(2)*T(p.l)*_t52*qd[86];
+    out[647] = T(-2)*T(p.l)*_t53*qd[206];
+    out[648] = T(-2)*_t50*T(p.l)*qd[86];
+    out[649] = T(-2)*T(p.l)*_t52*qd[86];
+    out[650] = T(2)*_t54*T(p.l)*qd[89];
+    out[651] = T(-2)*_t55*T(p.l)*qd[209];
+    out[652] = T(2)*T(p.l)*_t56*qd[89];
+    out[653] = T(-2)*T(p.l)*_t57*qd[209];
+    out[654] = T(-2)*_t54*T(p.l)*qd[89];
+    out[655] = T(-2)*T(p.l)*_t56*qd[89];
+    out[656] = T(2)*_t58*T(p.l)*qd[92];
+    out[657] = T(-2)*_t59*T(p.l)*qd[212];
+    out[658] = T(2)*T(p.l)*_t60*qd[92];
+    out[659] = T(-2)*T(p.l)*_t61*qd[212];
+    out[660] = T(-2)*_t58*T(p.l)*qd[92];
+    out[661] = T(-2)*T(p.l)*_t60*qd[92];
+    out[662] = T(2)*_t62*T(p.l)*qd[95];
+    out[663] = T(-2)*_t63*T(p.l)*qd[215];
+    out[664] = T(2)*T(p.l)*_t64*qd[95];
+    out[665] = T(-2)*T(p.l)*_t65*qd[215];
+    out[666] = T(-2)*_t62*T(p.l)*qd[95];
+    out[667] = T(-2)*T(p.l)*_t64*qd[95];
+    out[668] = T(2)*_t66*T(p.l)*qd[98];
+    out[669] = T(-2)*_t67*T(p.l)*qd[218];
+    out[670] = T(2)*T(p.l)*_t68*qd[98];
+    out[671] = T(-2)*T(p.l)*_t69*qd[218];
+    out[672] = T(-2)*_t66*T(p.l)*qd[98];
+    out[673] = T(-2)*T(p.l)*_t68*qd[98];
+    out[674] = T(2)*_t70*T(p.l)*qd[101];
+    out[675] = T(-2)*_t71*T(p.l)*qd[221];
+    out[676] = T(2)*T(p.l)*_t72*qd[101];
+    out[677] = T(-2)*T(p.l)*_t73*qd[221];
+    out[678] = T(-2)*_t70*T(p.l)*qd[101];
+    out[679] = T(-2)*T(p.l)*_t72*qd[101];
+    out[680] = T(2)*_t74*T(p.l)*qd[104];
+    out[681] = T(-2)*_t75*T(p.l)*qd[224];
+    out[682] = T(2)*T(p.l)*_t76*qd[104];
+    out[683] = T(-2)*T(p.l)*_t77*qd[224];
+    out[684] = T(-2)*_t74*T(p.l)*qd[104];
+    out[685] = T(-2)*T(p.l)*_t76*qd[104];
+    out[686] = T(2)*_t78*T(p.l)*qd[107];
+    out[687] = T(-2)*_t79*T(p.l)*qd[227];
+    out[688] = T(2)*T(p.l)*_t80*qd[107];
+    out[689] = T(-2)*T(p.l)*_t81*qd[227];
+    out[690] = T(-2)*_t78*T(p.l)*qd[107];
+    out[691] = T(-2)*T(p.l)*_t80*qd[107];
+    out[692] = T(2)*_t82*T(p.l)*qd[110];
+    out[693] = T(-2)*_t83*T(p.l)*qd[230];
+    out[694] = T(2)*T(p.l)*_t84*qd[110];
+    out[695] = T(-2)*T(p.l)*_t85*qd[230];
+    out[696] = T(-2)*_t82*T(p.l)*qd[110];
+    out[697] = T(-2)*T(p.l)*_t84*qd[110];
+    out[698] = T(2)*_t86*T(p.l)*qd[113];
+    out[699] = T(-2)*_t87*T(p.l)*qd[233];
+    out[700] = T(2)*T(p.l)*_t88*qd[113];
+    out[701] = T(-2)*T(p.l)*_t89*qd[233];
+    out[702] = T(-2)*_t86*T(p.l)*qd[113];
+    out[703] = T(-2)*T(p.l)*_t88*qd[113];
+    out[704] = T(2)*_t90*T(p.l)*qd[116];
+    out[705] = T(-2)*_t91*T(p.l)*qd[236];
+    out[706] = T(2)*T(p.l)*_t92*qd[116];
+    out[707] = T(-2)*T(p.l)*_t93*qd[236];
+    out[708] = T(-2)*_t90*T(p.l)*qd[116];
+    out[709] = T(-2)*T(p.l)*_t92*qd[116];
+    out[710] = T(2)*_t94*T(p.l)*qd[119];
+    out[711] = T(-2)*_t95*T(p.l)*qd[239];
+    out[712] = T(2)*T(p.l)*_t96*qd[119];
+    out[713] = T(-2)*T(p.l)*_t97*qd[239];
+    out[714] = T(-2)*_t94*T(p.l)*qd[119];
+    out[715] = T(-2)*T(p.l)*_t96*qd[119];
+    out[716] = T(2)*_t98*T(p.l)*qd[122];
+    out[717] = T(-2)*_t99*T(p.l)*qd[242];
+    out[718] = T(2)*T(p.l)*_t100*qd[122];
+    out[719] = T(-2)*T(p.l)*_t101*qd[242];
+    out[720] = T(-1);
+    out[721] = T(1);
+    out[722] = T(1);
+    out[723] = T(0);
+    out[724] = _t102;
+    out[725] = (T(-1)/T(2))*_t0*T(p.m)*T(p.l)*T(p.g);
+    out[726] = T(0);
+    out[727] = _t102;
+    out[728] = (T(-1)/T(2))*_t1*T(p.m)*T(p.l)*T(p.g);
+    out[729] = T(0);
+    out[730] = _t102;
+    out[731] = (T(-1)/T(2))*_t2*T(p.m)*T(p.l)*T(p.g);
+    out[732] = T(0);
+    out[733] = _t102;
+    out[734] = (T(-1)/T(2))*_t3*T(p.m)*T(p.l)*T(p.g);
+    out[735] = T(0);
+    out[736] = _t102;
+    out[737] = (T(-1)/T(2))*_t4*T(p.m)*T(p.l)*T(p.g);
+    out[738] = T(0);
+    out[739] = _t102;
+    out[740] = (T(-1)/T(2))*_t5*T(p.m)*T(p.l)*T(p.g);
+    out[741] = T(0);
+    out[742] = _t102;
+    out[743] = (T(-1)/T(2))*_t6*T(p.m)*T(p.l)*T(p.g);
+    out[744] = T(0);
+    out[745] = _t102;
+    out[746] = (T(-1)/T(2))*_t7*T(p.m)*T(p.l)*T(p.g);
+    out[747] = T(0);
+    out[748] = _t102;
+    out[749] = (T(-1)/T(2))*_t8*T(p.m)*T(p.l)*T(p.g);
+    out[750] = T(0);
+    out[751] = _t102;
+    out[752] = (T(-1)/T(2))*_t9*T(p.m)*T(p.l)*T(p.g);
+    out[753] = T(0);
+    out[754] = _t102;
+    out[755] = (T(-1)/T(2))*_t10*T(p.m)*T(p.l)*T(p.g);
+    out[756] = T(0);
+    out[757] = _t102;
+    out[758] = (T(-1)/T(2))*_t11*T(p.m)*T(p.l)*T(p.g);
+    out[759] = T(0);
+    out[760] = _t102;
+    out[761] = (T(-1)/T(2))*_t12*T(p.m)*T(p.l)*T(p.g);
+    out[762] = T(0);
+    out[763] = _t102;
+    out[764] = (T(-1)/T(2))*_t13*T(p.m)*T(p.l)*T(p.g);
+    out[765] = T(0);
+    out[766] = _t102;
+    out[767] = (T(-1)/T(2))*_t14*T(p.m)*T(p.l)*T(p.g);
+    out[768] = T(0);
+    out[769] = _t102;
+    out[770] = (T(-1)/T(2))*_t15*T(p.m)*T(p.l)*T(p.g);
+    out[771] = T(0);
+    out[772] = _t102;
+    out[773] = (T(-1)/T(2))*_t16*T(p.m)*T(p.l)*T(p.g);
+    out[774] = T(0);
+    out[775] = _t102;
+    out[776] = (T(-1)/T(2))*_t17*T(p.m)*T(p.l)*T(p.g);
+    out[777] = T(0);
+    out[778] = _t102;
+    out[779] = (T(-1)/T(2))*_t18*T(p.m)*T(p.l)*T(p.g);
+    out[780] = T(0);
+    out[781] = _t102;
+    out[782] = (T(-1)/T(2))*_t19*T(p.m)*T(p.l)*T(p.g);
+    out[783] = T(0);
+    out[784] = _t102;
+    out[785] = (T(-1)/T(2))*_t20*T(p.m)*T(p.l)*T(p.g);
+    out[786] = T(0);
+    out[787] = _t102;
+    out[788] = (T(-1)/T(2))*_t22*T(p.m)*T(p.l)*T(p.g);
+    out[789] = T(0);
+    out[790] = _t102;
+    out[791] = (T(-1)/T(2))*_t26*T(p.m)*T(p.l)*T(p.g);
+    out[792] = T(0);
+    out[793] = _t102;
+    out[794] = (T(-1)/T(2))*_t30*T(p.m)*T(p.l)*T(p.g);
+    out[795] = T(0);
+    out[796] = _t102;
+    out[797] = (T(-1)/T(2))*_t34*T(p.m)*T(p.l)*T(p.g);
+    out[798] = T(0);
+    out[799] = _t102;
+  }
+  template <class T>
+  static void __tangent_values_part4([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+    // out[800..999]; 181 operations
+    using std::cos, std::sin;
+    // Intermediate terms (91)
+    const T _t0 = sin(q[2]);
+    const T _t1 = cos(q[125]);
+    const T _t2 = sin(q[5]);
+    const T _t3 = cos(q[128]);
+    const T _t4 = sin(q[8]);
+    const T _t5 = cos(q[131]);
+    const T _t6 = sin(q[11]);
+    const T _t7 = cos(q[134]);
+    const T _t8 = sin(q[14]);
+    const T _t9 = cos(q[137]);
+    const T _t10 = sin(q[17]);
+    const T _t11 = cos(q[140]);
+    const T _t12 = sin(q[20]);
+    const T _t13 = cos(q[143]);
+    const T _t14 = sin(q[23]);
+    const T _t15 = cos(q[146]);
+    const T _t16 = sin(q[26]);
+    const T _t17 = cos(q[149]);
+    const T _t18 = sin(q[29]);
+    const T _t19 = cos(q[152]);
+    const T _t20 = sin(q[32]);
+    const T _t21 = cos(q[155]);
+    const T _t22 = sin(q[35]);
+    const T _t23 = cos(q[158]);
+    const T _t24 = sin(q[38]);
+    const T _t25 = cos(q[161]);
+    const T _t26 = sin(q[41]);
+    const T _t27 = cos(q[164]);
+    const T _t28 = sin(q[44]);
+    const T _t29 = cos(q[167]);
+    const T _t30 = sin(q[47]);
+    const T _t31 = cos(q[170]);
+    const T _t32 = sin(q[50]);
+    const T _t33 = cos(q[173]);
+    const T _t34 = sin(q[53]);
+    const T _t35 = cos(q[176]);
+    const T _t36 = sin(q[56]);
+    const T _t37 = cos(q[179]);
+    const T _t38 = sin(q[59]);
+    const T _t39 = cos(q[182]);
+    const T _t40 = sin(q[62]);
+    const T _t41 = cos(q[185]);
+    const T _t42 = sin(q[65]);
+    const T _t43 = cos(q[188]);
+    const T _t44 = sin(q[68]);
+    const T _t45 = cos(q[191]);
+    const T _t46 = sin(q[71]);
+    const T _t47 = cos(q[194]);
+    const T _t48 = sin(q[74]);
+    const T _t49 = cos(q[77]);
+    const T _t50 = cos(q[197]);
+    const T _t51 = sin(q[77]);
+    const T _t52 = cos(q[80]);
+    const T _t53 = cos(q[200]);
+    const T _t54 = sin(q[80]);
+    const T _t55 = cos(q[83]);
+    const T _t56 = cos(q[203]);
+    const T _t57 = sin(q[83]);
+    const T _t58 = cos(q[86]);
+    const T _t59 = cos(q[206]);
+    const T _t60 = sin(q[86]);
+    const T _t61 = cos(q[89]);
+    const T _t62 = cos(q[209]);
+    const T _t63 = sin(q[89]);
+    const T _t64 = cos(q[92]);
+    const T _t65 = cos(q[212]);
+    const T _t66 = sin(q[92]);
+    const T _t67 = cos(q[95]);
+    const T _t68 = cos(q[215]);
+    const T _t69 = sin(q[95]);
+    const T _t70 = cos(q[98]);
+    const T _t71 = cos(q[218]);
+    const T _t72 = sin(q[98]);
+    const T _t73 = cos(q[101]);
+    const T _t74 = cos(q[221]);
+    const T _t75 = sin(q[101]);
+    const T _t76 = cos(q[104]);
+    const T _t77 = cos(q[224]);
+    const T _t78 = cos(q[107]);
+    const T _t79 = cos(q[227]);
+    const T _t80 = cos(q[110]);
+    const T _t81 = cos(q[230]);
+    const T _t82 = cos(q[113]);
+    const T _t83 = cos(q[233]);
+    const T _t84 = cos(q[116]);
+    const T _t85 = cos(q[236]);
+    const T _t86 = cos(q[119]);
+    const T _t87 = cos(q[239]);
+    const T _t88 = cos(q[122]);
+    const T _t89 = cos(q[242]);
+    const T _t90 = -T(p.m)*T(p.g);
+
+    // Output terms (200)
+    out[800] = (T(-1)/T(2))*_t49*T(p.m)*T(p.l)*T(p.g);
+    out[801] = T(0);
+    out[802] = _t90;
+    out[803] = (T(-1)/T(2))*_t52*T(p.m)*T(p.l)*T(p.g);
+    out[804] = T(0);
+    out[805] = _t90;
+    out[806] = (T(-1)/T(2))*_t55*T(p.m)*T(p.l)*T(p.g);
+    out[807] = T(0);
+    out[808] = _t90;
+    out[809] = (T(-1)/T(2))*_t58*T(p.m)*T(p.l)*T(p.g);
+    out[810] = T(0);
+    out[811] = _t90;
+    out[812] = (T(-1)/T(2))*_t61*T(p.m)*T(p.l)*T(p.g);
+    out[813] = T(0);
+    out[814] = _t90;
+    out[815] = (T(-1)/T(2))*_t64*T(p.m)*T(p.l)*T(p.g);
+    out[816] = T(0);
+    out[817] = _t90;
+    out[818] = (T(-1)/T(2))*_t67*T(p.m)*T(p.l)*T(p.g);
+    out[819] = T(0);
+    out[820] = _t90;
+    out[821] = (T(-1)/T(2))*_t70*T(p.m)*T(p.l)*T(p.g);
+    out[822] = T(0);
+    out[823] = _t90;
+    out[824] = (T(-1)/T(2))*_t73*T(p.m)*T(p.l)*T(p.g);
+    out[825] = T(0);
+    out[826] = _t90;
+    out[827] = (T(-1)/T(2))*_t76*T(p.m)*T(p.l)*T(p.g);
+    out[828] = T(0);
+    out[829] = _t90;
+    out[830] = (T(-1)/T(2))*_t78*T(p.m)*T(p.l)*T(p.g);
+    out[831] = T(0);
+    out[832] = _t90;
+    out[833] = (T(-1)/T(2))*_t80*T(p.m)*T(p.l)*T(p.g);
+    out[834] = T(0);
+    out[835] = _t90;
+    out[836] = (T(-1)/T(2))*_t82*T(p.m)*T(p.l)*T(p.g);
+    out[837] = T(0);
+    out[838] = _t90;
+    out[839] = (T(-1)/T(2))*_t84*T(p.m)*T(p.l)*T(p.g);
+    out[840] = T(0);
+    out[841] = _t90;
+    out[842] = (T(-1)/T(2))*_t86*T(p.m)*T(p.l)*T(p.g);
+    out[843] = T(0);
+    out[844] = _t90;
+    out[845] = (T(-1)/T(2))*_t88*T(p.m)*T(p.l)*T(p.g);
+    out[846] = T(0);
+    out[847] = _t90;
+    out[848] = (T(-1)/T(2))*_t1*T(p.m)*T(p.l)*T(p.g);
+    out[849] = T(0);
+    out[850] = _t90;
+    out[851] = (T(-1)/T(2))*_t3*T(p.m)*T(p.l)*T(p.g);
+    out[852] = T(0);
+    out[853] = _t90;
+    out[854] = (T(-1)/T(2))*_t5*T(p.m)*T(p.l)*T(p.g);
+    out[855] = T(0);
+    out[856] = _t90;
+    out[857] = (T(-1)/T(2))*_t7*T(p.m)*T(p.l)*T(p.g);
+    out[858] = T(0);
+    out[859] = _t90;
+    out[860] = (T(-1)/T(2))*_t9*T(p.m)*T(p.l)*T(p.g);
+    out[861] = T(0);
+    out[862] = _t90;
+    out[863] = (T(-1)/T(2))*_t11*T(p.m)*T(p.l)*T(p.g);
+    out[864] = T(0);
+    out[865] = _t90;
+    out[866] = (T(-1)/T(2))*_t13*T(p.m)*T(p.l)*T(p.g);
+    out[867] = T(0);
+    out[868] = _t90;
+    out[869] = (T(-1)/T(2))*_t15*T(p.m)*T(p.l)*T(p.g);
+    out[870] = T(0);
+    out[871] = _t90;
+    out[872] = (T(-1)/T(2))*_t17*T(p.m)*T(p.l)*T(p.g);
+    out[873] = T(0);
+    out[874] = _t90;
+    out[875] = (T(-1)/T(2))*_t19*T(p.m)*T(p.l)*T(p.g);
+    out[876] = T(0);
+    out[877] = _t90;
+    out[878] = (T(-1)/T(2))*_t21*T(p.m)*T(p.l)*T(p.g);
+    out[879] = T(0);
+    out[880] = _t90;
+    out[881] = (T(-1)/T(2))*_t23*T(p.m)*T(p.l)*T(p.g);
+    out[882] = T(0);
+    out[883] = _t90;
+    out[884] = (T(-1)/T(2))*_t25*T(p.m)*T(p.l)*T(p.g);
+    out[885] = T(0);
+    out[886] = _t90;
+    out[887] = (T(-1)/T(2))*_t27*T(p.m)*T(p.l)*T(p.g);
+    out[888] = T(0);
+    out[889] = _t90;
+    out[890] = (T(-1)/T(2))*_t29*T(p.m)*T(p.l)*T(p.g);
+    out[891] = T(0);
+    out[892] = _t90;
+    out[893] = (T(-1)/T(2))*_t31*T(p.m)*T(p.l)*T(p.g);
+    out[894] = T(0);
+    out[895] = _t90;
+    out[896] = (T(-1)/T(2))*_t33*T(p.m)*T(p.l)*T(p.g);
+    out[897] = T(0);
+    out[898] = _t90;
+    out[899] = (T(-1)/T(2))*_t35*T(p.m)*T(p.l)*T(p.g);
+    out[900] = T(0);
+    out[901] = _t90;
+    out[902] = (T(-1)/T(2))*_t37*T(p.m)*T(p.l)*T(p.g);
+    out[903] = T(0);
+    out[904] = _t90;
+    out[905] = (T(-1)/T(2))*_t39*T(p.m)*T(p.l)*T(p.g);
+    out[906] = T(0);
+    out[907] = _t90;
+    out[908] = (T(-1)/T(2))*_t41*T(p.m)*T(p.l)*T(p.g);
+    out[909] = T(0);
+    out[910] = _t90;
+    out[911] = (T(-1)/T(2))*_t43*T(p.m)*T(p.l)*T(p.g);
+    out[912] = T(0);
+    out[913] = _t90;
+    out[914] = (T(-1)/T(2))*_t45*T(p.m)*T(p.l)*T(p.g);
+    out[915] = T(0);
+    out[916] = _t90;
+    out[917] = (T(-1)/T(2))*_t47*T(p.m)*T(p.l)*T(p.g);
+    out[918] = T(0);
+    out[919] = _t90;
+    out[920] = (T(-1)/T(2))*_t50*T(p.m)*T(p.l)*T(p.g);
+    out[921] = T(0);
+    out[922] = _t90;
+    out[923] = (T(-1)/T(2))*_t53*T(p.m)*T(p.l)*T(p.g);
+    out[924] = T(0);
+    out[925] = _t90;
+    out[926] = (T(-1)/T(2))*_t56*T(p.m)*T(p.l)*T(p.g);
+    out[927] = T(0);
+    out[928] = _t90;
+    out[929] = (T(-1)/T(2))*_t59*T(p.m)*T(p.l)*T(p.g);
+    out[930] = T(0);
+    out[931] = _t90;
+    out[932] = (T(-1)/T(2))*_t62*T(p.m)*T(p.l)*T(p.g);
+    out[933] = T(0);
+    out[934] = _t90;
+    out[935] = (T(-1)/T(2))*_t65*T(p.m)*T(p.l)*T(p.g);
+    out[936] = T(0);
+    out[937] = _t90;
+    out[938] = (T(-1)/T(2))*_t68*T(p.m)*T(p.l)*T(p.g);
+    out[939] = T(0);
+    out[940] = _t90;
+    out[941] = (T(-1)/T(2))*_t71*T(p.m)*T(p.l)*T(p.g);
+    out[942] = T(0);
+    out[943] = _t90;
+    out[944] = (T(-1)/T(2))*_t74*T(p.m)*T(p.l)*T(p.g);
+    out[945] = T(0);
+    out[946] = _t90;
+    out[947] = (T(-1)/T(2))*_t77*T(p.m)*T(p.l)*T(p.g);
+    out[948] = T(0);
+    out[949] = _t90;
+    out[950] = (T(-1)/T(2))*_t79*T(p.m)*T(p.l)*T(p.g);
+    out[951] = T(0);
+    out[952] = _t90;
+    out[953] = (T(-1)/T(2))*_t81*T(p.m)*T(p.l)*T(p.g);
+    out[954] = T(0);
+    out[955] = _t90;
+    out[956] = (T(-1)/T(2))*_t83*T(p.m)*T(p.l)*T(p.g);
+    out[957] = T(0);
+    out[958] = _t90;
+    out[959] = (T(-1)/T(2))*_t85*T(p.m)*T(p.l)*T(p.g);
+    out[960] = T(0);
+    out[961] = _t90;
+    out[962] = (T(-1)/T(2))*_t87*T(p.m)*T(p.l)*T(p.g);
+    out[963] = T(0);
+    out[964] = _t90;
+    out[965] = (T(-1)/T(2))*_t89*T(p.m)*T(p.l)*T(p.g);
+    out[966] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t0;
+    out[967] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t2;
+    out[968] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t4;
+    out[969] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t6;
+    out[970] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t8;
+    out[971] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t10;
+    out[972] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t12;
+    out[973] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t14;
+    out[974] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t16;
+    out[975] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t18;
+    out[976] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t20;
+    out[977] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t22;
+    out[978] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t24;
+    out[979] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t26;
+    out[980] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t28;
+    out[981] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t30;
+    out[982] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t32;
+    out[983] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t34;
+    out[984] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t36;
+    out[985] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t38;
+    out[986] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t40;
+    out[987] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t42;
+    out[988] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t44;
+    out[989] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t46;
+    out[990] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t48;
+    out[991] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t51;
+    out[992] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t54;
+    out[993] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t57;
+    out[994] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t60;
+    out[995] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t63;
+    out[996] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t66;
+    out[997] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t69;
+    out[998] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t72;
+    out[999] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t75;
+  }
+  template <class T>
+  static void __tangent_values_part5([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+    // out[1000..1046]; 94 operations
+    using std::sin;
+    // Intermediate terms (47)
+    const T _t0 = sin(q[125]);
+    const T _t1 = sin(q[128]);
+    const T _t2 = sin(q[131]);
+    const T _t3 = sin(q[134]);
+    const T _t4 = sin(q[137]);
+    const T _t5 = sin(q[140]);
+    const T _t6 = sin(q[143]);
+    const T _t7 = sin(q[146]);
+    const T _t8 = sin(q[149]);
+    const T _t9 = sin(q[152]);
+    const T _t10 = sin(q[155]);
+    const T _t11 = sin(q[158]);
+    const T _t12 = sin(q[161]);
+    const T _t13 = sin(q[164]);
+    const T _t14 = sin(q[167]);
+    const T _t15 = sin(q[170]);
+    const T _t16 = sin(q[173]);
+    const T _t17 = sin(q[176]);
+    const T _t18 = sin(q[179]);
+    const T _t19 = sin(q[182]);
+    const T _t20 = sin(q[185]);
+    const T _t21 = sin(q[188]);
+    const T _t22 = sin(q[191]);
+    const T _t23 = sin(q[194]);
+    const T _t24 = sin(q[197]);
+    const T _t25 = sin(q[200]);
+    const T _t26 = sin(q[203]);
+    const T _t27 = sin(q[206]);
+    const T _t28 = sin(q[209]);
+    const T _t29 = sin(q[212]);
+    const T _t30 = sin(q[215]);
+    const T _t31 = sin(q[218]);
+    const T _t32 = sin(q[221]);
+    const T _t33 = sin(q[104]);
+    const T _t34 = sin(q[224]);
+    const T _t35 = sin(q[107]);
+    const T _t36 = sin(q[227]);
+    const T _t37 = sin(q[110]);
+    const T _t38 = sin(q[230]);
+    const T _t39 = sin(q[113]);
+    const T _t40 = sin(q[233]);
+    const T _t41 = sin(q[116]);
+    const T _t42 = sin(q[236]);
+    const T _t43 = sin(q[119]);
+    const T _t44 = sin(q[239]);
+    const T _t45 = sin(q[122]);
+    const T _t46 = sin(q[242]);
+
+    // Output terms (47)
+    out[1000] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t33;
+    out[1001] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t35;
+    out[1002] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t37;
+    out[1003] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t39;
+    out[1004] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t41;
+    out[1005] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t43;
+    out[1006] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t45;
+    out[1007] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t0;
+    out[1008] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t1;
+    out[1009] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t2;
+    out[1010] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t3;
+    out[1011] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t4;
+    out[1012] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t5;
+    out[1013] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t6;
+    out[1014] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t7;
+    out[1015] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t8;
+    out[1016] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t9;
+    out[1017] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t10;
+    out[1018] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t11;
+    out[1019] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t12;
+    out[1020] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t13;
+    out[1021] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t14;
+    out[1022] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t15;
+    out[1023] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t16;
+    out[1024] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t17;
+    out[1025] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t18;
+    out[1026] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t19;
+    out[1027] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t20;
+    out[1028] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t21;
+    out[1029] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t22;
+    out[1030] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t23;
+    out[1031] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t24;
+    out[1032] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t25;
+    out[1033] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t26;
+    out[1034] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t27;
+    out[1035] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t28;
+    out[1036] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t29;
+    out[1037] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t30;
+    out[1038] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t31;
+    out[1039] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t32;
+    out[1040] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t34;
+    out[1041] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t36;
+    out[1042] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t38;
+    out[1043] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t40;
+    out[1044] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t42;
+    out[1045] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t44;
+    out[1046] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t46;
+  }
+
+ public:
+  template <class T>
+  static void _tangent_values([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+    // out[1047]; 1126 operations in 6 parts
+    __tangent_values_part0(q, qd, t, p, out);
+    __tangent_values_part1(q, qd, t, p, out);
+    __tangent_values_part2(q, qd, t, p, out);
+    __tangent_values_part3(q, qd, t, p, out);
+    __tangent_values_part4(q, qd, t, p, out);
+    __tangent_values_part5(q, qd, t, p, out);
+  }
+
+ public:
+  // dynamics_jacobians' work space, caller-owned (no heap).
+  template <class T>
+  struct JacobianWork {
+    T values[1047];  // _tangent_values
+    T out[nf * 2], scratch[nq * 2];
+    T work[2188];  // _tangent_work_size(nq, nf, 2)
+  };
+
+  // dynamics() and the exact d(zdd)/dz (d_z), d(zdd)/dzd (d_zd) and d(zdd)/du (d_u)
+  // there, each column-major (d_z[j * nf + i] = d zdd_i / d z_j; d_u: nf x num_inputs), any
+  // of them nullptr when not wanted: A = [0 I; d_z d_zd] and B = [0; d_u] of x' = f(x, u),
+  // x = (z, zd), as `kinegen linearize` gives them. The linearize kernel on the block solves
+  // (on dynamics()' factors). Status as dynamics()', or the tangent's (2, 3).
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
+      T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options, DynamicsWork<T>& w,
+      JacobianWork<T>& j) noexcept {
+    using R = _real<T>;
+    BlockReport<R> r = dynamics(z, zd, t, p, zdd, options, w);
+    if (r.status != 0) return r;
+    Params pz = p;
+    pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
+    _tangent_values(w.q, w.qd, t, pz, j.values);
+    int slots[2 * nf + num_inputs], ndir = 0;
+    for (int i = 0; i < 2 * nf + num_inputs; ++i)
+      if (i < nf ? d_z != nullptr : i < 2 * nf ? d_zd != nullptr : d_u != nullptr)
+        slots[ndir++] = _tangent_slots[i];
+    if (ndir == 0) return r;
+    const auto at = [&](int piece) { return j.values + _tangent_begin[piece]; };
+    _TangentPoint<T> tp;
+    tp.nq = nq;
+    tp.nf = nf;
+    tp.nb = num_bodies;
+    tp.q = w.q;
+    tp.qd = w.qd;
+    tp.qdd = w.qdd;
+    tp.b = w.b;
+    tp.mass = w.mass;
+    tp.inertia = w.inertia;
+    tp.ax = w.ax;
+    tp.ay = w.ay;
+    tp.applied = at(7);
+    tp.phi_qq = {static_cast<int>(_phi_qq_row.size()), _phi_qq_row.data(), _phi_qq_j.data(),
+                 _phi_qq_k.data(), at(0)};
+    const auto sparse = [&](const auto& row, const auto& col, int piece) {
+      return _Sparse<T>{static_cast<int>(row.size()), row.data(), col.data(), at(piece)};
+    };
+    tp.nu_q = sparse(_nu_q_row, _nu_q_col, 1);
+    tp.gamma_q = sparse(_gamma_q_row, _gamma_q_col, 2);
+    tp.gamma_qd = sparse(_gamma_qd_row, _gamma_qd_col, 3);
+    tp.phi_w = sparse(_phi_w_row, _phi_w_col, 4);
+    tp.nu_w = sparse(_nu_w_row, _nu_w_col, 5);
+    tp.gamma_w = sparse(_gamma_w_row, _gamma_w_col, 6);
+    tp.applied_q = sparse(_applied_q_row, _applied_q_col, 8);
+    tp.applied_qd = sparse(_applied_qd_row, _applied_qd_col, 9);
+    tp.applied_w = sparse(_applied_w_row, _applied_w_col, 10);
+    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors); x is
+    // copied aside: the solves need x apart from the right-hand side.
+    const auto copy = [&](const T* x, int m) {
+      for (int i = 0; i < nq * m; ++i) j.scratch[i] = x[i];
+    };
+    const int s = _dynamics_tangent(
+        tp, ndir, slots, j.out, j.work,
+        [&](T* x, int m) {
+          copy(x, m);
+          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x, m)
+                     ? 0 : 3;
+        },
+        [&](T* x, int m) {
+          copy(x, m);
+          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x,
+                                                    m) ? 0 : 3;
+        });
+    if (s != 0) return _fail(r, s, -1);
+    int dir = 0;
+    for (T* d : {d_z, d_zd}) {
+      if (!d) continue;
+      for (int i = 0; i < nf * nf; ++i) d[i] = j.out[dir * nf + i];
+      dir += nf;
+    }
+    if (d_u)
+      for (int i = 0; i < nf * num_inputs; ++i) d_u[i] = j.out[dir * nf + i];
+    return r;
+  }
+
+  // The same with the work space on the stack.
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
+      T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options,
+      DynamicsWork<T>& w) noexcept {
+    JacobianWork<T> j;
+    return dynamics_jacobians(z, zd, t, p, zdd, d_z, d_zd, d_u, options, w, j);
+  }
+
+  // ---- Fixed-step integrators for a control loop (format 7.5; kinegen::Simulator wraps them
+  // with more care): z, zd and t advance by h in place, or stay as they were when a dynamics()
+  // fails (its report). step_rk4: classical Runge-Kutta (4 dynamics() a step, explicit);
+  // step_implicit: the L-stable SDIRK2 for stiff springs, Newton on the exact Jacobians, each
+  // stage until its update (per scale: angles in radians, lengths over length_scale) is at
+  // most newton_tolerance (the scalar's position tolerance by default; status 1 after
+  // newton_iterations).
+  template <class T, class U>
+  static BlockReport<_real<T>> step_rk4(T* z, T* zd, T& t, T h, const Params& p,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w) noexcept {
+    T x[2 * nf];
+    BlockReport<_real<T>> r;
+    const auto f = [&](T at, const T* y, T* yd) {
+      for (int k = 0; k < nf; ++k) yd[k] = y[nf + k];
+      r = dynamics(y, y + nf, at, p, yd + nf, options, w);
+      return r.status;
+    };
+    const int status = _rk4_step<2 * nf>(t, h, _state_in(z, zd, x), f);
+    return _step_with(z, zd, t, h, x, r, status);
+  }
+
+  template <class T, class U>
+  static BlockReport<_real<T>> step_implicit(T* z, T* zd, T& t, T h, const Params& p,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w, JacobianWork<T>& j,
+      int newton_iterations = 10,
+      _real<T> newton_tolerance = BasicBlockOptions<_real<T>>().tolerance) noexcept {
+    using R = _real<T>;
+    T x[2 * nf];
+    R scale[2 * nf];
+    for (int k = 0; k < nf; ++k)
+      scale[k] = scale[nf + k] = free_distance[k] || coordinate_kinds[_free_column(k)] != 1
+                                     ? R(length_scale) : R(1);
+    BlockReport<R> r;
+    const auto f = [&](T at, const T* y, T* yd) {
+      for (int k = 0; k < nf; ++k) yd[k] = y[nf + k];
+      r = dynamics(y, y + nf, at, p, yd + nf, options, w);
+      return r.status;
+    };
+    const auto jacobian = [&](T at, const T* y, const T*, T* a) {
+      T zdd[nf], dz[nf * nf], dzd[nf * nf];
+      r = dynamics_jacobians(y, y + nf, at, p, zdd, dz, dzd, static_cast<T*>(nullptr), options,
+                             w, j);
+      for (int i = 0; i < nf; ++i)  // row-major [0 I; dz dzd] from column-major blocks
+        for (int c = 0; c < nf; ++c) {
+          a[i * 2 * nf + c] = T(0);
+          a[i * 2 * nf + nf + c] = T(i == c ? 1 : 0);
+          a[(nf + i) * 2 * nf + c] = dz[c * nf + i];
+          a[(nf + i) * 2 * nf + nf + c] = dzd[c * nf + i];
+        }
+      return r.status;
+    };
+    const int status = _sdirk2_step<2 * nf>(t, h, _state_in(z, zd, x), scale, f, jacobian,
+                                            newton_iterations, newton_tolerance);
+    return _step_with(z, zd, t, h, x, r, status);
+  }
+
+ private:
+  template <class T>
+  static T* _state_in(const T* z, const T* zd, T* x) noexcept {
+    for (int k = 0; k < nf; ++k) {
+      x[k] = z[k];
+      x[nf + k] = zd[k];
+    }
+    return x;
+  }
+  // The step's end: x back into z and zd and t + h, or the failure (a dynamics() report, or
+  // the kernel's status: 1 Newton, 2 singular, 3 not finite).
+  template <class T, class R>
+  static BlockReport<R> _step_with(T* z, T* zd, T& t, T h, const T* x, BlockReport<R> r,
+                                   int status) noexcept {
+    if (status != 0) return r.status != 0 ? r : _fail(r, status, -1);
+    for (int k = 0; k < nf; ++k) {
+      z[k] = x[k];
+      zd[k] = x[nf + k];
+    }
+    t += h;
+    return r;
+  }
+  // The coordinate a free item's row reads first, for its kind (angle or length).
+  static constexpr int _free_column(int k) noexcept {
+    for (int e = 0; e < jac_nnz; ++e)
+      if (jac_rows[e] == free_rows[k]) return jac_cols[e];
+    return 0;
+  }
+
+ public:
 };
 
 }  // namespace kinegen::models

@@ -355,6 +355,8 @@ struct steering {
   static constexpr std::array<int, nq> coordinate_block = {0, 1, 3, 4, 4, 2, 5, 6, 9, 7, 8, 10};
   static constexpr std::array<int, nq> coordinate_slot = {0, 1, 3, 4, 5, 2, 6, 7, 10, 8, 9, 11};
   static constexpr std::array<int, nc + 1> jac_row_begin = {0, 1, 2, 3, 8, 14, 15, 16, 17, 18, 24, 30, 31};
+  // Where each block's K x K factors start when all are kept (_block_factor_all).
+  static constexpr std::array<int, num_blocks + 1> block_factor_begin = {0, 1, 2, 3, 4, 8, 9, 10, 11, 12, 13, 14};
   using _model = steering;
 
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
@@ -913,28 +915,77 @@ struct steering {
   template <class S, class T, class R>
   static BlockReport<R> _block_forward(const T* jac, const T* b, T* x, int m,
                                        const BasicBlockOptions<R>& o) noexcept {
-    return _each_factored_block<S, false>(jac, o, [&](auto size, int k, const T* a,
-                                                      const int* piv) {
-      constexpr int K = decltype(size)::value;
-      const int b0 = S::block_begin[k];
-      for (int col = 0; col < m; ++col) {
-        const T* bc = b + col * S::nq;
-        T* xc = x + col * S::nq;
-        T v[K];
-        for (int i = 0; i < K; ++i) {
-          const int row = S::block_rows[b0 + i];
-          v[i] = bc[row];
-          for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
-            const int c = S::jac_cols[e];
-            if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
-          }
+    return _each_factored_block<S, false>(
+        jac, o, [&](auto size, int k, const T* a, const int* piv) {
+          return _forward_block<S, decltype(size)::value>(k, jac, a, piv, b, x, m);
+        });
+  }
+  // Block k (K x K, factors a, piv) of Phi_q X = B for m columns, earlier blocks solved.
+  template <class S, int K, class T>
+  static bool _forward_block(int k, const T* jac, const T* a, const int* piv, const T* b, T* x,
+                             int m) noexcept {
+    const int b0 = S::block_begin[k];
+    for (int col = 0; col < m; ++col) {
+      const T* bc = b + col * S::nq;
+      T* xc = x + col * S::nq;
+      T v[K];
+      for (int i = 0; i < K; ++i) {
+        const int row = S::block_rows[b0 + i];
+        v[i] = bc[row];
+        for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e) {
+          const int c = S::jac_cols[e];
+          if (S::coordinate_block[c] != k) v[i] -= jac[e] * xc[c];
         }
-        _lu_solve<K>(a, piv, v);
-        if (!_all_finite<K>(v)) return false;
-        for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
       }
-      return true;
-    });
+      _lu_solve<K>(a, piv, v);
+      if (!_all_finite<K>(v)) return false;
+      for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
+    }
+    return true;
+  }
+
+  // Several solves at one Phi_q with each block factored once: _block_factor_all keeps every
+  // block's factors (block k's K x K at a + S::block_factor_begin[k], its pivots at piv +
+  // S::block_begin[k]), checked as _block_forward checks them; then _block_forward_factored and
+  // _block_transposed_factored give _block_forward's and _block_transposed's numbers bit for
+  // bit. False from those: a solution that is not finite.
+  template <class S, class T, class R>
+  static BlockReport<R> _block_factor_all(const T* jac, T* a, int* piv,
+                                          const BasicBlockOptions<R>& o) noexcept {
+    BlockReport<R> r;
+    bool ok = true;
+    for (int k = 0; ok && k < S::num_blocks; ++k)
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        ok = _block_factor<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                     piv + S::block_begin[k], r, o.min_rcond);
+      });
+    return r;
+  }
+  template <class S, class T>
+  static bool _block_forward_factored(const T* jac, const T* a, const int* piv, const T* b, T* x,
+                                      int m) noexcept {
+    bool ok = true;
+    for (int k = 0; ok && k < S::num_blocks; ++k)
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        ok = _forward_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                      piv + S::block_begin[k], b, x, m);
+      });
+    return ok;
+  }
+  template <class S, class T>
+  static bool _block_transposed_factored(const T* jac, const T* a, const int* piv, T* b, T* y,
+                                         int m) noexcept {
+    bool ok = true;
+    for (int n = 0; ok && n < S::num_blocks; ++n) {
+      const int k = S::num_blocks - 1 - n;
+      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
+        constexpr int K = decltype(size)::value;
+        for (int col = 0; ok && col < m; ++col)
+          ok = _transposed_block<S, K>(k, jac, a + S::block_factor_begin[k],
+                                       piv + S::block_begin[k], b + col * S::nq, y + col * S::nq);
+      });
+    }
+    return ok;
   }
 
   // y of `row` is v: recorded, and subtracted from the equations of the coordinates the row

@@ -421,8 +421,8 @@ TEST_CASE("Newton policy: stalling, damping and a policy in another scalar's eps
 // Generated headers paste the kernel files' text unchanged, and only the kernels they call.
 TEST_CASE("generated headers carry the kernel text unchanged", "[kernels]") {
   const std::filesystem::path root = KINEGEN_SOURCE_DIR;
-  const char* kernels[] = {"report", "lu",           "rotation",  "trig_cache",
-                           "newton", "block_linear", "motion_law"};
+  const char* kernels[] = {"report",       "lu",         "rotation", "trig_cache", "newton",
+                           "block_linear", "motion_law", "dynamics", "linearize",  "integrate"};
   int headers = 0;
   for (const auto& e : std::filesystem::directory_iterator(root / "generated")) {
     const std::string header = read(e.path());

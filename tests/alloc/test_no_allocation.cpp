@@ -9,9 +9,11 @@
 #include <cstdlib>
 #include <new>
 
+#include "cart_pole.hpp"
 #include "four_bar.hpp"
 #include "quick_return.hpp"
 #include "slider_crank.hpp"
+#include <kinegen/simulator.hpp>
 #include <kinegen/solver.hpp>
 
 namespace {
@@ -59,4 +61,31 @@ TEMPLATE_TEST_CASE("Solver allocates nothing after construction", "[runtime][all
   auto* probe = new double(1.0);
   CHECK(g_allocations.load() == after + 1);
   delete probe;
+}
+
+// The generated dynamics, its Jacobians and the Simulator's steps (format 7.5) in a loop.
+TEST_CASE("Simulator and dynamics_jacobians allocate nothing", "[runtime][alloc]") {
+  using M = kinegen::models::cart_pole;
+  kinegen::SimulatorOptions o;
+  kinegen::Simulator<M> rk4(M::Params{}, o);
+  o.integrator = kinegen::Integrator::kImplicit;
+  kinegen::Simulator<M> implicit(M::Params{}, o);
+  const double z[] = {0, 1.5}, zd[] = {0, 0};
+  REQUIRE(rk4.reset(0, z, zd));
+  REQUIRE(implicit.reset(0, z, zd));
+  M::DynamicsWork<double> w;
+  const long before = g_allocations.load();
+  int steps = 0;
+  for (int k = 0; k < 500; ++k) {
+    rk4.params().push_x = std::sin(0.01 * k);
+    if (!rk4.step(1e-3) || !implicit.step(1e-3)) break;
+    double zdd[2], dz[4], dzd[4], du[2];
+    if (M::dynamics_jacobians(rk4.z(), rk4.zd(), rk4.time(), rk4.params(), zdd, dz, dzd, du,
+                              M::BlockOptions{}, w)
+            .status != 0)
+      break;
+    ++steps;
+  }
+  CHECK(steps == 500);
+  CHECK(g_allocations.load() - before == 0);
 }

@@ -40,15 +40,19 @@ void emit_kernels(std::ostringstream& os, const std::string& code) {
   const auto calls = [&](const char* name) { return code.find(name) != std::string::npos; };
   const bool trig = calls("_trig(");
   const bool rotation = trig || calls("_rotate(");
-  const bool lu = calls("_lu_factor<");
+  const bool lu = calls("_lu_factor<") || calls("_sdirk2_step<");
   const bool newton = calls("_newton_end(");
   const bool linear = calls("_block_forward<") || calls("_block_transposed<") ||
                       calls("_block_transposed_reusing<");
+  const bool tangent = calls("_dynamics_tangent(");
+  const bool dynamics = tangent || calls("_reduced_accelerations(");
   for (const auto& k : embedded::kKernels) {
     const std::string name = k.name;
     const bool used = name == "report" || (name == "lu" && (lu || linear)) ||
                       (name == "block_linear" && linear) || (name == "rotation" && rotation) ||
-                      (name == "trig_cache" && trig) || (name == "newton" && newton);
+                      (name == "trig_cache" && trig) || (name == "newton" && newton) ||
+                      (name == "dynamics" && dynamics) || (name == "linearize" && tangent) ||
+                      (name == "integrate" && calls("_rk4_step<"));
     if (!used) continue;
     os << "  // ---- kinegen kernel " << name << " (kinegen/kernels/" << name << ".hpp)\n"
        << k.text << "  // ---- end of kinegen kernel " << name << "\n\n";
@@ -124,8 +128,12 @@ bool linear_blocks_supported(const Structure& st) {
 void emit_structure_tables(std::ostringstream& os, const std::string& name, const Structure& st,
                            const ModelPrograms& programs) {
   std::vector<std::string> begin{"0"}, rows, cols, block(programs.nq), slot(programs.nq);
+  std::vector<std::string> factor_begin{"0"};
+  std::size_t factors = 0;
   for (std::size_t k = 0; k < st.order.blocks.size(); ++k) {
     const Block& b = st.order.blocks[k];
+    factors += b.cols.size() * b.cols.size();
+    factor_begin.push_back(std::to_string(factors));
     for (std::size_t i = 0; i < b.cols.size(); ++i) {
       block[b.cols[i]] = std::to_string(k);
       slot[b.cols[i]] = std::to_string(cols.size());
@@ -155,6 +163,9 @@ void emit_structure_tables(std::ostringstream& os, const std::string& name, cons
      << "  static constexpr std::array<int, nq> coordinate_slot = {" << join(slot) << "};\n"
      << "  static constexpr std::array<int, nc + 1> jac_row_begin = {" << join(row_begin)
      << "};\n"
+     << "  // Where each block's K x K factors start when all are kept (_block_factor_all).\n"
+     << "  static constexpr std::array<int, num_blocks + 1> block_factor_begin = {"
+     << join(factor_begin) << "};\n"
      // The kernel's S, named so that a function parameter named like the model (q, options)
      // cannot hide it; no model's name starts with '_'.
      << "  using _model = " << name << ";\n\n";
@@ -303,7 +314,17 @@ void emit_params(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
   for (const Load::Input* in : m.load_inputs())
     if (in->table_id < 0)
       os << "    double " << in->name << " = 0;  // a load's input (format 7.5), set at run time\n";
+  if (!m.free_drivers().empty())
+    os << "    // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,\n"
+       << "    // which the functions then read instead of the free items' members above.\n"
+       << "    const void* _free = nullptr;\n";
   os << "  };\n\n";
+  if (!m.free_drivers().empty())
+    os << "  // A free item's value (i < nf), rate or acceleration, as dynamics() set it.\n"
+       << "  template <class T>\n"
+       << "  static T _free_in(const Params& p, int i, double member) noexcept {\n"
+       << "    return p._free ? static_cast<const T*>(p._free)[i] : T(member);\n"
+       << "  }\n\n";
 }
 
 // The section-4 functions phi, phi_q, nu and gamma (as many as --outputs asks for), repeated

@@ -40,7 +40,8 @@ class ForceCode {
         model_(model),
         options_(options),
         f_(std::move(f)),
-        names_(force_columns(m)) {
+        names_(force_columns(m)),
+        mass_at_(m.bodies.size(), -1) {
     for (std::size_t e = 0; e < programs.jac_rows.size(); ++e)
       entry_[{programs.jac_rows[e], programs.jac_cols[e]}] = static_cast<int>(e);
     for (int b = 0; b < static_cast<int>(m.bodies.size()); ++b) add_inertia(b);
@@ -124,6 +125,9 @@ class ForceCode {
        << "    phi_q(q, t, p, jac);\n"
        << "    _force_geometry(q, t, p, g);\n"
        << columns_.str() << "  }\n";
+    if (!m_.free_drivers().empty())
+      emit_dynamics(os, {m_, symbols_, model_, f_, options_, mass_at_,
+                         static_cast<int>(geometry.size())});
   }
 
  private:
@@ -162,6 +166,7 @@ class ForceCode {
     const GiNaC::ex mass = fold(f_.symbolic.mass[b]), j = fold(f_.symbolic.inertia[b]);
     if (mass.is_zero() && j.is_zero()) return;
     const int g0 = static_cast<int>(geometry_.size());
+    mass_at_[b] = g0;
     const auto a = rotated(b, f_.symbolic.com[b]);
     for (const GiNaC::ex& e : {mass, j, a[0], a[1]}) geometry_.push_back(e);
     const std::string x = idx(3 * b), y = idx(3 * b + 1), phi = idx(3 * b + 2);
@@ -239,6 +244,7 @@ class ForceCode {
   // What the functions read besides Phi_q: per body with mass or inertia m, J and A com; per
   // distance driver its length; per joint with columns the global offset A s of its point.
   std::vector<GiNaC::ex> geometry_;
+  std::vector<int> mass_at_;  // per body: its m, J, A com in the geometry (-1: none)
   std::ostringstream inertia_, columns_;
   int col_ = 0;  // the next force column
 };

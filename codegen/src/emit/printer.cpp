@@ -33,13 +33,28 @@ std::string input_member(const Mechanism& m, int driver, int order) {
   return m.drivers.at(static_cast<std::size_t>(driver)).name + kSuffix[order];
 }
 
-// The members FunctionPrinter wrote as `p.@inK.O@`, named.
+// The members FunctionPrinter wrote as `T(p.@inK.O@)`, named. A free item's (format 7.1) is
+// read through _free_in, which dynamics() points at its z, zd and zdd in the scalar type, so
+// that a complex z reaches the solves (Params holds doubles).
 std::string with_input_members(std::string header, const Mechanism& m) {
+  const std::vector<int> free = m.free_drivers();
+  const int nf = static_cast<int>(free.size());
   for (std::size_t p = header.find("p.@in"); p != std::string::npos; p = header.find("p.@in", p)) {
     const std::size_t dot = header.find('.', p + 5), end = header.find('@', p + 5);
     const int driver = std::stoi(header.substr(p + 5, dot - p - 5));
     const int order = std::stoi(header.substr(dot + 1, end - dot - 1));
-    header.replace(p + 2, end + 1 - (p + 2), input_member(m, driver, order));
+    const std::string member = input_member(m, driver, order);
+    const auto it = std::find(free.begin(), free.end(), driver);
+    const bool wrapped = p >= 2 && header.compare(p - 2, 2, "T(") == 0 &&
+                         header.compare(end + 1, 1, ")") == 0;
+    if (it != free.end() && wrapped) {
+      const int slot = order * nf + static_cast<int>(it - free.begin());
+      const std::string read = "_free_in<T>(p, " + std::to_string(slot) + ", p." + member + ")";
+      header.replace(p - 2, end + 2 - (p - 2), read);
+      p = p - 2 + read.size();
+    } else {
+      header.replace(p + 2, end + 1 - (p + 2), member);
+    }
   }
   return header;
 }

@@ -33,7 +33,11 @@ const std::vector<std::string> kHeaderMembers = {
     "solve_velocity_acceleration", "solve_step",
     // the structure tables of the linear block solves (emit_structure_tables)
     "block_begin", "block_rows", "block_cols", "coordinate_block", "coordinate_slot",
-    "jac_row_begin",
+    "jac_row_begin", "block_factor_begin",
+    // forward dynamics (emit_dynamics)
+    "has_dynamics", "nf", "num_bodies", "free_names", "free_rows", "free_distance", "DynamicsWork",
+    "dynamics", "has_dynamics_jacobians", "num_inputs", "input_names", "JacobianWork",
+    "dynamics_jacobians", "step_rk4", "step_implicit",
     // parameter sensitivities (emit_sensitivity)
     "num_params", "has_sensitivity", "phi_p", "sensitivity_work_size", "solve_sensitivity",
     // kinetostatics (emit_forces) and outputs (emit_outputs)

@@ -7,6 +7,7 @@
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "kinegen/codegen/program/program.hpp"
+#include "kinegen/codegen/symbolic/forces.hpp"
 #include "kinegen/codegen/symbolic/symbolic.hpp"
 
 namespace kinegen::codegen::emit_detail {
@@ -22,5 +23,21 @@ void emit_sensitivity(std::ostringstream& os, const SymbolTable& symbols,
 void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
                  const SymbolicModel& model, const ModelPrograms& programs,
                  const EmitOptions& options);
+
+// What emit_dynamics prints from: the force model and mass_at[b], where body b's m, J and A
+// com start in _force_geometry's output of geometry_size values (-1: no mass).
+struct DynamicsSource {
+  const Mechanism& m;
+  const SymbolTable& symbols;
+  const SymbolicModel& model;
+  const ForceModel& forces;
+  const EmitOptions& options;
+  std::vector<int> mass_at;
+  int geometry_size;
+};
+
+// dynamics(), its work space and its exact Jacobians (format 7.2, 7.5; emit_dynamics.cpp),
+// after the force functions they call.
+void emit_dynamics(std::ostringstream& os, const DynamicsSource& d);
 
 }  // namespace kinegen::codegen::emit_detail

@@ -1,0 +1,437 @@
+// The header's forward dynamics (mechanism format 7.2, 7.5): dynamics(), the minimal
+// coordinates' accelerations by the block program and the dynamics kernel, as `kinegen
+// simulate` computes them (analysis/dynamics.cpp). Printed after the force functions it calls.
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/symbolic/forces.hpp"
+#include "kinegen/codegen/symbolic/tangent.hpp"
+#include "printer.hpp"
+#include "sections.hpp"
+
+namespace kinegen::codegen::emit_detail {
+
+namespace {
+
+// Each free item's row of Phi: the rows of the joints and of the drivers before it.
+std::vector<int> free_rows(const Mechanism& m) {
+  std::vector<int> rows;
+  const int nj = static_cast<int>(m.joints.size());
+  for (int d : m.free_drivers()) {
+    int row = 0;
+    for (int c = 0; c < nj + d; ++c) row += m.constraints()[c]->equation_count();
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+void emit_dynamics_tables(std::ostringstream& os, const Mechanism& m,
+                          const std::vector<int>& mass_at, int geometry_size) {
+  std::vector<std::string> names, rows, distance, at;
+  for (int d : m.free_drivers()) {
+    names.push_back("\"" + m.drivers[d].name + "\"");
+    distance.push_back(is_distance(m.drivers[d]) ? "true" : "false");
+  }
+  for (int r : free_rows(m)) rows.push_back(idx(r));
+  for (int a : mass_at) at.push_back(idx(a));
+  os << "\n  // ---- Forward dynamics in minimal coordinates (mechanism format 7.2, 7.5): the "
+        "free\n"
+     << "  // items are the coordinates z; q(z, t) by the block solver with z as drivers' values,\n"
+     << "  // qd = B zd + b and qdd = B zdd + c with B = dq/dz, then (B^T M B) zdd = B^T (Q^A - M "
+        "c)\n"
+     << "  // by the dynamics kernel: what `kinegen simulate` computes.\n"
+     << "  static constexpr bool has_dynamics = true;\n"
+     << "  static constexpr int nf = " << names.size() << ";  // free coordinates\n"
+     << "  static constexpr int num_bodies = " << m.bodies.size() << ";\n"
+     << "  static constexpr std::array<const char*, nf> free_names = {" << join(names) << "};\n"
+     << "  // Each free item's row of Phi: quantity - z, or for a distance |d|^2 - z^2.\n"
+     << "  static constexpr std::array<int, nf> free_rows = {" << join(rows) << "};\n"
+     << "  static constexpr std::array<bool, nf> free_distance = {" << join(distance) << "};\n"
+     << "  // Where each body's m, J and A com start in _force_geometry's output (-1: no mass).\n"
+     << "  static constexpr std::array<int, num_bodies> _mass_at = {" << join(at) << "};\n\n"
+     << "  // dynamics()' state and work space, caller-owned (no heap). q, qd and qdd are the "
+        "last\n"
+     << "  // call's (q: the next position solve's start, the file's q0 at first); state holds\n"
+     << "  // z, zd and zdd, block_signs each Newton block's determinant sign (a change: status "
+        "6).\n"
+     << "  template <class T>\n"
+     << "  struct DynamicsWork {\n"
+     << "    T q[nq], qd[nq], qdd[nq], state[3 * nf];\n"
+     << "    signed char block_signs[num_blocks];\n"
+     << "    T jac[jac_nnz], e[nq * nf], b[nq * nf], mb[nq * nf], g[nq], f[nq], mz[nf * nf];\n"
+     << "    T factors[block_factor_begin[num_blocks]];  // Phi_q's blocks at q\n"
+     << "    // The position solves' sin/cos cache, kept from call to call as the command line\n"
+     << "    // keeps it (so that the solves are the same bits) and as kinegen::Solver does.\n"
+     << "    T trig[trig_cache_size > 0 ? trig_cache_size : 1];\n"
+     << "    int pivots[nq];\n"
+     << "    T geometry[" << geometry_size << "], mass[num_bodies], inertia[num_bodies], "
+     << "ax[num_bodies], ay[num_bodies];\n"
+     << "    DynamicsWork() noexcept { reset(); }\n"
+     << "    // Back to the file's q0, no recorded branch, an empty cache (a new start).\n"
+     << "    void reset() noexcept {\n"
+     << "      for (int k = 0; k < nq; ++k) q[k] = T(q0[k]);\n"
+     << "      for (int k = 0; k < num_blocks; ++k) block_signs[k] = 0;\n"
+     << "      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty\n"
+     << "    }\n"
+     << "  };\n\n";
+}
+
+void emit_dynamics_function(std::ostringstream& os) {
+  os << R"(  // zdd[nf] at (z, zd, t) and, in w, q, qd, qdd. The status is solve_step's, or 2 where
+  // B^T M B's LDL^T pivot ratio is at most options.singular_pivot_ratio (a free coordinate
+  // that moves no mass), 3 where a value is not finite; block -1 for the reduction.
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics(const T* z, const T* zd, T t, const Params& p, T* zdd,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w) noexcept {
+    using R = _real<T>;
+    const BasicBlockOptions<R> o = _options_as<R>(options);
+    Params pz = p;
+    for (int k = 0; k < nf; ++k) {
+      w.state[k] = z[k];
+      w.state[nf + k] = zd[k];
+      w.state[2 * nf + k] = T(0);  // qdd = c first: the accelerations at zdd = 0
+    }
+    pz._free = w.state;
+    BlockReport<R> r = solve_step(w.q, t, pz, w.qd, w.qdd, o, w.trig, w.block_signs);
+    if (r.status != 0) return r;
+    // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), each block
+    // factored once (the factors kept for dynamics_jacobians' solves at this q).
+    phi_q(w.q, t, pz, w.jac);
+    for (int i = 0; i < nq * nf; ++i) w.e[i] = T(0);
+    for (int k = 0; k < nf; ++k)
+      w.e[k * nq + free_rows[k]] = free_distance[k] ? T(2) * z[k] : T(1);
+    const BlockReport<R> rb = _block_factor_all<_model>(w.jac, w.factors, w.pivots, o);
+    if (rb.status != 0) return _fail(r, rb.status, rb.block);
+    if (rb.rcond < r.rcond) r.rcond = rb.rcond;
+    if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
+      return _fail(r, 3, -1);
+    // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
+    // (the same products; the geometry computed once for both).
+    _force_geometry(w.q, t, pz, w.geometry);
+    for (int i = 0; i < num_bodies; ++i) {
+      const int a = _mass_at[i];
+      w.mass[i] = a < 0 ? T(0) : w.geometry[a];
+      w.inertia[i] = a < 0 ? T(0) : w.geometry[a + 1];
+      w.ax[i] = a < 0 ? T(0) : w.geometry[a + 2];
+      w.ay[i] = a < 0 ? T(0) : w.geometry[a + 3];
+    }
+    applied_force(w.q, w.qd, t, pz, w.g);
+    _inertia_forces(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.qd, w.qdd, w.f);
+    for (int k = 0; k < nq; ++k) w.g[k] -= w.f[k];
+    for (int k = 0; k < nf; ++k)
+      _mass_times(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.b + k * nq, w.mb + k * nq);
+    const R ratio = _reduced_accelerations(nq, nf, w.b, w.mb, w.g, w.mz, zdd, w.qdd);
+    if (!(ratio == ratio)) return _fail(r, 3, -1);
+    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
+    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
+    for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
+    return r;
+  }
+
+  // The same from the file's q0, with no state kept: the first call of a motion, or a test.
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics(const T* z, const T* zd, T t, const Params& p, T* zdd,
+      const BasicBlockOptions<U>& options) noexcept {
+    DynamicsWork<T> w;
+    return dynamics(z, zd, t, p, zdd, options, w);
+  }
+)";
+}
+
+// ---- The exact Jacobians (format 7.5): the tangent's derivatives as one program, in the
+// order of the command line's Linearizer (analysis/tangent.cpp), so that both evaluate the same
+// operations, and the linearize kernel's _dynamics_tangent on the header's block solves.
+
+// The tangent's pieces in one list (Linearizer's order), and where each starts.
+std::vector<GiNaC::ex> tangent_outputs(const TangentModel& t, const std::vector<GiNaC::ex>& applied,
+                                       std::vector<int>& begin) {
+  const SparseExpr* parts[] = {&t.nu_q,    &t.gamma_q, &t.gamma_qd,  &t.phi_w,      &t.nu_w,
+                               &t.gamma_w, nullptr,    &t.applied_q, &t.applied_qd, &t.applied_w};
+  std::vector<GiNaC::ex> all = t.phi_qq.value;
+  begin = {0};
+  for (const SparseExpr* p : parts) {
+    begin.push_back(static_cast<int>(all.size()));
+    const auto& v = p ? p->value : applied;
+    all.insert(all.end(), v.begin(), v.end());
+  }
+  begin.push_back(static_cast<int>(all.size()));
+  return all;
+}
+
+std::string int_array(const std::string& name, const std::vector<int>& v) {
+  std::vector<std::string> s;
+  for (int x : v) s.push_back(idx(x));
+  return "  static constexpr std::array<int, " + idx(static_cast<int>(v.size())) + "> " + name +
+         " = {" + join(s) + "};\n";
+}
+
+void emit_tangent_tables(std::ostringstream& os, const TangentModel& t,
+                         const std::vector<int>& begin) {
+  const HessianExpr& h = t.phi_qq;
+  os << int_array("_tangent_begin", begin) << int_array("_phi_qq_row", h.row)
+     << int_array("_phi_qq_j", h.j) << int_array("_phi_qq_k", h.k);
+  const std::pair<const char*, const SparseExpr*> pieces[] = {
+      {"_nu_q", &t.nu_q},           {"_gamma_q", &t.gamma_q},
+      {"_gamma_qd", &t.gamma_qd},   {"_phi_w", &t.phi_w},
+      {"_nu_w", &t.nu_w},           {"_gamma_w", &t.gamma_w},
+      {"_applied_q", &t.applied_q}, {"_applied_qd", &t.applied_qd},
+      {"_applied_w", &t.applied_w}};
+  for (const auto& [name, piece] : pieces)
+    os << int_array(std::string(name) + "_row", piece->row)
+       << int_array(std::string(name) + "_col", piece->col);
+}
+
+// The directions: each free item's value and rate slot (3 per driver), then the inputs'.
+std::vector<int> tangent_slots(const Mechanism& m) {
+  std::vector<int> slots;
+  for (int d : m.free_drivers()) slots.push_back(3 * d);
+  for (int d : m.free_drivers()) slots.push_back(3 * d + 1);
+  for (const RunInput& in : run_inputs(m)) slots.push_back(in.slot);
+  return slots;
+}
+
+// The rest of dynamics_jacobians: the kernel on the block solves, the columns copied out.
+void emit_jacobians_solve(std::ostringstream& os) {
+  os << R"(    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors); x is
+    // copied aside: the solves need x apart from the right-hand side.
+    const auto copy = [&](const T* x, int m) {
+      for (int i = 0; i < nq * m; ++i) j.scratch[i] = x[i];
+    };
+    const int s = _dynamics_tangent(
+        tp, ndir, slots, j.out, j.work,
+        [&](T* x, int m) {
+          copy(x, m);
+          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x, m)
+                     ? 0 : 3;
+        },
+        [&](T* x, int m) {
+          copy(x, m);
+          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x,
+                                                    m) ? 0 : 3;
+        });
+    if (s != 0) return _fail(r, s, -1);
+    int dir = 0;
+    for (T* d : {d_z, d_zd}) {
+      if (!d) continue;
+      for (int i = 0; i < nf * nf; ++i) d[i] = j.out[dir * nf + i];
+      dir += nf;
+    }
+    if (d_u)
+      for (int i = 0; i < nf * num_inputs; ++i) d_u[i] = j.out[dir * nf + i];
+    return r;
+  }
+
+  // The same with the work space on the stack.
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
+      T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options,
+      DynamicsWork<T>& w) noexcept {
+    JacobianWork<T> j;
+    return dynamics_jacobians(z, zd, t, p, zdd, d_z, d_zd, d_u, options, w, j);
+  }
+)";
+}
+
+void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, int nq, int nf) {
+  const int work = nq * nf + nq * (nf + 1) + nf * nf + 2 * nq * ndir + 2 * nq;
+  os << "  // dynamics_jacobians' work space, caller-owned (no heap).\n"
+     << "  template <class T>\n"
+     << "  struct JacobianWork {\n"
+     << "    T values[" << std::max(num_values, 1) << "];  // _tangent_values\n"
+     << "    T out[nf * " << ndir << "], scratch[nq * " << std::max(ndir, nf + 1) << "];\n"
+     << "    T work[" << work << "];  // _tangent_work_size(nq, nf, " << ndir << ")\n"
+     << "  };\n\n";
+  os << R"(  // dynamics() and the exact d(zdd)/dz (d_z), d(zdd)/dzd (d_zd) and d(zdd)/du (d_u)
+  // there, each column-major (d_z[j * nf + i] = d zdd_i / d z_j; d_u: nf x num_inputs), any
+  // of them nullptr when not wanted: A = [0 I; d_z d_zd] and B = [0; d_u] of x' = f(x, u),
+  // x = (z, zd), as `kinegen linearize` gives them. The linearize kernel on the block solves
+  // (on dynamics()' factors). Status as dynamics()', or the tangent's (2, 3).
+  template <class T, class U>
+  static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
+      T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options, DynamicsWork<T>& w,
+      JacobianWork<T>& j) noexcept {
+    using R = _real<T>;
+    BlockReport<R> r = dynamics(z, zd, t, p, zdd, options, w);
+    if (r.status != 0) return r;
+    Params pz = p;
+    pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
+    _tangent_values(w.q, w.qd, t, pz, j.values);
+    int slots[2 * nf + num_inputs], ndir = 0;
+    for (int i = 0; i < 2 * nf + num_inputs; ++i)
+      if (i < nf ? d_z != nullptr : i < 2 * nf ? d_zd != nullptr : d_u != nullptr)
+        slots[ndir++] = _tangent_slots[i];
+    if (ndir == 0) return r;
+    const auto at = [&](int piece) { return j.values + _tangent_begin[piece]; };
+    _TangentPoint<T> tp;
+    tp.nq = nq;
+    tp.nf = nf;
+    tp.nb = num_bodies;
+    tp.q = w.q;
+    tp.qd = w.qd;
+    tp.qdd = w.qdd;
+    tp.b = w.b;
+    tp.mass = w.mass;
+    tp.inertia = w.inertia;
+    tp.ax = w.ax;
+    tp.ay = w.ay;
+    tp.applied = at(7);
+    tp.phi_qq = {static_cast<int>(_phi_qq_row.size()), _phi_qq_row.data(), _phi_qq_j.data(),
+                 _phi_qq_k.data(), at(0)};
+    const auto sparse = [&](const auto& row, const auto& col, int piece) {
+      return _Sparse<T>{static_cast<int>(row.size()), row.data(), col.data(), at(piece)};
+    };
+    tp.nu_q = sparse(_nu_q_row, _nu_q_col, 1);
+    tp.gamma_q = sparse(_gamma_q_row, _gamma_q_col, 2);
+    tp.gamma_qd = sparse(_gamma_qd_row, _gamma_qd_col, 3);
+    tp.phi_w = sparse(_phi_w_row, _phi_w_col, 4);
+    tp.nu_w = sparse(_nu_w_row, _nu_w_col, 5);
+    tp.gamma_w = sparse(_gamma_w_row, _gamma_w_col, 6);
+    tp.applied_q = sparse(_applied_q_row, _applied_q_col, 8);
+    tp.applied_qd = sparse(_applied_qd_row, _applied_qd_col, 9);
+    tp.applied_w = sparse(_applied_w_row, _applied_w_col, 10);
+)";
+  emit_jacobians_solve(os);
+}
+
+void emit_jacobians(std::ostringstream& os, const DynamicsSource& d) {
+  const TangentModel t = derive_tangent(d.m, d.symbols, d.model, d.forces);
+  std::vector<GiNaC::ex> applied = d.forces.applied;
+  std::vector<int> begin;
+  std::vector<GiNaC::ex> outputs = tangent_outputs(t, applied, begin);
+  if (d.options.folded_params)
+    for (auto& e : outputs) e = substitute_params(e, d.symbols, d.model.param_values);
+  const int num_values = static_cast<int>(outputs.size());
+  if (outputs.empty()) outputs.push_back(0);  // out[1], so that the function reads `out`
+  const Program program = lower(outputs, d.symbols);
+  const std::vector<int> slots = tangent_slots(d.m);
+  std::vector<std::string> names;
+  for (const RunInput& in : run_inputs(d.m)) names.push_back("\"" + in.name + "\"");
+  const int nf = d.m.num_free(), ndir = static_cast<int>(slots.size());
+  os << "\n  // ---- The exact Jacobians of zdd(z, zd, u) (format 7.5), for linear-quadratic and\n"
+     << "  // model-predictive control: the run-time inputs u are the loads' (Params members).\n"
+     << "  static constexpr bool has_dynamics_jacobians = true;\n"
+     << "  static constexpr int num_inputs = " << names.size() << ";\n"
+     << "  static constexpr std::array<const char*, num_inputs> input_names = {" << join(names)
+     << "};\n\n private:\n"
+     << "  // The tangent's derivatives (symbolic/tangent.hpp): Phi_qq, nu_q, gamma_q, gamma_qd,\n"
+     << "  // Phi_w, nu_w, gamma_w, Q^A, Q^A_q, Q^A_qd and Q^A_w (w: the input slots, 3 per "
+        "driver\n"
+     << "  // then the loads' inputs), each starting at _tangent_begin[piece], and their places.\n";
+  emit_tangent_tables(os, t, begin);
+  os << int_array("_tangent_slots", slots);
+  emit_function(os, "_tangent_values", idx(std::max(num_values, 1)).c_str(), program, d.symbols,
+                true, d.options.max_function_ops);
+  os << "\n public:\n";
+  emit_jacobians_function(os, num_values, ndir, static_cast<int>(d.model.coordinate_kinds.size()),
+                          nf);
+}
+
+// step_implicit and what both steps share.
+void emit_implicit_step(std::ostringstream& os) {
+  os << R"(
+  template <class T, class U>
+  static BlockReport<_real<T>> step_implicit(T* z, T* zd, T& t, T h, const Params& p,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w, JacobianWork<T>& j,
+      int newton_iterations = 10,
+      _real<T> newton_tolerance = BasicBlockOptions<_real<T>>().tolerance) noexcept {
+    using R = _real<T>;
+    T x[2 * nf];
+    R scale[2 * nf];
+    for (int k = 0; k < nf; ++k)
+      scale[k] = scale[nf + k] = free_distance[k] || coordinate_kinds[_free_column(k)] != 1
+                                     ? R(length_scale) : R(1);
+    BlockReport<R> r;
+    const auto f = [&](T at, const T* y, T* yd) {
+      for (int k = 0; k < nf; ++k) yd[k] = y[nf + k];
+      r = dynamics(y, y + nf, at, p, yd + nf, options, w);
+      return r.status;
+    };
+    const auto jacobian = [&](T at, const T* y, const T*, T* a) {
+      T zdd[nf], dz[nf * nf], dzd[nf * nf];
+      r = dynamics_jacobians(y, y + nf, at, p, zdd, dz, dzd, static_cast<T*>(nullptr), options,
+                             w, j);
+      for (int i = 0; i < nf; ++i)  // row-major [0 I; dz dzd] from column-major blocks
+        for (int c = 0; c < nf; ++c) {
+          a[i * 2 * nf + c] = T(0);
+          a[i * 2 * nf + nf + c] = T(i == c ? 1 : 0);
+          a[(nf + i) * 2 * nf + c] = dz[c * nf + i];
+          a[(nf + i) * 2 * nf + nf + c] = dzd[c * nf + i];
+        }
+      return r.status;
+    };
+    const int status = _sdirk2_step<2 * nf>(t, h, _state_in(z, zd, x), scale, f, jacobian,
+                                            newton_iterations, newton_tolerance);
+    return _step_with(z, zd, t, h, x, r, status);
+  }
+
+ private:
+  template <class T>
+  static T* _state_in(const T* z, const T* zd, T* x) noexcept {
+    for (int k = 0; k < nf; ++k) {
+      x[k] = z[k];
+      x[nf + k] = zd[k];
+    }
+    return x;
+  }
+  // The step's end: x back into z and zd and t + h, or the failure (a dynamics() report, or
+  // the kernel's status: 1 Newton, 2 singular, 3 not finite).
+  template <class T, class R>
+  static BlockReport<R> _step_with(T* z, T* zd, T& t, T h, const T* x, BlockReport<R> r,
+                                   int status) noexcept {
+    if (status != 0) return r.status != 0 ? r : _fail(r, status, -1);
+    for (int k = 0; k < nf; ++k) {
+      z[k] = x[k];
+      zd[k] = x[nf + k];
+    }
+    t += h;
+    return r;
+  }
+  // The coordinate a free item's row reads first, for its kind (angle or length).
+  static constexpr int _free_column(int k) noexcept {
+    for (int e = 0; e < jac_nnz; ++e)
+      if (jac_rows[e] == free_rows[k]) return jac_cols[e];
+    return 0;
+  }
+
+ public:
+)";
+}
+
+// The integrators (the integrate kernel) on dynamics(): a fixed step of x = (z, zd).
+void emit_steps(std::ostringstream& os) {
+  os << R"(
+  // ---- Fixed-step integrators for a control loop (format 7.5; kinegen::Simulator wraps them
+  // with more care): z, zd and t advance by h in place, or stay as they were when a dynamics()
+  // fails (its report). step_rk4: classical Runge-Kutta (4 dynamics() a step, explicit);
+  // step_implicit: the L-stable SDIRK2 for stiff springs, Newton on the exact Jacobians, each
+  // stage until its update (per scale: angles in radians, lengths over length_scale) is at
+  // most newton_tolerance (the scalar's position tolerance by default; status 1 after
+  // newton_iterations).
+  template <class T, class U>
+  static BlockReport<_real<T>> step_rk4(T* z, T* zd, T& t, T h, const Params& p,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w) noexcept {
+    T x[2 * nf];
+    BlockReport<_real<T>> r;
+    const auto f = [&](T at, const T* y, T* yd) {
+      for (int k = 0; k < nf; ++k) yd[k] = y[nf + k];
+      r = dynamics(y, y + nf, at, p, yd + nf, options, w);
+      return r.status;
+    };
+    const int status = _rk4_step<2 * nf>(t, h, _state_in(z, zd, x), f);
+    return _step_with(z, zd, t, h, x, r, status);
+  }
+)";
+  emit_implicit_step(os);
+}
+
+}  // namespace
+
+void emit_dynamics(std::ostringstream& os, const DynamicsSource& d) {
+  emit_dynamics_tables(os, d.m, d.mass_at, d.geometry_size);
+  emit_dynamics_function(os);
+  emit_jacobians(os, d);
+  emit_steps(os);
+}
+
+}  // namespace kinegen::codegen::emit_detail
