@@ -4,9 +4,15 @@
 # one entry per file, the allocation test, the examples' programs, analyze and check of every
 # example). Any sanitizer report fails the run. What is not C++ or only compiles (the Python
 # module, the page, pip, the strict compile, the benchmarks) is left to the Release build.
-#   scripts/sanitize.sh            (after scripts/setup.sh has installed the packages)
+#   scripts/sanitize.sh [build | test]   (after scripts/setup.sh has installed the packages;
+#                                         one stage only, as scripts/test.sh runs them)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+stage=${1:-all}
+case "$stage" in
+  all | build | test) ;;
+  *) echo "usage: scripts/sanitize.sh [build | test]" >&2; exit 2 ;;
+esac
 jobs="${JOBS:-$(nproc)}"
 # Set before the build too: the build runs the instrumented kinegen to generate test headers.
 # Leak checking is off: libcln keeps a few bytes of static data unreleased at exit (LeakSanitizer
@@ -26,9 +32,13 @@ flags+=" -fno-sanitize-recover=undefined -fno-omit-frame-pointer"
 # -O1 -g1 (line tables for the reports' stacks): RelWithDebInfo's own -O2 -g would follow
 # CMAKE_CXX_FLAGS and win, so they are set here. They halve the instrumented compile
 # (test_dynamics.cpp 12.1 -> 6.3 s).
+if [[ $stage != test ]]; then
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS="$flags" \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
   -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" -DKINEGEN_BUILD_BENCHMARKS=OFF \
   -DKINEGEN_STRICT_COMPILE=OFF -DKINEGEN_BUILD_PYTHON=OFF -DKINEGEN_CXX_TESTS=ON >/dev/null
 cmake --build build-asan -j"$jobs"
-ctest --test-dir build-asan --output-on-failure -j"$jobs" -L cxx
+fi
+if [[ $stage != build ]]; then
+  ctest --test-dir build-asan --output-on-failure -j"$jobs" -L cxx
+fi
