@@ -2,8 +2,9 @@
 // for the pendulum, the press with its flywheel and the N-four-bar at N = 40, by
 //   - kinegen simulate (in-process run_simulation: the minimal coordinates on CVODE, and the
 //     augmented method where it is built),
-//   - the generated dynamics() of the header (fixed-step RK4 and CVODE): a slot, filled from
-//     branch `gen`,
+//   - the generated dynamics() of the committed header (peer_generated_dynamics.cpp): its
+//     fixed-step step_rk4() at several step sizes, and CVODE on dynamics() as kinegen simulate
+//     sets CVODE up,
 //   - Simbody (peer_simbody_dynamics.cpp),
 //   - the generic Cartesian index-1 DAE with Baumgarte's stabilization on SUNDIALS IDA
 //     (generic_dae.hpp).
@@ -129,20 +130,6 @@ long double reduced_w2(const kd::Problem& p) {
   return p.param("g") * m * l * (3 * n + 1) / 2 / ((n + 1) * m * l * l / 3 + n * m * l * l);
 }
 
-template <class F>
-double best_time(int repetitions, F&& run) {
-  double best = INFINITY;
-  for (int rep = 0; rep < repetitions; ++rep) {
-    const auto start = std::chrono::steady_clock::now();
-    if (!run()) return NAN;
-    const double s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    best = std::min(best, s);
-    if (s > 0.5) break;
-  }
-  return best;
-}
-
 std::vector<kd::Run> run_kinegen(const Loaded& l, kc::Method method,
                                  const std::vector<double>& tolerances, int repetitions) {
   std::vector<kd::Run> out;
@@ -156,7 +143,7 @@ std::vector<kd::Run> run_kinegen(const Loaded& l, kc::Method method,
     o.rtol = tol;
     o.atol = tol;
     o.method = method;
-    run.seconds = best_time(repetitions, [&] {
+    run.seconds = kd::best_seconds(repetitions, [&] {
       try {
         kc::run_simulation(*l.model, l.forces, {0, l.problem.t1, 1},
                            [&](const kc::SimulatedRow& r) {
@@ -188,7 +175,7 @@ std::vector<kd::Run> run_generic(const Loaded& l, const std::vector<double>& tol
     char label[32];
     std::snprintf(label, sizeof label, "rtol=%.0e", tol);
     run.setting = label;
-    run.seconds = best_time(repetitions, [&] {
+    run.seconds = kd::best_seconds(repetitions, [&] {
       const kd::IdaResult r = kd::run_ida(dae, l.problem.t1, tol);
       run.z = r.z;
       run.zd = r.zd;
@@ -203,15 +190,6 @@ std::vector<kd::Run> run_generic(const Loaded& l, const std::vector<double>& tol
     out.push_back(run);
   }
   return out;
-}
-
-// The slot for the generated dynamics() (branch `gen`): a program stepping the header's
-// dynamics() with the header's fixed-step RK4 and with CVODE. Until it is merged: empty.
-std::vector<kd::Run> run_generated(const Loaded&, std::string& skipped) {
-  skipped =
-      "generated dynamics(): slot for branch `gen` (the header's fixed-step RK4 and CVODE on "
-      "dynamics()); not built here";
-  return {};
 }
 
 struct Table {
@@ -257,6 +235,9 @@ int main(int argc, char** argv) {
 
   std::vector<double> tolerances = kd::kTolerances;
   if (quick) tolerances = {1e-4, 1e-8};
+  // The generated RK4's step sizes (rounded to t1 / n).
+  std::vector<double> steps = {1e-2, 3e-3, 1e-3, 3e-4, 1e-4};
+  if (quick) steps = {1e-2, 1e-3};
   const int reps = quick ? 1 : 3;
 
   std::vector<Loaded> problems;
@@ -345,8 +326,10 @@ int main(int argc, char** argv) {
       runs.insert(runs.end(), aug.begin(), aug.end());
     }
     std::string skipped;
-    auto generated = run_generated(l, skipped);
+    auto generated = kd::run_generated(p, tols, full ? std::vector<double>{1e-3} : steps, reps,
+                                       skipped);
     if (!skipped.empty()) std::printf("  %s\n", skipped.c_str());
+    runs.insert(runs.end(), generated.begin(), generated.end());
     skipped.clear();
     auto simbody = kd::run_simbody(p, tols, reps, skipped);
     if (!skipped.empty()) std::printf("  %s\n", skipped.c_str());
