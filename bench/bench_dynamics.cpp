@@ -18,6 +18,7 @@
 //   build/bench/bench_dynamics [OUT.csv] [--quick]       (scripts/bench_dynamics.sh)
 #include <boost/math/special_functions/ellint_1.hpp>
 #include <boost/math/special_functions/jacobi_elliptic.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -218,6 +219,53 @@ struct Table {
   }
 };
 
+// The generated dynamics() against each other method at equal error of z, measured in this
+// run: for each of the method's runs (time T at error e), T over the generated runs' time at
+// e, that time log-log interpolated between two runs of one generated line (RK4 or CVODE)
+// whose errors bracket e, or the cheapest generated run with an error at most e (whichever
+// is less); no extrapolation, so a run more accurate than every generated one has no ratio.
+// Conservatively (in brackets): the cheapest generated run with an error at most e.
+void print_ratios(const std::vector<kd::Run>& runs, const ZState& ref) {
+  const auto error = [&](const kd::Run& r) { return std::abs(r.z - static_cast<double>(ref.z)); };
+  const auto generated = [](const kd::Run& r) { return r.method.rfind("generated", 0) == 0; };
+  const auto generated_time = [&](double e, bool interpolate) {
+    double best = INFINITY;
+    for (const kd::Run& g : runs)
+      if (generated(g) && g.ok && error(g) <= e) best = std::min(best, g.seconds);
+    if (!interpolate) return best;
+    for (std::size_t k = 0; k + 1 < runs.size(); ++k) {
+      const kd::Run &a = runs[k], &b = runs[k + 1];
+      if (!generated(a) || a.method != b.method || !a.ok || !b.ok) continue;
+      const double ea = error(a), eb = error(b);
+      if (!(ea > e && e >= eb)) continue;
+      const double f = std::log(e / ea) / std::log(eb / ea);
+      best = std::min(best, std::exp(std::log(a.seconds) + f * std::log(b.seconds / a.seconds)));
+    }
+    return best;
+  };
+  std::printf("  ratios at equal error of z, the method's time over the generated dynamics()' "
+              "(interpolated; [the cheapest generated run at most as inaccurate]):\n");
+  std::vector<std::string> methods;
+  for (const kd::Run& r : runs)
+    if (!generated(r) && std::find(methods.begin(), methods.end(), r.method) == methods.end())
+      methods.push_back(r.method);
+  for (const std::string& m : methods) {
+    std::string line;
+    for (const kd::Run& r : runs) {
+      if (r.method != m || !r.ok) continue;
+      const double e = error(r), t = generated_time(e, true), c = generated_time(e, false);
+      char cell[96];
+      if (std::isfinite(t))
+        std::snprintf(cell, sizeof cell, " %.1e: %.0fx [%.0fx];", e, r.seconds / t,
+                      std::isfinite(c) ? r.seconds / c : NAN);
+      else
+        std::snprintf(cell, sizeof cell, " %.1e: -;", e);
+      line += cell;
+    }
+    std::printf("    %-20s%s\n", m.c_str(), line.empty() ? " no run reached t1" : line.c_str());
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -337,6 +385,7 @@ int main(int argc, char** argv) {
     auto generic = run_generic(l, tols, reps);
     runs.insert(runs.end(), generic.begin(), generic.end());
     for (const kd::Run& r : runs) table.row(p, r, ref, zd_scale);
+    print_ratios(runs, ref);
     std::fflush(stdout);
   }
   std::filesystem::remove(nfb);

@@ -37,8 +37,8 @@ std::string label(const char* what, double value) {
 std::string failure(const char* where, int status, double t) {
   char s[160];
   std::snprintf(s, sizeof s,
-                "%s: dynamics() status %d at t = %.6g (minimal coordinates; a singular position "
-                "stops them)",
+                "%s: dynamics() status %d at t = %.6g (the minimal coordinates stop at the "
+                "singular position; the augmented method passes it)",
                 where, status, t);
   return s;
 }
