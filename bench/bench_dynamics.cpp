@@ -2,8 +2,9 @@
 // for the pendulum, the press with its flywheel and the N-four-bar at N = 40, by
 //   - kinegen simulate (in-process run_simulation: the minimal coordinates on CVODE, and the
 //     augmented method where it is built),
-//   - the generated dynamics() of the header (fixed-step RK4 and CVODE): a slot, filled from
-//     branch `gen`,
+//   - the generated dynamics() of the committed header (peer_generated_dynamics.cpp): its
+//     fixed-step step_rk4() at several step sizes, and CVODE on dynamics() as kinegen simulate
+//     sets CVODE up,
 //   - Simbody (peer_simbody_dynamics.cpp),
 //   - the generic Cartesian index-1 DAE with Baumgarte's stabilization on SUNDIALS IDA
 //     (generic_dae.hpp).
@@ -17,6 +18,7 @@
 //   build/bench/bench_dynamics [OUT.csv] [--quick]       (scripts/bench_dynamics.sh)
 #include <boost/math/special_functions/ellint_1.hpp>
 #include <boost/math/special_functions/jacobi_elliptic.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -129,20 +131,6 @@ long double reduced_w2(const kd::Problem& p) {
   return p.param("g") * m * l * (3 * n + 1) / 2 / ((n + 1) * m * l * l / 3 + n * m * l * l);
 }
 
-template <class F>
-double best_time(int repetitions, F&& run) {
-  double best = INFINITY;
-  for (int rep = 0; rep < repetitions; ++rep) {
-    const auto start = std::chrono::steady_clock::now();
-    if (!run()) return NAN;
-    const double s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    best = std::min(best, s);
-    if (s > 0.5) break;
-  }
-  return best;
-}
-
 std::vector<kd::Run> run_kinegen(const Loaded& l, kc::Method method,
                                  const std::vector<double>& tolerances, int repetitions) {
   std::vector<kd::Run> out;
@@ -156,7 +144,7 @@ std::vector<kd::Run> run_kinegen(const Loaded& l, kc::Method method,
     o.rtol = tol;
     o.atol = tol;
     o.method = method;
-    run.seconds = best_time(repetitions, [&] {
+    run.seconds = kd::best_seconds(repetitions, [&] {
       try {
         kc::run_simulation(*l.model, l.forces, {0, l.problem.t1, 1},
                            [&](const kc::SimulatedRow& r) {
@@ -188,7 +176,7 @@ std::vector<kd::Run> run_generic(const Loaded& l, const std::vector<double>& tol
     char label[32];
     std::snprintf(label, sizeof label, "rtol=%.0e", tol);
     run.setting = label;
-    run.seconds = best_time(repetitions, [&] {
+    run.seconds = kd::best_seconds(repetitions, [&] {
       const kd::IdaResult r = kd::run_ida(dae, l.problem.t1, tol);
       run.z = r.z;
       run.zd = r.zd;
@@ -203,15 +191,6 @@ std::vector<kd::Run> run_generic(const Loaded& l, const std::vector<double>& tol
     out.push_back(run);
   }
   return out;
-}
-
-// The slot for the generated dynamics() (branch `gen`): a program stepping the header's
-// dynamics() with the header's fixed-step RK4 and with CVODE. Until it is merged: empty.
-std::vector<kd::Run> run_generated(const Loaded&, std::string& skipped) {
-  skipped =
-      "generated dynamics(): slot for branch `gen` (the header's fixed-step RK4 and CVODE on "
-      "dynamics()); not built here";
-  return {};
 }
 
 struct Table {
@@ -240,6 +219,53 @@ struct Table {
   }
 };
 
+// The generated dynamics() against each other method at equal error of z, measured in this
+// run: for each of the method's runs (time T at error e), T over the generated runs' time at
+// e, that time log-log interpolated between two runs of one generated line (RK4 or CVODE)
+// whose errors bracket e, or the cheapest generated run with an error at most e (whichever
+// is less); no extrapolation, so a run more accurate than every generated one has no ratio.
+// Conservatively (in brackets): the cheapest generated run with an error at most e.
+void print_ratios(const std::vector<kd::Run>& runs, const ZState& ref) {
+  const auto error = [&](const kd::Run& r) { return std::abs(r.z - static_cast<double>(ref.z)); };
+  const auto generated = [](const kd::Run& r) { return r.method.rfind("generated", 0) == 0; };
+  const auto generated_time = [&](double e, bool interpolate) {
+    double best = INFINITY;
+    for (const kd::Run& g : runs)
+      if (generated(g) && g.ok && error(g) <= e) best = std::min(best, g.seconds);
+    if (!interpolate) return best;
+    for (std::size_t k = 0; k + 1 < runs.size(); ++k) {
+      const kd::Run &a = runs[k], &b = runs[k + 1];
+      if (!generated(a) || a.method != b.method || !a.ok || !b.ok) continue;
+      const double ea = error(a), eb = error(b);
+      if (!(ea > e && e >= eb)) continue;
+      const double f = std::log(e / ea) / std::log(eb / ea);
+      best = std::min(best, std::exp(std::log(a.seconds) + f * std::log(b.seconds / a.seconds)));
+    }
+    return best;
+  };
+  std::printf("  ratios at equal error of z, the method's time over the generated dynamics()' "
+              "(interpolated; [the cheapest generated run at most as inaccurate]):\n");
+  std::vector<std::string> methods;
+  for (const kd::Run& r : runs)
+    if (!generated(r) && std::find(methods.begin(), methods.end(), r.method) == methods.end())
+      methods.push_back(r.method);
+  for (const std::string& m : methods) {
+    std::string line;
+    for (const kd::Run& r : runs) {
+      if (r.method != m || !r.ok) continue;
+      const double e = error(r), t = generated_time(e, true), c = generated_time(e, false);
+      char cell[96];
+      if (std::isfinite(t))
+        std::snprintf(cell, sizeof cell, " %.1e: %.0fx [%.0fx];", e, r.seconds / t,
+                      std::isfinite(c) ? r.seconds / c : NAN);
+      else
+        std::snprintf(cell, sizeof cell, " %.1e: -;", e);
+      line += cell;
+    }
+    std::printf("    %-20s%s\n", m.c_str(), line.empty() ? " no run reached t1" : line.c_str());
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -257,6 +283,9 @@ int main(int argc, char** argv) {
 
   std::vector<double> tolerances = kd::kTolerances;
   if (quick) tolerances = {1e-4, 1e-8};
+  // The generated RK4's step sizes (rounded to t1 / n).
+  std::vector<double> steps = {1e-2, 3e-3, 1e-3, 3e-4, 1e-4};
+  if (quick) steps = {1e-2, 1e-3};
   const int reps = quick ? 1 : 3;
 
   std::vector<Loaded> problems;
@@ -345,8 +374,10 @@ int main(int argc, char** argv) {
       runs.insert(runs.end(), aug.begin(), aug.end());
     }
     std::string skipped;
-    auto generated = run_generated(l, skipped);
+    auto generated = kd::run_generated(p, tols, full ? std::vector<double>{1e-3} : steps, reps,
+                                       skipped);
     if (!skipped.empty()) std::printf("  %s\n", skipped.c_str());
+    runs.insert(runs.end(), generated.begin(), generated.end());
     skipped.clear();
     auto simbody = kd::run_simbody(p, tols, reps, skipped);
     if (!skipped.empty()) std::printf("  %s\n", skipped.c_str());
@@ -354,6 +385,7 @@ int main(int argc, char** argv) {
     auto generic = run_generic(l, tols, reps);
     runs.insert(runs.end(), generic.begin(), generic.end());
     for (const kd::Run& r : runs) table.row(p, r, ref, zd_scale);
+    print_ratios(runs, ref);
     std::fflush(stdout);
   }
   std::filesystem::remove(nfb);

@@ -2,8 +2,9 @@
 #   gnuplot -e "csv='out/bench/dynamics.csv'; out='docs/figures/dynamics_work_precision'" \
 #           scripts/plot_dynamics_bench.gp
 # One panel per problem: run time (s, log) against the error of the free coordinate at t1
-# (rad, log); one line per method, its points the tolerances (Simbody: its accuracy). Failed
-# runs have no point; the 20 s N-four-bar run, where only failures are, is left to the table.
+# (rad, log); one line per method, its points the tolerances (Simbody: its accuracy; the
+# generated RK4: its step sizes). Failed runs have no point; the 20 s N-four-bar run, where
+# the augmented method alone reaches t1 on its branch, is left to the table.
 if (!exists("csv")) csv = 'out/bench/dynamics.csv'
 if (!exists("out")) out = 'docs/figures/dynamics_work_precision'
 set datafile separator ','
@@ -25,7 +26,7 @@ err(p, m) = (v = sel(p, m, 5), v != v ? NaN : (v < 1e-16 ? 1e-16 : v))
 n = words(problems)
 set terminal pngcairo size 1400,(n > 2 ? 1000 : 520) font "sans,10"
 set output out.'.png'
-set multiplot layout (n > 2 ? 2 : 1),2 title "kinegen dynamics work-precision: run time against the error at t1 (log-log); points are tolerances 1e-4 .. 1e-12"
+set multiplot layout (n > 2 ? 2 : 1),2 title "kinegen dynamics work-precision: run time against the error at t1 (log-log); points are tolerances 1e-4 .. 1e-12 (generated RK4: steps h = 1e-2 .. 1e-4)"
 do for [i = 1:n] {
   p = tilde(word(problems, i))
   set title p noenhanced
