@@ -232,7 +232,7 @@ double worst_gap(const Run& a, const Run& b) {
 }  // namespace
 
 TEST_CASE("reference dynamics: energy and power balances hold to ~D - 5 digits",
-          "[reference_dynamics]") {
+          "[reference_dynamics][balances]") {
   // 25 digits: a balance to 1e-20 is far beyond what double arithmetic could give, at a
   // third of the cost of 30 (the sanitizer pass runs this too).
   constexpr int kDigits = 25;
