@@ -24,6 +24,7 @@
 
 #include "kinegen/codegen/emit/reserved_names.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
+#include "support/files.hpp"
 #include "support/run_command.hpp"
 
 namespace {
@@ -37,24 +38,11 @@ fs::path example(const std::string& name) {
 }
 
 fs::path scratch_dir(const std::string& name) {
-  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "cli_safety" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return kinegen::test::scratch_dir("cli_safety", name);
 }
 
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-  REQUIRE(out);
-}
+using kinegen::test::read_text;
+using kinegen::test::write_text;
 
 std::string replaced(std::string text, const std::string& from, const std::string& to) {
   const auto at = text.find(from);

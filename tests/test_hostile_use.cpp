@@ -35,6 +35,7 @@
 #include "kinegen/codegen/base/read_file.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "pieces_drive.hpp"
+#include "support/files.hpp"
 #include "support/run_command.hpp"
 
 namespace {
@@ -46,24 +47,11 @@ using kinegen::test::CommandResult;
 std::string source(const std::string& path) { return std::string(KINEGEN_SOURCE_DIR) + "/" + path; }
 
 fs::path scratch_dir(const std::string& name) {
-  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "hostile_use" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return kinegen::test::scratch_dir("hostile_use", name);
 }
 
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-  REQUIRE(out);
-}
+using kinegen::test::read_text;
+using kinegen::test::write_text;
 
 bool contains(const std::string& text, const std::string& part) {
   return text.find(part) != std::string::npos;
