@@ -188,6 +188,7 @@ TEST_CASE("an under-driven mechanism cannot be analyzed (exit 2, no output)", "[
   CHECK(r.err.find("not kinematically driven") != std::string::npos);
   CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
   CHECK_FALSE(fs::exists(csv));
+  CHECK_FALSE(fs::exists(dir / "loose.svg"));
 }
 
 TEST_CASE("a missing file is one error line naming it, exit 2, no output", "[hostile]") {
@@ -228,4 +229,29 @@ TEST_CASE("a file above the size limit is refused before parsing", "[hostile]") 
     CHECK(e.item() == "file");
     CHECK(std::string(e.what()).find("larger than") != std::string::npos);
   }
+}
+
+TEST_CASE("bodies and nothing else: the commands that solve name the undriven body",
+          "[hostile]") {
+  // The fuzzer's find: Eigen's SVD of Phi_q with no rows read past an empty matrix, and
+  // `analyze` of this file ended in a segmentation fault.
+  const fs::path dir = scratch("bodies_only");
+  const fs::path mech = dir / "loose.yaml", csv = dir / "loose.csv";
+  write_text(mech, "name: loose\nbodies:\n  - {name: a, q0: [0, 0, 0]}\n");
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"analyze", mech.string(), "--t0", "0", "--t1", "1", "--steps",
+                                 "2", "-o", csv.string()},
+        std::vector<std::string>{"animate", mech.string(), "--t0", "0", "--t1", "1", "--steps",
+                                 "2", "-o", (dir / "loose.svg").string()},
+        std::vector<std::string>{"tolerance", mech.string(), "--tol", "x=1", "--t0", "0", "--t1",
+                                 "1", "--steps", "2"}}) {
+    const auto r = run_kinegen(args);
+    INFO(args[0] << ": " << r.err);
+    CHECK(r.exit_code == 2);
+    CHECK(r.err.rfind("error: ", 0) == 0);
+    CHECK(r.err.find("not kinematically driven") != std::string::npos);
+    CHECK(r.err.find("body 'a'") != std::string::npos);
+  }
+  CHECK_FALSE(fs::exists(csv));
+  CHECK_FALSE(fs::exists(dir / "loose.svg"));
 }

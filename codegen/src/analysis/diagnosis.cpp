@@ -57,7 +57,8 @@ std::string singular_rows(const CompiledModel& model, const Eigen::MatrixXd& jac
   Eigen::MatrixXd s(rows.size(), cols.size());
   for (std::size_t i = 0; i < rows.size(); ++i)
     for (std::size_t j = 0; j < cols.size(); ++j) s(i, j) = full(rows[i], cols[j]);
-  if (!s.allFinite()) return "";
+  // Eigen's SVD reads the first entry even of an empty matrix.
+  if (!s.allFinite() || s.size() == 0) return "";
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(s, Eigen::ComputeFullU);
   const Eigen::VectorXd sv = svd.singularValues();
   const double s_max = sv.size() ? sv(0) : 0.0;
@@ -204,12 +205,17 @@ void require_driven(const CompiledModel& model) {
   if (nq <= kMaxDiagnosedNq) {
     const Eigen::MatrixXd jac = scaled_jacobian(model, jacobian_at(model, model.q0(), 0.0));
     if (jac.allFinite()) {
-      Eigen::JacobiSVD<Eigen::MatrixXd> svd(jac, Eigen::ComputeFullV);
-      const auto& sv = svd.singularValues();
-      const double tol = 1e-9 * std::max(1.0, sv.size() ? sv[0] : 1.0);
-      int rank = 0;
-      for (int k = 0; k < sv.size(); ++k) rank += sv[k] > tol;
-      const Eigen::MatrixXd kernel = svd.matrixV().rightCols(nq - rank);
+      // No equations at all: every coordinate is free. (Eigen's SVD of a 0 x nq matrix reads
+      // its first entry: the fuzzer's find, a crash of `analyze` on a file with bodies only.)
+      Eigen::MatrixXd kernel = Eigen::MatrixXd::Identity(nq, nq);
+      if (nc > 0) {
+        Eigen::JacobiSVD<Eigen::MatrixXd> svd(jac, Eigen::ComputeFullV);
+        const auto& sv = svd.singularValues();
+        const double tol = 1e-9 * std::max(1.0, sv.size() ? sv[0] : 1.0);
+        int rank = 0;
+        for (int k = 0; k < sv.size(); ++k) rank += sv[k] > tol;
+        kernel = svd.matrixV().rightCols(nq - rank);
+      }
       for (std::size_t b = 0; b < m.bodies.size(); ++b)
         if (kernel.middleRows(3 * static_cast<int>(b), 3).cwiseAbs().maxCoeff() > 1e-6)
           free_bodies.push_back(static_cast<int>(b));
