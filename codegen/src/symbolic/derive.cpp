@@ -154,9 +154,9 @@ class Differentiator {
   ex operator()(const ex& e, const GiNaC::symbol& x, int r) {
     const double size = tree_size(e, x).derivative;
     derived_ += size;
+    const Constraint& c = *model_.rows[r].constraint;
+    const SourceLoc loc = row_loc(c, model_.rows[r].component);
     if (size > kMaxDerivativeSize || derived_ > kMaxDerivedSize) {
-      const Constraint& c = *model_.rows[r].constraint;
-      const SourceLoc loc = row_loc(c, model_.rows[r].component);
       throw InputError(
           m_.source, c.item, loc,
           "its derivatives would grow to about " + short_value(size) + " nodes" +
@@ -167,7 +167,16 @@ class Differentiator {
               short_value(size > kMaxDerivativeSize ? kMaxDerivativeSize : kMaxDerivedSize) +
               "; write the expression more compactly");
     }
-    return e.diff(x);
+    try {
+      return e.diff(x);
+    } catch (const std::exception& err) {
+      // GiNaC differentiates b^e through log(b) even where e is constant in x: 0^a (a a
+      // parameter) has a logarithmic pole. The fuzzer's find; the item and line, not an
+      // internal error.
+      throw InputError(m_.source, c.item, loc,
+                       "cannot be differentiated by " + x.get_name() + ": " +
+                           clean_message(err.what()));
+    }
   }
 
  private:
@@ -357,10 +366,21 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
       model.rows.push_back({c, static_cast<int>(k)});
     }
   }
-  derive_free_values(m, s, model);
-  derive_rates(m, s, model);
-  derive_geometry(m, s, builder, model);
-  derive_outputs(m, s, model);
+  try {
+    derive_free_values(m, s, model);
+    derive_rates(m, s, model);
+    derive_geometry(m, s, builder, model);
+    derive_outputs(m, s, model);
+  } catch (const InputError&) {
+    throw;
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const std::exception& err) {
+    // GiNaC's own errors where no row is at hand to name (a pole met while differentiating an
+    // output or a free item's value): one error naming the file, not an internal error.
+    throw InputError(m.source, "file", {},
+                     "the derivatives cannot be formed: " + clean_message(err.what()));
+  }
   derive_scales(m, body_scales(m, s, builder, model.param_values), model);
   // The laws' boundaries, once the length scale is known: a driven length's jumps are
   // measured against it (the equations above took the laws unchecked).
