@@ -2525,6 +2525,20 @@ struct n_four_bar_40 {
     return 0;
   }
 
+  // df/dx of x' = (zd, zdd(z, zd)) with x = (z, zd): the row-major 2 NF x 2 NF matrix
+  // [0 I; dz dzd] from d(zdd)/dz and d(zdd)/dzd, column-major NF x NF as dynamics_jacobians
+  // writes them. The generated step_implicit and kinegen::Simulator both build it here.
+  template <int NF, class T>
+  static void _state_jacobian(const T* dz, const T* dzd, T* a) noexcept {
+    for (int i = 0; i < NF; ++i)
+      for (int c = 0; c < NF; ++c) {
+        a[i * 2 * NF + c] = T(0);
+        a[i * 2 * NF + NF + c] = T(i == c ? 1 : 0);
+        a[(NF + i) * 2 * NF + c] = dz[c * NF + i];
+        a[(NF + i) * 2 * NF + NF + c] = dzd[c * NF + i];
+      }
+  }
+
   // df/dx (N x N, row-major: jac[i * N + j] = d f_i / d x_j) by forward differences, the
   // fallback where no exact Jacobian is at hand: step sqrt(eps) max(|x_j|, scale_j), about
   // sqrt(eps) relative accuracy, which Newton on the stages needs no more than. fx = f(t, x).
@@ -11212,13 +11226,7 @@ struct n_four_bar_40 {
       T zdd[nf], dz[nf * nf], dzd[nf * nf];
       r = dynamics_jacobians(y, y + nf, at, p, zdd, dz, dzd, static_cast<T*>(nullptr), options,
                              w, j);
-      for (int i = 0; i < nf; ++i)  // row-major [0 I; dz dzd] from column-major blocks
-        for (int c = 0; c < nf; ++c) {
-          a[i * 2 * nf + c] = T(0);
-          a[i * 2 * nf + nf + c] = T(i == c ? 1 : 0);
-          a[(nf + i) * 2 * nf + c] = dz[c * nf + i];
-          a[(nf + i) * 2 * nf + nf + c] = dzd[c * nf + i];
-        }
+      _state_jacobian<nf>(dz, dzd, a);
       return r.status;
     };
     const int status = _sdirk2_step<2 * nf>(t, h, _state_in(z, zd, x), scale, f, jacobian,

@@ -351,13 +351,7 @@ void emit_implicit_step(std::ostringstream& os) {
       T zdd[nf], dz[nf * nf], dzd[nf * nf];
       r = dynamics_jacobians(y, y + nf, at, p, zdd, dz, dzd, static_cast<T*>(nullptr), options,
                              w, j);
-      for (int i = 0; i < nf; ++i)  // row-major [0 I; dz dzd] from column-major blocks
-        for (int c = 0; c < nf; ++c) {
-          a[i * 2 * nf + c] = T(0);
-          a[i * 2 * nf + nf + c] = T(i == c ? 1 : 0);
-          a[(nf + i) * 2 * nf + c] = dz[c * nf + i];
-          a[(nf + i) * 2 * nf + nf + c] = dzd[c * nf + i];
-        }
+      _state_jacobian<nf>(dz, dzd, a);
       return r.status;
     };
     const int status = _sdirk2_step<2 * nf>(t, h, _state_in(z, zd, x), scale, f, jacobian,

@@ -169,14 +169,7 @@ class Simulator {
       last_ = Model::dynamics_jacobians(x, x + nf, t, params_, zdd, dz, dzd,
                                         static_cast<T*>(nullptr), block_, work_, jacobian_work_);
       if (last_.status != 0) return last_.status;
-      // Row-major [0 I; dzdd/dz dzdd/dzd]; the header's blocks are column-major (nf x nf).
-      for (int i = 0; i < nf; ++i)
-        for (int c = 0; c < nf; ++c) {
-          j[i * kStates + c] = T(0);
-          j[i * kStates + nf + c] = T(i == c ? 1 : 0);
-          j[(nf + i) * kStates + c] = dz[c * nf + i];
-          j[(nf + i) * kStates + nf + c] = dzd[c * nf + i];
-        }
+      kernels::IntegrateKernel::_state_jacobian<nf>(dz, dzd, j);
       (void)fx;
       (void)f;
       return 0;
