@@ -65,6 +65,17 @@ struct n_four_bar_4 {
     const void* _free = nullptr;
   };
 
+  // Whether a and b hold the same values (a NaN never does).
+  static bool _same_params([[maybe_unused]] const Params& a,
+                           [[maybe_unused]] const Params& b) noexcept {
+    return a.m == b.m &&
+           a.l == b.l &&
+           a.g == b.g &&
+           a.theta == b.theta &&
+           a.theta_v == b.theta_v &&
+           a.theta_a == b.theta_a;
+  }
+
   // A free item's value (i < nf), rate or acceleration, as dynamics() set it.
   template <class T>
   static T _free_in(const Params& p, int i, double member) noexcept {
@@ -417,6 +428,13 @@ struct n_four_bar_4 {
     o.residual_tolerance = R(u.residual_tolerance);
     o.min_rcond = R(u.min_rcond);
     return o;
+  }
+  template <class R>
+  static bool _same_options(const BasicBlockOptions<R>& a, const BasicBlockOptions<R>& b) noexcept {
+    return a.tolerance == b.tolerance && a.max_iterations == b.max_iterations &&
+           a.fixed_iterations == b.fixed_iterations &&
+           a.singular_pivot_ratio == b.singular_pivot_ratio &&
+           a.residual_tolerance == b.residual_tolerance && a.min_rcond == b.min_rcond;
   }
 
   template <class R>
@@ -808,10 +826,28 @@ struct n_four_bar_4 {
     }
   }
 
+  // Calls f(std::integral_constant<int, k>) for each block k in solve order (kReverse:
+  // backwards) while it returns true; false when one did not. Each block's loops then have
+  // fixed bounds and places, which the compiler unrolls: the solves that follow a dynamics()
+  // (B, the Jacobians' tangent) are 2-3x faster than with the block index at run time.
+  template <class S, bool kReverse = false, class F>
+  static bool _each_block_unrolled(F&& f) noexcept {
+    return _each_block_unrolled<S, kReverse>(f, std::make_integer_sequence<int, S::num_blocks>{});
+  }
+  template <class S, bool kReverse, class F, int... I>
+  static bool _each_block_unrolled(F& f, std::integer_sequence<int, I...>) noexcept {
+    constexpr int n = sizeof...(I);
+    return (f(std::integral_constant<int, (kReverse ? n - 1 - I : I)>{}) && ...);
+  }
+  template <class S, int k>
+  static constexpr int _block_size = S::block_begin[k + 1] - S::block_begin[k];
+
   // Gathers block k (K x K, row-major: its rows by its coordinates) from jac and factors it.
   // False when it is singular, ill-conditioned or not finite (r records why).
-  template <class S, int K, class T, class R>
-  static bool _block_factor(int k, const T* jac, T* a, int* piv, BlockReport<R>& r,
+  // Index: int, or std::integral_constant<int, k> from _each_block_unrolled (each block its own
+  // instance, with its tables' entries known to the compiler).
+  template <class S, int K, class Index, class T, class R>
+  static bool _block_factor(Index k, const T* jac, T* a, int* piv, BlockReport<R>& r,
                             const R& min_rcond) noexcept {
     const int b0 = S::block_begin[k];
     for (int i = 0; i < K * K; ++i) a[i] = T(0);
@@ -831,8 +867,7 @@ struct n_four_bar_4 {
       const int row = S::block_rows[b0 + i];
       row_max[i] = R(0);
       for (int e = S::jac_row_begin[row]; e < S::jac_row_begin[row + 1]; ++e)
-        row_max[i] =
-            std::max(row_max[i], _mag(jac[e]) * R(S::coordinate_scales[S::jac_cols[e]]));
+        row_max[i] = std::max(row_max[i], _mag(jac[e]) * R(S::coordinate_scales[S::jac_cols[e]]));
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
@@ -882,8 +917,8 @@ struct n_four_bar_4 {
         });
   }
   // Block k (K x K, factors a, piv) of Phi_q X = B for m columns, earlier blocks solved.
-  template <class S, int K, class T>
-  static bool _forward_block(int k, const T* jac, const T* a, const int* piv, const T* b, T* x,
+  template <class S, int K, class Index, class T>
+  static bool _forward_block(Index k, const T* jac, const T* a, const int* piv, const T* b, T* x,
                              int m) noexcept {
     const int b0 = S::block_begin[k];
     for (int col = 0; col < m; ++col) {
@@ -914,39 +949,34 @@ struct n_four_bar_4 {
   static BlockReport<R> _block_factor_all(const T* jac, T* a, int* piv,
                                           const BasicBlockOptions<R>& o) noexcept {
     BlockReport<R> r;
-    bool ok = true;
-    for (int k = 0; ok && k < S::num_blocks; ++k)
-      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
-        ok = _block_factor<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
-                                                     piv + S::block_begin[k], r, o.min_rcond);
-      });
+    _each_block_unrolled<S>([&](auto kc) {
+      constexpr int k = decltype(kc)::value;
+      return _block_factor<S, _block_size<S, k>>(kc, jac, a + S::block_factor_begin[k],
+                                                 piv + S::block_begin[k], r, o.min_rcond);
+    });
     return r;
   }
   template <class S, class T>
   static bool _block_forward_factored(const T* jac, const T* a, const int* piv, const T* b, T* x,
                                       int m) noexcept {
-    bool ok = true;
-    for (int k = 0; ok && k < S::num_blocks; ++k)
-      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
-        ok = _forward_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
-                                                      piv + S::block_begin[k], b, x, m);
-      });
-    return ok;
+    return _each_block_unrolled<S>([&](auto kc) {
+      constexpr int k = decltype(kc)::value;
+      return _forward_block<S, _block_size<S, k>>(kc, jac, a + S::block_factor_begin[k],
+                                                  piv + S::block_begin[k], b, x, m);
+    });
   }
   template <class S, class T>
   static bool _block_transposed_factored(const T* jac, const T* a, const int* piv, T* b, T* y,
                                          int m) noexcept {
-    bool ok = true;
-    for (int n = 0; ok && n < S::num_blocks; ++n) {
-      const int k = S::num_blocks - 1 - n;
-      _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k], [&](auto size) {
-        constexpr int K = decltype(size)::value;
-        for (int col = 0; ok && col < m; ++col)
-          ok = _transposed_block<S, K>(k, jac, a + S::block_factor_begin[k],
-                                       piv + S::block_begin[k], b + col * S::nq, y + col * S::nq);
-      });
-    }
-    return ok;
+    return _each_block_unrolled<S, true>([&](auto kc) {
+      constexpr int k = decltype(kc)::value;
+      for (int col = 0; col < m; ++col)
+        if (!_transposed_block<S, _block_size<S, k>>(kc, jac, a + S::block_factor_begin[k],
+                                                     piv + S::block_begin[k], b + col * S::nq,
+                                                     y + col * S::nq))
+          return false;
+      return true;
+    });
   }
 
   // y of `row` is v: recorded, and subtracted from the equations of the coordinates the row
@@ -962,8 +992,8 @@ struct n_four_bar_4 {
   // Block k of Phi_q^T y = b with its factors a, piv (K x K: its rows by its coordinates): bc
   // holds the equations of the coordinates (those of later blocks' rows subtracted), yc
   // receives its rows' y. False when they are not finite.
-  template <class S, int K, class T>
-  static bool _transposed_block(int k, const T* jac, const T* a, const int* piv, T* bc,
+  template <class S, int K, class Index, class T>
+  static bool _transposed_block(Index k, const T* jac, const T* a, const int* piv, T* bc,
                                 T* yc) noexcept {
     const int b0 = S::block_begin[k];
     T v[K];
@@ -981,8 +1011,7 @@ struct n_four_bar_4 {
   template <class S, class T, class R>
   static BlockReport<R> _block_transposed(const T* jac, T* b, T* y, int m,
                                           const BasicBlockOptions<R>& o) noexcept {
-    return _each_factored_block<S, true>(jac, o, [&](auto size, int k, const T* a,
-                                                     const int* piv) {
+    return _each_factored_block<S, true>(jac, o, [&](auto size, int k, const T* a, const int* piv) {
       constexpr int K = decltype(size)::value;
       for (int col = 0; col < m; ++col)
         if (!_transposed_block<S, K>(k, jac, a, piv, b + col * S::nq, y + col * S::nq))
@@ -1212,6 +1241,15 @@ struct n_four_bar_4 {
     const T* ax = nullptr;
     const T* ay = nullptr;
     const T* applied = nullptr;  // Q^A at the state (nq)
+    // Optional, from a dynamics() at this state (nullptr: computed here): M B (nq x nf) and
+    // B^T M B's LDL^T factors (_ldlt_factor's, nf x nf), the same operations' numbers.
+    const T* mb = nullptr;
+    const T* mz = nullptr;
+    // Optional (nullptr: every direction solved), per direction: k < nf when it is free
+    // coordinate k's value z_k (dq = B e_k), nf + k when it is its rate zd_k (dq = 0, dqd =
+    // B e_k), -1 otherwise. Exact: a free item's row is quantity - z or |d|^2 - z^2, so its
+    // Phi_z and nu_zd are B's right-hand side, and the solves they spare gave B's numbers.
+    const int* known = nullptr;
     _Hessian<T> phi_qq;
     _Sparse<T> nu_q, gamma_q, gamma_qd, phi_w, nu_w, gamma_w, applied_q, applied_qd, applied_w;
   };
@@ -1287,21 +1325,26 @@ struct n_four_bar_4 {
 
   // The work space _dynamics_tangent needs for ndir directions, in T's.
   static constexpr int _tangent_work_size(int nq, int nf, int ndir) noexcept {
-    return nq * nf + nq * (nf + 1) + nf * nf + 2 * nq * ndir + 2 * nq;
+    return nq * nf + 2 * nq * (nf + 1) + nf * nf + 4 * nq * ndir + 2 * nq;
   }
 
   // d(zdd)/d(w_slot) for each of the ndir slots (slots[i]: a free item's z or zd, or a
-  // run-time input's; never a zdd), into dzdd (nf per slot, slot i's at dzdd + i nf). solve(x,
-  // m) solves Phi_q X = X in place for m columns (each nq long); solve_transposed(x, m) solves
-  // Phi_q^T Y = X in place (X by coordinate, Y by row); both return 0 or their status. Three
-  // calls in all (nf + 1 transposed columns, then ndir, then ndir), so that a solver factors
-  // Phi_q's blocks once per call. work: _tangent_work_size T's. Returns 0; 2 when
-  // M_z = B^T M B is not positive definite; 3 when a value is not finite; or a solve's status.
-  template <class T, class Solve, class SolveTransposed>
-  static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir, const int* slots, T* dzdd,
-                               T* work, Solve&& solve,
-                               SolveTransposed&& solve_transposed) noexcept {
-    const int nq = p.nq, nf = p.nf;
+  // run-time input's; never a zdd), into dzdd (nf per slot, slot i's at dzdd + i nf).
+  // solve(b, x, m) solves Phi_q X = B for m columns (each nq long), solve_transposed(b, y, m)
+  // Phi_q^T Y = B (B by coordinate, Y by row); b may be left changed, x and y are apart from
+  // it; both return 0 or their status. Three calls at most (nf + 1 transposed columns, then
+  // the directions' dq, then their dqd), so that a solver factors Phi_q's blocks once per
+  // call. work: _tangent_work_size T's. Returns 0; 2 when M_z = B^T M B is not positive
+  // definite; 3 when a value is not finite; or a solve's status. NQ, NF, NB: p's sizes when
+  // known at compile time (a generated header's), 0 when not: the loops then have fixed
+  // lengths. Always inlined (GCC, Clang; others ignore the attribute): only then do the
+  // caller's constant tables (a header's sparsity patterns) fold into the loops.
+  template <int NQ = 0, int NF = 0, int NB = 0, class T, class Solve, class SolveTransposed>
+  [[gnu::always_inline]] static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir,
+                                                      const int* slots, T* dzdd, T* work,
+                                                      Solve&& solve,
+                                                      SolveTransposed&& solve_transposed) noexcept {
+    const int nq = NQ > 0 ? NQ : p.nq, nf = NF > 0 ? NF : p.nf, nb = NB > 0 ? NB : p.nb;
     T* mb = work;
     T* y = mb + nq * nf;  // Phi_q^-T M B, then lambda in column nf
     T* mz = y + nq * (nf + 1);
@@ -1309,39 +1352,89 @@ struct n_four_bar_4 {
     T* dqd = dq + nq * ndir;
     T* r = dqd + nq * ndir;
     T* f = r + nq;
-    for (int k = 0; k < nf; ++k)
-      _mass_times(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.b + k * nq, mb + k * nq);
-    for (int i = 0; i < nf; ++i)
-      for (int k = 0; k < nf; ++k) mz[i * nf + k] = _dot(nq, p.b + i * nq, mb + k * nq);
-    const _real<T> ratio = _ldlt_factor(nf, mz);
-    if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+    T* rhs = f + nq;                    // right-hand sides, side by side
+    T* x = rhs + nq * (ndir + nf + 1);  // their solutions
+    const T* m_b = p.mb;                // M B and B^T M B's factors: dynamics()' or computed here
+    const T* m_z = p.mz;
+    if (!m_b || !m_z) {
+      for (int k = 0; k < nf; ++k)
+        _mass_times(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.b + k * nq, mb + k * nq);
+      for (int i = 0; i < nf; ++i)
+        for (int k = 0; k < nf; ++k) mz[i * nf + k] = _dot(nq, p.b + i * nq, mb + k * nq);
+      const _real<T> ratio = _ldlt_factor(nf, mz);
+      if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+      m_b = mb;
+      m_z = mz;
+    }
     // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
-    T* lambda = y + nq * nf;
-    for (int k = 0; k < nq * nf; ++k) y[k] = mb[k];
-    _inertia_forces(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, f);
-    for (int k = 0; k < nq; ++k) lambda[k] = p.applied[k] - f[k];
-    if (const int s = solve_transposed(y, nf + 1)) return s;
-    // dq = -Phi_q^-1 Phi_w (B e_k for z_k), then dqd = -Phi_q^-1 r_v, all directions at once.
-    for (int i = 0; i < ndir * nq; ++i) dq[i] = T(0);
-    for (int i = 0; i < ndir; ++i) _sparse_column(p.phi_w, slots[i], T(-1), dq + i * nq);
-    if (const int s = solve(dq, ndir)) return s;
+    const T* lambda = y + nq * nf;
+    for (int k = 0; k < nq * nf; ++k) rhs[k] = m_b[k];
+    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, f);
+    for (int k = 0; k < nq; ++k) rhs[nq * nf + k] = p.applied[k] - f[k];
+    if (const int s = solve_transposed(rhs, y, nf + 1)) return s;
+    if (const int s = _tangent_motions(p, nq, nf, ndir, slots, dq, dqd, rhs, x, solve)) return s;
     for (int i = 0; i < ndir; ++i) {
-      T* v = dqd + i * nq;
+      _tangent_residuals(p, nq, nb, slots[i], lambda, dq + i * nq, dqd + i * nq, r, f);
+      T* out = dzdd + i * nf;
+      for (int k = 0; k < nf; ++k) out[k] = _dot(nq, y + k * nq, r) - _dot(nq, p.b + k * nq, f);
+      _ldlt_solve(nf, m_z, out);
+      for (int k = 0; k < nf; ++k)
+        if (!_finite(_mag(out[k]))) return 3;
+    }
+    return 0;
+  }
+
+  // Each direction's dq = -Phi_q^-1 Phi_w and dqd = -Phi_q^-1 r_v, as _dynamics_tangent
+  // describes them, in two solves (of the columns not known), with rhs and x as their work
+  // space; 0 or the solve's status.
+  template <class T, class Solve>
+  [[gnu::always_inline]] static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
+                                                     int ndir, const int* slots, T* dq, T* dqd,
+                                                     T* rhs, T* x, Solve&& solve) noexcept {
+    const auto known = [&](int i) { return p.known ? p.known[i] : -1; };
+    const auto b_column = [&](int k, T* out) {
+      for (int c = 0; c < nq; ++c) out[c] = p.b[k * nq + c];
+    };
+    // Solves the m columns in rhs and puts them at d + i nq for the directions i that needed
+    // them (known(i) < bound); 0 or the solve's status.
+    const auto solve_into = [&](int m, T* d, int bound) {
+      if (m == 0) return 0;
+      if (const int s = solve(rhs, x, m)) return s;
+      for (int i = 0, n = 0; i < ndir; ++i)
+        if (known(i) < bound)
+          for (int k = 0; k < nq; ++k) d[i * nq + k] = x[n++];
+      return 0;
+    };
+    int m = 0;
+    for (int i = 0; i < ndir; ++i) {
+      if (known(i) >= 0) {  // z_k: B e_k; zd_k: 0
+        T* v = dq + i * nq;
+        if (known(i) < nf) {
+          b_column(known(i), v);
+        } else {
+          for (int k = 0; k < nq; ++k) v[k] = T(0);
+        }
+        continue;
+      }
+      T* v = rhs + m++ * nq;
+      for (int k = 0; k < nq; ++k) v[k] = T(0);
+      _sparse_column(p.phi_w, slots[i], T(-1), v);
+    }
+    if (const int s = solve_into(m, dq, 0)) return s;
+    m = 0;
+    for (int i = 0; i < ndir; ++i) {
+      if (known(i) >= nf) {  // zd_k: B e_k
+        b_column(known(i) - nf, dqd + i * nq);
+        continue;
+      }
+      T* v = rhs + m++ * nq;
       for (int k = 0; k < nq; ++k) v[k] = T(0);
       _hessian_times(p.phi_qq, p.qd, dq + i * nq, v);
       _sparse_add(p.nu_q, T(-1), dq + i * nq, v);
       _sparse_column(p.nu_w, slots[i], T(-1), v);
       for (int k = 0; k < nq; ++k) v[k] = -v[k];
     }
-    if (const int s = solve(dqd, ndir)) return s;
-    for (int i = 0; i < ndir; ++i) {
-      _tangent_residuals(p, slots[i], lambda, dq + i * nq, dqd + i * nq, r, f);
-      T* out = dzdd + i * nf;
-      for (int k = 0; k < nf; ++k) out[k] = _dot(nq, y + k * nq, r) - _dot(nq, p.b + k * nq, f);
-      _ldlt_solve(nf, mz, out);
-      for (int k = 0; k < nf; ++k)
-        if (!_finite(_mag(out[k]))) return 3;
-    }
+    if (const int s = solve_into(m, dqd, nf)) return s;
     return 0;
   }
 
@@ -1355,14 +1448,14 @@ struct n_four_bar_4 {
   // One direction's acceleration residual r (r_a) and force f, as _dynamics_tangent describes
   // them, from its dq and dqd.
   template <class T>
-  static void _tangent_residuals(const _TangentPoint<T>& p, int slot, const T* lambda, const T* dq,
-                                 const T* dqd, T* r, T* f) noexcept {
-    for (int k = 0; k < p.nq; ++k) r[k] = f[k] = T(0);
+  static void _tangent_residuals(const _TangentPoint<T>& p, int nq, int nb, int slot,
+                                 const T* lambda, const T* dq, const T* dqd, T* r, T* f) noexcept {
+    for (int k = 0; k < nq; ++k) r[k] = f[k] = T(0);
     _hessian_times(p.phi_qq, p.qdd, dq, r);
     _sparse_add(p.gamma_q, T(-1), dq, r);
     _sparse_add(p.gamma_qd, T(-1), dqd, r);
     _sparse_column(p.gamma_w, slot, T(-1), r);
-    _inertia_tangent(p.nb, p.mass, p.ax, p.ay, p.qd, p.qdd, dq, dqd, f);
+    _inertia_tangent(nb, p.mass, p.ax, p.ay, p.qd, p.qdd, dq, dqd, f);
     _hessian_transposed(p.phi_qq, lambda, dq, f);
     _sparse_add(p.applied_q, T(-1), dq, f);
     _sparse_add(p.applied_qd, T(-1), dqd, f);
@@ -3263,9 +3356,17 @@ struct n_four_bar_4 {
     T trig[trig_cache_size > 0 ? trig_cache_size : 1];
     int pivots[nq];
     T geometry[62], mass[num_bodies], inertia[num_bodies], ax[num_bodies], ay[num_bodies];
+    // The last successful dynamics()' arguments and report (solved: there was one
+    // and nothing failed since), whose q, B and factors dynamics_jacobians reuses.
+    bool solved = false;
+    T solved_t = T(0);
+    Params solved_p;
+    BasicBlockOptions<_real<T>> solved_o;
+    BlockReport<_real<T>> solved_r;
     DynamicsWork() noexcept { reset(); }
     // Back to the file's q0, no recorded branch, an empty cache (a new start).
     void reset() noexcept {
+      solved = false;
       for (int k = 0; k < nq; ++k) q[k] = T(q0[k]);
       for (int k = 0; k < num_blocks; ++k) block_signs[k] = 0;
       for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty
@@ -3281,6 +3382,7 @@ struct n_four_bar_4 {
     using R = _real<T>;
     const BasicBlockOptions<R> o = _options_as<R>(options);
     Params pz = p;
+    w.solved = false;
     for (int k = 0; k < nf; ++k) {
       w.state[k] = z[k];
       w.state[nf + k] = zd[k];
@@ -3320,7 +3422,24 @@ struct n_four_bar_4 {
     if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
     if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
     for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
+    w.solved = true;
+    w.solved_t = t;
+    w.solved_p = p;
+    w.solved_o = o;
+    w.solved_r = r;
     return r;
+  }
+
+  // Whether w holds a successful dynamics() with exactly these arguments.
+  template <class T, class U>
+  static bool _solved_at(const T* z, const T* zd, T t, const Params& p,
+                         const BasicBlockOptions<U>& options, const DynamicsWork<T>& w) noexcept {
+    if (!w.solved || !(t == w.solved_t) || !_same_params(p, w.solved_p) ||
+        !_same_options(_options_as<_real<T>>(options), w.solved_o))
+      return false;
+    for (int k = 0; k < nf; ++k)
+      if (!(z[k] == w.state[k]) || !(zd[k] == w.state[nf + k])) return false;
+    return true;
   }
 
   // The same from the file's q0, with no state kept: the first call of a motion, or a test.
@@ -3364,6 +3483,7 @@ struct n_four_bar_4 {
   static constexpr std::array<int, 0> _applied_w_row = {};
   static constexpr std::array<int, 0> _applied_w_col = {};
   static constexpr std::array<int, 2> _tangent_slots = {0, 1};
+  static constexpr std::array<int, 2> _tangent_known = {0, 1};
   template <class T>
   static void _tangent_values([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
@@ -3518,30 +3638,38 @@ struct n_four_bar_4 {
   template <class T>
   struct JacobianWork {
     T values[111];  // _tangent_values
-    T out[nf * 2], scratch[nq * 2];
-    T work[244];  // _tangent_work_size(nq, nf, 2)
+    T out[nf * 2];
+    T work[406];  // _tangent_work_size(nq, nf, 2)
   };
 
   // dynamics() and the exact d(zdd)/dz (d_z), d(zdd)/dzd (d_zd) and d(zdd)/du (d_u)
   // there, each column-major (d_z[j * nf + i] = d zdd_i / d z_j; d_u: nf x num_inputs), any
   // of them nullptr when not wanted: A = [0 I; d_z d_zd] and B = [0; d_u] of x' = f(x, u),
   // x = (z, zd), as `kinegen linearize` gives them. The linearize kernel on the block solves
-  // (on dynamics()' factors). Status as dynamics()', or the tangent's (2, 3).
+  // (on dynamics()' factors). Status as dynamics()', or the tangent's (2, 3). Where the last
+  // call with w was a successful dynamics() with the same arguments (as in an integrator's or
+  // a controller's step, which evaluate f there first), its solution is used, not solved
+  // again: the Jacobians then cost the tangent alone.
   template <class T, class U>
   static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
       T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options, DynamicsWork<T>& w,
       JacobianWork<T>& j) noexcept {
     using R = _real<T>;
-    BlockReport<R> r = dynamics(z, zd, t, p, zdd, options, w);
-    if (r.status != 0) return r;
+    BlockReport<R> r;
+    if (_solved_at(z, zd, t, p, options, w)) {
+      r = w.solved_r;
+      for (int k = 0; k < nf; ++k) zdd[k] = w.state[2 * nf + k];
+    } else {
+      r = dynamics(z, zd, t, p, zdd, options, w);
+      if (r.status != 0) return r;
+    }
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
     _tangent_values(w.q, w.qd, t, pz, j.values);
-    int slots[2 * nf + num_inputs], ndir = 0;
-    for (int i = 0; i < 2 * nf + num_inputs; ++i)
-      if (i < nf ? d_z != nullptr : i < 2 * nf ? d_zd != nullptr : d_u != nullptr)
-        slots[ndir++] = _tangent_slots[i];
-    if (ndir == 0) return r;
+    if (!d_z && !d_zd && !d_u) return r;
+    // Every direction, whichever are asked for: constant directions fold into the kernel's
+    // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
+    constexpr int ndir = 2 * nf + num_inputs;
     const auto at = [&](int piece) { return j.values + _tangent_begin[piece]; };
     _TangentPoint<T> tp;
     tp.nq = nq;
@@ -3556,6 +3684,9 @@ struct n_four_bar_4 {
     tp.ax = w.ax;
     tp.ay = w.ay;
     tp.applied = at(7);
+    tp.mb = w.mb;
+    tp.mz = w.mz;  // factored by dynamics()
+    tp.known = _tangent_known.data();
     tp.phi_qq = {static_cast<int>(_phi_qq_row.size()), _phi_qq_row.data(), _phi_qq_j.data(),
                  _phi_qq_k.data(), at(0)};
     const auto sparse = [&](const auto& row, const auto& col, int piece) {
@@ -3570,32 +3701,22 @@ struct n_four_bar_4 {
     tp.applied_q = sparse(_applied_q_row, _applied_q_col, 8);
     tp.applied_qd = sparse(_applied_qd_row, _applied_qd_col, 9);
     tp.applied_w = sparse(_applied_w_row, _applied_w_col, 10);
-    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors); x is
-    // copied aside: the solves need x apart from the right-hand side.
-    const auto copy = [&](const T* x, int m) {
-      for (int i = 0; i < nq * m; ++i) j.scratch[i] = x[i];
-    };
-    const int s = _dynamics_tangent(
-        tp, ndir, slots, j.out, j.work,
-        [&](T* x, int m) {
-          copy(x, m);
-          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x, m)
-                     ? 0 : 3;
+    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors).
+    const int s = _dynamics_tangent<nq, nf, num_bodies>(
+        tp, ndir, _tangent_slots.data(), j.out, j.work,
+        [&](T* b, T* x, int m) {
+          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, b, x, m) ? 0 : 3;
         },
-        [&](T* x, int m) {
-          copy(x, m);
-          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x,
-                                                    m) ? 0 : 3;
+        [&](T* b, T* y, int m) {
+          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, b, y, m) ? 0 : 3;
         });
     if (s != 0) return _fail(r, s, -1);
-    int dir = 0;
-    for (T* d : {d_z, d_zd}) {
-      if (!d) continue;
-      for (int i = 0; i < nf * nf; ++i) d[i] = j.out[dir * nf + i];
-      dir += nf;
+    for (int i = 0; i < nf * nf; ++i) {
+      if (d_z) d_z[i] = j.out[i];
+      if (d_zd) d_zd[i] = j.out[nf * nf + i];
     }
     if (d_u)
-      for (int i = 0; i < nf * num_inputs; ++i) d_u[i] = j.out[dir * nf + i];
+      for (int i = 0; i < nf * num_inputs; ++i) d_u[i] = j.out[2 * nf * nf + i];
     return r;
   }
 

@@ -4,6 +4,7 @@
 // B = dq/dz on one dense LU of Phi_q, the header through its blocks: docs/embedding.md);
 // B against the complex step of the header's own position solve (z complex); a free distance
 // item's B is dq/dz of the distance, not of its square; float against double.
+#include <array>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <complex>
@@ -338,4 +339,80 @@ TEST_CASE("generated dynamics() in float is within 1e-5 of double", "[generated_
   CHECK(float_against_double<km::cam_liftoff>("cam_liftoff", {0.01, 0.02, 0.5}) < 1e-5);
   CHECK(float_against_double<km::cart_pole>("cart_pole", {0.0, 0.05, 0.2}) < 1e-5);
   CHECK(float_against_double<km::four_bar_spring>("four_bar_spring", {0.0, -0.05, 0.3}) < 1e-5);
+}
+
+namespace {
+
+// The cart-pole's Jacobians (A's lower half and B, nf x (2 nf + 1)) at (z, zd, t, p) with w.
+using CartJacobians = std::array<double, 2 * 6>;
+kinegen::models::cart_pole::BlockReport<double> cart_jacobians(
+    const double* z, const double* zd, double t, const km::cart_pole::Params& p,
+    const km::cart_pole::BlockOptions& o, km::cart_pole::DynamicsWork<double>& w,
+    CartJacobians& out) {
+  double zdd[2];
+  return km::cart_pole::dynamics_jacobians(z, zd, t, p, zdd, out.data(), out.data() + 4,
+                                           out.data() + 8, o, w);
+}
+
+double largest_difference(const CartJacobians& a, const CartJacobians& b) {
+  double d = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, std::abs(a[i] - b[i]));
+  return d;
+}
+
+}  // namespace
+
+// dynamics_jacobians takes the solution of a dynamics() just made with the same work space
+// and the same arguments (an integrator's or a controller's step evaluates f there first), and
+// solves again whenever any argument differs or that call failed: never a stale answer.
+TEST_CASE("dynamics_jacobians reuses a dynamics() at the same point, and only there",
+          "[generated_dynamics]") {
+  using M = km::cart_pole;
+  const double z[] = {0.1, 2.9}, zd[] = {0.2, -0.3};
+  M::Params p{};
+  p.push_x = 0.7;
+  const M::BlockOptions o{};
+  // The truth at each point: a fresh work space, which reuses nothing.
+  const auto fresh = [&](const double* at_z, double t, const M::Params& at_p) {
+    M::DynamicsWork<double> w;
+    CartJacobians j{};
+    REQUIRE(cart_jacobians(at_z, zd, t, at_p, o, w, j).status == 0);
+    return j;
+  };
+  M::DynamicsWork<double> w;
+  double zdd[2];
+  REQUIRE(M::dynamics(z, zd, 0.0, p, zdd, o, w).status == 0);
+  CHECK(w.solved);
+  CartJacobians j{};
+  const M::BlockReport<double> r = cart_jacobians(z, zd, 0.0, p, o, w, j);
+  REQUIRE(r.status == 0);
+  CHECK(largest_difference(j, fresh(z, 0.0, p)) == 0);  // the same solve from q0: same bits
+  // Each argument changed in turn: the Jacobians are the new point's, not the stored ones.
+  M::Params heavier = p;
+  heavier.m = 2 * p.m;
+  M::Params pushed = p;
+  pushed.push_x = -3.0;
+  const double moved[] = {0.1, 2.5};
+  const CartJacobians at_p = fresh(z, 0.0, heavier);
+  REQUIRE(largest_difference(at_p, j) > 1e-3);  // the test can fail
+  REQUIRE(M::dynamics(z, zd, 0.0, p, zdd, o, w).status == 0);
+  REQUIRE(cart_jacobians(z, zd, 0.0, heavier, o, w, j).status == 0);
+  CHECK(largest_difference(j, at_p) < 1e-12);
+  REQUIRE(M::dynamics(z, zd, 0.0, p, zdd, o, w).status == 0);
+  REQUIRE(cart_jacobians(moved, zd, 0.0, p, o, w, j).status == 0);
+  CHECK(largest_difference(j, fresh(moved, 0.0, p)) < 1e-12);
+  REQUIRE(M::dynamics(z, zd, 0.0, p, zdd, o, w).status == 0);
+  REQUIRE(cart_jacobians(z, zd, 0.0, pushed, o, w, j).status == 0);
+  CHECK(largest_difference(j, fresh(z, 0.0, pushed)) < 1e-12);
+  // Other options: solved again under them (with min_rcond 2 no block passes, status 2),
+  // where the stored solution would have been taken.
+  M::BlockOptions strict = o;
+  strict.min_rcond = 2.0;
+  REQUIRE(M::dynamics(z, zd, 0.0, p, zdd, o, w).status == 0);
+  CHECK(cart_jacobians(z, zd, 0.0, p, strict, w, j).status == 2);
+  CHECK_FALSE(w.solved);
+  // After a failure nothing is reused, even at the failed call's own arguments.
+  CHECK(cart_jacobians(z, zd, 0.0, p, strict, w, j).status == 2);
+  REQUIRE(cart_jacobians(z, zd, 0.0, p, o, w, j).status == 0);
+  CHECK(largest_difference(j, fresh(z, 0.0, p)) < 1e-12);
 }

@@ -122,7 +122,10 @@ void check_pinned_body() {
   T out[3];
   std::vector<T> work(L::_tangent_work_size(3, 1, 3));
   int calls = 0;
-  const auto identity = [&](T*, int) { return ++calls, 0; };  // Phi_q = I
+  const auto identity = [&](T* b, T* x, int m) {  // Phi_q = I
+    for (int i = 0; i < 3 * m; ++i) x[i] = b[i];
+    return ++calls, 0;
+  };
   REQUIRE(L::_dynamics_tangent(p, 3, slots, out, work.data(), identity, identity) == 0);
   CHECK(calls == 3);  // the solves batched: Phi_q^T once, Phi_q twice
   using R = decltype(std::abs(T()));

@@ -55,25 +55,25 @@ int lu_tangent(const Eigen::MatrixXd& jac, const K::_TangentPoint<double>& p,
                const std::vector<int>& slots, Eigen::MatrixXd& out, std::vector<double>& work) {
   const Eigen::Index nq = jac.rows();
   const int ndir = static_cast<int>(slots.size());
-  const auto in_place = [nq](auto&& solver, double* x, int m) {
+  const auto in_place = [nq](auto&& solver, const double* b, double* x, int m) {
     Eigen::Map<Eigen::MatrixXd> cols(x, nq, m);
-    cols = solver.solve(Eigen::MatrixXd(cols));
+    cols = solver.solve(Eigen::Map<const Eigen::MatrixXd>(b, nq, m));
     return cols.allFinite() ? 0 : 3;
   };
   if (nq <= 48) {
     const Eigen::PartialPivLU<Eigen::MatrixXd> lu(jac), lu_t(jac.transpose());
     return K::_dynamics_tangent(
         p, ndir, slots.data(), out.data(), work.data(),
-        [&](double* x, int m) { return in_place(lu, x, m); },
-        [&](double* x, int m) { return in_place(lu_t, x, m); });
+        [&](double* b, double* x, int m) { return in_place(lu, b, x, m); },
+        [&](double* b, double* x, int m) { return in_place(lu_t, b, x, m); });
   }
   const Eigen::SparseMatrix<double> sparse = jac.sparseView(), sparse_t = sparse.transpose();
   Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(sparse), lu_t(sparse_t);
   if (lu.info() != Eigen::Success || lu_t.info() != Eigen::Success) return 2;
   return K::_dynamics_tangent(
       p, ndir, slots.data(), out.data(), work.data(),
-      [&](double* x, int m) { return in_place(lu, x, m); },
-      [&](double* x, int m) { return in_place(lu_t, x, m); });
+      [&](double* b, double* x, int m) { return in_place(lu, b, x, m); },
+      [&](double* b, double* x, int m) { return in_place(lu_t, b, x, m); });
 }
 
 }  // namespace
@@ -95,7 +95,7 @@ struct Linearizer::Impl {
   std::vector<int> free_slot;
   std::unique_ptr<BlockTables> blocks;  // null where the blocks do not serve
   Eigen::MatrixXd jac;
-  std::vector<double> jac_values, scratch;
+  std::vector<double> jac_values;
   Eigen::VectorXd mass, inertia, ax, ay;
   std::vector<double> work;
 
@@ -287,19 +287,14 @@ bool Linearizer::tangent(const MotionState& s, const std::vector<int>& slots,
     const BlockTables::Binding bound(*w.blocks);
     const kernels::ReportKernel::BasicBlockOptions<double> options;
     using Linear = kernels::BlockLinearKernel;
-    const auto copy = [&](const double* x, int m) { w.scratch.assign(x, x + nq * m); };
     status = K::_dynamics_tangent(
         p, ndir, slots.data(), out.data(), w.work.data(),
-        [&](double* x, int m) {
-          copy(x, m);
-          return Linear::_block_forward<RuntimeBlocks>(w.jac_values.data(), w.scratch.data(), x, m,
-                                                       options)
+        [&](double* b, double* x, int m) {
+          return Linear::_block_forward<RuntimeBlocks>(w.jac_values.data(), b, x, m, options)
               .status;
         },
-        [&](double* x, int m) {
-          copy(x, m);
-          return Linear::_block_transposed<RuntimeBlocks>(w.jac_values.data(), w.scratch.data(), x,
-                                                          m, options)
+        [&](double* b, double* y, int m) {
+          return Linear::_block_transposed<RuntimeBlocks>(w.jac_values.data(), b, y, m, options)
               .status;
         });
   } else {

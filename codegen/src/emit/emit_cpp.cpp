@@ -44,7 +44,7 @@ void emit_kernels(std::ostringstream& os, const std::string& code) {
   const bool newton = calls("_newton_end(");
   const bool linear = calls("_block_forward<") || calls("_block_transposed<") ||
                       calls("_block_transposed_reusing<");
-  const bool tangent = calls("_dynamics_tangent(");
+  const bool tangent = calls("_dynamics_tangent<");
   const bool dynamics = tangent || calls("_reduced_accelerations(");
   for (const auto& k : embedded::kKernels) {
     const std::string name = k.name;
@@ -161,11 +161,11 @@ void emit_structure_tables(std::ostringstream& os, const std::string& name, cons
      << "  static constexpr std::array<int, nq> block_cols = {" << join(cols) << "};\n"
      << "  static constexpr std::array<int, nq> coordinate_block = {" << join(block) << "};\n"
      << "  static constexpr std::array<int, nq> coordinate_slot = {" << join(slot) << "};\n"
-     << "  static constexpr std::array<int, nc + 1> jac_row_begin = {" << join(row_begin)
-     << "};\n"
+     << "  static constexpr std::array<int, nc + 1> jac_row_begin = {" << join(row_begin) << "};\n"
      << "  // Where each block's K x K factors start when all are kept (_block_factor_all).\n"
      << "  static constexpr std::array<int, num_blocks + 1> block_factor_begin = {"
-     << join(factor_begin) << "};\n"
+     << join(factor_begin)
+     << "};\n"
      // The kernel's S, named so that a function parameter named like the model (q, options)
      // cannot hide it; no model's name starts with '_'.
      << "  using _model = " << name << ";\n\n";
@@ -319,6 +319,26 @@ void emit_params(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
        << "    // which the functions then read instead of the free items' members above.\n"
        << "    const void* _free = nullptr;\n";
   os << "  };\n\n";
+  if (!m.free_drivers().empty()) {
+    // Every member but _free, for dynamics_jacobians' reuse of a dynamics() at the same point.
+    std::vector<std::string> same;
+    const auto member = [&](const std::string& name) {
+      same.push_back("a." + name + " == b." + name);
+    };
+    for (int k = 0; k < symbols.num_params(); ++k) member(symbols.param_name(k));
+    for (std::size_t d = 0; d < m.drivers.size(); ++d)
+      if (m.drivers[d].law.input)
+        for (int order = 0; order < 3; ++order) member(input_member(m, static_cast<int>(d), order));
+    for (const Load::Input* in : m.load_inputs())
+      if (in->table_id < 0) member(in->name);
+    os << "  // Whether a and b hold the same values (a NaN never does).\n"
+       << "  static bool _same_params([[maybe_unused]] const Params& a,\n"
+       << "                           [[maybe_unused]] const Params& b) noexcept {\n"
+       << "    return " << (same.empty() ? std::string("true") : "");
+    for (std::size_t i = 0; i < same.size(); ++i)
+      os << (i == 0 ? "" : " &&\n           ") << same[i];
+    os << ";\n  }\n\n";
+  }
   if (!m.free_drivers().empty())
     os << "  // A free item's value (i < nf), rate or acceleration, as dynamics() set it.\n"
        << "  template <class T>\n"

@@ -67,9 +67,17 @@ void emit_dynamics_tables(std::ostringstream& os, const Mechanism& m,
      << "    int pivots[nq];\n"
      << "    T geometry[" << geometry_size << "], mass[num_bodies], inertia[num_bodies], "
      << "ax[num_bodies], ay[num_bodies];\n"
+     << "    // The last successful dynamics()' arguments and report (solved: there was one\n"
+     << "    // and nothing failed since), whose q, B and factors dynamics_jacobians reuses.\n"
+     << "    bool solved = false;\n"
+     << "    T solved_t = T(0);\n"
+     << "    Params solved_p;\n"
+     << "    BasicBlockOptions<_real<T>> solved_o;\n"
+     << "    BlockReport<_real<T>> solved_r;\n"
      << "    DynamicsWork() noexcept { reset(); }\n"
      << "    // Back to the file's q0, no recorded branch, an empty cache (a new start).\n"
      << "    void reset() noexcept {\n"
+     << "      solved = false;\n"
      << "      for (int k = 0; k < nq; ++k) q[k] = T(q0[k]);\n"
      << "      for (int k = 0; k < num_blocks; ++k) block_signs[k] = 0;\n"
      << "      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty\n"
@@ -87,6 +95,7 @@ void emit_dynamics_function(std::ostringstream& os) {
     using R = _real<T>;
     const BasicBlockOptions<R> o = _options_as<R>(options);
     Params pz = p;
+    w.solved = false;
     for (int k = 0; k < nf; ++k) {
       w.state[k] = z[k];
       w.state[nf + k] = zd[k];
@@ -126,7 +135,24 @@ void emit_dynamics_function(std::ostringstream& os) {
     if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
     if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
     for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
+    w.solved = true;
+    w.solved_t = t;
+    w.solved_p = p;
+    w.solved_o = o;
+    w.solved_r = r;
     return r;
+  }
+
+  // Whether w holds a successful dynamics() with exactly these arguments.
+  template <class T, class U>
+  static bool _solved_at(const T* z, const T* zd, T t, const Params& p,
+                         const BasicBlockOptions<U>& options, const DynamicsWork<T>& w) noexcept {
+    if (!w.solved || !(t == w.solved_t) || !_same_params(p, w.solved_p) ||
+        !_same_options(_options_as<_real<T>>(options), w.solved_o))
+      return false;
+    for (int k = 0; k < nf; ++k)
+      if (!(z[k] == w.state[k]) || !(zd[k] == w.state[nf + k])) return false;
+    return true;
   }
 
   // The same from the file's q0, with no state kept: the first call of a motion, or a test.
@@ -193,32 +219,22 @@ std::vector<int> tangent_slots(const Mechanism& m) {
 
 // The rest of dynamics_jacobians: the kernel on the block solves, the columns copied out.
 void emit_jacobians_solve(std::ostringstream& os) {
-  os << R"(    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors); x is
-    // copied aside: the solves need x apart from the right-hand side.
-    const auto copy = [&](const T* x, int m) {
-      for (int i = 0; i < nq * m; ++i) j.scratch[i] = x[i];
-    };
-    const int s = _dynamics_tangent(
-        tp, ndir, slots, j.out, j.work,
-        [&](T* x, int m) {
-          copy(x, m);
-          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x, m)
-                     ? 0 : 3;
+  os << R"(    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors).
+    const int s = _dynamics_tangent<nq, nf, num_bodies>(
+        tp, ndir, _tangent_slots.data(), j.out, j.work,
+        [&](T* b, T* x, int m) {
+          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, b, x, m) ? 0 : 3;
         },
-        [&](T* x, int m) {
-          copy(x, m);
-          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, j.scratch, x,
-                                                    m) ? 0 : 3;
+        [&](T* b, T* y, int m) {
+          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, b, y, m) ? 0 : 3;
         });
     if (s != 0) return _fail(r, s, -1);
-    int dir = 0;
-    for (T* d : {d_z, d_zd}) {
-      if (!d) continue;
-      for (int i = 0; i < nf * nf; ++i) d[i] = j.out[dir * nf + i];
-      dir += nf;
+    for (int i = 0; i < nf * nf; ++i) {
+      if (d_z) d_z[i] = j.out[i];
+      if (d_zd) d_zd[i] = j.out[nf * nf + i];
     }
     if (d_u)
-      for (int i = 0; i < nf * num_inputs; ++i) d_u[i] = j.out[dir * nf + i];
+      for (int i = 0; i < nf * num_inputs; ++i) d_u[i] = j.out[2 * nf * nf + i];
     return r;
   }
 
@@ -234,34 +250,42 @@ void emit_jacobians_solve(std::ostringstream& os) {
 }
 
 void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, int nq, int nf) {
-  const int work = nq * nf + nq * (nf + 1) + nf * nf + 2 * nq * ndir + 2 * nq;
+  const int work = nq * nf + 2 * nq * (nf + 1) + nf * nf + 4 * nq * ndir + 2 * nq;
   os << "  // dynamics_jacobians' work space, caller-owned (no heap).\n"
      << "  template <class T>\n"
      << "  struct JacobianWork {\n"
      << "    T values[" << std::max(num_values, 1) << "];  // _tangent_values\n"
-     << "    T out[nf * " << ndir << "], scratch[nq * " << std::max(ndir, nf + 1) << "];\n"
+     << "    T out[nf * " << ndir << "];\n"
      << "    T work[" << work << "];  // _tangent_work_size(nq, nf, " << ndir << ")\n"
      << "  };\n\n";
   os << R"(  // dynamics() and the exact d(zdd)/dz (d_z), d(zdd)/dzd (d_zd) and d(zdd)/du (d_u)
   // there, each column-major (d_z[j * nf + i] = d zdd_i / d z_j; d_u: nf x num_inputs), any
   // of them nullptr when not wanted: A = [0 I; d_z d_zd] and B = [0; d_u] of x' = f(x, u),
   // x = (z, zd), as `kinegen linearize` gives them. The linearize kernel on the block solves
-  // (on dynamics()' factors). Status as dynamics()', or the tangent's (2, 3).
+  // (on dynamics()' factors). Status as dynamics()', or the tangent's (2, 3). Where the last
+  // call with w was a successful dynamics() with the same arguments (as in an integrator's or
+  // a controller's step, which evaluate f there first), its solution is used, not solved
+  // again: the Jacobians then cost the tangent alone.
   template <class T, class U>
   static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
       T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options, DynamicsWork<T>& w,
       JacobianWork<T>& j) noexcept {
     using R = _real<T>;
-    BlockReport<R> r = dynamics(z, zd, t, p, zdd, options, w);
-    if (r.status != 0) return r;
+    BlockReport<R> r;
+    if (_solved_at(z, zd, t, p, options, w)) {
+      r = w.solved_r;
+      for (int k = 0; k < nf; ++k) zdd[k] = w.state[2 * nf + k];
+    } else {
+      r = dynamics(z, zd, t, p, zdd, options, w);
+      if (r.status != 0) return r;
+    }
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
     _tangent_values(w.q, w.qd, t, pz, j.values);
-    int slots[2 * nf + num_inputs], ndir = 0;
-    for (int i = 0; i < 2 * nf + num_inputs; ++i)
-      if (i < nf ? d_z != nullptr : i < 2 * nf ? d_zd != nullptr : d_u != nullptr)
-        slots[ndir++] = _tangent_slots[i];
-    if (ndir == 0) return r;
+    if (!d_z && !d_zd && !d_u) return r;
+    // Every direction, whichever are asked for: constant directions fold into the kernel's
+    // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
+    constexpr int ndir = 2 * nf + num_inputs;
     const auto at = [&](int piece) { return j.values + _tangent_begin[piece]; };
     _TangentPoint<T> tp;
     tp.nq = nq;
@@ -276,6 +300,9 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
     tp.ax = w.ax;
     tp.ay = w.ay;
     tp.applied = at(7);
+    tp.mb = w.mb;
+    tp.mz = w.mz;  // factored by dynamics()
+    tp.known = _tangent_known.data();
     tp.phi_qq = {static_cast<int>(_phi_qq_row.size()), _phi_qq_row.data(), _phi_qq_j.data(),
                  _phi_qq_k.data(), at(0)};
     const auto sparse = [&](const auto& row, const auto& col, int piece) {
@@ -320,6 +347,10 @@ void emit_jacobians(std::ostringstream& os, const DynamicsSource& d) {
      << "  // then the loads' inputs), each starting at _tangent_begin[piece], and their places.\n";
   emit_tangent_tables(os, t, begin);
   os << int_array("_tangent_slots", slots);
+  std::vector<int> known;  // the kernel's: z_k and zd_k have B's column as dq and dqd
+  for (int i = 0; i < ndir; ++i) known.push_back(i < 2 * nf ? i : -1);
+  os << int_array("_tangent_known", known);
+
   emit_function(os, "_tangent_values", idx(std::max(num_values, 1)).c_str(), program, d.symbols,
                 true, d.options.max_function_ops);
   os << "\n public:\n";

@@ -54,6 +54,15 @@ struct LinearizeKernel : DynamicsKernel {
     const T* ax = nullptr;
     const T* ay = nullptr;
     const T* applied = nullptr;  // Q^A at the state (nq)
+    // Optional, from a dynamics() at this state (nullptr: computed here): M B (nq x nf) and
+    // B^T M B's LDL^T factors (_ldlt_factor's, nf x nf), the same operations' numbers.
+    const T* mb = nullptr;
+    const T* mz = nullptr;
+    // Optional (nullptr: every direction solved), per direction: k < nf when it is free
+    // coordinate k's value z_k (dq = B e_k), nf + k when it is its rate zd_k (dq = 0, dqd =
+    // B e_k), -1 otherwise. Exact: a free item's row is quantity - z or |d|^2 - z^2, so its
+    // Phi_z and nu_zd are B's right-hand side, and the solves they spare gave B's numbers.
+    const int* known = nullptr;
     _Hessian<T> phi_qq;
     _Sparse<T> nu_q, gamma_q, gamma_qd, phi_w, nu_w, gamma_w, applied_q, applied_qd, applied_w;
   };
@@ -129,21 +138,26 @@ struct LinearizeKernel : DynamicsKernel {
 
   // The work space _dynamics_tangent needs for ndir directions, in T's.
   static constexpr int _tangent_work_size(int nq, int nf, int ndir) noexcept {
-    return nq * nf + nq * (nf + 1) + nf * nf + 2 * nq * ndir + 2 * nq;
+    return nq * nf + 2 * nq * (nf + 1) + nf * nf + 4 * nq * ndir + 2 * nq;
   }
 
   // d(zdd)/d(w_slot) for each of the ndir slots (slots[i]: a free item's z or zd, or a
-  // run-time input's; never a zdd), into dzdd (nf per slot, slot i's at dzdd + i nf). solve(x,
-  // m) solves Phi_q X = X in place for m columns (each nq long); solve_transposed(x, m) solves
-  // Phi_q^T Y = X in place (X by coordinate, Y by row); both return 0 or their status. Three
-  // calls in all (nf + 1 transposed columns, then ndir, then ndir), so that a solver factors
-  // Phi_q's blocks once per call. work: _tangent_work_size T's. Returns 0; 2 when
-  // M_z = B^T M B is not positive definite; 3 when a value is not finite; or a solve's status.
-  template <class T, class Solve, class SolveTransposed>
-  static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir, const int* slots, T* dzdd,
-                               T* work, Solve&& solve,
-                               SolveTransposed&& solve_transposed) noexcept {
-    const int nq = p.nq, nf = p.nf;
+  // run-time input's; never a zdd), into dzdd (nf per slot, slot i's at dzdd + i nf).
+  // solve(b, x, m) solves Phi_q X = B for m columns (each nq long), solve_transposed(b, y, m)
+  // Phi_q^T Y = B (B by coordinate, Y by row); b may be left changed, x and y are apart from
+  // it; both return 0 or their status. Three calls at most (nf + 1 transposed columns, then
+  // the directions' dq, then their dqd), so that a solver factors Phi_q's blocks once per
+  // call. work: _tangent_work_size T's. Returns 0; 2 when M_z = B^T M B is not positive
+  // definite; 3 when a value is not finite; or a solve's status. NQ, NF, NB: p's sizes when
+  // known at compile time (a generated header's), 0 when not: the loops then have fixed
+  // lengths. Always inlined (GCC, Clang; others ignore the attribute): only then do the
+  // caller's constant tables (a header's sparsity patterns) fold into the loops.
+  template <int NQ = 0, int NF = 0, int NB = 0, class T, class Solve, class SolveTransposed>
+  [[gnu::always_inline]] static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir,
+                                                      const int* slots, T* dzdd, T* work,
+                                                      Solve&& solve,
+                                                      SolveTransposed&& solve_transposed) noexcept {
+    const int nq = NQ > 0 ? NQ : p.nq, nf = NF > 0 ? NF : p.nf, nb = NB > 0 ? NB : p.nb;
     T* mb = work;
     T* y = mb + nq * nf;  // Phi_q^-T M B, then lambda in column nf
     T* mz = y + nq * (nf + 1);
@@ -151,39 +165,89 @@ struct LinearizeKernel : DynamicsKernel {
     T* dqd = dq + nq * ndir;
     T* r = dqd + nq * ndir;
     T* f = r + nq;
-    for (int k = 0; k < nf; ++k)
-      _mass_times(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.b + k * nq, mb + k * nq);
-    for (int i = 0; i < nf; ++i)
-      for (int k = 0; k < nf; ++k) mz[i * nf + k] = _dot(nq, p.b + i * nq, mb + k * nq);
-    const _real<T> ratio = _ldlt_factor(nf, mz);
-    if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+    T* rhs = f + nq;                    // right-hand sides, side by side
+    T* x = rhs + nq * (ndir + nf + 1);  // their solutions
+    const T* m_b = p.mb;                // M B and B^T M B's factors: dynamics()' or computed here
+    const T* m_z = p.mz;
+    if (!m_b || !m_z) {
+      for (int k = 0; k < nf; ++k)
+        _mass_times(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.b + k * nq, mb + k * nq);
+      for (int i = 0; i < nf; ++i)
+        for (int k = 0; k < nf; ++k) mz[i * nf + k] = _dot(nq, p.b + i * nq, mb + k * nq);
+      const _real<T> ratio = _ldlt_factor(nf, mz);
+      if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+      m_b = mb;
+      m_z = mz;
+    }
     // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
-    T* lambda = y + nq * nf;
-    for (int k = 0; k < nq * nf; ++k) y[k] = mb[k];
-    _inertia_forces(p.nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, f);
-    for (int k = 0; k < nq; ++k) lambda[k] = p.applied[k] - f[k];
-    if (const int s = solve_transposed(y, nf + 1)) return s;
-    // dq = -Phi_q^-1 Phi_w (B e_k for z_k), then dqd = -Phi_q^-1 r_v, all directions at once.
-    for (int i = 0; i < ndir * nq; ++i) dq[i] = T(0);
-    for (int i = 0; i < ndir; ++i) _sparse_column(p.phi_w, slots[i], T(-1), dq + i * nq);
-    if (const int s = solve(dq, ndir)) return s;
+    const T* lambda = y + nq * nf;
+    for (int k = 0; k < nq * nf; ++k) rhs[k] = m_b[k];
+    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, f);
+    for (int k = 0; k < nq; ++k) rhs[nq * nf + k] = p.applied[k] - f[k];
+    if (const int s = solve_transposed(rhs, y, nf + 1)) return s;
+    if (const int s = _tangent_motions(p, nq, nf, ndir, slots, dq, dqd, rhs, x, solve)) return s;
     for (int i = 0; i < ndir; ++i) {
-      T* v = dqd + i * nq;
+      _tangent_residuals(p, nq, nb, slots[i], lambda, dq + i * nq, dqd + i * nq, r, f);
+      T* out = dzdd + i * nf;
+      for (int k = 0; k < nf; ++k) out[k] = _dot(nq, y + k * nq, r) - _dot(nq, p.b + k * nq, f);
+      _ldlt_solve(nf, m_z, out);
+      for (int k = 0; k < nf; ++k)
+        if (!_finite(_mag(out[k]))) return 3;
+    }
+    return 0;
+  }
+
+  // Each direction's dq = -Phi_q^-1 Phi_w and dqd = -Phi_q^-1 r_v, as _dynamics_tangent
+  // describes them, in two solves (of the columns not known), with rhs and x as their work
+  // space; 0 or the solve's status.
+  template <class T, class Solve>
+  [[gnu::always_inline]] static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
+                                                     int ndir, const int* slots, T* dq, T* dqd,
+                                                     T* rhs, T* x, Solve&& solve) noexcept {
+    const auto known = [&](int i) { return p.known ? p.known[i] : -1; };
+    const auto b_column = [&](int k, T* out) {
+      for (int c = 0; c < nq; ++c) out[c] = p.b[k * nq + c];
+    };
+    // Solves the m columns in rhs and puts them at d + i nq for the directions i that needed
+    // them (known(i) < bound); 0 or the solve's status.
+    const auto solve_into = [&](int m, T* d, int bound) {
+      if (m == 0) return 0;
+      if (const int s = solve(rhs, x, m)) return s;
+      for (int i = 0, n = 0; i < ndir; ++i)
+        if (known(i) < bound)
+          for (int k = 0; k < nq; ++k) d[i * nq + k] = x[n++];
+      return 0;
+    };
+    int m = 0;
+    for (int i = 0; i < ndir; ++i) {
+      if (known(i) >= 0) {  // z_k: B e_k; zd_k: 0
+        T* v = dq + i * nq;
+        if (known(i) < nf) {
+          b_column(known(i), v);
+        } else {
+          for (int k = 0; k < nq; ++k) v[k] = T(0);
+        }
+        continue;
+      }
+      T* v = rhs + m++ * nq;
+      for (int k = 0; k < nq; ++k) v[k] = T(0);
+      _sparse_column(p.phi_w, slots[i], T(-1), v);
+    }
+    if (const int s = solve_into(m, dq, 0)) return s;
+    m = 0;
+    for (int i = 0; i < ndir; ++i) {
+      if (known(i) >= nf) {  // zd_k: B e_k
+        b_column(known(i) - nf, dqd + i * nq);
+        continue;
+      }
+      T* v = rhs + m++ * nq;
       for (int k = 0; k < nq; ++k) v[k] = T(0);
       _hessian_times(p.phi_qq, p.qd, dq + i * nq, v);
       _sparse_add(p.nu_q, T(-1), dq + i * nq, v);
       _sparse_column(p.nu_w, slots[i], T(-1), v);
       for (int k = 0; k < nq; ++k) v[k] = -v[k];
     }
-    if (const int s = solve(dqd, ndir)) return s;
-    for (int i = 0; i < ndir; ++i) {
-      _tangent_residuals(p, slots[i], lambda, dq + i * nq, dqd + i * nq, r, f);
-      T* out = dzdd + i * nf;
-      for (int k = 0; k < nf; ++k) out[k] = _dot(nq, y + k * nq, r) - _dot(nq, p.b + k * nq, f);
-      _ldlt_solve(nf, mz, out);
-      for (int k = 0; k < nf; ++k)
-        if (!_finite(_mag(out[k]))) return 3;
-    }
+    if (const int s = solve_into(m, dqd, nf)) return s;
     return 0;
   }
 
@@ -197,14 +261,14 @@ struct LinearizeKernel : DynamicsKernel {
   // One direction's acceleration residual r (r_a) and force f, as _dynamics_tangent describes
   // them, from its dq and dqd.
   template <class T>
-  static void _tangent_residuals(const _TangentPoint<T>& p, int slot, const T* lambda, const T* dq,
-                                 const T* dqd, T* r, T* f) noexcept {
-    for (int k = 0; k < p.nq; ++k) r[k] = f[k] = T(0);
+  static void _tangent_residuals(const _TangentPoint<T>& p, int nq, int nb, int slot,
+                                 const T* lambda, const T* dq, const T* dqd, T* r, T* f) noexcept {
+    for (int k = 0; k < nq; ++k) r[k] = f[k] = T(0);
     _hessian_times(p.phi_qq, p.qdd, dq, r);
     _sparse_add(p.gamma_q, T(-1), dq, r);
     _sparse_add(p.gamma_qd, T(-1), dqd, r);
     _sparse_column(p.gamma_w, slot, T(-1), r);
-    _inertia_tangent(p.nb, p.mass, p.ax, p.ay, p.qd, p.qdd, dq, dqd, f);
+    _inertia_tangent(nb, p.mass, p.ax, p.ay, p.qd, p.qdd, dq, dqd, f);
     _hessian_transposed(p.phi_qq, lambda, dq, f);
     _sparse_add(p.applied_q, T(-1), dq, f);
     _sparse_add(p.applied_qd, T(-1), dqd, f);

@@ -113,6 +113,13 @@ struct ReportKernel {
     o.min_rcond = R(u.min_rcond);
     return o;
   }
+  template <class R>
+  static bool _same_options(const BasicBlockOptions<R>& a, const BasicBlockOptions<R>& b) noexcept {
+    return a.tolerance == b.tolerance && a.max_iterations == b.max_iterations &&
+           a.fixed_iterations == b.fixed_iterations &&
+           a.singular_pivot_ratio == b.singular_pivot_ratio &&
+           a.residual_tolerance == b.residual_tolerance && a.min_rcond == b.min_rcond;
+  }
 
   template <class R>
   static BlockReport<R> _fail(BlockReport<R> r, int status, int block,
