@@ -10,6 +10,7 @@
 
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
+#include "support/files.hpp"
 #include "support/run_command.hpp"
 
 namespace {
@@ -258,4 +259,41 @@ TEST_CASE("bodies and nothing else: the commands that solve name the undriven bo
   }
   CHECK_FALSE(fs::exists(csv));
   CHECK_FALSE(fs::exists(dir / "loose.svg"));
+}
+
+// GiNaC differentiates b^e through log(b), so 0^a has a pole there. Where the second
+// derivatives of the dynamics (equilibrium, modes, linearize, a header's Jacobians) or a
+// damper's rates meet one, the message names the body or the load and its line; both were
+// "internal error", exit 1.
+TEST_CASE("a pole met in the dynamics' derivatives names the item (exit 2)", "[hostile]") {
+  const std::string pendulum = kinegen::test::read_text(
+      std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/pendulum.yaml");
+  const fs::path dir = scratch("dynamics_pole");
+  const fs::path com = dir / "com.yaml", damper = dir / "damper.yaml";
+  write_text(com, replaced(pendulum, "com: [a, 0]", "com: [\"a + 0^g\", 0]"));
+  write_text(damper, replaced(pendulum, "gravity: [0, -g]",
+                              "gravity: [0, -g]\nforces:\n  - {type: spring_damper, name: d, i: "
+                              "ground, j: rod, si: [\"0^a\", 0], sj: [0, 0], stiffness: 0, "
+                              "damping: 1, length0: 0}"));
+  const auto one_error = [](const CommandResult& r, const std::string& start,
+                            const char* phrase) {
+    INFO(r.err);
+    CHECK(r.exit_code == 2);
+    CHECK(r.err.rfind("error: " + start, 0) == 0);
+    CHECK(r.err.find(phrase) != std::string::npos);
+    CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  };
+  for (const char* command : {"linearize", "modes", "equilibrium"})
+    one_error(run_kinegen({command, com.string(), "-q"}), com.string() + ":9: body 'rod'",
+              "second derivatives cannot be formed");
+  const fs::path out = dir / "out";
+  fs::create_directories(out);
+  one_error(run_kinegen({"generate", com.string(), "-o", out.string()}),
+            com.string() + ":9: body 'rod'", "second derivatives cannot be formed");
+  CHECK(fs::is_empty(out));
+  const auto gravity = pendulum.begin() + static_cast<long>(pendulum.find("gravity:"));
+  const int line = 3 + static_cast<int>(std::count(pendulum.begin(), gravity, '\n'));  // 2 below
+  one_error(run_kinegen({"simulate", damper.string(), "--t1", "0.1", "--steps", "2", "-q"}),
+            damper.string() + ":" + std::to_string(line) + ": forces[0] 'd' (spring_damper)",
+            "its rates cannot be formed");
 }

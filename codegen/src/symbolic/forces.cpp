@@ -5,8 +5,10 @@
 #include <cmath>
 
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
+#include "symbolic_detail.hpp"
 
 namespace kinegen::codegen {
 
@@ -176,7 +178,20 @@ ForceModel derive_forces(const Mechanism& m, const SymbolTable& s, const Symboli
     const Vec r = b.point(k, com);
     f.potential -= mass * (g.x * r.x + g.y * r.y);
   }
-  for (const Load& load : spec.loads) add_load(b, load, f);
+  for (const Load& load : spec.loads) {
+    try {
+      add_load(b, load, f);
+    } catch (const InputError&) {
+      throw;
+    } catch (const Interrupted&) {
+      throw;
+    } catch (const std::exception& err) {
+      // GiNaC's errors while differentiating a damper's ends (0^a: a pole of log(b) in
+      // d(b^e)): the load named, not an internal error.
+      throw InputError(m.source, load.item, load.loc,
+                       "its rates cannot be formed: " + symbolic_detail::clean_message(err.what()));
+    }
+  }
   for (const Load& load : spec.loads)
     for (const Expr* e :
          {&load.stiffness, &load.damping, &load.length0, &load.preload, &load.angle0})

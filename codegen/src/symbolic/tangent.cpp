@@ -3,13 +3,17 @@
 
 #include <map>
 
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
+#include "symbolic_detail.hpp"
 
 namespace kinegen::codegen {
 
 namespace {
 
 using GiNaC::ex;
+using symbolic_detail::clean_message;
+using symbolic_detail::row_loc;
 
 // The coordinates (kQ) or velocities (kQd) `e` reads, ascending.
 std::vector<int> read_by(const ex& e, const SymbolTable& s, InputKind kind) {
@@ -58,6 +62,42 @@ void add_input_row(SparseExpr& out, int r, const ex& e) {
   for (const auto& [slot, input] : inputs_in(e)) out.add(r, slot, diff_input(e, input));
 }
 
+// Runs f, GiNaC's errors while differentiating (0^a: d(b^e) goes through log(b), a pole at 0)
+// turned into an input error naming the item, as derive() does for Phi's rows.
+template <class F>
+void naming(const Mechanism& m, const std::string& item, SourceLoc loc, F&& f) {
+  try {
+    f();
+  } catch (const InputError&) {
+    throw;
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const std::exception& err) {
+    throw InputError(m.source, item, loc,
+                     "its second derivatives cannot be formed: " + clean_message(err.what()));
+  }
+}
+
+// Runs f for Phi's row r, naming its item.
+template <class F>
+void for_row(const Mechanism& m, const SymbolicModel& model, int r, F&& f) {
+  const Constraint& c = *model.rows[r].constraint;
+  naming(m, c.item, row_loc(c, model.rows[r].component), f);
+}
+
+// Runs f for coordinate k's applied force, naming its body (or extra coordinate).
+template <class F>
+void for_coordinate(const Mechanism& m, int k, F&& f) {
+  const int nb = static_cast<int>(m.bodies.size());
+  if (k < 3 * nb) {
+    const Body& b = m.bodies[k / 3];
+    naming(m, "body '" + b.name + "' (its forces)", b.loc, f);
+  } else {
+    const Coordinate& c = m.coordinates[k - 3 * nb];
+    naming(m, "coordinate '" + c.name + "' (its forces)", c.loc, f);
+  }
+}
+
 }  // namespace
 
 TangentModel derive_tangent(const Mechanism& m, const SymbolTable& s, const SymbolicModel& model,
@@ -67,32 +107,36 @@ TangentModel derive_tangent(const Mechanism& m, const SymbolTable& s, const Symb
   // Phi_qq from Phi_q's entries: the entry (r, j) by each coordinate k >= j it reads (an
   // entry that reads q_k < j is the symmetric (r, k, j), found from entry (r, k)).
   for (const JacobianEntry& e : model.phi_q)
-    for (int k : read_by(e.value, s, InputKind::kQ)) {
-      if (k < e.col) continue;
-      const ex d = e.value.diff(s.q(k));
-      if (d.is_zero()) continue;
-      t.phi_qq.row.push_back(e.row);
-      t.phi_qq.j.push_back(e.col);
-      t.phi_qq.k.push_back(k);
-      t.phi_qq.value.push_back(d);
-    }
+    for_row(m, model, e.row, [&] {
+      for (int k : read_by(e.value, s, InputKind::kQ)) {
+        if (k < e.col) continue;
+        const ex d = e.value.diff(s.q(k));
+        if (d.is_zero()) continue;
+        t.phi_qq.row.push_back(e.row);
+        t.phi_qq.j.push_back(e.col);
+        t.phi_qq.k.push_back(k);
+        t.phi_qq.value.push_back(d);
+      }
+    });
   t.nu_q = t.gamma_q = t.gamma_qd = sparse(nc, nq);
   t.phi_w = t.nu_w = t.gamma_w = sparse(nc, slots);
-  for (int r = 0; r < nc; ++r) {
-    add_row(t.nu_q, r, model.nu[r], s, InputKind::kQ);
-    add_row(t.gamma_q, r, model.gamma[r], s, InputKind::kQ);
-    add_row(t.gamma_qd, r, model.gamma[r], s, InputKind::kQd);
-    add_input_row(t.phi_w, r, model.phi[r]);
-    add_input_row(t.nu_w, r, model.nu[r]);
-    add_input_row(t.gamma_w, r, model.gamma[r]);
-  }
+  for (int r = 0; r < nc; ++r)
+    for_row(m, model, r, [&] {
+      add_row(t.nu_q, r, model.nu[r], s, InputKind::kQ);
+      add_row(t.gamma_q, r, model.gamma[r], s, InputKind::kQ);
+      add_row(t.gamma_qd, r, model.gamma[r], s, InputKind::kQd);
+      add_input_row(t.phi_w, r, model.phi[r]);
+      add_input_row(t.nu_w, r, model.nu[r]);
+      add_input_row(t.gamma_w, r, model.gamma[r]);
+    });
   t.applied_q = t.applied_qd = sparse(nq, nq);
   t.applied_w = sparse(nq, slots);
-  for (int k = 0; k < nq; ++k) {
-    add_row(t.applied_q, k, forces.applied[k], s, InputKind::kQ);
-    add_row(t.applied_qd, k, forces.applied[k], s, InputKind::kQd);
-    add_input_row(t.applied_w, k, forces.applied[k]);
-  }
+  for (int k = 0; k < nq; ++k)
+    for_coordinate(m, k, [&] {
+      add_row(t.applied_q, k, forces.applied[k], s, InputKind::kQ);
+      add_row(t.applied_qd, k, forces.applied[k], s, InputKind::kQd);
+      add_input_row(t.applied_w, k, forces.applied[k]);
+    });
   return t;
 }
 
