@@ -1749,9 +1749,7 @@ struct pendulum {
     using R = _real<T>;
     T x[2 * nf];
     R scale[2 * nf];
-    for (int k = 0; k < nf; ++k)
-      scale[k] = scale[nf + k] = free_distance[k] || coordinate_kinds[_free_column(k)] != 1
-                                     ? R(length_scale) : R(1);
+    for (int k = 0; k < nf; ++k) scale[k] = scale[nf + k] = R(free_scale(k));
     BlockReport<R> r;
     const auto f = [&](T at, const T* y, T* yd) {
       for (int k = 0; k < nf; ++k) yd[k] = y[nf + k];
@@ -1800,6 +1798,11 @@ struct pendulum {
   }
 
  public:
+  // The size of free coordinate k (and of its rate, per second) in the integrators' error
+  // tests and Newton steps: 1 for an angle, length_scale for a length or a distance.
+  static constexpr double free_scale(int k) noexcept {
+    return free_distance[k] || coordinate_kinds[_free_column(k)] != 1 ? length_scale : 1.0;
+  }
 };
 
 }  // namespace kinegen::models

@@ -35,8 +35,8 @@ const std::vector<std::string> kHeaderMembers = {
     "block_begin", "block_rows", "block_cols", "coordinate_block", "coordinate_slot",
     "jac_row_begin", "block_factor_begin",
     // forward dynamics (emit_dynamics)
-    "has_dynamics", "nf", "num_bodies", "free_names", "free_rows", "free_distance", "DynamicsWork",
-    "dynamics", "has_dynamics_jacobians", "num_inputs", "input_names", "JacobianWork",
+    "has_dynamics", "nf", "num_bodies", "free_names", "free_rows", "free_distance", "free_scale",
+    "DynamicsWork", "dynamics", "has_dynamics_jacobians", "num_inputs", "input_names", "JacobianWork",
     "dynamics_jacobians", "step_rk4", "step_implicit",
     // parameter sensitivities (emit_sensitivity)
     "num_params", "has_sensitivity", "phi_p", "sensitivity_work_size", "solve_sensitivity",

@@ -60,10 +60,7 @@ class Simulator {
     block_.min_rcond = solver.min_rcond;
     block_.residual_tolerance = solver.residual_tolerance;
     for (int k = 0; k < kStates; ++k) x_[k] = xd_[k] = T(0);
-    for (int k = 0; k < nf; ++k) {
-      scale_[k] = Model::free_distance[k] || !angle(k) ? Real(Model::length_scale) : Real(1);
-      scale_[nf + k] = scale_[k];
-    }
+    for (int k = 0; k < nf; ++k) scale_[k] = scale_[nf + k] = Real(Model::free_scale(k));
   }
 
   // Starts a motion at (t, z, zd): the position solve from the file's q0 (or, with keep_q,
@@ -140,16 +137,6 @@ class Simulator {
   int newton_iterations() const { return newton_iterations_; }
 
  private:
-  static bool angle(int k) { return Model::coordinate_kinds[free_coordinate(k)] == 1; }
-  // The coordinate a free item's row reads first (its driven quantity's own coordinate where
-  // the row is an absolute one), for its kind.
-  static int free_coordinate(int k) {
-    const int row = Model::free_rows[k];
-    for (int e = 0; e < Model::jac_nnz; ++e)
-      if (Model::jac_rows[e] == row) return Model::jac_cols[e];
-    return 0;
-  }
-
   // x' = (zd, zdd) at (t, x); the first call of a step is at the state, whose zdd is known.
   int rhs(T t, const T* x, T* xd) {
     if (first_) {
