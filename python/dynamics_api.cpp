@@ -106,14 +106,7 @@ py::dict DynamicsApi::simulate(const SimulateArgs& a) {
   if (a.steps < 1) throw kc::UsageError("--steps must be at least 1");
   if (!std::isfinite(a.t0) || !std::isfinite(a.t1) || !(a.t1 > a.t0))
     throw kc::UsageError("t1 must come after t0, both finite: a simulation runs forward in time");
-  if (!std::isfinite(a.rtol) || !(a.rtol > 0) || a.rtol >= 1)
-    throw kc::UsageError("rtol must be a finite number in (0, 1)");
-  if (!std::isfinite(a.atol) || !(a.atol > 0))
-    throw kc::UsageError("atol must be a finite number above 0");
-  if (a.method != "minimal" && a.method != "augmented")
-    throw kc::UsageError("method must be 'minimal' or 'augmented', not '" + a.method + "'");
-  if (a.integrator != "auto" && a.integrator != "bdf" && a.integrator != "adams")
-    throw kc::UsageError("integrator must be 'auto', 'bdf' or 'adams', not '" + a.integrator + "'");
+  kc::SimulateOptions options = kc::simulate_options(a.rtol, a.atol, a.method, a.integrator, "");
   std::vector<std::string> columns;
   std::vector<std::vector<double>> rows;
   {
@@ -123,13 +116,6 @@ py::dict DynamicsApi::simulate(const SimulateArgs& a) {
       kc::apply_inputs(copy, {}, true, true);
     }
     if (!forces_) forces_ = std::make_unique<kc::ForceModel>(kc::derive_forces(model_));
-    kc::SimulateOptions options;
-    options.rtol = a.rtol;
-    options.atol = a.atol;
-    options.method = a.method == "augmented" ? kc::Method::kAugmented : kc::Method::kMinimal;
-    options.integrator = a.integrator == "bdf"     ? kc::Integrator::kBdf
-                         : a.integrator == "adams" ? kc::Integrator::kAdams
-                                                   : kc::Integrator::kAuto;
     std::vector<std::string> force_names;
     if (a.forces) {
       options.forces_columns = forces_.get();

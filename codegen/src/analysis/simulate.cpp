@@ -410,4 +410,26 @@ std::string simulate_csv_row(const SimulatedRow& row, int num_bodies) {
   return s + "\n";
 }
 
+SimulateOptions simulate_options(double rtol, double atol, const std::string& method,
+                                 const std::string& integrator, const std::string& prefix) {
+  if (!std::isfinite(rtol) || !(rtol > 0) || rtol >= 1)
+    throw UsageError(prefix + "rtol must be a finite number in (0, 1), not " +
+                     format_number(rtol));
+  if (!std::isfinite(atol) || !(atol > 0))
+    throw UsageError(prefix + "atol must be a finite number above 0, not " + format_number(atol));
+  if (method != "minimal" && method != "augmented")
+    throw UsageError(prefix + "method must be 'minimal' or 'augmented', not '" + method + "'");
+  if (integrator != "auto" && integrator != "bdf" && integrator != "adams")
+    throw UsageError(prefix + "integrator must be 'auto', 'bdf' or 'adams', not '" + integrator +
+                     "'");
+  SimulateOptions o;
+  o.rtol = rtol;
+  o.atol = atol;
+  o.method = method == "augmented" ? Method::kAugmented : Method::kMinimal;
+  o.integrator = integrator == "bdf"     ? Integrator::kBdf
+                 : integrator == "adams" ? Integrator::kAdams
+                                         : Integrator::kAuto;
+  return o;
+}
+
 }  // namespace kinegen::codegen

@@ -34,17 +34,12 @@ void check_options(const Options& o) {
     throw kc::UsageError("--t1 (" + kc::format_number(o.t1) + ") must come after --t0 (" +
                          kc::format_number(o.t0) + "): a simulation runs forward in time");
   if (o.steps < 1) throw kc::UsageError("--steps must be at least 1");
-  if (!std::isfinite(o.rtol) || !(o.rtol > 0) || o.rtol >= 1)
-    throw kc::UsageError("--rtol must be a finite number in (0, 1), not " +
-                         kc::format_number(o.rtol));
   if (o.reference_digits != 0 && (o.reference_digits < kc::kMinReferenceDigits ||
                                   o.reference_digits > kc::kMaxReferenceDigits))
     throw kc::UsageError("--reference must be between " + std::to_string(kc::kMinReferenceDigits) +
                          " and " + std::to_string(kc::kMaxReferenceDigits) + " digits, not " +
                          std::to_string(o.reference_digits));
-  if (!std::isfinite(o.atol) || !(o.atol > 0))
-    throw kc::UsageError("--atol must be a finite number above 0, not " +
-                         kc::format_number(o.atol));
+  (void)kc::simulate_options(o.rtol, o.atol, o.method, o.integrator, "--");
 }
 
 // The progress bar, drawn only once a run has taken a second.
@@ -64,13 +59,7 @@ int run_simulate(const Common& c, const Options& o) {
   build.free_as_state = true;
   auto model = load(c, build);
   const kc::ForceModel forces = kc::derive_forces(*model);
-  kc::SimulateOptions options;
-  options.rtol = o.rtol;
-  options.atol = o.atol;
-  options.method = o.method == "augmented" ? kc::Method::kAugmented : kc::Method::kMinimal;
-  options.integrator = o.integrator == "bdf"     ? kc::Integrator::kBdf
-                       : o.integrator == "adams" ? kc::Integrator::kAdams
-                                                 : kc::Integrator::kAuto;
+  kc::SimulateOptions options = kc::simulate_options(o.rtol, o.atol, o.method, o.integrator, "--");
   std::vector<std::string> force_names;
   if (o.with_forces) {
     options.forces_columns = &forces;

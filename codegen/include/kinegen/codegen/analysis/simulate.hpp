@@ -73,6 +73,12 @@ struct SimulateOptions {
   long max_steps = 10000000;  // internal steps in all
 };
 
+// SimulateOptions from the settings as a user names them (the command line's --rtol, --atol,
+// --method, --integrator with prefix "--"; the Python module's keywords with ""), each checked:
+// a UsageError naming the setting and its value. One rule for both front ends.
+SimulateOptions simulate_options(double rtol, double atol, const std::string& method,
+                                 const std::string& integrator, const std::string& prefix);
+
 // The extra columns of a simulated row: each free item's Z, Z.v, Z.a, then the energy.
 struct SimulatedRow {
   StateRow state;
