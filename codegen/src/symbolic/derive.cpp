@@ -167,16 +167,8 @@ class Differentiator {
               short_value(size > kMaxDerivativeSize ? kMaxDerivativeSize : kMaxDerivedSize) +
               "; write the expression more compactly");
     }
-    try {
-      return e.diff(x);
-    } catch (const std::exception& err) {
-      // GiNaC differentiates b^e through log(b) even where e is constant in x: 0^a (a a
-      // parameter) has a logarithmic pole. The fuzzer's find; the item and line, not an
-      // internal error.
-      throw InputError(m_.source, c.item, loc,
-                       "cannot be differentiated by " + x.get_name() + ": " +
-                           clean_message(err.what()));
-    }
+    return naming_errors(m_, c.item, loc, "cannot be differentiated by " + x.get_name(),
+                         [&] { return e.diff(x); });
   }
 
  private:
@@ -366,21 +358,13 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
       model.rows.push_back({c, static_cast<int>(k)});
     }
   }
-  try {
+  // Where no row is at hand to name (an output's or a free item's value), the file.
+  naming_errors(m, "file", {}, "the derivatives cannot be formed", [&] {
     derive_free_values(m, s, model);
     derive_rates(m, s, model);
     derive_geometry(m, s, builder, model);
     derive_outputs(m, s, model);
-  } catch (const InputError&) {
-    throw;
-  } catch (const Interrupted&) {
-    throw;
-  } catch (const std::exception& err) {
-    // GiNaC's own errors where no row is at hand to name (a pole met while differentiating an
-    // output or a free item's value): one error naming the file, not an internal error.
-    throw InputError(m.source, "file", {},
-                     "the derivatives cannot be formed: " + clean_message(err.what()));
-  }
+  });
   derive_scales(m, body_scales(m, s, builder, model.param_values), model);
   // The laws' boundaries, once the length scale is known: a driven length's jumps are
   // measured against it (the equations above took the laws unchecked).

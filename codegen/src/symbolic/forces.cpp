@@ -5,7 +5,6 @@
 #include <cmath>
 
 #include "kinegen/codegen/base/diagnostics.hpp"
-#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
 #include "symbolic_detail.hpp"
@@ -178,20 +177,9 @@ ForceModel derive_forces(const Mechanism& m, const SymbolTable& s, const Symboli
     const Vec r = b.point(k, com);
     f.potential -= mass * (g.x * r.x + g.y * r.y);
   }
-  for (const Load& load : spec.loads) {
-    try {
-      add_load(b, load, f);
-    } catch (const InputError&) {
-      throw;
-    } catch (const Interrupted&) {
-      throw;
-    } catch (const std::exception& err) {
-      // GiNaC's errors while differentiating a damper's ends (0^a: a pole of log(b) in
-      // d(b^e)): the load named, not an internal error.
-      throw InputError(m.source, load.item, load.loc,
-                       "its rates cannot be formed: " + symbolic_detail::clean_message(err.what()));
-    }
-  }
+  for (const Load& load : spec.loads)  // a damper's rates differentiate its ends
+    symbolic_detail::naming_errors(m, load.item, load.loc, "its rates cannot be formed",
+                                   [&] { add_load(b, load, f); });
   for (const Load& load : spec.loads)
     for (const Expr* e :
          {&load.stiffness, &load.damping, &load.length0, &load.preload, &load.angle0})

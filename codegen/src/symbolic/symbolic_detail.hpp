@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "kinegen/codegen/symbolic/symbolic.hpp"
 
@@ -58,6 +60,24 @@ TreeSize tree_size(const GiNaC::ex& e, const GiNaC::ex& x);
 
 // Where row `component` of a constraint is written: its equation, a driver's f, or the item.
 SourceLoc row_loc(const Constraint& c, int component);
+
+// f(), with GiNaC's errors while it differentiates turned into one input error naming the item
+// ("what: GiNaC's message"): GiNaC differentiates b^e through log(b) even where e is constant,
+// so 0^a (a a parameter) meets a pole (the fuzzer's find; it was an internal error). Input
+// errors and interrupts pass as they are.
+template <class F>
+auto naming_errors(const Mechanism& m, const std::string& item, SourceLoc loc,
+                   const std::string& what, F&& f) -> decltype(f()) {
+  try {
+    return f();
+  } catch (const InputError&) {
+    throw;
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const std::exception& err) {
+    throw InputError(m.source, item, loc, what + ": " + clean_message(err.what()));
+  }
+}
 
 // A constant of the geometry, checked to evaluate to a finite number.
 void check_finite(const Mechanism& m, const SymbolTable& s,

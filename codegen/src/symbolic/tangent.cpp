@@ -3,7 +3,6 @@
 
 #include <map>
 
-#include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
 #include "symbolic_detail.hpp"
 
@@ -12,7 +11,7 @@ namespace kinegen::codegen {
 namespace {
 
 using GiNaC::ex;
-using symbolic_detail::clean_message;
+using symbolic_detail::naming_errors;
 using symbolic_detail::row_loc;
 
 // The coordinates (kQ) or velocities (kQd) `e` reads, ascending.
@@ -62,27 +61,12 @@ void add_input_row(SparseExpr& out, int r, const ex& e) {
   for (const auto& [slot, input] : inputs_in(e)) out.add(r, slot, diff_input(e, input));
 }
 
-// Runs f, GiNaC's errors while differentiating (0^a: d(b^e) goes through log(b), a pole at 0)
-// turned into an input error naming the item, as derive() does for Phi's rows.
-template <class F>
-void naming(const Mechanism& m, const std::string& item, SourceLoc loc, F&& f) {
-  try {
-    f();
-  } catch (const InputError&) {
-    throw;
-  } catch (const Interrupted&) {
-    throw;
-  } catch (const std::exception& err) {
-    throw InputError(m.source, item, loc,
-                     "its second derivatives cannot be formed: " + clean_message(err.what()));
-  }
-}
-
 // Runs f for Phi's row r, naming its item.
 template <class F>
 void for_row(const Mechanism& m, const SymbolicModel& model, int r, F&& f) {
   const Constraint& c = *model.rows[r].constraint;
-  naming(m, c.item, row_loc(c, model.rows[r].component), f);
+  naming_errors(m, c.item, row_loc(c, model.rows[r].component),
+                "its second derivatives cannot be formed", f);
 }
 
 // Runs f for coordinate k's applied force, naming its body (or extra coordinate).
@@ -91,10 +75,12 @@ void for_coordinate(const Mechanism& m, int k, F&& f) {
   const int nb = static_cast<int>(m.bodies.size());
   if (k < 3 * nb) {
     const Body& b = m.bodies[k / 3];
-    naming(m, "body '" + b.name + "' (its forces)", b.loc, f);
+    naming_errors(m, "body '" + b.name + "' (its forces)", b.loc,
+                  "its second derivatives cannot be formed", f);
   } else {
     const Coordinate& c = m.coordinates[k - 3 * nb];
-    naming(m, "coordinate '" + c.name + "' (its forces)", c.loc, f);
+    naming_errors(m, "coordinate '" + c.name + "' (its forces)", c.loc,
+                  "its second derivatives cannot be formed", f);
   }
 }
 
