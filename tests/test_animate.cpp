@@ -19,6 +19,7 @@
 #endif
 
 #include "support/closed_form.hpp"
+#include "support/files.hpp"
 #include "support/run_command.hpp"
 
 namespace fs = std::filesystem;
@@ -30,12 +31,7 @@ const std::string kFourBar = KINEGEN_SOURCE_DIR "/examples/four_bar.yaml";
 constexpr int kSteps = 72;
 const double kTwoPi = 2 * std::acos(-1.0);
 
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "animate" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path scratch(const std::string& name) { return kinegen::test::scratch_dir("animate", name); }
 
 std::string read(const fs::path& path) {
   std::ifstream in(path);

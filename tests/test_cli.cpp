@@ -19,11 +19,14 @@
 #include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "support/closed_form.hpp"
+#include "support/files.hpp"
 #include "support/run_command.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
+using kinegen::test::read_text;
+using kinegen::test::write_text;
 namespace kc = kinegen::codegen;
 using kinegen::test::CommandResult;
 
@@ -44,26 +47,7 @@ std::vector<fs::path> yaml_files(const fs::path& dir) {
 }
 
 // A fresh, empty directory for one test.
-fs::path scratch_dir(const std::string& name) {
-  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "cli" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  REQUIRE(in);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-  REQUIRE(out);
-}
+fs::path scratch_dir(const std::string& name) { return kinegen::test::scratch_dir("cli", name); }
 
 // `text` with the one occurrence of `from` replaced by `to`.
 std::string replaced(std::string text, const std::string& from, const std::string& to) {

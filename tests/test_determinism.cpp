@@ -9,11 +9,13 @@
 #include <string>
 #include <vector>
 
+#include "support/files.hpp"
 #include "support/run_command.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
+using kinegen::test::read_text;
 
 constexpr int kRuns = 4;
 
@@ -24,14 +26,6 @@ std::vector<fs::path> shipped_mechanisms() {
       if (entry.path().extension() == ".yaml") files.push_back(entry.path());
   std::sort(files.begin(), files.end());
   return files;
-}
-
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  REQUIRE(in);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
 }
 
 // The address space layout of a process, as far as a child can see it differ: where the

@@ -21,37 +21,21 @@
 #include <string>
 #include <vector>
 
+#include "support/files.hpp"
 #include "support/run_command.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
+using kinegen::test::read_text;
+using kinegen::test::write_text;
 using kinegen::test::CommandResult;
 
 fs::path dynamics_example(const std::string& name) {
   return fs::path(KINEGEN_SOURCE_DIR) / "examples" / "dynamics" / (name + ".yaml");
 }
 
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "dynamics_examples" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  REQUIRE(in);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-  REQUIRE(out);
-}
+fs::path scratch(const std::string& name) { return kinegen::test::scratch_dir("dynamics_examples", name); }
 
 // `text` with its one occurrence of `from` replaced by `to`.
 std::string replaced(std::string text, const std::string& from, const std::string& to) {

@@ -28,6 +28,7 @@
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "parabolic_slot.hpp"
+#include "support/files.hpp"
 #include "support/run_command.hpp"
 
 namespace {
@@ -387,12 +388,7 @@ int line_of(const std::string& text, const std::string& what) {
   return 1 + static_cast<int>(std::count(text.begin(), text.begin() + at, '\n'));
 }
 
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "followers" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path scratch(const std::string& name) { return kinegen::test::scratch_dir("followers", name); }
 
 }  // namespace
 

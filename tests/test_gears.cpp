@@ -25,6 +25,7 @@
 #include "kinegen/codegen/analysis/reference.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "planetary.hpp"
+#include "support/files.hpp"
 #include "support/run_command.hpp"
 
 namespace {
@@ -500,12 +501,7 @@ int line_of(const std::string& text, const std::string& what) {
   return 1 + static_cast<int>(std::count(text.begin(), text.begin() + at, '\n'));
 }
 
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "gears" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path scratch(const std::string& name) { return kinegen::test::scratch_dir("gears", name); }
 
 kinegen::test::CommandResult analyze_file(const fs::path& mech, const fs::path& csv) {
   return kinegen::test::run_command({KINEGEN_EXE, "analyze", mech.string(), "--t0", "0", "--t1",

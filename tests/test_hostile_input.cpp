@@ -16,6 +16,7 @@
 namespace {
 
 namespace fs = std::filesystem;
+using kinegen::test::write_text;
 namespace kc = kinegen::codegen;
 using kinegen::test::CommandResult;
 
@@ -113,17 +114,7 @@ std::vector<Case> cases() {
   };
 }
 
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "hostile" / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-}
+fs::path scratch(const std::string& name) { return kinegen::test::scratch_dir("hostile", name); }
 
 CommandResult run_kinegen(std::vector<std::string> args) {
   args.insert(args.begin(), KINEGEN_EXE);
