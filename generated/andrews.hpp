@@ -4458,10 +4458,10 @@ struct andrews {
       r = dynamics(z, zd, t, p, zdd, options, w);
       if (r.status != 0) return r;
     }
+    if (!d_z && !d_zd && !d_u) return r;
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
     _tangent_values(w.q, w.qd, t, pz, j.values);
-    if (!d_z && !d_zd && !d_u) return r;
     // Every direction, whichever are asked for: constant directions fold into the kernel's
     // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
     constexpr int ndir = 2 * nf + num_inputs;
