@@ -121,13 +121,33 @@ void check_pinned_body() {
   const int slots[] = {0, 1, 3};
   T out[3];
   std::vector<T> work(L::_tangent_work_size(3, 1, 3));
-  int calls = 0;
+  int calls = 0, columns = 0;
   const auto identity = [&](T* b, T* x, int m) {  // Phi_q = I
     for (int i = 0; i < 3 * m; ++i) x[i] = b[i];
+    columns += m;
     return ++calls, 0;
   };
   REQUIRE(L::_dynamics_tangent(p, 3, slots, out, work.data(), identity, identity) == 0);
   CHECK(calls == 3);  // the solves batched: Phi_q^T once, Phi_q twice
+  CHECK(columns == 2 + 3 + 3);
+  // The same with what a dynamics() gives (M B, B^T M B's factors) and the free coordinate's
+  // value and rate known (their dq and dqd are B): the same numbers, from 3 columns fewer.
+  {
+    L::_TangentPoint<T> given = p;
+    T mb[3], mz[1];
+    L::_mass_times(1, 3, &m, &j, ax, ay, b, mb);
+    mz[0] = L::_dot(3, b, mb);
+    REQUIRE(L::_ldlt_factor(1, mz) > 0);
+    const int known[] = {0, 1, -1};  // z, zd (nf + 0), the torque
+    given.mb = mb;
+    given.mz = mz;
+    given.known = known;
+    T again[3];
+    columns = 0;
+    REQUIRE(L::_dynamics_tangent(given, 3, slots, again, work.data(), identity, identity) == 0);
+    CHECK(columns == 2 + 1 + 2);
+    for (int k = 0; k < 3; ++k) CHECK(again[k] == out[k]);
+  }
   using R = decltype(std::abs(T()));
   const R tol = std::is_same_v<T, float> ? R(1e-5) : R(1e-14);
   using std::abs;
