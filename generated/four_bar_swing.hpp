@@ -51,16 +51,16 @@ struct four_bar_swing {
     const void* _free = nullptr;
   };
 
-  // Whether a and b hold the same values (a NaN never does).
+  // Whether a and b hold the same values, bit for bit.
   static bool _same_params([[maybe_unused]] const Params& a,
                            [[maybe_unused]] const Params& b) noexcept {
-    return a.a == b.a &&
-           a.b == b.b &&
-           a.c == b.c &&
-           a.d == b.d &&
-           a.theta == b.theta &&
-           a.theta_v == b.theta_v &&
-           a.theta_a == b.theta_a;
+    return _same_bits(a.a, b.a) &&
+           _same_bits(a.b, b.b) &&
+           _same_bits(a.c, b.c) &&
+           _same_bits(a.d, b.d) &&
+           _same_bits(a.theta, b.theta) &&
+           _same_bits(a.theta_v, b.theta_v) &&
+           _same_bits(a.theta_a, b.theta_a);
   }
 
   // A free item's value (i < nf), rate or acceleration, as dynamics() set it.
@@ -283,6 +283,15 @@ struct four_bar_swing {
     o.residual_tolerance = R(u.residual_tolerance);
     o.min_rcond = R(u.min_rcond);
     return o;
+  }
+  // Whether a and b are the same bits (so -0.0 and 0.0 differ, and a NaN equals itself).
+  template <class X>
+  static bool _same_bits(const X& a, const X& b) noexcept {
+    const auto* x = reinterpret_cast<const unsigned char*>(&a);
+    const auto* y = reinterpret_cast<const unsigned char*>(&b);
+    for (std::size_t i = 0; i < sizeof(X); ++i)
+      if (x[i] != y[i]) return false;
+    return true;
   }
   template <class R>
   static bool _same_options(const BasicBlockOptions<R>& a, const BasicBlockOptions<R>& b) noexcept {
@@ -681,21 +690,47 @@ struct four_bar_swing {
     }
   }
 
-  // Calls f(std::integral_constant<int, k>) for each block k in solve order (kReverse:
-  // backwards) while it returns true; false when one did not. Each block's loops then have
-  // fixed bounds and places, which the compiler unrolls: the solves that follow a dynamics()
-  // (B, the Jacobians' tangent) are 2-3x faster than with the block index at run time.
+  // Calls f(index, size) for each block in solve order (kReverse: backwards) while it returns
+  // true; false when one did not. size is the block's std::integral_constant size; index is
+  // its std::integral_constant index up to _kMaxUnrolledBlocks blocks, so that each block is its
+  // own instance whose loops have fixed bounds and places (which the compiler unrolls: the
+  // solves after a dynamics() 2-3x faster), and beyond that an int (one loop: a header of
+  // thousands of blocks compiles as before). Folded in chunks of 64 (Clang allows 256 levels).
+  static constexpr int _kMaxUnrolledBlocks = 1024;
   template <class S, bool kReverse = false, class F>
   static bool _each_block_unrolled(F&& f) noexcept {
-    return _each_block_unrolled<S, kReverse>(f, std::make_integer_sequence<int, S::num_blocks>{});
+    if constexpr (S::num_blocks <= _kMaxUnrolledBlocks) {
+      return _each_block_chunk<S, kReverse, 0>(f);
+    } else {
+      bool ok = true;
+      for (int n = 0; ok && n < S::num_blocks; ++n) {
+        const int k = kReverse ? S::num_blocks - 1 - n : n;
+        _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k],
+                            [&](auto size) { ok = f(k, size); });
+      }
+      return ok;
+    }
   }
-  template <class S, bool kReverse, class F, int... I>
-  static bool _each_block_unrolled(F& f, std::integer_sequence<int, I...>) noexcept {
-    constexpr int n = sizeof...(I);
-    return (f(std::integral_constant<int, (kReverse ? n - 1 - I : I)>{}) && ...);
+  template <class S, bool kReverse, int kFrom, class F>
+  static bool _each_block_chunk(F& f) noexcept {
+    constexpr int count = S::num_blocks - kFrom < 64 ? S::num_blocks - kFrom : 64;
+    if constexpr (count <= 0) {
+      return true;
+    } else {
+      return _each_block_in<S, kReverse, kFrom>(f, std::make_integer_sequence<int, count>{}) &&
+             _each_block_chunk<S, kReverse, kFrom + count>(f);
+    }
   }
-  template <class S, int k>
-  static constexpr int _block_size = S::block_begin[k + 1] - S::block_begin[k];
+  template <class S, bool kReverse, int kFrom, class F, int... I>
+  static bool _each_block_in(F& f, std::integer_sequence<int, I...>) noexcept {
+    constexpr int n = S::num_blocks;
+    return (_call_block<S, (kReverse ? n - 1 - kFrom - I : kFrom + I)>(f) && ...);
+  }
+  template <class S, int k, class F>
+  static bool _call_block(F& f) noexcept {
+    constexpr int size = S::block_begin[k + 1] - S::block_begin[k];
+    return f(std::integral_constant<int, k>{}, std::integral_constant<int, size>{});
+  }
 
   // Gathers block k (K x K, row-major: its rows by its coordinates) from jac and factors it.
   // False when it is singular, ill-conditioned or not finite (r records why).
@@ -804,31 +839,28 @@ struct four_bar_swing {
   static BlockReport<R> _block_factor_all(const T* jac, T* a, int* piv,
                                           const BasicBlockOptions<R>& o) noexcept {
     BlockReport<R> r;
-    _each_block_unrolled<S>([&](auto kc) {
-      constexpr int k = decltype(kc)::value;
-      return _block_factor<S, _block_size<S, k>>(kc, jac, a + S::block_factor_begin[k],
-                                                 piv + S::block_begin[k], r, o.min_rcond);
+    _each_block_unrolled<S>([&](auto k, auto size) {
+      return _block_factor<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                     piv + S::block_begin[k], r, o.min_rcond);
     });
     return r;
   }
   template <class S, class T>
   static bool _block_forward_factored(const T* jac, const T* a, const int* piv, const T* b, T* x,
                                       int m) noexcept {
-    return _each_block_unrolled<S>([&](auto kc) {
-      constexpr int k = decltype(kc)::value;
-      return _forward_block<S, _block_size<S, k>>(kc, jac, a + S::block_factor_begin[k],
-                                                  piv + S::block_begin[k], b, x, m);
+    return _each_block_unrolled<S>([&](auto k, auto size) {
+      return _forward_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                      piv + S::block_begin[k], b, x, m);
     });
   }
   template <class S, class T>
   static bool _block_transposed_factored(const T* jac, const T* a, const int* piv, T* b, T* y,
                                          int m) noexcept {
-    return _each_block_unrolled<S, true>([&](auto kc) {
-      constexpr int k = decltype(kc)::value;
+    return _each_block_unrolled<S, true>([&](auto k, auto size) {
       for (int col = 0; col < m; ++col)
-        if (!_transposed_block<S, _block_size<S, k>>(kc, jac, a + S::block_factor_begin[k],
-                                                     piv + S::block_begin[k], b + col * S::nq,
-                                                     y + col * S::nq))
+        if (!_transposed_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                         piv + S::block_begin[k], b + col * S::nq,
+                                                         y + col * S::nq))
           return false;
       return true;
     });
@@ -1066,6 +1098,13 @@ struct four_bar_swing {
   // ---- end of kinegen kernel dynamics
 
   // ---- kinegen kernel linearize (kinegen/kernels/linearize.hpp)
+#ifndef KINEGEN_ALWAYS_INLINE
+#if defined(__GNUC__) || defined(__clang__)
+#define KINEGEN_ALWAYS_INLINE [[gnu::always_inline]]
+#else
+#define KINEGEN_ALWAYS_INLINE
+#endif
+#endif
   // A sparse matrix: n entries (row[e], col[e], value[e]).
   template <class T>
   struct _Sparse {
@@ -1180,7 +1219,8 @@ struct four_bar_swing {
 
   // The work space _dynamics_tangent needs for ndir directions, in T's.
   static constexpr int _tangent_work_size(int nq, int nf, int ndir) noexcept {
-    return nq * nf + 2 * nq * (nf + 1) + nf * nf + 4 * nq * ndir + 2 * nq;
+    return nq * nf + nq * (nf + 1) + nf * nf + 3 * nq * ndir + 2 * nq +
+           nq * (ndir > nf + 1 ? ndir : nf + 1);
   }
 
   // d(zdd)/d(w_slot) for each of the ndir slots (slots[i]: a free item's z or zd, or a
@@ -1192,10 +1232,10 @@ struct four_bar_swing {
   // call. work: _tangent_work_size T's. Returns 0; 2 when M_z = B^T M B is not positive
   // definite; 3 when a value is not finite; or a solve's status. NQ, NF, NB: p's sizes when
   // known at compile time (a generated header's), 0 when not: the loops then have fixed
-  // lengths. Always inlined (GCC, Clang; others ignore the attribute): only then do the
-  // caller's constant tables (a header's sparsity patterns) fold into the loops.
+  // lengths. Always inlined (GCC, Clang): only then do the caller's constant tables (a
+  // header's sparsity patterns) fold into the loops.
   template <int NQ = 0, int NF = 0, int NB = 0, class T, class Solve, class SolveTransposed>
-  [[gnu::always_inline]] static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir,
+  KINEGEN_ALWAYS_INLINE static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir,
                                                       const int* slots, T* dzdd, T* work,
                                                       Solve&& solve,
                                                       SolveTransposed&& solve_transposed) noexcept {
@@ -1207,8 +1247,8 @@ struct four_bar_swing {
     T* dqd = dq + nq * ndir;
     T* r = dqd + nq * ndir;
     T* f = r + nq;
-    T* rhs = f + nq;                    // right-hand sides, side by side
-    T* x = rhs + nq * (ndir + nf + 1);  // their solutions
+    T* x = f + nq;          // solutions, side by side
+    T* rhs = x + nq * ndir;  // their right-hand sides (nf + 1 columns for the transposed)
     const T* m_b = p.mb;                // M B and B^T M B's factors: dynamics()' or computed here
     const T* m_z = p.mz;
     if (!m_b || !m_z) {
@@ -1243,7 +1283,7 @@ struct four_bar_swing {
   // describes them, in two solves (of the columns not known), with rhs and x as their work
   // space; 0 or the solve's status.
   template <class T, class Solve>
-  [[gnu::always_inline]] static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
+  KINEGEN_ALWAYS_INLINE static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
                                                      int ndir, const int* slots, T* dq, T* dqd,
                                                      T* rhs, T* x, Solve&& solve) noexcept {
     const auto known = [&](int i) { return p.known ? p.known[i] : -1; };
@@ -2128,10 +2168,11 @@ struct four_bar_swing {
     T trig[trig_cache_size > 0 ? trig_cache_size : 1];
     int pivots[nq];
     T geometry[20], mass[num_bodies], inertia[num_bodies], ax[num_bodies], ay[num_bodies];
-    // The last successful dynamics()' arguments and report (solved: there was one
-    // and nothing failed since), whose q, B and factors dynamics_jacobians reuses.
+    // The last dynamics()' arguments, q and report where it succeeded (solved), whose
+    // B and factors dynamics_jacobians reuses; a later failed dynamics() clears it, and
+    // so does a new q written by the caller (compared).
     bool solved = false;
-    T solved_t = T(0);
+    T solved_t = T(0), solved_q[nq];
     Params solved_p;
     BasicBlockOptions<_real<T>> solved_o;
     BlockReport<_real<T>> solved_r;
@@ -2196,22 +2237,11 @@ struct four_bar_swing {
     for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
     w.solved = true;
     w.solved_t = t;
+    for (int k = 0; k < nq; ++k) w.solved_q[k] = w.q[k];
     w.solved_p = p;
     w.solved_o = o;
     w.solved_r = r;
     return r;
-  }
-
-  // Whether w holds a successful dynamics() with exactly these arguments.
-  template <class T, class U>
-  static bool _solved_at(const T* z, const T* zd, T t, const Params& p,
-                         const BasicBlockOptions<U>& options, const DynamicsWork<T>& w) noexcept {
-    if (!w.solved || !(t == w.solved_t) || !_same_params(p, w.solved_p) ||
-        !_same_options(_options_as<_real<T>>(options), w.solved_o))
-      return false;
-    for (int k = 0; k < nf; ++k)
-      if (!(z[k] == w.state[k]) || !(zd[k] == w.state[nf + k])) return false;
-    return true;
   }
 
   // The same from the file's q0, with no state kept: the first call of a motion, or a test.
@@ -2220,6 +2250,21 @@ struct four_bar_swing {
       const BasicBlockOptions<U>& options) noexcept {
     DynamicsWork<T> w;
     return dynamics(z, zd, t, p, zdd, options, w);
+  }
+
+  // Whether w holds a successful dynamics() with exactly these arguments (bit for bit) and its
+  // own q.
+  template <class T, class U>
+  static bool _solved_at(const T* z, const T* zd, T t, const Params& p,
+                         const BasicBlockOptions<U>& options, const DynamicsWork<T>& w) noexcept {
+    if (!w.solved || !_same_bits(t, w.solved_t) || !_same_params(p, w.solved_p) ||
+        !_same_options(_options_as<_real<T>>(options), w.solved_o))
+      return false;
+    for (int k = 0; k < nf; ++k)
+      if (!_same_bits(z[k], w.state[k]) || !_same_bits(zd[k], w.state[nf + k])) return false;
+    for (int k = 0; k < nq; ++k)
+      if (!_same_bits(w.q[k], w.solved_q[k])) return false;
+    return true;
   }
 
   // ---- The exact Jacobians of zdd(z, zd, u) (format 7.5), for linear-quadratic and
@@ -2314,7 +2359,7 @@ struct four_bar_swing {
   struct JacobianWork {
     T values[33];  // _tangent_values
     T out[nf * 2];
-    T work[136];  // _tangent_work_size(nq, nf, 2)
+    T work[118];  // _tangent_work_size(nq, nf, 2)
   };
 
   // dynamics() and the exact d(zdd)/dz (d_z), d(zdd)/dzd (d_zd) and d(zdd)/du (d_u)

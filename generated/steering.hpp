@@ -457,6 +457,15 @@ struct steering {
     o.min_rcond = R(u.min_rcond);
     return o;
   }
+  // Whether a and b are the same bits (so -0.0 and 0.0 differ, and a NaN equals itself).
+  template <class X>
+  static bool _same_bits(const X& a, const X& b) noexcept {
+    const auto* x = reinterpret_cast<const unsigned char*>(&a);
+    const auto* y = reinterpret_cast<const unsigned char*>(&b);
+    for (std::size_t i = 0; i < sizeof(X); ++i)
+      if (x[i] != y[i]) return false;
+    return true;
+  }
   template <class R>
   static bool _same_options(const BasicBlockOptions<R>& a, const BasicBlockOptions<R>& b) noexcept {
     return a.tolerance == b.tolerance && a.max_iterations == b.max_iterations &&
@@ -854,21 +863,47 @@ struct steering {
     }
   }
 
-  // Calls f(std::integral_constant<int, k>) for each block k in solve order (kReverse:
-  // backwards) while it returns true; false when one did not. Each block's loops then have
-  // fixed bounds and places, which the compiler unrolls: the solves that follow a dynamics()
-  // (B, the Jacobians' tangent) are 2-3x faster than with the block index at run time.
+  // Calls f(index, size) for each block in solve order (kReverse: backwards) while it returns
+  // true; false when one did not. size is the block's std::integral_constant size; index is
+  // its std::integral_constant index up to _kMaxUnrolledBlocks blocks, so that each block is its
+  // own instance whose loops have fixed bounds and places (which the compiler unrolls: the
+  // solves after a dynamics() 2-3x faster), and beyond that an int (one loop: a header of
+  // thousands of blocks compiles as before). Folded in chunks of 64 (Clang allows 256 levels).
+  static constexpr int _kMaxUnrolledBlocks = 1024;
   template <class S, bool kReverse = false, class F>
   static bool _each_block_unrolled(F&& f) noexcept {
-    return _each_block_unrolled<S, kReverse>(f, std::make_integer_sequence<int, S::num_blocks>{});
+    if constexpr (S::num_blocks <= _kMaxUnrolledBlocks) {
+      return _each_block_chunk<S, kReverse, 0>(f);
+    } else {
+      bool ok = true;
+      for (int n = 0; ok && n < S::num_blocks; ++n) {
+        const int k = kReverse ? S::num_blocks - 1 - n : n;
+        _with_block_size<S>(S::block_begin[k + 1] - S::block_begin[k],
+                            [&](auto size) { ok = f(k, size); });
+      }
+      return ok;
+    }
   }
-  template <class S, bool kReverse, class F, int... I>
-  static bool _each_block_unrolled(F& f, std::integer_sequence<int, I...>) noexcept {
-    constexpr int n = sizeof...(I);
-    return (f(std::integral_constant<int, (kReverse ? n - 1 - I : I)>{}) && ...);
+  template <class S, bool kReverse, int kFrom, class F>
+  static bool _each_block_chunk(F& f) noexcept {
+    constexpr int count = S::num_blocks - kFrom < 64 ? S::num_blocks - kFrom : 64;
+    if constexpr (count <= 0) {
+      return true;
+    } else {
+      return _each_block_in<S, kReverse, kFrom>(f, std::make_integer_sequence<int, count>{}) &&
+             _each_block_chunk<S, kReverse, kFrom + count>(f);
+    }
   }
-  template <class S, int k>
-  static constexpr int _block_size = S::block_begin[k + 1] - S::block_begin[k];
+  template <class S, bool kReverse, int kFrom, class F, int... I>
+  static bool _each_block_in(F& f, std::integer_sequence<int, I...>) noexcept {
+    constexpr int n = S::num_blocks;
+    return (_call_block<S, (kReverse ? n - 1 - kFrom - I : kFrom + I)>(f) && ...);
+  }
+  template <class S, int k, class F>
+  static bool _call_block(F& f) noexcept {
+    constexpr int size = S::block_begin[k + 1] - S::block_begin[k];
+    return f(std::integral_constant<int, k>{}, std::integral_constant<int, size>{});
+  }
 
   // Gathers block k (K x K, row-major: its rows by its coordinates) from jac and factors it.
   // False when it is singular, ill-conditioned or not finite (r records why).
@@ -977,31 +1012,28 @@ struct steering {
   static BlockReport<R> _block_factor_all(const T* jac, T* a, int* piv,
                                           const BasicBlockOptions<R>& o) noexcept {
     BlockReport<R> r;
-    _each_block_unrolled<S>([&](auto kc) {
-      constexpr int k = decltype(kc)::value;
-      return _block_factor<S, _block_size<S, k>>(kc, jac, a + S::block_factor_begin[k],
-                                                 piv + S::block_begin[k], r, o.min_rcond);
+    _each_block_unrolled<S>([&](auto k, auto size) {
+      return _block_factor<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                     piv + S::block_begin[k], r, o.min_rcond);
     });
     return r;
   }
   template <class S, class T>
   static bool _block_forward_factored(const T* jac, const T* a, const int* piv, const T* b, T* x,
                                       int m) noexcept {
-    return _each_block_unrolled<S>([&](auto kc) {
-      constexpr int k = decltype(kc)::value;
-      return _forward_block<S, _block_size<S, k>>(kc, jac, a + S::block_factor_begin[k],
-                                                  piv + S::block_begin[k], b, x, m);
+    return _each_block_unrolled<S>([&](auto k, auto size) {
+      return _forward_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                      piv + S::block_begin[k], b, x, m);
     });
   }
   template <class S, class T>
   static bool _block_transposed_factored(const T* jac, const T* a, const int* piv, T* b, T* y,
                                          int m) noexcept {
-    return _each_block_unrolled<S, true>([&](auto kc) {
-      constexpr int k = decltype(kc)::value;
+    return _each_block_unrolled<S, true>([&](auto k, auto size) {
       for (int col = 0; col < m; ++col)
-        if (!_transposed_block<S, _block_size<S, k>>(kc, jac, a + S::block_factor_begin[k],
-                                                     piv + S::block_begin[k], b + col * S::nq,
-                                                     y + col * S::nq))
+        if (!_transposed_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
+                                                         piv + S::block_begin[k], b + col * S::nq,
+                                                         y + col * S::nq))
           return false;
       return true;
     });

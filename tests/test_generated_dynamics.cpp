@@ -404,6 +404,12 @@ TEST_CASE("dynamics_jacobians reuses a dynamics() at the same point, and only th
   REQUIRE(M::dynamics(z, zd, 0.0, p, zdd, o, w).status == 0);
   REQUIRE(cart_jacobians(z, zd, 0.0, pushed, o, w, j).status == 0);
   CHECK(largest_difference(j, fresh(z, 0.0, pushed)) < 1e-12);
+  // A new start written into the work space (its q, which the caller may set) is a new
+  // problem: solved again from there, never the stored B and factors with the new q.
+  REQUIRE(M::dynamics(z, zd, 0.0, p, zdd, o, w).status == 0);
+  w.q[5] += 0.25;  // the pole's angle
+  REQUIRE(cart_jacobians(z, zd, 0.0, p, o, w, j).status == 0);
+  CHECK(largest_difference(j, fresh(z, 0.0, p)) < 1e-12);
   // Other options: solved again under them (with min_rcond 2 no block passes, status 2),
   // where the stored solution would have been taken.
   M::BlockOptions strict = o;

@@ -323,7 +323,7 @@ void emit_params(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
     // Every member but _free, for dynamics_jacobians' reuse of a dynamics() at the same point.
     std::vector<std::string> same;
     const auto member = [&](const std::string& name) {
-      same.push_back("a." + name + " == b." + name);
+      same.push_back("_same_bits(a." + name + ", b." + name + ")");
     };
     for (int k = 0; k < symbols.num_params(); ++k) member(symbols.param_name(k));
     for (std::size_t d = 0; d < m.drivers.size(); ++d)
@@ -331,7 +331,7 @@ void emit_params(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
         for (int order = 0; order < 3; ++order) member(input_member(m, static_cast<int>(d), order));
     for (const Load::Input* in : m.load_inputs())
       if (in->table_id < 0) member(in->name);
-    os << "  // Whether a and b hold the same values (a NaN never does).\n"
+    os << "  // Whether a and b hold the same values, bit for bit.\n"
        << "  static bool _same_params([[maybe_unused]] const Params& a,\n"
        << "                           [[maybe_unused]] const Params& b) noexcept {\n"
        << "    return " << (same.empty() ? std::string("true") : "");

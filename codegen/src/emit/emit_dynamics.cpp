@@ -67,10 +67,11 @@ void emit_dynamics_tables(std::ostringstream& os, const Mechanism& m,
      << "    int pivots[nq];\n"
      << "    T geometry[" << geometry_size << "], mass[num_bodies], inertia[num_bodies], "
      << "ax[num_bodies], ay[num_bodies];\n"
-     << "    // The last successful dynamics()' arguments and report (solved: there was one\n"
-     << "    // and nothing failed since), whose q, B and factors dynamics_jacobians reuses.\n"
+     << "    // The last dynamics()' arguments, q and report where it succeeded (solved), whose\n"
+     << "    // B and factors dynamics_jacobians reuses; a later failed dynamics() clears it, and\n"
+     << "    // so does a new q written by the caller (compared).\n"
      << "    bool solved = false;\n"
-     << "    T solved_t = T(0);\n"
+     << "    T solved_t = T(0), solved_q[nq];\n"
      << "    Params solved_p;\n"
      << "    BasicBlockOptions<_real<T>> solved_o;\n"
      << "    BlockReport<_real<T>> solved_r;\n"
@@ -137,22 +138,11 @@ void emit_dynamics_function(std::ostringstream& os) {
     for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
     w.solved = true;
     w.solved_t = t;
+    for (int k = 0; k < nq; ++k) w.solved_q[k] = w.q[k];
     w.solved_p = p;
     w.solved_o = o;
     w.solved_r = r;
     return r;
-  }
-
-  // Whether w holds a successful dynamics() with exactly these arguments.
-  template <class T, class U>
-  static bool _solved_at(const T* z, const T* zd, T t, const Params& p,
-                         const BasicBlockOptions<U>& options, const DynamicsWork<T>& w) noexcept {
-    if (!w.solved || !(t == w.solved_t) || !_same_params(p, w.solved_p) ||
-        !_same_options(_options_as<_real<T>>(options), w.solved_o))
-      return false;
-    for (int k = 0; k < nf; ++k)
-      if (!(z[k] == w.state[k]) || !(zd[k] == w.state[nf + k])) return false;
-    return true;
   }
 
   // The same from the file's q0, with no state kept: the first call of a motion, or a test.
@@ -161,6 +151,26 @@ void emit_dynamics_function(std::ostringstream& os) {
       const BasicBlockOptions<U>& options) noexcept {
     DynamicsWork<T> w;
     return dynamics(z, zd, t, p, zdd, options, w);
+  }
+)";
+}
+
+// _solved_at: dynamics_jacobians' test for reusing the last dynamics().
+void emit_solved_at(std::ostringstream& os) {
+  os << R"(
+  // Whether w holds a successful dynamics() with exactly these arguments (bit for bit) and its
+  // own q.
+  template <class T, class U>
+  static bool _solved_at(const T* z, const T* zd, T t, const Params& p,
+                         const BasicBlockOptions<U>& options, const DynamicsWork<T>& w) noexcept {
+    if (!w.solved || !_same_bits(t, w.solved_t) || !_same_params(p, w.solved_p) ||
+        !_same_options(_options_as<_real<T>>(options), w.solved_o))
+      return false;
+    for (int k = 0; k < nf; ++k)
+      if (!_same_bits(z[k], w.state[k]) || !_same_bits(zd[k], w.state[nf + k])) return false;
+    for (int k = 0; k < nq; ++k)
+      if (!_same_bits(w.q[k], w.solved_q[k])) return false;
+    return true;
   }
 )";
 }
@@ -250,7 +260,8 @@ void emit_jacobians_solve(std::ostringstream& os) {
 }
 
 void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, int nq, int nf) {
-  const int work = nq * nf + 2 * nq * (nf + 1) + nf * nf + 4 * nq * ndir + 2 * nq;
+  const int work = nq * nf + nq * (nf + 1) + nf * nf + 3 * nq * ndir + 2 * nq +
+                   nq * std::max(ndir, nf + 1);
   os << "  // dynamics_jacobians' work space, caller-owned (no heap).\n"
      << "  template <class T>\n"
      << "  struct JacobianWork {\n"
@@ -458,6 +469,7 @@ void emit_steps(std::ostringstream& os) {
 void emit_dynamics(std::ostringstream& os, const DynamicsSource& d) {
   emit_dynamics_tables(os, d.m, d.mass_at, d.geometry_size);
   emit_dynamics_function(os);
+  emit_solved_at(os);
   emit_jacobians(os, d);
   emit_steps(os);
 }

@@ -3,6 +3,7 @@
 // checks of a parsed value, and the drivers' laws. Private to the stage.
 #pragma once
 
+#include <new>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -74,6 +75,14 @@ auto naming_errors(const Mechanism& m, const std::string& item, SourceLoc loc,
     throw;
   } catch (const Interrupted&) {
     throw;
+  } catch (const AnalysisError&) {
+    throw;
+  } catch (const UsageError&) {
+    throw;
+  } catch (const OutputError&) {
+    throw;
+  } catch (const std::bad_alloc&) {
+    throw;  // not the file's fault: the command line's internal error
   } catch (const std::exception& err) {
     throw InputError(m.source, item, loc, what + ": " + clean_message(err.what()));
   }

@@ -24,6 +24,13 @@ namespace kinegen::kernels {
 
 struct LinearizeKernel : DynamicsKernel {
   // kinegen-kernel-begin linearize
+#ifndef KINEGEN_ALWAYS_INLINE
+#if defined(__GNUC__) || defined(__clang__)
+#define KINEGEN_ALWAYS_INLINE [[gnu::always_inline]]
+#else
+#define KINEGEN_ALWAYS_INLINE
+#endif
+#endif
   // A sparse matrix: n entries (row[e], col[e], value[e]).
   template <class T>
   struct _Sparse {
@@ -138,7 +145,8 @@ struct LinearizeKernel : DynamicsKernel {
 
   // The work space _dynamics_tangent needs for ndir directions, in T's.
   static constexpr int _tangent_work_size(int nq, int nf, int ndir) noexcept {
-    return nq * nf + 2 * nq * (nf + 1) + nf * nf + 4 * nq * ndir + 2 * nq;
+    return nq * nf + nq * (nf + 1) + nf * nf + 3 * nq * ndir + 2 * nq +
+           nq * (ndir > nf + 1 ? ndir : nf + 1);
   }
 
   // d(zdd)/d(w_slot) for each of the ndir slots (slots[i]: a free item's z or zd, or a
@@ -150,10 +158,10 @@ struct LinearizeKernel : DynamicsKernel {
   // call. work: _tangent_work_size T's. Returns 0; 2 when M_z = B^T M B is not positive
   // definite; 3 when a value is not finite; or a solve's status. NQ, NF, NB: p's sizes when
   // known at compile time (a generated header's), 0 when not: the loops then have fixed
-  // lengths. Always inlined (GCC, Clang; others ignore the attribute): only then do the
-  // caller's constant tables (a header's sparsity patterns) fold into the loops.
+  // lengths. Always inlined (GCC, Clang): only then do the caller's constant tables (a
+  // header's sparsity patterns) fold into the loops.
   template <int NQ = 0, int NF = 0, int NB = 0, class T, class Solve, class SolveTransposed>
-  [[gnu::always_inline]] static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir,
+  KINEGEN_ALWAYS_INLINE static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir,
                                                       const int* slots, T* dzdd, T* work,
                                                       Solve&& solve,
                                                       SolveTransposed&& solve_transposed) noexcept {
@@ -165,8 +173,8 @@ struct LinearizeKernel : DynamicsKernel {
     T* dqd = dq + nq * ndir;
     T* r = dqd + nq * ndir;
     T* f = r + nq;
-    T* rhs = f + nq;                    // right-hand sides, side by side
-    T* x = rhs + nq * (ndir + nf + 1);  // their solutions
+    T* x = f + nq;          // solutions, side by side
+    T* rhs = x + nq * ndir;  // their right-hand sides (nf + 1 columns for the transposed)
     const T* m_b = p.mb;                // M B and B^T M B's factors: dynamics()' or computed here
     const T* m_z = p.mz;
     if (!m_b || !m_z) {
@@ -201,7 +209,7 @@ struct LinearizeKernel : DynamicsKernel {
   // describes them, in two solves (of the columns not known), with rhs and x as their work
   // space; 0 or the solve's status.
   template <class T, class Solve>
-  [[gnu::always_inline]] static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
+  KINEGEN_ALWAYS_INLINE static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
                                                      int ndir, const int* slots, T* dq, T* dqd,
                                                      T* rhs, T* x, Solve&& solve) noexcept {
     const auto known = [&](int i) { return p.known ? p.known[i] : -1; };

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 #include <type_traits>
 
@@ -112,6 +113,15 @@ struct ReportKernel {
     o.residual_tolerance = R(u.residual_tolerance);
     o.min_rcond = R(u.min_rcond);
     return o;
+  }
+  // Whether a and b are the same bits (so -0.0 and 0.0 differ, and a NaN equals itself).
+  template <class X>
+  static bool _same_bits(const X& a, const X& b) noexcept {
+    const auto* x = reinterpret_cast<const unsigned char*>(&a);
+    const auto* y = reinterpret_cast<const unsigned char*>(&b);
+    for (std::size_t i = 0; i < sizeof(X); ++i)
+      if (x[i] != y[i]) return false;
+    return true;
   }
   template <class R>
   static bool _same_options(const BasicBlockOptions<R>& a, const BasicBlockOptions<R>& b) noexcept {
