@@ -263,14 +263,15 @@ struct four_bar_balanced {
     o.min_rcond = R(u.min_rcond);
     return o;
   }
-  // Whether a and b are the same bits (so -0.0 and 0.0 differ, and a NaN equals itself).
+  // Whether a and b are the same number, -0.0 and 0.0 apart (a NaN never is; a complex
+  // number's parts compare with ==).
   template <class X>
   static bool _same_bits(const X& a, const X& b) noexcept {
-    const auto* x = reinterpret_cast<const unsigned char*>(&a);
-    const auto* y = reinterpret_cast<const unsigned char*>(&b);
-    for (std::size_t i = 0; i < sizeof(X); ++i)
-      if (x[i] != y[i]) return false;
-    return true;
+    if constexpr (std::is_floating_point_v<X>) {
+      return a == b && std::signbit(a) == std::signbit(b);
+    } else {
+      return a == b;
+    }
   }
   template <class R>
   static bool _same_options(const BasicBlockOptions<R>& a, const BasicBlockOptions<R>& b) noexcept {

@@ -331,7 +331,7 @@ void emit_params(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
         for (int order = 0; order < 3; ++order) member(input_member(m, static_cast<int>(d), order));
     for (const Load::Input* in : m.load_inputs())
       if (in->table_id < 0) member(in->name);
-    os << "  // Whether a and b hold the same values, bit for bit.\n"
+    os << "  // Whether a and b hold the same values (-0.0 and 0.0 apart, a NaN never).\n"
        << "  static bool _same_params([[maybe_unused]] const Params& a,\n"
        << "                           [[maybe_unused]] const Params& b) noexcept {\n"
        << "    return " << (same.empty() ? std::string("true") : "");
