@@ -28,7 +28,8 @@ struct Options {
   int reference_digits = 0;
 };
 
-void check_options(const Options& o) {
+// The options checked (before the file is read), as the simulation takes them.
+kc::SimulateOptions check_options(const Options& o) {
   check_grid(o.t0, o.t1, o.steps);
   if (!(o.t1 > o.t0))
     throw kc::UsageError("--t1 (" + kc::format_number(o.t1) + ") must come after --t0 (" +
@@ -39,7 +40,7 @@ void check_options(const Options& o) {
     throw kc::UsageError("--reference must be between " + std::to_string(kc::kMinReferenceDigits) +
                          " and " + std::to_string(kc::kMaxReferenceDigits) + " digits, not " +
                          std::to_string(o.reference_digits));
-  (void)kc::simulate_options(o.rtol, o.atol, o.method, o.integrator, "--");
+  return kc::simulate_options(o.rtol, o.atol, o.method, o.integrator, "--");
 }
 
 // The progress bar, drawn only once a run has taken a second.
@@ -54,12 +55,11 @@ std::function<void(double)> progress_after_a_second(double t0, double t1) {
 }
 
 int run_simulate(const Common& c, const Options& o) {
-  check_options(o);
+  kc::SimulateOptions options = check_options(o);
   kc::BuildOptions build;
   build.free_as_state = true;
   auto model = load(c, build);
   const kc::ForceModel forces = kc::derive_forces(*model);
-  kc::SimulateOptions options = kc::simulate_options(o.rtol, o.atol, o.method, o.integrator, "--");
   std::vector<std::string> force_names;
   if (o.with_forces) {
     options.forces_columns = &forces;

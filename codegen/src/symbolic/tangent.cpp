@@ -61,27 +61,24 @@ void add_input_row(SparseExpr& out, int r, const ex& e) {
   for (const auto& [slot, input] : inputs_in(e)) out.add(r, slot, diff_input(e, input));
 }
 
+const char* const kCannotForm = "its second derivatives cannot be formed";
+
 // Runs f for Phi's row r, naming its item.
 template <class F>
 void for_row(const Mechanism& m, const SymbolicModel& model, int r, F&& f) {
   const Constraint& c = *model.rows[r].constraint;
-  naming_errors(m, c.item, row_loc(c, model.rows[r].component),
-                "its second derivatives cannot be formed", f);
+  naming_errors(m, c.item, row_loc(c, model.rows[r].component), kCannotForm, f);
 }
 
 // Runs f for coordinate k's applied force, naming its body (or extra coordinate).
 template <class F>
 void for_coordinate(const Mechanism& m, int k, F&& f) {
   const int nb = static_cast<int>(m.bodies.size());
-  if (k < 3 * nb) {
-    const Body& b = m.bodies[k / 3];
-    naming_errors(m, "body '" + b.name + "' (its forces)", b.loc,
-                  "its second derivatives cannot be formed", f);
-  } else {
-    const Coordinate& c = m.coordinates[k - 3 * nb];
-    naming_errors(m, "coordinate '" + c.name + "' (its forces)", c.loc,
-                  "its second derivatives cannot be formed", f);
-  }
+  const bool body = k < 3 * nb;
+  const std::string& name = body ? m.bodies[k / 3].name : m.coordinates[k - 3 * nb].name;
+  const SourceLoc loc = body ? m.bodies[k / 3].loc : m.coordinates[k - 3 * nb].loc;
+  naming_errors(m, std::string(body ? "body '" : "coordinate '") + name + "' (its forces)", loc,
+                kCannotForm, f);
 }
 
 }  // namespace
