@@ -14,6 +14,7 @@
 
 #include "best_of_chunks.hpp"
 #include "cart_pole.hpp"
+#include "double_cart_pole.hpp"
 #include "four_bar_damped.hpp"
 #include "four_bar_spring.hpp"
 #include "pendulum.hpp"
@@ -40,6 +41,7 @@ void set_free(typename M::Params& p, const double* z, const double* zd);
   }
 KINEGEN_SET_FREE(pendulum, {&p.theta, &p.theta_v})
 KINEGEN_SET_FREE(cart_pole, {&p.x, &p.x_v}, {&p.phi, &p.phi_v})
+KINEGEN_SET_FREE(double_cart_pole, {&p.x, &p.x_v}, {&p.phi1, &p.phi1_v}, {&p.phi2, &p.phi2_v})
 KINEGEN_SET_FREE(four_bar_spring, {&p.theta, &p.theta_v})
 KINEGEN_SET_FREE(four_bar_damped, {&p.theta, &p.theta_v})
 KINEGEN_SET_FREE(press_flywheel, {&p.theta, &p.theta_v})
@@ -62,20 +64,27 @@ void run(const char* name, const double* z0, const double* zd0) {
                                  nu > 0 ? j + 2 * nf * nf : nullptr, o, w, jw)
                .status == 0;
   };
-  // Central differences along z, zd (steps sqrt3(eps) max(1, |x|)) and u (the Params member).
-  double diff[nf * cols];
-  const auto differences = [&]() {
-    const double h0 = std::cbrt(std::numeric_limits<double>::epsilon());
+  // The differences a user would write along z, zd and u (the Params member): central
+  // (2 (2 nf + nu) calls, steps cbrt(eps) max(1, |x|)) or forward (2 nf + nu + 1 calls, steps
+  // sqrt(eps) max(1, |x|)), into d.
+  double diff[nf * cols], fwd[nf * cols];
+  const auto differences = [&](bool central, double* d) {
+    const double eps = std::numeric_limits<double>::epsilon();
+    const double h0 = central ? std::cbrt(eps) : std::sqrt(eps);
     double x[2 * nf], plus[nf], minus[nf];
     for (int k = 0; k < nf; ++k) x[k] = z0[k], x[nf + k] = zd0[k];
+    if (!central && M::dynamics(x, x + nf, 0.0, p, minus, o, w).status != 0) return false;
+    const auto column = [&](double h, double* out) {
+      for (int i = 0; i < nf; ++i) out[i] = (plus[i] - minus[i]) / (central ? 2 * h : h);
+    };
     for (int j = 0; j < 2 * nf; ++j) {
       const double h = h0 * std::max(1.0, std::abs(x[j])), keep = x[j];
       x[j] = keep + h;
       if (M::dynamics(x, x + nf, 0.0, p, plus, o, w).status != 0) return false;
       x[j] = keep - h;
-      if (M::dynamics(x, x + nf, 0.0, p, minus, o, w).status != 0) return false;
+      if (central && M::dynamics(x, x + nf, 0.0, p, minus, o, w).status != 0) return false;
       x[j] = keep;
-      for (int i = 0; i < nf; ++i) diff[j * nf + i] = (plus[i] - minus[i]) / (2 * h);
+      column(h, d + j * nf);
     }
     if constexpr (nu > 0) {
       typename M::Params pu = p;
@@ -83,8 +92,8 @@ void run(const char* name, const double* z0, const double* zd0) {
       pu.push_x = p.push_x + h;
       if (M::dynamics(x, x + nf, 0.0, pu, plus, o, w).status != 0) return false;
       pu.push_x = p.push_x - h;
-      if (M::dynamics(x, x + nf, 0.0, pu, minus, o, w).status != 0) return false;
-      for (int i = 0; i < nf; ++i) diff[2 * nf * nf + i] = (plus[i] - minus[i]) / (2 * h);
+      if (central && M::dynamics(x, x + nf, 0.0, pu, minus, o, w).status != 0) return false;
+      column(h, d + 2 * nf * nf);
     }
     return true;
   };
@@ -112,15 +121,22 @@ void run(const char* name, const double* z0, const double* zd0) {
   });
   const double t_diff = best_ns(15, 2000, [&](int) {
     for (int k = 0; k < 2000; ++k)
-      if (!differences()) return false;
+      if (!differences(true, diff)) return false;
     sink = sink + diff[0];
     return true;
   });
+  const double t_fwd = best_ns(15, 2000, [&](int) {
+    for (int k = 0; k < 2000; ++k)
+      if (!differences(false, fwd)) return false;
+    sink = sink + fwd[0];
+    return true;
+  });
   exact(jac);
-  differences();
+  differences(true, diff);
+  differences(false, fwd);
   // The complex step of dynamics() along z and zd: the truth for both.
   using C = std::complex<double>;
-  double scale = 0, err_exact = 0, err_diff = 0;
+  double scale = 0, err_exact = 0, err_diff = 0, err_fwd = 0;
   for (int i = 0; i < nf * cols; ++i) scale = std::max(scale, std::abs(jac[i]));
   for (int j = 0; j < 2 * nf; ++j) {
     C z[nf], zd[nf], out[nf];
@@ -135,6 +151,7 @@ void run(const char* name, const double* z0, const double* zd0) {
       const double truth = out[i].imag() / 1e-30;
       err_exact = std::max(err_exact, std::abs(jac[j * nf + i] - truth) / scale);
       err_diff = std::max(err_diff, std::abs(diff[j * nf + i] - truth) / scale);
+      err_fwd = std::max(err_fwd, std::abs(fwd[j * nf + i] - truth) / scale);
     }
   }
   // One dynamics() against one Solver::step on the same motion (z moving by 1e-3 a call).
@@ -168,9 +185,11 @@ void run(const char* name, const double* z0, const double* zd0) {
     sink = sink + zdd[0];
     return true;
   });
-  std::printf("%-16s %3d %3d %6.0f %6.0f %6.0f %6.1fx %6.1fx %9.1e %9.1e %8.0f %6.0f %6.2fx\n",
-              name, M::nq, cols, t_exact, t_alone, t_diff, t_diff / t_exact, t_diff / t_alone,
-              err_exact, err_diff, t_dyn, t_step, t_dyn / t_step);
+  std::printf(
+      "%-16s %2d %3d %6.0f %6.0f %6.0f %5.1fx %5.1fx %8.1e %8.1e %6.0f %8.1e %5.1fx %5.1fx %5.0f "
+      "%5.0f %5.2fx\n",
+      name, M::nq, cols, t_exact, t_alone, t_diff, t_diff / t_exact, t_diff / t_alone, err_exact,
+      err_diff, t_fwd, err_fwd, t_fwd / t_exact, t_fwd / t_alone, t_dyn, t_step, t_dyn / t_step);
 }
 
 }  // namespace
@@ -178,11 +197,13 @@ void run(const char* name, const double* z0, const double* zd0) {
 int main() {
   std::printf(
       "ns per call, best of 15 chunks of 2000; exact: dynamics_jacobians after a dynamics() at\n"
-      "the point (reused), alone: with its own dynamics(); differences: 2 (2 nf + nu) calls of\n"
-      "dynamics(); errors against the complex step of dynamics(), relative to the largest\n"
-      "Jacobian entry\n"
-      "model             nq dir  exact  alone  diffs  ratio  alone exact err  diff err dynamics "
-      "  step  ratio\n");
+      "the point (reused), alone: with its own dynamics(); central: 2 (2 nf + nu) calls of\n"
+      "dynamics(), forward: 2 nf + nu + 1; errors against the complex step of dynamics(),\n"
+      "relative to the largest Jacobian entry; dyn: one dynamics(), step: one Solver::step\n"
+      "                            --- exact ---  -- central differences ---  -- forward "
+      "differences --\n"
+      "model            nq dir  after  alone   time after alone    error    error   time    error "
+      "after alone   dyn  step ratio\n");
   const double pz[] = {-0.7}, pzd[] = {2.5};
   run<km::pendulum>("pendulum", pz, pzd);
   const double cz[] = {0.1, 1.6}, czd[] = {0.2, -0.3};
@@ -193,4 +214,6 @@ int main() {
   run<km::four_bar_damped>("four_bar_damped", dz, dzd);
   const double fz[] = {0.5}, fzd[] = {10.0};
   run<km::press_flywheel>("press_flywheel", fz, fzd);
+  const double wz[] = {0.1, 1.5, 1.7}, wzd[] = {0.2, -0.3, 0.4};
+  run<km::double_cart_pole>("double_cart_pole", wz, wzd);
 }

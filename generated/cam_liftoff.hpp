@@ -274,6 +274,15 @@ struct cam_liftoff {
   using _model = cam_liftoff;
 
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
+  // Forces inlining where GCC or Clang read it: small helpers called in long runs (the reuse's
+  // comparisons) and kernels whose callers' constant tables must fold into their loops.
+#ifndef KINEGEN_ALWAYS_INLINE
+#if defined(__GNUC__) || defined(__clang__)
+#define KINEGEN_ALWAYS_INLINE [[gnu::always_inline]]
+#else
+#define KINEGEN_ALWAYS_INLINE
+#endif
+#endif
   // The real type of a scalar: T itself, or the value_type of std::complex<T>.
   template <class T, class = void>
   struct _RealOf {
@@ -374,7 +383,7 @@ struct cam_liftoff {
   // Whether a and b are the same number, -0.0 and 0.0 apart (a NaN never is; a complex
   // number's parts compare with ==).
   template <class X>
-  static bool _same_bits(const X& a, const X& b) noexcept {
+  KINEGEN_ALWAYS_INLINE static bool _same_bits(const X& a, const X& b) noexcept {
     if constexpr (std::is_floating_point_v<X>) {
       return a == b && std::signbit(a) == std::signbit(b);
     } else {
@@ -1186,13 +1195,8 @@ struct cam_liftoff {
   // ---- end of kinegen kernel dynamics
 
   // ---- kinegen kernel linearize (kinegen/kernels/linearize.hpp)
-#ifndef KINEGEN_ALWAYS_INLINE
-#if defined(__GNUC__) || defined(__clang__)
-#define KINEGEN_ALWAYS_INLINE [[gnu::always_inline]]
-#else
-#define KINEGEN_ALWAYS_INLINE
-#endif
-#endif
+  // _TangentPoint::known's code for a direction that moves neither q nor qd.
+  static constexpr int _kStill = -2;
   // A sparse matrix: n entries (row[e], col[e], value[e]).
   template <class T>
   struct _Sparse {
@@ -1229,9 +1233,15 @@ struct cam_liftoff {
     const T* mz = nullptr;
     // Optional (nullptr: every direction solved), per direction: k < nf when it is free
     // coordinate k's value z_k (dq = B e_k), nf + k when it is its rate zd_k (dq = 0, dqd =
-    // B e_k), -1 otherwise. Exact: a free item's row is quantity - z or |d|^2 - z^2, so its
-    // Phi_z and nu_zd are B's right-hand side, and the solves they spare gave B's numbers.
+    // B e_k), _kStill for a slot that Phi, nu and gamma do not read (a load's input: dq = dqd
+    // = 0, r_a = 0), -1 otherwise. Exact: a free item's row is quantity - z or |d|^2 - z^2, so
+    // its Phi_z and nu_zd are B's right-hand side, and the solves they spare gave B's numbers;
+    // the terms a zero dq or dqd would multiply are skipped (only a zero's sign can differ).
     const int* known = nullptr;
+    // Optional (n_r_rows -1: all): the n_r_rows rows r_a can be non-zero on (those of Phi_qq,
+    // gamma_q, gamma_qd and gamma_w), so that Y^T r_a skips the others.
+    int n_r_rows = -1;
+    const int* r_rows = nullptr;
     _Hessian<T> phi_qq;
     _Sparse<T> nu_q, gamma_q, gamma_qd, phi_w, nu_w, gamma_w, applied_q, applied_qd, applied_w;
   };
@@ -1286,29 +1296,52 @@ struct cam_liftoff {
     }
     for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
   }
-  // out += d(M qdd + h)/dq dq + dh/dqd dqd at fixed qdd: each body's forces depend on q only
-  // through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w (the w^2 terms).
+  // d(M qdd + h)/dq and dh/dqd at fixed qdd, 5 numbers per body into c: each body's forces
+  // depend on q only through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w
+  // (the w^2 terms): d(fx, fy, the moment)/dphi and -d(fx, fy)/dw.
   template <class T>
-  static void _inertia_tangent(int nb, const T* m, const T* ax, const T* ay, const T* qd,
-                               const T* qdd, const T* dq, const T* dqd, T* out) noexcept {
+  static void _inertia_coefficients(int nb, const T* m, const T* ax, const T* ay, const T* qd,
+                                    const T* qdd, T* c) noexcept {
     for (int b = 0; b < nb; ++b) {
       const T& w = qd[3 * b + 2];
       const T& alpha = qdd[3 * b + 2];
       const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
       const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
-      const T dphi = dq[3 * b + 2], dw = dqd[3 * b + 2];
-      const T dfx = m[b] * ((w * w * ay[b] - alpha * ax[b]) * dphi - T(2) * w * ax[b] * dw);
-      const T dfy = m[b] * (-(alpha * ay[b] + w * w * ax[b]) * dphi - T(2) * w * ay[b] * dw);
+      c[5 * b] = m[b] * (w * w * ay[b] - alpha * ax[b]);
+      c[5 * b + 1] = -m[b] * (alpha * ay[b] + w * w * ax[b]);
+      c[5 * b + 2] = -ay[b] * fy - ax[b] * fx;
+      c[5 * b + 3] = T(2) * m[b] * w * ax[b];
+      c[5 * b + 4] = T(2) * m[b] * w * ay[b];
+    }
+  }
+  // out += d(M qdd + h)/dq dq + dh/dqd dqd from _inertia_coefficients' c; dq or dqd may be
+  // nullptr: 0.
+  template <class T>
+  static void _inertia_tangent(int nb, const T* ax, const T* ay, const T* c, const T* dq,
+                               const T* dqd, T* out) noexcept {
+    for (int b = 0; b < nb; ++b) {
+      T dfx = T(0), dfy = T(0), dn = T(0);
+      if (dq) {
+        const T dphi = dq[3 * b + 2];
+        dfx = c[5 * b] * dphi;
+        dfy = c[5 * b + 1] * dphi;
+        dn = c[5 * b + 2] * dphi;
+      }
+      if (dqd) {
+        const T dw = dqd[3 * b + 2];
+        dfx -= c[5 * b + 3] * dw;
+        dfy -= c[5 * b + 4] * dw;
+      }
       out[3 * b] += dfx;
       out[3 * b + 1] += dfy;
-      out[3 * b + 2] += (-ay[b] * fy - ax[b] * fx) * dphi + ax[b] * dfy - ay[b] * dfx;
+      out[3 * b + 2] += dn + ax[b] * dfy - ay[b] * dfx;
     }
   }
 
   // The work space _dynamics_tangent needs for ndir directions, in T's.
   static constexpr int _tangent_work_size(int nq, int nf, int ndir) noexcept {
-    return nq * nf + nq * (nf + 1) + nf * nf + 3 * nq * ndir + 2 * nq +
-           nq * (ndir > nf + 1 ? ndir : nf + 1);
+    return nq * nf + nq * (nf + 1) + nf * nf + 3 * nq * ndir +
+           nq * (ndir > nf + 1 ? ndir : nf + 1) + 2 * nq;
   }
 
   // d(zdd)/d(w_slot) for each of the ndir slots (slots[i]: a free item's z or zd, or a
@@ -1324,20 +1357,19 @@ struct cam_liftoff {
   // header's sparsity patterns) fold into the loops.
   template <int NQ = 0, int NF = 0, int NB = 0, class T, class Solve, class SolveTransposed>
   KINEGEN_ALWAYS_INLINE static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir,
-                                                      const int* slots, T* dzdd, T* work,
-                                                      Solve&& solve,
-                                                      SolveTransposed&& solve_transposed) noexcept {
+                                                     const int* slots, T* dzdd, T* work,
+                                                     Solve&& solve,
+                                                     SolveTransposed&& solve_transposed) noexcept {
     const int nq = NQ > 0 ? NQ : p.nq, nf = NF > 0 ? NF : p.nf, nb = NB > 0 ? NB : p.nb;
     T* mb = work;
     T* y = mb + nq * nf;  // Phi_q^-T M B, then lambda in column nf
     T* mz = y + nq * (nf + 1);
     T* dq = mz + nf * nf;
     T* dqd = dq + nq * ndir;
-    T* r = dqd + nq * ndir;
-    T* f = r + nq;
-    T* x = f + nq;          // solutions, side by side
+    T* x = dqd + nq * ndir;  // solutions, side by side
     T* rhs = x + nq * ndir;  // their right-hand sides (nf + 1 columns for the transposed)
-    const T* m_b = p.mb;                // M B and B^T M B's factors: dynamics()' or computed here
+    T* inertia = rhs + nq * (ndir > nf + 1 ? ndir : nf + 1);  // 5 nb <= 2 nq
+    const T* m_b = p.mb;  // M B and B^T M B's factors: dynamics()' or computed here
     const T* m_z = p.mz;
     if (!m_b || !m_z) {
       for (int k = 0; k < nf; ++k)
@@ -1352,72 +1384,92 @@ struct cam_liftoff {
     // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
     const T* lambda = y + nq * nf;
     for (int k = 0; k < nq * nf; ++k) rhs[k] = m_b[k];
-    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, f);
-    for (int k = 0; k < nq; ++k) rhs[nq * nf + k] = p.applied[k] - f[k];
+    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, x);
+    for (int k = 0; k < nq; ++k) rhs[nq * nf + k] = p.applied[k] - x[k];
     if (const int s = solve_transposed(rhs, y, nf + 1)) return s;
     if (const int s = _tangent_motions(p, nq, nf, ndir, slots, dq, dqd, rhs, x, solve)) return s;
-    for (int i = 0; i < ndir; ++i) {
-      _tangent_residuals(p, nq, nb, slots[i], lambda, dq + i * nq, dqd + i * nq, r, f);
-      T* out = dzdd + i * nf;
-      for (int k = 0; k < nf; ++k) out[k] = _dot(nq, y + k * nq, r) - _dot(nq, p.b + k * nq, f);
-      _ldlt_solve(nf, m_z, out);
+    // Stage by stage across the directions, each direction's r and f apart (in x and rhs,
+    // free now), so that the directions' chains of dependent operations overlap.
+    T* r = x;
+    T* f = rhs;
+    _inertia_coefficients(nb, p.mass, p.ax, p.ay, p.qd, p.qdd, inertia);
+    for (int i = 0; i < ndir; ++i)
+      _tangent_residuals(p, nq, nb, slots[i], lambda, inertia, _moved(p, nq, nf, i, dq, false),
+                         _moved(p, nq, nf, i, dqd, true), r + i * nq, f + i * nq);
+    // y_k . r over r's rows that can be non-zero (p.r_rows) when known.
+    const auto y_dot_r = [&](int k, const T* ri) {
+      if (p.n_r_rows < 0) return _dot(nq, y + k * nq, ri);
+      T s = T(0);
+      for (int e = 0; e < p.n_r_rows; ++e) s += y[k * nq + p.r_rows[e]] * ri[p.r_rows[e]];
+      return s;
+    };
+    for (int i = 0; i < ndir; ++i)
       for (int k = 0; k < nf; ++k)
-        if (!_finite(_mag(out[k]))) return 3;
-    }
+        dzdd[i * nf + k] = (p.known && p.known[i] == _kStill ? T(0) : y_dot_r(k, r + i * nq)) -
+                           _dot(nq, p.b + k * nq, f + i * nq);
+    for (int i = 0; i < ndir; ++i) _ldlt_solve(nf, m_z, dzdd + i * nf);
+    for (int k = 0; k < nf * ndir; ++k)
+      if (!_finite(_mag(dzdd[k]))) return 3;
     return 0;
   }
 
+  // Direction i's dq (rate: dqd): B's column when known, nullptr when known to be 0, else its
+  // solution at d + i nq.
+  template <class T>
+  KINEGEN_ALWAYS_INLINE static const T* _moved(const _TangentPoint<T>& p, int nq, int nf, int i,
+                                               const T* d, bool rate) noexcept {
+    const int k = p.known ? p.known[i] : -1;
+    if (k == -1 || (rate && k >= 0 && k < nf)) return d + i * nq;
+    if (k == _kStill || (rate ? k < nf : k >= nf)) return nullptr;
+    return p.b + (rate ? k - nf : k) * nq;
+  }
+
   // Each direction's dq = -Phi_q^-1 Phi_w and dqd = -Phi_q^-1 r_v, as _dynamics_tangent
-  // describes them, in two solves (of the columns not known), with rhs and x as their work
-  // space; 0 or the solve's status.
+  // describes them, in two solves (of the columns not known: _moved), with rhs and x as their
+  // work space; 0 or the solve's status.
   template <class T, class Solve>
   KINEGEN_ALWAYS_INLINE static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
-                                                     int ndir, const int* slots, T* dq, T* dqd,
-                                                     T* rhs, T* x, Solve&& solve) noexcept {
+                                                    int ndir, const int* slots, T* dq, T* dqd,
+                                                    T* rhs, T* x, Solve&& solve) noexcept {
     const auto known = [&](int i) { return p.known ? p.known[i] : -1; };
-    const auto b_column = [&](int k, T* out) {
-      for (int c = 0; c < nq; ++c) out[c] = p.b[k * nq + c];
+    // Which directions need a solve for their dq (rate: dqd); the others are B's columns or 0.
+    const auto solves = [&](int i, bool rate) {
+      return known(i) == -1 || (rate && known(i) >= 0 && known(i) < nf);
     };
     // Solves the m columns in rhs and puts them at d + i nq for the directions i that needed
-    // them (known(i) < bound); 0 or the solve's status.
-    const auto solve_into = [&](int m, T* d, int bound) {
+    // them; 0 or the solve's status.
+    const auto solve_into = [&](int m, T* d, bool rate) {
       if (m == 0) return 0;
       if (const int s = solve(rhs, x, m)) return s;
       for (int i = 0, n = 0; i < ndir; ++i)
-        if (known(i) < bound)
+        if (solves(i, rate))
           for (int k = 0; k < nq; ++k) d[i * nq + k] = x[n++];
       return 0;
     };
+    const auto zero = [&](T* v) {
+      for (int k = 0; k < nq; ++k) v[k] = T(0);
+    };
     int m = 0;
     for (int i = 0; i < ndir; ++i) {
-      if (known(i) >= 0) {  // z_k: B e_k; zd_k: 0
-        T* v = dq + i * nq;
-        if (known(i) < nf) {
-          b_column(known(i), v);
-        } else {
-          for (int k = 0; k < nq; ++k) v[k] = T(0);
-        }
-        continue;
-      }
+      if (!solves(i, false)) continue;
       T* v = rhs + m++ * nq;
-      for (int k = 0; k < nq; ++k) v[k] = T(0);
+      zero(v);
       _sparse_column(p.phi_w, slots[i], T(-1), v);
     }
-    if (const int s = solve_into(m, dq, 0)) return s;
+    if (const int s = solve_into(m, dq, false)) return s;
     m = 0;
     for (int i = 0; i < ndir; ++i) {
-      if (known(i) >= nf) {  // zd_k: B e_k
-        b_column(known(i) - nf, dqd + i * nq);
-        continue;
-      }
+      if (!solves(i, true)) continue;
       T* v = rhs + m++ * nq;
-      for (int k = 0; k < nq; ++k) v[k] = T(0);
-      _hessian_times(p.phi_qq, p.qd, dq + i * nq, v);
-      _sparse_add(p.nu_q, T(-1), dq + i * nq, v);
+      zero(v);
+      if (const T* d = _moved(p, nq, nf, i, dq, false)) {
+        _hessian_times(p.phi_qq, p.qd, d, v);
+        _sparse_add(p.nu_q, T(-1), d, v);
+      }
       _sparse_column(p.nu_w, slots[i], T(-1), v);
       for (int k = 0; k < nq; ++k) v[k] = -v[k];
     }
-    if (const int s = solve_into(m, dqd, nf)) return s;
+    if (const int s = solve_into(m, dqd, true)) return s;
     return 0;
   }
 
@@ -1429,19 +1481,24 @@ struct cam_liftoff {
   }
 
   // One direction's acceleration residual r (r_a) and force f, as _dynamics_tangent describes
-  // them, from its dq and dqd.
+  // them, from its dq and dqd (nullptr: 0, and the terms they multiply skipped).
   template <class T>
   static void _tangent_residuals(const _TangentPoint<T>& p, int nq, int nb, int slot,
-                                 const T* lambda, const T* dq, const T* dqd, T* r, T* f) noexcept {
+                                 const T* lambda, const T* inertia, const T* dq, const T* dqd, T* r,
+                                 T* f) noexcept {
     for (int k = 0; k < nq; ++k) r[k] = f[k] = T(0);
-    _hessian_times(p.phi_qq, p.qdd, dq, r);
-    _sparse_add(p.gamma_q, T(-1), dq, r);
-    _sparse_add(p.gamma_qd, T(-1), dqd, r);
+    if (dq) {
+      _hessian_times(p.phi_qq, p.qdd, dq, r);
+      _sparse_add(p.gamma_q, T(-1), dq, r);
+    }
+    if (dqd) _sparse_add(p.gamma_qd, T(-1), dqd, r);
     _sparse_column(p.gamma_w, slot, T(-1), r);
-    _inertia_tangent(nb, p.mass, p.ax, p.ay, p.qd, p.qdd, dq, dqd, f);
-    _hessian_transposed(p.phi_qq, lambda, dq, f);
-    _sparse_add(p.applied_q, T(-1), dq, f);
-    _sparse_add(p.applied_qd, T(-1), dqd, f);
+    _inertia_tangent(nb, p.ax, p.ay, inertia, dq, dqd, f);
+    if (dq) {
+      _hessian_transposed(p.phi_qq, lambda, dq, f);
+      _sparse_add(p.applied_q, T(-1), dq, f);
+    }
+    if (dqd) _sparse_add(p.applied_qd, T(-1), dqd, f);
     _sparse_column(p.applied_w, slot, T(-1), f);
   }
   // ---- end of kinegen kernel linearize
@@ -2145,13 +2202,13 @@ struct cam_liftoff {
   template <class T>
   static void applied_force([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
-    // out[nq]; 18 operations
+    // out[nq]; 17 operations
     using std::sqrt;
     // Intermediate terms (4)
     const T _t0 = T(p.H) - q[4];
-    const T _t1 = _t0*_t0 + q[3]*q[3];
-    const T _t2 = sqrt(_t1) - T(p.L0);
-    const T _t3 = T(1)/sqrt(_t1);
+    const T _t1 = sqrt(_t0*_t0 + q[3]*q[3]);
+    const T _t2 = _t1 - T(p.L0);
+    const T _t3 = T(1)/_t1;
 
     // Output terms (8)
     out[0] = T(0);
@@ -2429,106 +2486,110 @@ struct cam_liftoff {
   static constexpr std::array<int, 0> _applied_w_col = {};
   static constexpr std::array<int, 2> _tangent_slots = {0, 1};
   static constexpr std::array<int, 2> _tangent_known = {0, 1};
+  static constexpr std::array<int, 4> _tangent_r_rows = {4, 5, 6, 7};
   template <class T>
   static void _tangent_values([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
-      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,
+      [[maybe_unused]] T* trig) noexcept {
     // out[54]; 124 operations
-    using std::cos, std::pow, std::sin, std::sqrt;
-    // Intermediate terms (38)
-    const T _t0 = sin(q[2]);
-    const T _t1 = sin(q[6]);
-    const T _t2 = -T(p.R)*_t0*_t1;
-    const T _t3 = cos(q[6]);
-    const T _t4 = _t3*T(p.R) + T(p.e);
-    const T _t5 = cos(q[2]);
-    const T _t6 = _t2 + _t4*_t5;
-    const T _t7 = _t2 + _t5*_t3*T(p.R);
-    const T _t8 = cos(q[5]);
-    const T _t9 = sin(q[5]);
-    const T _t10 = _t5*T(p.R)*_t1;
-    const T _t11 = _t4*_t0 + _t10;
-    const T _t12 = _t10 + _t3*T(p.R)*_t0;
-    const T _t13 = _t7*_t8 + _t12*_t9;
-    const T _t14 = -_t7*_t8 - _t12*_t9;
-    const T _t15 = qd[2]*qd[2];
-    const T _t16 = qd[6]*qd[6];
-    const T _t17 = _t12*_t16;
-    const T _t18 = T(2)*_t12*qd[2]*qd[6];
-    const T _t19 = qd[5]*qd[5];
-    const T _t20 = -_t7*_t16;
-    const T _t21 = T(-2)*_t7*qd[2]*qd[6];
-    const T _t22 = _t7*_t9 - _t12*_t8;
-    const T _t23 = -_t22*_t15 - _t22*_t19 - _t22*_t16 - T(2)*_t22*qd[2]*qd[6] + T(2)*_t22*qd[2]*qd[5] + T(2)*_t22*qd[5]*qd[6];
-    const T _t24 = T(-2)*_t7*qd[6];
-    const T _t25 = T(-2)*_t12*qd[6];
-    const T _t26 = -T(2)*_t13*qd[2] - T(2)*_t13*qd[6] + T(2)*_t13*qd[5];
-    const T _t27 = T(1)/T(p.omega0);
-    const T _t28 = T(p.H) - q[4];
-    const T _t29 = _t28*_t28;
-    const T _t30 = q[3]*q[3];
-    const T _t31 = _t29 + _t30;
-    const T _t32 = sqrt(_t31) - T(p.L0);
-    const T _t33 = T(1)/sqrt(_t31);
-    const T _t34 = -_t32*_t33*T(p.k);
-    const T _t35 = T(1)/_t31;
-    const T _t36 = pow(_t31, T(-3)/T(2));
-    const T _t37 = _t28*_t35*T(p.k)*q[3] - _t32*_t28*_t36*T(p.k)*q[3];
+    using std::cos, std::sin, std::sqrt;
+    // sin and cos from the cache (trig_cache_size), anchored by dynamics() at q
+    T _sin2, _cos2;
+    _trig(_sin2, _cos2, q[2], trig, 0);
+    T _sin6, _cos6;
+    _trig(_sin6, _cos6, q[6], trig, 2);
+    T _sin5, _cos5;
+    _trig(_sin5, _cos5, q[5], trig, 1);
+    // Intermediate terms (33)
+    const T _t0 = -T(p.R)*_sin2*_sin6;
+    const T _t1 = _cos6*T(p.R) + T(p.e);
+    const T _t2 = _t0 + _t1*_cos2;
+    const T _t3 = _t0 + _cos2*_cos6*T(p.R);
+    const T _t4 = _cos2*T(p.R)*_sin6;
+    const T _t5 = _t1*_sin2 + _t4;
+    const T _t6 = _t4 + _cos6*T(p.R)*_sin2;
+    const T _t7 = _t3*_cos5 + _t6*_sin5;
+    const T _t8 = -_t3*_cos5 - _t6*_sin5;
+    const T _t9 = qd[2]*qd[2];
+    const T _t10 = qd[6]*qd[6];
+    const T _t11 = _t6*_t10;
+    const T _t12 = T(2)*_t6*qd[2]*qd[6];
+    const T _t13 = qd[5]*qd[5];
+    const T _t14 = -_t3*_t10;
+    const T _t15 = T(-2)*_t3*qd[2]*qd[6];
+    const T _t16 = _t3*_sin5 - _t6*_cos5;
+    const T _t17 = -_t16*_t9 - _t16*_t13 - _t16*_t10 - T(2)*_t16*qd[2]*qd[6] + T(2)*_t16*qd[2]*qd[5] + T(2)*_t16*qd[5]*qd[6];
+    const T _t18 = T(-2)*_t3*qd[6];
+    const T _t19 = T(-2)*_t6*qd[6];
+    const T _t20 = -T(2)*_t7*qd[2] - T(2)*_t7*qd[6] + T(2)*_t7*qd[5];
+    const T _t21 = T(1)/T(p.omega0);
+    const T _t22 = T(p.H) - q[4];
+    const T _t23 = _t22*_t22;
+    const T _t24 = q[3]*q[3];
+    const T _t25 = _t23 + _t24;
+    const T _t26 = sqrt(_t25);
+    const T _t27 = _t26 - T(p.L0);
+    const T _t28 = T(1)/_t26;
+    const T _t29 = -_t27*_t28*T(p.k);
+    const T _t30 = T(1)/_t25;
+    const T _t31 = T(1)/(_t25*_t26);
+    const T _t32 = _t22*_t30*T(p.k)*q[3] - _t27*_t22*_t31*T(p.k)*q[3];
 
     // Output terms (54)
-    out[0] = _t6;
-    out[1] = _t7;
-    out[2] = -_t8*q[7];
-    out[3] = -_t9;
-    out[4] = _t7;
-    out[5] = _t11;
-    out[6] = _t12;
-    out[7] = -q[7]*_t9;
-    out[8] = _t8;
-    out[9] = _t12;
-    out[10] = _t13;
-    out[11] = _t14;
-    out[12] = _t13;
-    out[13] = _t13;
-    out[14] = _t14;
-    out[15] = _t13;
-    out[16] = _t11*_t15 + _t17 + _t18;
-    out[17] = T(2)*_t8*qd[5]*qd[7] - _t19*q[7]*_t9;
-    out[18] = _t12*_t15 + _t17 + _t18;
-    out[19] = _t19*_t8;
-    out[20] = _t20 - _t6*_t15 + _t21;
-    out[21] = _t19*_t8*q[7] + T(2)*_t9*qd[5]*qd[7];
-    out[22] = _t20 - _t7*_t15 + _t21;
-    out[23] = _t19*_t9;
-    out[24] = _t23;
-    out[25] = -T(2)*_t22*qd[2]*qd[5] - T(2)*_t22*qd[5]*qd[6] + _t22*_t15 + _t22*_t19 + _t22*_t16 + T(2)*_t22*qd[2]*qd[6];
-    out[26] = _t23;
-    out[27] = _t24 - T(2)*_t6*qd[2];
-    out[28] = T(2)*_t8*q[7]*qd[5] + T(2)*_t9*qd[7];
-    out[29] = _t24 - T(2)*_t7*qd[2];
-    out[30] = T(2)*_t9*qd[5];
-    out[31] = _t25 - T(2)*_t11*qd[2];
-    out[32] = T(2)*q[7]*_t9*qd[5] - T(2)*_t8*qd[7];
-    out[33] = _t25 - T(2)*_t12*qd[2];
-    out[34] = T(-2)*_t8*qd[5];
-    out[35] = _t26;
-    out[36] = T(2)*_t13*qd[2] - T(2)*_t13*qd[5] + T(2)*_t13*qd[6];
-    out[37] = _t26;
+    out[0] = _t2;
+    out[1] = _t3;
+    out[2] = -_cos5*q[7];
+    out[3] = -_sin5;
+    out[4] = _t3;
+    out[5] = _t5;
+    out[6] = _t6;
+    out[7] = -q[7]*_sin5;
+    out[8] = _cos5;
+    out[9] = _t6;
+    out[10] = _t7;
+    out[11] = _t8;
+    out[12] = _t7;
+    out[13] = _t7;
+    out[14] = _t8;
+    out[15] = _t7;
+    out[16] = _t5*_t9 + _t11 + _t12;
+    out[17] = T(2)*_cos5*qd[5]*qd[7] - _t13*q[7]*_sin5;
+    out[18] = _t6*_t9 + _t11 + _t12;
+    out[19] = _t13*_cos5;
+    out[20] = _t14 - _t2*_t9 + _t15;
+    out[21] = _t13*_cos5*q[7] + T(2)*_sin5*qd[5]*qd[7];
+    out[22] = _t14 - _t3*_t9 + _t15;
+    out[23] = _t13*_sin5;
+    out[24] = _t17;
+    out[25] = -T(2)*_t16*qd[2]*qd[5] - T(2)*_t16*qd[5]*qd[6] + _t16*_t9 + _t16*_t13 + _t16*_t10 + T(2)*_t16*qd[2]*qd[6];
+    out[26] = _t17;
+    out[27] = _t18 - T(2)*_t2*qd[2];
+    out[28] = T(2)*_cos5*q[7]*qd[5] + T(2)*_sin5*qd[7];
+    out[29] = _t18 - T(2)*_t3*qd[2];
+    out[30] = T(2)*_sin5*qd[5];
+    out[31] = _t19 - T(2)*_t5*qd[2];
+    out[32] = T(2)*q[7]*_sin5*qd[5] - T(2)*_cos5*qd[7];
+    out[33] = _t19 - T(2)*_t6*qd[2];
+    out[34] = T(-2)*_cos5*qd[5];
+    out[35] = _t20;
+    out[36] = T(2)*_t7*qd[2] - T(2)*_t7*qd[5] + T(2)*_t7*qd[6];
+    out[37] = _t20;
     out[38] = T(-1);
     out[39] = T(1);
     out[40] = T(1);
     out[41] = T(0);
     out[42] = T(0);
-    out[43] = (T(1) - _t27*qd[2])*T(p.T0);
-    out[44] = -_t32*_t33*T(p.k)*q[3];
-    out[45] = _t32*_t28*_t33*T(p.k) - (T(981)/T(100))*T(p.m);
+    out[43] = (T(1) - _t21*qd[2])*T(p.T0);
+    out[44] = -_t27*_t28*T(p.k)*q[3];
+    out[45] = _t27*_t22*_t28*T(p.k) - (T(981)/T(100))*T(p.m);
     out[46] = T(0);
     out[47] = T(0);
     out[48] = T(0);
-    out[49] = _t34 - _t35*_t30*T(p.k) + _t32*_t36*_t30*T(p.k);
-    out[50] = _t37;
-    out[51] = _t37;
-    out[52] = _t34 - _t29*_t35*T(p.k) + _t32*_t29*_t36*T(p.k);
-    out[53] = -_t27*T(p.T0);
+    out[49] = _t29 - _t30*_t24*T(p.k) + _t27*_t31*_t24*T(p.k);
+    out[50] = _t32;
+    out[51] = _t32;
+    out[52] = _t29 - _t23*_t30*T(p.k) + _t27*_t23*_t31*T(p.k);
+    out[53] = -_t21*T(p.T0);
   }
 
  public:
@@ -2564,7 +2625,7 @@ struct cam_liftoff {
     if (!d_z && !d_zd && !d_u) return r;
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
-    _tangent_values(w.q, w.qd, t, pz, j.values);
+    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig);
     // Every direction, whichever are asked for: constant directions fold into the kernel's
     // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
     constexpr int ndir = 2 * nf + num_inputs;
@@ -2585,6 +2646,8 @@ struct cam_liftoff {
     tp.mb = w.mb;
     tp.mz = w.mz;  // factored by dynamics()
     tp.known = _tangent_known.data();
+    tp.n_r_rows = static_cast<int>(_tangent_r_rows.size());
+    tp.r_rows = _tangent_r_rows.data();
     tp.phi_qq = {static_cast<int>(_phi_qq_row.size()), _phi_qq_row.data(), _phi_qq_j.data(),
                  _phi_qq_k.data(), at(0)};
     const auto sparse = [&](const auto& row, const auto& col, int piece) {

@@ -166,6 +166,15 @@ struct four_bar_balanced {
   using _model = four_bar_balanced;
 
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
+  // Forces inlining where GCC or Clang read it: small helpers called in long runs (the reuse's
+  // comparisons) and kernels whose callers' constant tables must fold into their loops.
+#ifndef KINEGEN_ALWAYS_INLINE
+#if defined(__GNUC__) || defined(__clang__)
+#define KINEGEN_ALWAYS_INLINE [[gnu::always_inline]]
+#else
+#define KINEGEN_ALWAYS_INLINE
+#endif
+#endif
   // The real type of a scalar: T itself, or the value_type of std::complex<T>.
   template <class T, class = void>
   struct _RealOf {
@@ -266,7 +275,7 @@ struct four_bar_balanced {
   // Whether a and b are the same number, -0.0 and 0.0 apart (a NaN never is; a complex
   // number's parts compare with ==).
   template <class X>
-  static bool _same_bits(const X& a, const X& b) noexcept {
+  KINEGEN_ALWAYS_INLINE static bool _same_bits(const X& a, const X& b) noexcept {
     if constexpr (std::is_floating_point_v<X>) {
       return a == b && std::signbit(a) == std::signbit(b);
     } else {
@@ -1549,16 +1558,16 @@ struct four_bar_balanced {
   template <class T>
   static void applied_force([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
-    // out[nq]; 44 operations
+    // out[nq]; 43 operations
     using std::cos, std::sin, std::sqrt;
     // Intermediate terms (7)
     const T _t0 = cos(q[8]);
     const T _t1 = T(3) - T(10)*q[6] - T(5)*_t0*T(p.c);
     const T _t2 = sin(q[8]);
     const T _t3 = T(4) - T(10)*q[7] - T(5)*T(p.c)*_t2;
-    const T _t4 = (T(1)/T(100))*(_t1*_t1) + (T(1)/T(100))*(_t3*_t3);
-    const T _t5 = T(1)/sqrt(_t4);
-    const T _t6 = T(2)*(T(3) - T(20)*sqrt(_t4))*T(p.k) - (_t1*(T(p.c)*_t2*qd[8] - T(2)*qd[6]) - _t3*(_t0*T(p.c)*qd[8] + T(2)*qd[7]))*_t5;
+    const T _t4 = sqrt((T(1)/T(100))*(_t1*_t1) + (T(1)/T(100))*(_t3*_t3));
+    const T _t5 = T(1)/_t4;
+    const T _t6 = T(2)*(T(3) - T(20)*_t4)*T(p.k) - (_t1*(T(p.c)*_t2*qd[8] - T(2)*qd[6]) - _t3*(_t0*T(p.c)*qd[8] + T(2)*qd[7]))*_t5;
 
     // Output terms (9)
     out[0] = T(0);

@@ -332,6 +332,15 @@ struct n_four_bar_4 {
   using _model = n_four_bar_4;
 
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
+  // Forces inlining where GCC or Clang read it: small helpers called in long runs (the reuse's
+  // comparisons) and kernels whose callers' constant tables must fold into their loops.
+#ifndef KINEGEN_ALWAYS_INLINE
+#if defined(__GNUC__) || defined(__clang__)
+#define KINEGEN_ALWAYS_INLINE [[gnu::always_inline]]
+#else
+#define KINEGEN_ALWAYS_INLINE
+#endif
+#endif
   // The real type of a scalar: T itself, or the value_type of std::complex<T>.
   template <class T, class = void>
   struct _RealOf {
@@ -432,7 +441,7 @@ struct n_four_bar_4 {
   // Whether a and b are the same number, -0.0 and 0.0 apart (a NaN never is; a complex
   // number's parts compare with ==).
   template <class X>
-  static bool _same_bits(const X& a, const X& b) noexcept {
+  KINEGEN_ALWAYS_INLINE static bool _same_bits(const X& a, const X& b) noexcept {
     if constexpr (std::is_floating_point_v<X>) {
       return a == b && std::signbit(a) == std::signbit(b);
     } else {
@@ -1244,13 +1253,8 @@ struct n_four_bar_4 {
   // ---- end of kinegen kernel dynamics
 
   // ---- kinegen kernel linearize (kinegen/kernels/linearize.hpp)
-#ifndef KINEGEN_ALWAYS_INLINE
-#if defined(__GNUC__) || defined(__clang__)
-#define KINEGEN_ALWAYS_INLINE [[gnu::always_inline]]
-#else
-#define KINEGEN_ALWAYS_INLINE
-#endif
-#endif
+  // _TangentPoint::known's code for a direction that moves neither q nor qd.
+  static constexpr int _kStill = -2;
   // A sparse matrix: n entries (row[e], col[e], value[e]).
   template <class T>
   struct _Sparse {
@@ -1287,9 +1291,15 @@ struct n_four_bar_4 {
     const T* mz = nullptr;
     // Optional (nullptr: every direction solved), per direction: k < nf when it is free
     // coordinate k's value z_k (dq = B e_k), nf + k when it is its rate zd_k (dq = 0, dqd =
-    // B e_k), -1 otherwise. Exact: a free item's row is quantity - z or |d|^2 - z^2, so its
-    // Phi_z and nu_zd are B's right-hand side, and the solves they spare gave B's numbers.
+    // B e_k), _kStill for a slot that Phi, nu and gamma do not read (a load's input: dq = dqd
+    // = 0, r_a = 0), -1 otherwise. Exact: a free item's row is quantity - z or |d|^2 - z^2, so
+    // its Phi_z and nu_zd are B's right-hand side, and the solves they spare gave B's numbers;
+    // the terms a zero dq or dqd would multiply are skipped (only a zero's sign can differ).
     const int* known = nullptr;
+    // Optional (n_r_rows -1: all): the n_r_rows rows r_a can be non-zero on (those of Phi_qq,
+    // gamma_q, gamma_qd and gamma_w), so that Y^T r_a skips the others.
+    int n_r_rows = -1;
+    const int* r_rows = nullptr;
     _Hessian<T> phi_qq;
     _Sparse<T> nu_q, gamma_q, gamma_qd, phi_w, nu_w, gamma_w, applied_q, applied_qd, applied_w;
   };
@@ -1344,29 +1354,52 @@ struct n_four_bar_4 {
     }
     for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
   }
-  // out += d(M qdd + h)/dq dq + dh/dqd dqd at fixed qdd: each body's forces depend on q only
-  // through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w (the w^2 terms).
+  // d(M qdd + h)/dq and dh/dqd at fixed qdd, 5 numbers per body into c: each body's forces
+  // depend on q only through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w
+  // (the w^2 terms): d(fx, fy, the moment)/dphi and -d(fx, fy)/dw.
   template <class T>
-  static void _inertia_tangent(int nb, const T* m, const T* ax, const T* ay, const T* qd,
-                               const T* qdd, const T* dq, const T* dqd, T* out) noexcept {
+  static void _inertia_coefficients(int nb, const T* m, const T* ax, const T* ay, const T* qd,
+                                    const T* qdd, T* c) noexcept {
     for (int b = 0; b < nb; ++b) {
       const T& w = qd[3 * b + 2];
       const T& alpha = qdd[3 * b + 2];
       const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
       const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
-      const T dphi = dq[3 * b + 2], dw = dqd[3 * b + 2];
-      const T dfx = m[b] * ((w * w * ay[b] - alpha * ax[b]) * dphi - T(2) * w * ax[b] * dw);
-      const T dfy = m[b] * (-(alpha * ay[b] + w * w * ax[b]) * dphi - T(2) * w * ay[b] * dw);
+      c[5 * b] = m[b] * (w * w * ay[b] - alpha * ax[b]);
+      c[5 * b + 1] = -m[b] * (alpha * ay[b] + w * w * ax[b]);
+      c[5 * b + 2] = -ay[b] * fy - ax[b] * fx;
+      c[5 * b + 3] = T(2) * m[b] * w * ax[b];
+      c[5 * b + 4] = T(2) * m[b] * w * ay[b];
+    }
+  }
+  // out += d(M qdd + h)/dq dq + dh/dqd dqd from _inertia_coefficients' c; dq or dqd may be
+  // nullptr: 0.
+  template <class T>
+  static void _inertia_tangent(int nb, const T* ax, const T* ay, const T* c, const T* dq,
+                               const T* dqd, T* out) noexcept {
+    for (int b = 0; b < nb; ++b) {
+      T dfx = T(0), dfy = T(0), dn = T(0);
+      if (dq) {
+        const T dphi = dq[3 * b + 2];
+        dfx = c[5 * b] * dphi;
+        dfy = c[5 * b + 1] * dphi;
+        dn = c[5 * b + 2] * dphi;
+      }
+      if (dqd) {
+        const T dw = dqd[3 * b + 2];
+        dfx -= c[5 * b + 3] * dw;
+        dfy -= c[5 * b + 4] * dw;
+      }
       out[3 * b] += dfx;
       out[3 * b + 1] += dfy;
-      out[3 * b + 2] += (-ay[b] * fy - ax[b] * fx) * dphi + ax[b] * dfy - ay[b] * dfx;
+      out[3 * b + 2] += dn + ax[b] * dfy - ay[b] * dfx;
     }
   }
 
   // The work space _dynamics_tangent needs for ndir directions, in T's.
   static constexpr int _tangent_work_size(int nq, int nf, int ndir) noexcept {
-    return nq * nf + nq * (nf + 1) + nf * nf + 3 * nq * ndir + 2 * nq +
-           nq * (ndir > nf + 1 ? ndir : nf + 1);
+    return nq * nf + nq * (nf + 1) + nf * nf + 3 * nq * ndir +
+           nq * (ndir > nf + 1 ? ndir : nf + 1) + 2 * nq;
   }
 
   // d(zdd)/d(w_slot) for each of the ndir slots (slots[i]: a free item's z or zd, or a
@@ -1382,20 +1415,19 @@ struct n_four_bar_4 {
   // header's sparsity patterns) fold into the loops.
   template <int NQ = 0, int NF = 0, int NB = 0, class T, class Solve, class SolveTransposed>
   KINEGEN_ALWAYS_INLINE static int _dynamics_tangent(const _TangentPoint<T>& p, int ndir,
-                                                      const int* slots, T* dzdd, T* work,
-                                                      Solve&& solve,
-                                                      SolveTransposed&& solve_transposed) noexcept {
+                                                     const int* slots, T* dzdd, T* work,
+                                                     Solve&& solve,
+                                                     SolveTransposed&& solve_transposed) noexcept {
     const int nq = NQ > 0 ? NQ : p.nq, nf = NF > 0 ? NF : p.nf, nb = NB > 0 ? NB : p.nb;
     T* mb = work;
     T* y = mb + nq * nf;  // Phi_q^-T M B, then lambda in column nf
     T* mz = y + nq * (nf + 1);
     T* dq = mz + nf * nf;
     T* dqd = dq + nq * ndir;
-    T* r = dqd + nq * ndir;
-    T* f = r + nq;
-    T* x = f + nq;          // solutions, side by side
+    T* x = dqd + nq * ndir;  // solutions, side by side
     T* rhs = x + nq * ndir;  // their right-hand sides (nf + 1 columns for the transposed)
-    const T* m_b = p.mb;                // M B and B^T M B's factors: dynamics()' or computed here
+    T* inertia = rhs + nq * (ndir > nf + 1 ? ndir : nf + 1);  // 5 nb <= 2 nq
+    const T* m_b = p.mb;  // M B and B^T M B's factors: dynamics()' or computed here
     const T* m_z = p.mz;
     if (!m_b || !m_z) {
       for (int k = 0; k < nf; ++k)
@@ -1410,72 +1442,92 @@ struct n_four_bar_4 {
     // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
     const T* lambda = y + nq * nf;
     for (int k = 0; k < nq * nf; ++k) rhs[k] = m_b[k];
-    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, f);
-    for (int k = 0; k < nq; ++k) rhs[nq * nf + k] = p.applied[k] - f[k];
+    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, x);
+    for (int k = 0; k < nq; ++k) rhs[nq * nf + k] = p.applied[k] - x[k];
     if (const int s = solve_transposed(rhs, y, nf + 1)) return s;
     if (const int s = _tangent_motions(p, nq, nf, ndir, slots, dq, dqd, rhs, x, solve)) return s;
-    for (int i = 0; i < ndir; ++i) {
-      _tangent_residuals(p, nq, nb, slots[i], lambda, dq + i * nq, dqd + i * nq, r, f);
-      T* out = dzdd + i * nf;
-      for (int k = 0; k < nf; ++k) out[k] = _dot(nq, y + k * nq, r) - _dot(nq, p.b + k * nq, f);
-      _ldlt_solve(nf, m_z, out);
+    // Stage by stage across the directions, each direction's r and f apart (in x and rhs,
+    // free now), so that the directions' chains of dependent operations overlap.
+    T* r = x;
+    T* f = rhs;
+    _inertia_coefficients(nb, p.mass, p.ax, p.ay, p.qd, p.qdd, inertia);
+    for (int i = 0; i < ndir; ++i)
+      _tangent_residuals(p, nq, nb, slots[i], lambda, inertia, _moved(p, nq, nf, i, dq, false),
+                         _moved(p, nq, nf, i, dqd, true), r + i * nq, f + i * nq);
+    // y_k . r over r's rows that can be non-zero (p.r_rows) when known.
+    const auto y_dot_r = [&](int k, const T* ri) {
+      if (p.n_r_rows < 0) return _dot(nq, y + k * nq, ri);
+      T s = T(0);
+      for (int e = 0; e < p.n_r_rows; ++e) s += y[k * nq + p.r_rows[e]] * ri[p.r_rows[e]];
+      return s;
+    };
+    for (int i = 0; i < ndir; ++i)
       for (int k = 0; k < nf; ++k)
-        if (!_finite(_mag(out[k]))) return 3;
-    }
+        dzdd[i * nf + k] = (p.known && p.known[i] == _kStill ? T(0) : y_dot_r(k, r + i * nq)) -
+                           _dot(nq, p.b + k * nq, f + i * nq);
+    for (int i = 0; i < ndir; ++i) _ldlt_solve(nf, m_z, dzdd + i * nf);
+    for (int k = 0; k < nf * ndir; ++k)
+      if (!_finite(_mag(dzdd[k]))) return 3;
     return 0;
   }
 
+  // Direction i's dq (rate: dqd): B's column when known, nullptr when known to be 0, else its
+  // solution at d + i nq.
+  template <class T>
+  KINEGEN_ALWAYS_INLINE static const T* _moved(const _TangentPoint<T>& p, int nq, int nf, int i,
+                                               const T* d, bool rate) noexcept {
+    const int k = p.known ? p.known[i] : -1;
+    if (k == -1 || (rate && k >= 0 && k < nf)) return d + i * nq;
+    if (k == _kStill || (rate ? k < nf : k >= nf)) return nullptr;
+    return p.b + (rate ? k - nf : k) * nq;
+  }
+
   // Each direction's dq = -Phi_q^-1 Phi_w and dqd = -Phi_q^-1 r_v, as _dynamics_tangent
-  // describes them, in two solves (of the columns not known), with rhs and x as their work
-  // space; 0 or the solve's status.
+  // describes them, in two solves (of the columns not known: _moved), with rhs and x as their
+  // work space; 0 or the solve's status.
   template <class T, class Solve>
   KINEGEN_ALWAYS_INLINE static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
-                                                     int ndir, const int* slots, T* dq, T* dqd,
-                                                     T* rhs, T* x, Solve&& solve) noexcept {
+                                                    int ndir, const int* slots, T* dq, T* dqd,
+                                                    T* rhs, T* x, Solve&& solve) noexcept {
     const auto known = [&](int i) { return p.known ? p.known[i] : -1; };
-    const auto b_column = [&](int k, T* out) {
-      for (int c = 0; c < nq; ++c) out[c] = p.b[k * nq + c];
+    // Which directions need a solve for their dq (rate: dqd); the others are B's columns or 0.
+    const auto solves = [&](int i, bool rate) {
+      return known(i) == -1 || (rate && known(i) >= 0 && known(i) < nf);
     };
     // Solves the m columns in rhs and puts them at d + i nq for the directions i that needed
-    // them (known(i) < bound); 0 or the solve's status.
-    const auto solve_into = [&](int m, T* d, int bound) {
+    // them; 0 or the solve's status.
+    const auto solve_into = [&](int m, T* d, bool rate) {
       if (m == 0) return 0;
       if (const int s = solve(rhs, x, m)) return s;
       for (int i = 0, n = 0; i < ndir; ++i)
-        if (known(i) < bound)
+        if (solves(i, rate))
           for (int k = 0; k < nq; ++k) d[i * nq + k] = x[n++];
       return 0;
     };
+    const auto zero = [&](T* v) {
+      for (int k = 0; k < nq; ++k) v[k] = T(0);
+    };
     int m = 0;
     for (int i = 0; i < ndir; ++i) {
-      if (known(i) >= 0) {  // z_k: B e_k; zd_k: 0
-        T* v = dq + i * nq;
-        if (known(i) < nf) {
-          b_column(known(i), v);
-        } else {
-          for (int k = 0; k < nq; ++k) v[k] = T(0);
-        }
-        continue;
-      }
+      if (!solves(i, false)) continue;
       T* v = rhs + m++ * nq;
-      for (int k = 0; k < nq; ++k) v[k] = T(0);
+      zero(v);
       _sparse_column(p.phi_w, slots[i], T(-1), v);
     }
-    if (const int s = solve_into(m, dq, 0)) return s;
+    if (const int s = solve_into(m, dq, false)) return s;
     m = 0;
     for (int i = 0; i < ndir; ++i) {
-      if (known(i) >= nf) {  // zd_k: B e_k
-        b_column(known(i) - nf, dqd + i * nq);
-        continue;
-      }
+      if (!solves(i, true)) continue;
       T* v = rhs + m++ * nq;
-      for (int k = 0; k < nq; ++k) v[k] = T(0);
-      _hessian_times(p.phi_qq, p.qd, dq + i * nq, v);
-      _sparse_add(p.nu_q, T(-1), dq + i * nq, v);
+      zero(v);
+      if (const T* d = _moved(p, nq, nf, i, dq, false)) {
+        _hessian_times(p.phi_qq, p.qd, d, v);
+        _sparse_add(p.nu_q, T(-1), d, v);
+      }
       _sparse_column(p.nu_w, slots[i], T(-1), v);
       for (int k = 0; k < nq; ++k) v[k] = -v[k];
     }
-    if (const int s = solve_into(m, dqd, nf)) return s;
+    if (const int s = solve_into(m, dqd, true)) return s;
     return 0;
   }
 
@@ -1487,19 +1539,24 @@ struct n_four_bar_4 {
   }
 
   // One direction's acceleration residual r (r_a) and force f, as _dynamics_tangent describes
-  // them, from its dq and dqd.
+  // them, from its dq and dqd (nullptr: 0, and the terms they multiply skipped).
   template <class T>
   static void _tangent_residuals(const _TangentPoint<T>& p, int nq, int nb, int slot,
-                                 const T* lambda, const T* dq, const T* dqd, T* r, T* f) noexcept {
+                                 const T* lambda, const T* inertia, const T* dq, const T* dqd, T* r,
+                                 T* f) noexcept {
     for (int k = 0; k < nq; ++k) r[k] = f[k] = T(0);
-    _hessian_times(p.phi_qq, p.qdd, dq, r);
-    _sparse_add(p.gamma_q, T(-1), dq, r);
-    _sparse_add(p.gamma_qd, T(-1), dqd, r);
+    if (dq) {
+      _hessian_times(p.phi_qq, p.qdd, dq, r);
+      _sparse_add(p.gamma_q, T(-1), dq, r);
+    }
+    if (dqd) _sparse_add(p.gamma_qd, T(-1), dqd, r);
     _sparse_column(p.gamma_w, slot, T(-1), r);
-    _inertia_tangent(nb, p.mass, p.ax, p.ay, p.qd, p.qdd, dq, dqd, f);
-    _hessian_transposed(p.phi_qq, lambda, dq, f);
-    _sparse_add(p.applied_q, T(-1), dq, f);
-    _sparse_add(p.applied_qd, T(-1), dqd, f);
+    _inertia_tangent(nb, p.ax, p.ay, inertia, dq, dqd, f);
+    if (dq) {
+      _hessian_transposed(p.phi_qq, lambda, dq, f);
+      _sparse_add(p.applied_q, T(-1), dq, f);
+    }
+    if (dqd) _sparse_add(p.applied_qd, T(-1), dqd, f);
     _sparse_column(p.applied_w, slot, T(-1), f);
   }
   // ---- end of kinegen kernel linearize
@@ -3530,153 +3587,156 @@ struct n_four_bar_4 {
   static constexpr std::array<int, 0> _applied_w_col = {};
   static constexpr std::array<int, 2> _tangent_slots = {0, 1};
   static constexpr std::array<int, 2> _tangent_known = {0, 1};
+  static constexpr std::array<int, 17> _tangent_r_rows = {10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26};
   template <class T>
   static void _tangent_values([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
-      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out) noexcept {
+      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,
+      [[maybe_unused]] T* trig) noexcept {
     // out[111]; 118 operations
     using std::cos, std::sin;
-    // Intermediate terms (28)
-    const T _t0 = cos(q[2]);
-    const T _t1 = sin(q[2]);
-    const T _t2 = cos(q[5]);
-    const T _t3 = cos(q[17]);
-    const T _t4 = sin(q[5]);
-    const T _t5 = sin(q[17]);
-    const T _t6 = cos(q[8]);
-    const T _t7 = cos(q[20]);
-    const T _t8 = sin(q[8]);
-    const T _t9 = sin(q[20]);
-    const T _t10 = cos(q[11]);
-    const T _t11 = cos(q[23]);
-    const T _t12 = sin(q[11]);
-    const T _t13 = sin(q[23]);
-    const T _t14 = cos(q[14]);
-    const T _t15 = cos(q[26]);
-    const T _t16 = sin(q[14]);
-    const T _t17 = sin(q[26]);
-    const T _t18 = qd[2]*qd[2];
-    const T _t19 = qd[5]*qd[5];
-    const T _t20 = qd[17]*qd[17];
-    const T _t21 = qd[8]*qd[8];
-    const T _t22 = qd[20]*qd[20];
-    const T _t23 = qd[11]*qd[11];
-    const T _t24 = qd[23]*qd[23];
-    const T _t25 = qd[14]*qd[14];
-    const T _t26 = qd[26]*qd[26];
-    const T _t27 = -T(p.m)*T(p.g);
+    // sin and cos from the cache (trig_cache_size), anchored by dynamics() at q
+    T _sin2, _cos2;
+    _trig(_sin2, _cos2, q[2], trig, 0);
+    T _sin5, _cos5;
+    _trig(_sin5, _cos5, q[5], trig, 1);
+    T _sin17, _cos17;
+    _trig(_sin17, _cos17, q[17], trig, 5);
+    T _sin8, _cos8;
+    _trig(_sin8, _cos8, q[8], trig, 2);
+    T _sin20, _cos20;
+    _trig(_sin20, _cos20, q[20], trig, 6);
+    T _sin11, _cos11;
+    _trig(_sin11, _cos11, q[11], trig, 3);
+    T _sin23, _cos23;
+    _trig(_sin23, _cos23, q[23], trig, 7);
+    T _sin14, _cos14;
+    _trig(_sin14, _cos14, q[14], trig, 4);
+    T _sin26, _cos26;
+    _trig(_sin26, _cos26, q[26], trig, 8);
+    // Intermediate terms (10)
+    const T _t0 = qd[2]*qd[2];
+    const T _t1 = qd[5]*qd[5];
+    const T _t2 = qd[17]*qd[17];
+    const T _t3 = qd[8]*qd[8];
+    const T _t4 = qd[20]*qd[20];
+    const T _t5 = qd[11]*qd[11];
+    const T _t6 = qd[23]*qd[23];
+    const T _t7 = qd[14]*qd[14];
+    const T _t8 = qd[26]*qd[26];
+    const T _t9 = -T(p.m)*T(p.g);
 
     // Output terms (111)
-    out[0] = _t0*T(p.l);
-    out[1] = T(p.l)*_t1;
-    out[2] = -_t2*T(p.l);
-    out[3] = _t3*T(p.l);
-    out[4] = -T(p.l)*_t4;
-    out[5] = T(p.l)*_t5;
-    out[6] = _t2*T(p.l);
-    out[7] = T(p.l)*_t4;
-    out[8] = -_t6*T(p.l);
-    out[9] = _t7*T(p.l);
-    out[10] = -T(p.l)*_t8;
-    out[11] = T(p.l)*_t9;
-    out[12] = _t6*T(p.l);
-    out[13] = T(p.l)*_t8;
-    out[14] = -_t10*T(p.l);
-    out[15] = _t11*T(p.l);
-    out[16] = -T(p.l)*_t12;
-    out[17] = T(p.l)*_t13;
-    out[18] = _t10*T(p.l);
-    out[19] = T(p.l)*_t12;
-    out[20] = -_t14*T(p.l);
-    out[21] = _t15*T(p.l);
-    out[22] = -T(p.l)*_t16;
-    out[23] = T(p.l)*_t17;
-    out[24] = _t18*T(p.l)*_t1;
-    out[25] = -_t18*_t0*T(p.l);
-    out[26] = -_t19*T(p.l)*_t4;
-    out[27] = _t20*T(p.l)*_t5;
-    out[28] = _t19*_t2*T(p.l);
-    out[29] = -_t20*_t3*T(p.l);
-    out[30] = _t19*T(p.l)*_t4;
-    out[31] = -_t19*_t2*T(p.l);
-    out[32] = -_t21*T(p.l)*_t8;
-    out[33] = _t22*T(p.l)*_t9;
-    out[34] = _t21*_t6*T(p.l);
-    out[35] = -_t22*_t7*T(p.l);
-    out[36] = _t21*T(p.l)*_t8;
-    out[37] = -_t21*_t6*T(p.l);
-    out[38] = -_t23*T(p.l)*_t12;
-    out[39] = _t24*T(p.l)*_t13;
-    out[40] = _t23*_t10*T(p.l);
-    out[41] = -_t24*_t11*T(p.l);
-    out[42] = _t23*T(p.l)*_t12;
-    out[43] = -_t23*_t10*T(p.l);
-    out[44] = -_t25*T(p.l)*_t16;
-    out[45] = _t26*T(p.l)*_t17;
-    out[46] = _t25*_t14*T(p.l);
-    out[47] = -_t26*_t15*T(p.l);
-    out[48] = T(-2)*_t0*T(p.l)*qd[2];
-    out[49] = T(-2)*T(p.l)*_t1*qd[2];
-    out[50] = T(2)*_t2*T(p.l)*qd[5];
-    out[51] = T(-2)*_t3*T(p.l)*qd[17];
-    out[52] = T(2)*T(p.l)*_t4*qd[5];
-    out[53] = T(-2)*T(p.l)*_t5*qd[17];
-    out[54] = T(-2)*_t2*T(p.l)*qd[5];
-    out[55] = T(-2)*T(p.l)*_t4*qd[5];
-    out[56] = T(2)*_t6*T(p.l)*qd[8];
-    out[57] = T(-2)*_t7*T(p.l)*qd[20];
-    out[58] = T(2)*T(p.l)*_t8*qd[8];
-    out[59] = T(-2)*T(p.l)*_t9*qd[20];
-    out[60] = T(-2)*_t6*T(p.l)*qd[8];
-    out[61] = T(-2)*T(p.l)*_t8*qd[8];
-    out[62] = T(2)*_t10*T(p.l)*qd[11];
-    out[63] = T(-2)*_t11*T(p.l)*qd[23];
-    out[64] = T(2)*T(p.l)*_t12*qd[11];
-    out[65] = T(-2)*T(p.l)*_t13*qd[23];
-    out[66] = T(-2)*_t10*T(p.l)*qd[11];
-    out[67] = T(-2)*T(p.l)*_t12*qd[11];
-    out[68] = T(2)*_t14*T(p.l)*qd[14];
-    out[69] = T(-2)*_t15*T(p.l)*qd[26];
-    out[70] = T(2)*T(p.l)*_t16*qd[14];
-    out[71] = T(-2)*T(p.l)*_t17*qd[26];
+    out[0] = _cos2*T(p.l);
+    out[1] = T(p.l)*_sin2;
+    out[2] = -_cos5*T(p.l);
+    out[3] = _cos17*T(p.l);
+    out[4] = -T(p.l)*_sin5;
+    out[5] = T(p.l)*_sin17;
+    out[6] = _cos5*T(p.l);
+    out[7] = T(p.l)*_sin5;
+    out[8] = -_cos8*T(p.l);
+    out[9] = _cos20*T(p.l);
+    out[10] = -T(p.l)*_sin8;
+    out[11] = T(p.l)*_sin20;
+    out[12] = _cos8*T(p.l);
+    out[13] = T(p.l)*_sin8;
+    out[14] = -_cos11*T(p.l);
+    out[15] = _cos23*T(p.l);
+    out[16] = -T(p.l)*_sin11;
+    out[17] = T(p.l)*_sin23;
+    out[18] = _cos11*T(p.l);
+    out[19] = T(p.l)*_sin11;
+    out[20] = -_cos14*T(p.l);
+    out[21] = _cos26*T(p.l);
+    out[22] = -T(p.l)*_sin14;
+    out[23] = T(p.l)*_sin26;
+    out[24] = _t0*T(p.l)*_sin2;
+    out[25] = -_t0*_cos2*T(p.l);
+    out[26] = -_t1*T(p.l)*_sin5;
+    out[27] = _t2*T(p.l)*_sin17;
+    out[28] = _t1*_cos5*T(p.l);
+    out[29] = -_t2*_cos17*T(p.l);
+    out[30] = _t1*T(p.l)*_sin5;
+    out[31] = -_t1*_cos5*T(p.l);
+    out[32] = -_t3*T(p.l)*_sin8;
+    out[33] = _t4*T(p.l)*_sin20;
+    out[34] = _t3*_cos8*T(p.l);
+    out[35] = -_t4*_cos20*T(p.l);
+    out[36] = _t3*T(p.l)*_sin8;
+    out[37] = -_t3*_cos8*T(p.l);
+    out[38] = -_t5*T(p.l)*_sin11;
+    out[39] = _t6*T(p.l)*_sin23;
+    out[40] = _t5*_cos11*T(p.l);
+    out[41] = -_t6*_cos23*T(p.l);
+    out[42] = _t5*T(p.l)*_sin11;
+    out[43] = -_t5*_cos11*T(p.l);
+    out[44] = -_t7*T(p.l)*_sin14;
+    out[45] = _t8*T(p.l)*_sin26;
+    out[46] = _t7*_cos14*T(p.l);
+    out[47] = -_t8*_cos26*T(p.l);
+    out[48] = T(-2)*_cos2*T(p.l)*qd[2];
+    out[49] = T(-2)*T(p.l)*_sin2*qd[2];
+    out[50] = T(2)*_cos5*T(p.l)*qd[5];
+    out[51] = T(-2)*_cos17*T(p.l)*qd[17];
+    out[52] = T(2)*T(p.l)*_sin5*qd[5];
+    out[53] = T(-2)*T(p.l)*_sin17*qd[17];
+    out[54] = T(-2)*_cos5*T(p.l)*qd[5];
+    out[55] = T(-2)*T(p.l)*_sin5*qd[5];
+    out[56] = T(2)*_cos8*T(p.l)*qd[8];
+    out[57] = T(-2)*_cos20*T(p.l)*qd[20];
+    out[58] = T(2)*T(p.l)*_sin8*qd[8];
+    out[59] = T(-2)*T(p.l)*_sin20*qd[20];
+    out[60] = T(-2)*_cos8*T(p.l)*qd[8];
+    out[61] = T(-2)*T(p.l)*_sin8*qd[8];
+    out[62] = T(2)*_cos11*T(p.l)*qd[11];
+    out[63] = T(-2)*_cos23*T(p.l)*qd[23];
+    out[64] = T(2)*T(p.l)*_sin11*qd[11];
+    out[65] = T(-2)*T(p.l)*_sin23*qd[23];
+    out[66] = T(-2)*_cos11*T(p.l)*qd[11];
+    out[67] = T(-2)*T(p.l)*_sin11*qd[11];
+    out[68] = T(2)*_cos14*T(p.l)*qd[14];
+    out[69] = T(-2)*_cos26*T(p.l)*qd[26];
+    out[70] = T(2)*T(p.l)*_sin14*qd[14];
+    out[71] = T(-2)*T(p.l)*_sin26*qd[26];
     out[72] = T(-1);
     out[73] = T(1);
     out[74] = T(1);
     out[75] = T(0);
-    out[76] = _t27;
-    out[77] = (T(-1)/T(2))*_t0*T(p.m)*T(p.l)*T(p.g);
+    out[76] = _t9;
+    out[77] = (T(-1)/T(2))*_cos2*T(p.m)*T(p.l)*T(p.g);
     out[78] = T(0);
-    out[79] = _t27;
-    out[80] = (T(-1)/T(2))*_t2*T(p.m)*T(p.l)*T(p.g);
+    out[79] = _t9;
+    out[80] = (T(-1)/T(2))*_cos5*T(p.m)*T(p.l)*T(p.g);
     out[81] = T(0);
-    out[82] = _t27;
-    out[83] = (T(-1)/T(2))*_t6*T(p.m)*T(p.l)*T(p.g);
+    out[82] = _t9;
+    out[83] = (T(-1)/T(2))*_cos8*T(p.m)*T(p.l)*T(p.g);
     out[84] = T(0);
-    out[85] = _t27;
-    out[86] = (T(-1)/T(2))*_t10*T(p.m)*T(p.l)*T(p.g);
+    out[85] = _t9;
+    out[86] = (T(-1)/T(2))*_cos11*T(p.m)*T(p.l)*T(p.g);
     out[87] = T(0);
-    out[88] = _t27;
-    out[89] = (T(-1)/T(2))*_t14*T(p.m)*T(p.l)*T(p.g);
+    out[88] = _t9;
+    out[89] = (T(-1)/T(2))*_cos14*T(p.m)*T(p.l)*T(p.g);
     out[90] = T(0);
-    out[91] = _t27;
-    out[92] = (T(-1)/T(2))*_t3*T(p.m)*T(p.l)*T(p.g);
+    out[91] = _t9;
+    out[92] = (T(-1)/T(2))*_cos17*T(p.m)*T(p.l)*T(p.g);
     out[93] = T(0);
-    out[94] = _t27;
-    out[95] = (T(-1)/T(2))*_t7*T(p.m)*T(p.l)*T(p.g);
+    out[94] = _t9;
+    out[95] = (T(-1)/T(2))*_cos20*T(p.m)*T(p.l)*T(p.g);
     out[96] = T(0);
-    out[97] = _t27;
-    out[98] = (T(-1)/T(2))*_t11*T(p.m)*T(p.l)*T(p.g);
+    out[97] = _t9;
+    out[98] = (T(-1)/T(2))*_cos23*T(p.m)*T(p.l)*T(p.g);
     out[99] = T(0);
-    out[100] = _t27;
-    out[101] = (T(-1)/T(2))*_t15*T(p.m)*T(p.l)*T(p.g);
-    out[102] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t1;
-    out[103] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t4;
-    out[104] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t8;
-    out[105] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t12;
-    out[106] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t16;
-    out[107] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t5;
-    out[108] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t9;
-    out[109] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t13;
-    out[110] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_t17;
+    out[100] = _t9;
+    out[101] = (T(-1)/T(2))*_cos26*T(p.m)*T(p.l)*T(p.g);
+    out[102] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_sin2;
+    out[103] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_sin5;
+    out[104] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_sin8;
+    out[105] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_sin11;
+    out[106] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_sin14;
+    out[107] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_sin17;
+    out[108] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_sin20;
+    out[109] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_sin23;
+    out[110] = (T(1)/T(2))*T(p.m)*T(p.l)*T(p.g)*_sin26;
   }
 
  public:
@@ -3712,7 +3772,7 @@ struct n_four_bar_4 {
     if (!d_z && !d_zd && !d_u) return r;
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
-    _tangent_values(w.q, w.qd, t, pz, j.values);
+    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig);
     // Every direction, whichever are asked for: constant directions fold into the kernel's
     // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
     constexpr int ndir = 2 * nf + num_inputs;
@@ -3733,6 +3793,8 @@ struct n_four_bar_4 {
     tp.mb = w.mb;
     tp.mz = w.mz;  // factored by dynamics()
     tp.known = _tangent_known.data();
+    tp.n_r_rows = static_cast<int>(_tangent_r_rows.size());
+    tp.r_rows = _tangent_r_rows.data();
     tp.phi_qq = {static_cast<int>(_phi_qq_row.size()), _phi_qq_row.data(), _phi_qq_j.data(),
                  _phi_qq_k.data(), at(0)};
     const auto sparse = [&](const auto& row, const auto& col, int piece) {

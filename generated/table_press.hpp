@@ -343,6 +343,15 @@ struct table_press {
   using _model = table_press;
 
   // ---- kinegen kernel report (kinegen/kernels/report.hpp)
+  // Forces inlining where GCC or Clang read it: small helpers called in long runs (the reuse's
+  // comparisons) and kernels whose callers' constant tables must fold into their loops.
+#ifndef KINEGEN_ALWAYS_INLINE
+#if defined(__GNUC__) || defined(__clang__)
+#define KINEGEN_ALWAYS_INLINE [[gnu::always_inline]]
+#else
+#define KINEGEN_ALWAYS_INLINE
+#endif
+#endif
   // The real type of a scalar: T itself, or the value_type of std::complex<T>.
   template <class T, class = void>
   struct _RealOf {
@@ -443,7 +452,7 @@ struct table_press {
   // Whether a and b are the same number, -0.0 and 0.0 apart (a NaN never is; a complex
   // number's parts compare with ==).
   template <class X>
-  static bool _same_bits(const X& a, const X& b) noexcept {
+  KINEGEN_ALWAYS_INLINE static bool _same_bits(const X& a, const X& b) noexcept {
     if constexpr (std::is_floating_point_v<X>) {
       return a == b && std::signbit(a) == std::signbit(b);
     } else {

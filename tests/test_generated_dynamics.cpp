@@ -14,6 +14,7 @@
 #include "andrews.hpp"
 #include "cam_liftoff.hpp"
 #include "cart_pole.hpp"
+#include "double_cart_pole.hpp"
 #include "driven_pendulum.hpp"
 #include "four_bar_damped.hpp"
 #include "four_bar_spring.hpp"
@@ -291,6 +292,10 @@ TEST_CASE("generated dynamics_jacobians against `kinegen linearize` and the comp
   const auto press = check_jacobians<km::press_flywheel>("press_flywheel", {0.02, 0.05, 1.0});
   CHECK(press.first < 1e-14);
   CHECK(press.second < 1e-12);
+  const auto pair =
+      check_jacobians<km::double_cart_pole>("double_cart_pole", {0.0, 0.1, -0.4}, -1.5);
+  CHECK(pair.first < 1e-14);
+  CHECK(pair.second < 1e-12);
 }
 
 namespace {

@@ -301,6 +301,38 @@ TEST_CASE("the cart-pole's A and B are the textbook linearization about upright"
   CHECK(l.states == std::vector<std::string>{"x", "phi", "x.v", "phi.v"});
 }
 
+TEST_CASE("the double cart-pole's A and B are the Lagrangian linearization about upright",
+          "[linearize]") {
+  kc::BuildOptions build;
+  build.free_as_state = true;
+  const auto m = kc::CompiledModel::from_file(
+      std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/double_cart_pole.yaml", {}, build);
+  const kc::ForceModel forces = kc::derive_forces(*m);
+  kc::Linearizer lin(*m, forces, 0);
+  const kc::LinearModel l = kc::linearize(lin, lin.initial());
+  // z = (x, phi1, phi2), absolute angles from the rail, upright pi/2 + psi_i. The poles'
+  // centres of mass move at (x' - l1/2 psi1', 0) and (x' - l1 psi1' - l2/2 psi2', 0) there:
+  // T = 1/2 M x'^2 + 1/2 m1 (x' - l1/2 psi1')^2 + 1/2 I1 psi1'^2 + 1/2 m2 (x' - l1 psi1' -
+  // l2/2 psi2')^2 + 1/2 I2 psi2'^2 and V = m1 g l1/2 cos psi1 + m2 g (l1 cos psi1 + l2/2 cos
+  // psi2), I_i = m_i l_i^2 / 12 about the centre.
+  const double cart = 1.0, m1 = 0.3, m2 = 0.2, l1 = 0.6, l2 = 0.4, g = 9.81;
+  const double i1 = m1 * l1 * l1 / 12, i2 = m2 * l2 * l2 / 12;
+  Eigen::Matrix3d mz, kz;
+  mz << cart + m1 + m2, -(m1 / 2 + m2) * l1, -m2 * l2 / 2,                  //
+      -(m1 / 2 + m2) * l1, (m1 / 4 + m2) * l1 * l1 + i1, m2 * l1 * l2 / 2,  //
+      -m2 * l2 / 2, m2 * l1 * l2 / 2, m2 * l2 * l2 / 4 + i2;
+  kz << 0, 0, 0, 0, -(m1 / 2 + m2) * g * l1, 0, 0, 0, -m2 * g * l2 / 2;
+  Eigen::Matrix<double, 6, 6> a_ref = Eigen::Matrix<double, 6, 6>::Zero();
+  a_ref.topRightCorner<3, 3>().setIdentity();
+  a_ref.bottomLeftCorner<3, 3>() = -mz.inverse() * kz;
+  Eigen::Matrix<double, 6, 1> b_ref = Eigen::Matrix<double, 6, 1>::Zero();
+  b_ref.tail<3>() = mz.inverse() * Eigen::Vector3d(1, 0, 0);
+  CHECK((l.a - a_ref).cwiseAbs().maxCoeff() < 1e-12 * a_ref.cwiseAbs().maxCoeff());
+  REQUIRE(l.b.cols() == 1);
+  CHECK((l.b - b_ref).cwiseAbs().maxCoeff() < 1e-12 * b_ref.cwiseAbs().maxCoeff());
+  CHECK(l.xdot.cwiseAbs().maxCoeff() < 1e-13);
+}
+
 namespace {
 
 using C = std::complex<double>;

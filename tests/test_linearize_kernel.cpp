@@ -43,7 +43,9 @@ TEST_CASE("linearize kernel: the inertia forces' tangent is their complex step",
     rax[b] = ax[b].real();
     ray[b] = ay[b].real();
   }
-  L::_inertia_tangent(nb, m, rax.data(), ray.data(), qd, qdd, dq, dqd, tangent.data());
+  std::vector<double> c(5 * nb);
+  L::_inertia_coefficients(nb, m, rax.data(), ray.data(), qd, qdd, c.data());
+  L::_inertia_tangent(nb, rax.data(), ray.data(), c.data(), dq, dqd, tangent.data());
   for (int k = 0; k < nq; ++k) {
     INFO("coordinate " << k);
     CHECK(tangent[k] == Approx(out[k].imag() / h).epsilon(1e-14).margin(1e-15));
@@ -146,6 +148,16 @@ void check_pinned_body() {
     columns = 0;
     REQUIRE(L::_dynamics_tangent(given, 3, slots, again, work.data(), identity, identity) == 0);
     CHECK(columns == 2 + 1 + 2);
+    for (int k = 0; k < 3; ++k) CHECK(again[k] == out[k]);
+    // The torque moves neither q nor qd (_kStill), and r_a can be non-zero on row 2 only (the
+    // only row of gamma_w; Phi_qq, gamma_q and gamma_qd are empty): its two solves spared too.
+    const int still[] = {0, 1, L::_kStill}, r_rows[] = {2};
+    given.known = still;
+    given.n_r_rows = 1;
+    given.r_rows = r_rows;
+    columns = 0;
+    REQUIRE(L::_dynamics_tangent(given, 3, slots, again, work.data(), identity, identity) == 0);
+    CHECK(columns == 2 + 0 + 1);
     for (int k = 0; k < 3; ++k) CHECK(again[k] == out[k]);
   }
   using R = decltype(std::abs(T()));

@@ -431,7 +431,8 @@ void emit_block_solver(std::ostringstream& os, const Mechanism& m, const SymbolT
     if (linear_blocks_supported(st)) {
       emit_sensitivity(linear, symbols, model, options);
       // The force functions take qdd, which only a header with the accelerations gives.
-      if (acceleration) emit_forces(linear, m, symbols, model, programs, options);
+      if (acceleration)
+        emit_forces(linear, m, symbols, model, programs, options, plan.program.trig_slot);
     }
     const std::string linear_code = linear.str();
     // With forces solve_step keeps its factors for solve_forces.

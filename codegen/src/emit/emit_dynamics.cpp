@@ -1,12 +1,15 @@
 // The header's forward dynamics (mechanism format 7.2, 7.5): dynamics(), the minimal
 // coordinates' accelerations by the block program and the dynamics kernel, as `kinegen
 // simulate` computes them (analysis/dynamics.cpp). Printed after the force functions it calls.
+#include <algorithm>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "kinegen/codegen/symbolic/forces.hpp"
 #include "kinegen/codegen/symbolic/tangent.hpp"
+#include "kinegen/kernels/linearize.hpp"
 #include "printer.hpp"
 #include "sections.hpp"
 
@@ -260,8 +263,7 @@ void emit_jacobians_solve(std::ostringstream& os) {
 }
 
 void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, int nq, int nf) {
-  const int work = nq * nf + nq * (nf + 1) + nf * nf + 3 * nq * ndir + 2 * nq +
-                   nq * std::max(ndir, nf + 1);
+  const int work = kernels::LinearizeKernel::_tangent_work_size(nq, nf, ndir);
   os << "  // dynamics_jacobians' work space, caller-owned (no heap).\n"
      << "  template <class T>\n"
      << "  struct JacobianWork {\n"
@@ -293,7 +295,7 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
     if (!d_z && !d_zd && !d_u) return r;
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
-    _tangent_values(w.q, w.qd, t, pz, j.values);
+    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig);
     // Every direction, whichever are asked for: constant directions fold into the kernel's
     // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
     constexpr int ndir = 2 * nf + num_inputs;
@@ -314,6 +316,8 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
     tp.mb = w.mb;
     tp.mz = w.mz;  // factored by dynamics()
     tp.known = _tangent_known.data();
+    tp.n_r_rows = static_cast<int>(_tangent_r_rows.size());
+    tp.r_rows = _tangent_r_rows.data();
     tp.phi_qq = {static_cast<int>(_phi_qq_row.size()), _phi_qq_row.data(), _phi_qq_j.data(),
                  _phi_qq_k.data(), at(0)};
     const auto sparse = [&](const auto& row, const auto& col, int piece) {
@@ -330,6 +334,52 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
     tp.applied_w = sparse(_applied_w_row, _applied_w_col, 10);
 )";
   emit_jacobians_solve(os);
+}
+
+// _tangent_values(q, qd, t, p, out, trig). The sin and cos of a coordinate the block solver
+// caches come from the work space's cache (_trig): dynamics() left its anchors at q, so they
+// cost a rotation, not a sin and a cos (to a rounding of them). A function split in parts
+// evaluates them itself and ignores trig.
+void emit_tangent_values(std::ostringstream& os, const Program& program, int num_values,
+                         const DynamicsSource& d) {
+  const int max_ops = d.options.max_function_ops;
+  const std::string size = idx(std::max(num_values, 1));
+  if (max_ops > 0 && (program.operation_count() > max_ops ||
+                      static_cast<int>(program.outputs.size()) > max_part_outputs(max_ops))) {
+    emit_function(os, "_tangent_values", size.c_str(), program, d.symbols, true, max_ops);
+    os << "  template <class T>\n"
+       << "  static void _tangent_values(const T* q, const T* qd, T t, const Params& p, T* out,\n"
+       << "                              T*) noexcept {\n"
+       << "    _tangent_values(q, qd, t, p, out);\n"
+       << "  }\n";
+    return;
+  }
+  FunctionPrinter pr(program, d.symbols);
+  std::ostringstream trig;
+  std::vector<int> declared(d.trig_slot.size(), 0);
+  for (std::size_t id = 0; id < program.nodes.size(); ++id) {
+    const Node& n = program.nodes[id];
+    if (n.kind != OpKind::kSin && n.kind != OpKind::kCos) continue;
+    const Node& a = program.nodes[n.args[0]];
+    if (a.kind != OpKind::kInput || a.input.kind != InputKind::kQ) continue;
+    const int c = a.input.index;
+    if (c >= static_cast<int>(d.trig_slot.size()) || d.trig_slot[c] < 0) continue;
+    if (!declared[c]++)
+      trig << "    T _sin" << c << ", _cos" << c << ";\n    _trig(_sin" << c << ", _cos" << c
+           << ", q[" << c << "], trig, " << d.trig_slot[c] << ");\n";
+    pr.bind(static_cast<int>(id), (n.kind == OpKind::kSin ? "_sin" : "_cos") + idx(c));
+  }
+  os << "  template <class T>\n"
+     << "  static void _tangent_values([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,\n"
+     << "      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,\n"
+     << "      [[maybe_unused]] T* trig) noexcept {\n"
+     << "    // out[" << size << "]; " << program.operation_count() << " operations\n";
+  if (const std::string used = std_functions(program); !used.empty())
+    os << "    using " << used << ";\n";
+  if (!trig.str().empty())
+    os << "    // sin and cos from the cache (trig_cache_size), anchored by dynamics() at q\n"
+       << trig.str();
+  os << pr.body("    ") << "  }\n";
 }
 
 void emit_jacobians(std::ostringstream& os, const DynamicsSource& d) {
@@ -358,12 +408,25 @@ void emit_jacobians(std::ostringstream& os, const DynamicsSource& d) {
      << "  // then the loads' inputs), each starting at _tangent_begin[piece], and their places.\n";
   emit_tangent_tables(os, t, begin);
   os << int_array("_tangent_slots", slots);
-  std::vector<int> known;  // the kernel's: z_k and zd_k have B's column as dq and dqd
-  for (int i = 0; i < ndir; ++i) known.push_back(i < 2 * nf ? i : -1);
+  // The kernel's: z_k and zd_k have B's column as dq and dqd; a slot that Phi, nu and gamma
+  // do not read (a load's input) moves neither q nor qd (_kStill).
+  const auto reads = [&](const SparseExpr& e, int slot) {
+    return std::find(e.col.begin(), e.col.end(), slot) != e.col.end();
+  };
+  std::vector<int> known;
+  for (int i = 0; i < ndir; ++i) {
+    const bool still =
+        !reads(t.phi_w, slots[i]) && !reads(t.nu_w, slots[i]) && !reads(t.gamma_w, slots[i]);
+    known.push_back(i < 2 * nf ? i : still ? -2 : -1);
+  }
   os << int_array("_tangent_known", known);
+  // The rows the acceleration residual r_a can be non-zero on (the kernel's r_rows).
+  std::set<int> r_rows(t.phi_qq.row.begin(), t.phi_qq.row.end());
+  for (const SparseExpr* e : {&t.gamma_q, &t.gamma_qd, &t.gamma_w})
+    r_rows.insert(e->row.begin(), e->row.end());
+  os << int_array("_tangent_r_rows", std::vector<int>(r_rows.begin(), r_rows.end()));
 
-  emit_function(os, "_tangent_values", idx(std::max(num_values, 1)).c_str(), program, d.symbols,
-                true, d.options.max_function_ops);
+  emit_tangent_values(os, program, num_values, d);
   os << "\n public:\n";
   emit_jacobians_function(os, num_values, ndir, static_cast<int>(d.model.coordinate_kinds.size()),
                           nf);

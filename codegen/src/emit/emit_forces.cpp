@@ -34,13 +34,15 @@ bool has_force_data(const ForceModel& f) {
 class ForceCode {
  public:
   ForceCode(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
-            const ModelPrograms& programs, const EmitOptions& options, ForceModel f)
+            const ModelPrograms& programs, const EmitOptions& options, ForceModel f,
+            const std::vector<int>& trig_slot)
       : m_(m),
         symbols_(symbols),
         model_(model),
         options_(options),
         f_(std::move(f)),
         names_(force_columns(m)),
+        trig_slot_(trig_slot),
         mass_at_(m.bodies.size(), -1) {
     for (std::size_t e = 0; e < programs.jac_rows.size(); ++e)
       entry_[{programs.jac_rows[e], programs.jac_cols[e]}] = static_cast<int>(e);
@@ -127,7 +129,7 @@ class ForceCode {
        << columns_.str() << "  }\n";
     if (!m_.free_drivers().empty())
       emit_dynamics(os, {m_, symbols_, model_, f_, options_, mass_at_,
-                         static_cast<int>(geometry.size())});
+                         static_cast<int>(geometry.size()), trig_slot_});
   }
 
  private:
@@ -239,7 +241,8 @@ class ForceCode {
   const SymbolicModel& model_;
   const EmitOptions& options_;
   const ForceModel f_;
-  const std::vector<std::string> names_;      // force_columns(m)
+  const std::vector<std::string> names_;  // force_columns(m)
+  const std::vector<int>& trig_slot_;
   std::map<std::pair<int, int>, int> entry_;  // Phi_q's (row, column) -> entry
   // What the functions read besides Phi_q: per body with mass or inertia m, J and A com; per
   // distance driver its length; per joint with columns the global offset A s of its point.
@@ -258,11 +261,11 @@ class ForceCode {
 // instead of evaluated.
 void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
                  const SymbolicModel& model, const ModelPrograms& programs,
-                 const EmitOptions& options) {
+                 const EmitOptions& options, const std::vector<int>& trig_slot) {
   if (m.forces.loads.empty() && m.forces.bodies.empty()) return;
   ForceModel f = derive_forces(m, symbols, model, m.forces);
   if (!has_force_data(f)) return;
-  ForceCode(m, symbols, model, programs, options, std::move(f)).print(os);
+  ForceCode(m, symbols, model, programs, options, std::move(f), trig_slot).print(os);
 }
 
 }  // namespace kinegen::codegen::emit_detail

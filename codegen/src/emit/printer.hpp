@@ -66,12 +66,12 @@ class FunctionPrinter {
                    const std::vector<int>* out_index = nullptr,
                    bool outputs_through_table = false) {
     std::ostringstream os;
-    int count = 0;
-    for (const auto& n : p_.nodes) count += n.named;
+    int count = 0;  // the named terms not bound to the caller's variables
+    for (std::size_t k = 0; k < p_.nodes.size(); ++k) count += p_.nodes[k].named && !named(static_cast<int>(k));
     if (count > 0) os << indent << "// Intermediate terms (" << count << ")\n";
     int next = 0;
     for (std::size_t k = 0; k < p_.nodes.size(); ++k) {
-      if (!p_.nodes[k].named) continue;
+      if (!p_.nodes[k].named || named(static_cast<int>(k))) continue;
       const std::string name = "_t" + std::to_string(next++);
       os << indent << "const T " << name << " = " << print(static_cast<int>(k)).text << ";\n";
       names_[k] = name;

@@ -20,9 +20,10 @@ void emit_sensitivity(std::ostringstream& os, const SymbolTable& symbols,
                       const SymbolicModel& model, const EmitOptions& options);
 
 // The force functions, when the mechanism has masses, inertias or loads (emit_forces.cpp).
+// trig_slot: each coordinate's slot in the block solver's sin/cos cache (-1: none).
 void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
                  const SymbolicModel& model, const ModelPrograms& programs,
-                 const EmitOptions& options);
+                 const EmitOptions& options, const std::vector<int>& trig_slot);
 
 // What emit_dynamics prints from: the force model and mass_at[b], where body b's m, J and A
 // com start in _force_geometry's output of geometry_size values (-1: no mass).
@@ -34,6 +35,7 @@ struct DynamicsSource {
   const EmitOptions& options;
   std::vector<int> mass_at;
   int geometry_size;
+  const std::vector<int>& trig_slot;  // as emit_forces'
 };
 
 // dynamics(), its work space and its exact Jacobians (format 7.2, 7.5; emit_dynamics.cpp),
