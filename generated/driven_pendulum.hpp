@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <type_traits>
 #include <utility>
@@ -50,7 +51,7 @@ struct driven_pendulum {
     const void* _free = nullptr;
   };
 
-  // Whether a and b hold the same values (-0.0 and 0.0 apart, a NaN never).
+  // Whether a and b hold the same values (_same_bits: -0.0 and 0.0 apart).
   static bool _same_params([[maybe_unused]] const Params& a,
                            [[maybe_unused]] const Params& b) noexcept {
     return _same_bits(a.m, b.m) &&
@@ -267,11 +268,22 @@ struct driven_pendulum {
     o.min_rcond = R(u.min_rcond);
     return o;
   }
-  // Whether a and b are the same number, -0.0 and 0.0 apart (a NaN never is; a complex
-  // number's parts compare with ==).
+  // Whether a and b are the same number, -0.0 and 0.0 apart: float and double by their bits
+  // (one integer comparison; a NaN matches only the same NaN), other floating types by value
+  // and sign (a NaN never matches), a complex number's parts with ==.
   template <class X>
   KINEGEN_ALWAYS_INLINE static bool _same_bits(const X& a, const X& b) noexcept {
-    if constexpr (std::is_floating_point_v<X>) {
+    if constexpr (std::is_same_v<X, double> && sizeof(double) == sizeof(unsigned long long)) {
+      unsigned long long u, v;
+      std::memcpy(&u, &a, sizeof u);
+      std::memcpy(&v, &b, sizeof v);
+      return u == v;
+    } else if constexpr (std::is_same_v<X, float> && sizeof(float) == sizeof(unsigned)) {
+      unsigned u, v;
+      std::memcpy(&u, &a, sizeof u);
+      std::memcpy(&v, &b, sizeof v);
+      return u == v;
+    } else if constexpr (std::is_floating_point_v<X>) {
       return a == b && std::signbit(a) == std::signbit(b);
     } else {
       return a == b;
@@ -443,6 +455,92 @@ struct driven_pendulum {
     return norm > 0 ? R(1) / norm : R(0);
   }
   // ---- end of kinegen kernel lu
+
+  // ---- kinegen kernel rotation (kinegen/kernels/rotation.hpp)
+  // Rotations of sin and cos by a small angle d, so that a Newton update or the step from a
+  // cached angle needs no new sin or cos: on |d| <= 1/32 the series below are exact to double
+  // rounding (the first omitted terms are below 3e-18 relative), and Newton's updates, mostly
+  // below 2^-14, take two terms (the next below 2e-19 relative).
+  template <class R>
+  static constexpr R _rotate_limit() noexcept {
+    return R(1) / R(32);
+  }
+  template <class T>
+  static void _rotated(const T& s0, const T& c0, const T& d, T& s, T& c) noexcept {
+    using R = _real<T>;
+    // Horner forms; the reciprocals are constants the compiler folds (no division at run time).
+    const T d2 = d * d;
+    T sd, cm;  // sin d and 1 - cos d
+    if (_mag(d) <= R(1) / R(16384)) {
+      sd = d * (T(1) - d2 * (T(1) / T(6)));
+      cm = d2 * (T(1) / T(2)) * (T(1) - d2 * (T(1) / T(12)));
+    } else {
+      sd = d * (T(1) -
+                d2 * (T(1) / T(6)) * (T(1) - d2 * (T(1) / T(20)) * (T(1) - d2 * (T(1) / T(42)))));
+      cm = d2 * (T(1) / T(2)) *
+           (T(1) -
+            d2 * (T(1) / T(12)) * (T(1) - d2 * (T(1) / T(30)) * (T(1) - d2 * (T(1) / T(56)))));
+    }
+    s = s0 + (c0 * sd - s0 * cm);
+    c = c0 - (s0 * sd + c0 * cm);
+  }
+  // sin and cos of an angle after a Newton update d (angle = the new value).
+  template <class T>
+  static void _rotate(T& s, T& c, const T& d, const T& angle) noexcept {
+    if (_mag(d) <= _rotate_limit<_real<T>>()) {
+      _rotated(T(s), T(c), d, s, c);
+    } else {
+      using std::cos, std::sin;
+      s = sin(angle);
+      c = cos(angle);
+    }
+  }
+  // ---- end of kinegen kernel rotation
+
+  // ---- kinegen kernel trig_cache (kinegen/kernels/trig_cache.hpp)
+  // The cache: 3 values per cached coordinate, an anchor angle and its exact sin and cos. It
+  // starts empty (NaN), and a slot is used only when its sin and cos lie on the unit circle, so
+  // storage that was zero-filled or overwritten is recomputed, not trusted.
+  template <class T, int N>
+  struct BasicTrigCache {
+    T values[N > 0 ? N : 1];
+    BasicTrigCache() noexcept { clear(); }
+    void clear() noexcept {
+      for (T& v : values) v = T(std::numeric_limits<_real<T>>::quiet_NaN());
+    }
+    T* data() noexcept { return values; }
+  };
+  // sin and cos of a coordinate at the start of a solve. With a cache, a coordinate within
+  // _rotate_limit of a valid anchor is rotated from it, so a step along a smooth motion costs
+  // no sin or cos; otherwise they are evaluated and become the new anchor. Always one rotation
+  // from exact values, so no error accumulates over many steps.
+  template <class T>
+  static void _trig(T& s, T& c, const T& angle, T* cache, int slot) noexcept {
+    using R = _real<T>;
+    if (cache) {
+      const T* a = cache + 3 * slot;
+      const T d = angle - a[0];
+      if (_mag(d) <= _rotate_limit<R>() &&
+          _mag(a[1] * a[1] + a[2] * a[2] - T(1)) <= R(16) * std::numeric_limits<R>::epsilon()) {
+        _rotated(a[1], a[2], d, s, c);
+        return;
+      }
+    }
+    _trig_anchor(s, c, angle, cache ? cache + 3 * slot : nullptr);
+  }
+  // The rare path of _trig, on its own so that the common one stays small enough to inline.
+  template <class T>
+  static void _trig_anchor(T& s, T& c, const T& angle, T* a) noexcept {
+    using std::cos, std::sin;
+    s = sin(angle);
+    c = cos(angle);
+    if (a) {
+      a[0] = angle;
+      a[1] = s;
+      a[2] = c;
+    }
+  }
+  // ---- end of kinegen kernel trig_cache
 
   // ---- kinegen kernel block_linear (kinegen/kernels/block_linear.hpp)
   // S is the model; it gives the structure tables: block_begin (num_blocks + 1 offsets into
@@ -961,10 +1059,13 @@ struct driven_pendulum {
 
   // out = M qdd + h(q, qd), the inertia forces' negative: per body the centre of mass's
   // acceleration (xdd - alpha ay - w^2 ax, ydd + alpha ax - w^2 ay) times m, and about the
-  // frame's origin (ax, ay) x that + j alpha. Extra coordinates' rows are 0.
+  // frame's origin (ax, ay) x that + j alpha. Extra coordinates' rows are 0. With c, also
+  // their derivatives at fixed qdd, 5 numbers per body: each body's forces depend on q only
+  // through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w (the w^2 terms):
+  // d(fx, fy, the moment)/dphi and -d(fx, fy)/dw, for _inertia_tangent.
   template <class T>
   static void _inertia_forces(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
-                              const T* qd, const T* qdd, T* out) noexcept {
+                              const T* qd, const T* qdd, T* out, T* c = nullptr) noexcept {
     for (int b = 0; b < nb; ++b) {
       const T& w = qd[3 * b + 2];
       const T& alpha = qdd[3 * b + 2];
@@ -973,29 +1074,18 @@ struct driven_pendulum {
       out[3 * b] = fx;
       out[3 * b + 1] = fy;
       out[3 * b + 2] = ax[b] * fy - ay[b] * fx + j[b] * alpha;
+      if (c) {
+        c[5 * b] = m[b] * (w * w * ay[b] - alpha * ax[b]);
+        c[5 * b + 1] = -m[b] * (alpha * ay[b] + w * w * ax[b]);
+        c[5 * b + 2] = -ay[b] * fy - ax[b] * fx;
+        c[5 * b + 3] = T(2) * m[b] * w * ax[b];
+        c[5 * b + 4] = T(2) * m[b] * w * ay[b];
+      }
     }
     for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
   }
-  // d(M qdd + h)/dq and dh/dqd at fixed qdd, 5 numbers per body into c: each body's forces
-  // depend on q only through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w
-  // (the w^2 terms): d(fx, fy, the moment)/dphi and -d(fx, fy)/dw.
-  template <class T>
-  static void _inertia_coefficients(int nb, const T* m, const T* ax, const T* ay, const T* qd,
-                                    const T* qdd, T* c) noexcept {
-    for (int b = 0; b < nb; ++b) {
-      const T& w = qd[3 * b + 2];
-      const T& alpha = qdd[3 * b + 2];
-      const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
-      const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
-      c[5 * b] = m[b] * (w * w * ay[b] - alpha * ax[b]);
-      c[5 * b + 1] = -m[b] * (alpha * ay[b] + w * w * ax[b]);
-      c[5 * b + 2] = -ay[b] * fy - ax[b] * fx;
-      c[5 * b + 3] = T(2) * m[b] * w * ax[b];
-      c[5 * b + 4] = T(2) * m[b] * w * ay[b];
-    }
-  }
-  // out += d(M qdd + h)/dq dq + dh/dqd dqd from _inertia_coefficients' c; dq or dqd may be
-  // nullptr: 0.
+  // out += d(M qdd + h)/dq dq + dh/dqd dqd from _inertia_forces' c; dq or dqd may be nullptr:
+  // 0.
   template <class T>
   static void _inertia_tangent(int nb, const T* ax, const T* ay, const T* c, const T* dq,
                                const T* dqd, T* out) noexcept {
@@ -1064,7 +1154,7 @@ struct driven_pendulum {
     // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
     const T* lambda = y + nq * nf;
     for (int k = 0; k < nq * nf; ++k) rhs[k] = m_b[k];
-    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, x);
+    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, x, inertia);
     for (int k = 0; k < nq; ++k) rhs[nq * nf + k] = p.applied[k] - x[k];
     if (const int s = solve_transposed(rhs, y, nf + 1)) return s;
     if (const int s = _tangent_motions(p, nq, nf, ndir, slots, dq, dqd, rhs, x, solve)) return s;
@@ -1072,7 +1162,6 @@ struct driven_pendulum {
     // free now), so that the directions' chains of dependent operations overlap.
     T* r = x;
     T* f = rhs;
-    _inertia_coefficients(nb, p.mass, p.ax, p.ay, p.qd, p.qdd, inertia);
     for (int i = 0; i < ndir; ++i)
       _tangent_residuals(p, nq, nb, slots[i], lambda, inertia, _moved(p, nq, nf, i, dq, false),
                          _moved(p, nq, nf, i, dqd, true), r + i * nq, f + i * nq);
@@ -1290,6 +1379,10 @@ struct driven_pendulum {
     return 0;
   }
   // ---- end of kinegen kernel integrate
+
+  // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then cache.data().
+  template <class T>
+  using TrigCache = BasicTrigCache<T, trig_cache_size>;
 
   // The factors of a step's rate solve, kept for solve_forces at the same q and t
   // (solve_step's last argument; kernels/block_linear.hpp): each block's LU (a
@@ -1848,9 +1941,12 @@ struct driven_pendulum {
   template <class T>
   static void _tangent_values([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,
-      [[maybe_unused]] T* trig) noexcept {
+      [[maybe_unused]] T* trig, [[maybe_unused]] T* own) noexcept {
     // out[10]; 6 operations
     using std::cos, std::sin;
+    // sin and cos from the caches: DynamicsWork's (trig), JacobianWork's (own)
+    T _sin5, _cos5;
+    _trig(_sin5, _cos5, q[5], own, 0);
     out[0] = T(-1);
     out[1] = T(1);
     out[2] = T(1);
@@ -1859,8 +1955,8 @@ struct driven_pendulum {
     out[5] = T(0);
     out[6] = T(0);
     out[7] = -T(p.m)*T(p.g);
-    out[8] = -cos(q[5])*T(p.m)*T(p.a)*T(p.g);
-    out[9] = T(p.m)*T(p.a)*T(p.g)*sin(q[5]);
+    out[8] = -_cos5*T(p.m)*T(p.a)*T(p.g);
+    out[9] = T(p.m)*T(p.a)*T(p.g)*_sin5;
   }
 
  public:
@@ -1870,6 +1966,11 @@ struct driven_pendulum {
     T values[10];  // _tangent_values
     T out[nf * 2];
     T work[79];  // _tangent_work_size(nq, nf, 2)
+    // sin and cos of the angles dynamics() does not cache, kept from call to call
+    T trig[3];
+    JacobianWork() noexcept {
+      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty
+    }
   };
 
   // dynamics() and the exact d(zdd)/dz (d_z), d(zdd)/dzd (d_zd) and d(zdd)/du (d_u)
@@ -1896,7 +1997,7 @@ struct driven_pendulum {
     if (!d_z && !d_zd && !d_u) return r;
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
-    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig);
+    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig, j.trig);
     // Every direction, whichever are asked for: constant directions fold into the kernel's
     // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
     constexpr int ndir = 2 * nf + num_inputs;

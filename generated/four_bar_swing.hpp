@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <type_traits>
 #include <utility>
@@ -51,7 +52,7 @@ struct four_bar_swing {
     const void* _free = nullptr;
   };
 
-  // Whether a and b hold the same values (-0.0 and 0.0 apart, a NaN never).
+  // Whether a and b hold the same values (_same_bits: -0.0 and 0.0 apart).
   static bool _same_params([[maybe_unused]] const Params& a,
                            [[maybe_unused]] const Params& b) noexcept {
     return _same_bits(a.a, b.a) &&
@@ -293,11 +294,22 @@ struct four_bar_swing {
     o.min_rcond = R(u.min_rcond);
     return o;
   }
-  // Whether a and b are the same number, -0.0 and 0.0 apart (a NaN never is; a complex
-  // number's parts compare with ==).
+  // Whether a and b are the same number, -0.0 and 0.0 apart: float and double by their bits
+  // (one integer comparison; a NaN matches only the same NaN), other floating types by value
+  // and sign (a NaN never matches), a complex number's parts with ==.
   template <class X>
   KINEGEN_ALWAYS_INLINE static bool _same_bits(const X& a, const X& b) noexcept {
-    if constexpr (std::is_floating_point_v<X>) {
+    if constexpr (std::is_same_v<X, double> && sizeof(double) == sizeof(unsigned long long)) {
+      unsigned long long u, v;
+      std::memcpy(&u, &a, sizeof u);
+      std::memcpy(&v, &b, sizeof v);
+      return u == v;
+    } else if constexpr (std::is_same_v<X, float> && sizeof(float) == sizeof(unsigned)) {
+      unsigned u, v;
+      std::memcpy(&u, &a, sizeof u);
+      std::memcpy(&v, &b, sizeof v);
+      return u == v;
+    } else if constexpr (std::is_floating_point_v<X>) {
       return a == b && std::signbit(a) == std::signbit(b);
     } else {
       return a == b;
@@ -1194,10 +1206,13 @@ struct four_bar_swing {
 
   // out = M qdd + h(q, qd), the inertia forces' negative: per body the centre of mass's
   // acceleration (xdd - alpha ay - w^2 ax, ydd + alpha ax - w^2 ay) times m, and about the
-  // frame's origin (ax, ay) x that + j alpha. Extra coordinates' rows are 0.
+  // frame's origin (ax, ay) x that + j alpha. Extra coordinates' rows are 0. With c, also
+  // their derivatives at fixed qdd, 5 numbers per body: each body's forces depend on q only
+  // through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w (the w^2 terms):
+  // d(fx, fy, the moment)/dphi and -d(fx, fy)/dw, for _inertia_tangent.
   template <class T>
   static void _inertia_forces(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
-                              const T* qd, const T* qdd, T* out) noexcept {
+                              const T* qd, const T* qdd, T* out, T* c = nullptr) noexcept {
     for (int b = 0; b < nb; ++b) {
       const T& w = qd[3 * b + 2];
       const T& alpha = qdd[3 * b + 2];
@@ -1206,29 +1221,18 @@ struct four_bar_swing {
       out[3 * b] = fx;
       out[3 * b + 1] = fy;
       out[3 * b + 2] = ax[b] * fy - ay[b] * fx + j[b] * alpha;
+      if (c) {
+        c[5 * b] = m[b] * (w * w * ay[b] - alpha * ax[b]);
+        c[5 * b + 1] = -m[b] * (alpha * ay[b] + w * w * ax[b]);
+        c[5 * b + 2] = -ay[b] * fy - ax[b] * fx;
+        c[5 * b + 3] = T(2) * m[b] * w * ax[b];
+        c[5 * b + 4] = T(2) * m[b] * w * ay[b];
+      }
     }
     for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
   }
-  // d(M qdd + h)/dq and dh/dqd at fixed qdd, 5 numbers per body into c: each body's forces
-  // depend on q only through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w
-  // (the w^2 terms): d(fx, fy, the moment)/dphi and -d(fx, fy)/dw.
-  template <class T>
-  static void _inertia_coefficients(int nb, const T* m, const T* ax, const T* ay, const T* qd,
-                                    const T* qdd, T* c) noexcept {
-    for (int b = 0; b < nb; ++b) {
-      const T& w = qd[3 * b + 2];
-      const T& alpha = qdd[3 * b + 2];
-      const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
-      const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
-      c[5 * b] = m[b] * (w * w * ay[b] - alpha * ax[b]);
-      c[5 * b + 1] = -m[b] * (alpha * ay[b] + w * w * ax[b]);
-      c[5 * b + 2] = -ay[b] * fy - ax[b] * fx;
-      c[5 * b + 3] = T(2) * m[b] * w * ax[b];
-      c[5 * b + 4] = T(2) * m[b] * w * ay[b];
-    }
-  }
-  // out += d(M qdd + h)/dq dq + dh/dqd dqd from _inertia_coefficients' c; dq or dqd may be
-  // nullptr: 0.
+  // out += d(M qdd + h)/dq dq + dh/dqd dqd from _inertia_forces' c; dq or dqd may be nullptr:
+  // 0.
   template <class T>
   static void _inertia_tangent(int nb, const T* ax, const T* ay, const T* c, const T* dq,
                                const T* dqd, T* out) noexcept {
@@ -1297,7 +1301,7 @@ struct four_bar_swing {
     // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
     const T* lambda = y + nq * nf;
     for (int k = 0; k < nq * nf; ++k) rhs[k] = m_b[k];
-    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, x);
+    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, x, inertia);
     for (int k = 0; k < nq; ++k) rhs[nq * nf + k] = p.applied[k] - x[k];
     if (const int s = solve_transposed(rhs, y, nf + 1)) return s;
     if (const int s = _tangent_motions(p, nq, nf, ndir, slots, dq, dqd, rhs, x, solve)) return s;
@@ -1305,7 +1309,6 @@ struct four_bar_swing {
     // free now), so that the directions' chains of dependent operations overlap.
     T* r = x;
     T* f = rhs;
-    _inertia_coefficients(nb, p.mass, p.ax, p.ay, p.qd, p.qdd, inertia);
     for (int i = 0; i < ndir; ++i)
       _tangent_residuals(p, nq, nb, slots[i], lambda, inertia, _moved(p, nq, nf, i, dq, false),
                          _moved(p, nq, nf, i, dqd, true), r + i * nq, f + i * nq);
@@ -2363,10 +2366,10 @@ struct four_bar_swing {
   template <class T>
   static void _tangent_values([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,
       [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,
-      [[maybe_unused]] T* trig) noexcept {
+      [[maybe_unused]] T* trig, [[maybe_unused]] T* own) noexcept {
     // out[33]; 37 operations
     using std::cos, std::sin;
-    // sin and cos from the cache (trig_cache_size), anchored by dynamics() at q
+    // sin and cos from the caches: DynamicsWork's (trig), JacobianWork's (own)
     T _sin2, _cos2;
     _trig(_sin2, _cos2, q[2], trig, 0);
     T _sin5, _cos5;
@@ -2421,6 +2424,11 @@ struct four_bar_swing {
     T values[33];  // _tangent_values
     T out[nf * 2];
     T work[118];  // _tangent_work_size(nq, nf, 2)
+    // sin and cos of the angles dynamics() does not cache, kept from call to call
+    T trig[1];
+    JacobianWork() noexcept {
+      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty
+    }
   };
 
   // dynamics() and the exact d(zdd)/dz (d_z), d(zdd)/dzd (d_zd) and d(zdd)/du (d_u)
@@ -2447,7 +2455,7 @@ struct four_bar_swing {
     if (!d_z && !d_zd && !d_u) return r;
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
-    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig);
+    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig, j.trig);
     // Every direction, whichever are asked for: constant directions fold into the kernel's
     // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
     constexpr int ndir = 2 * nf + num_inputs;

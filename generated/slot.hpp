@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <type_traits>
 #include <utility>
@@ -316,11 +317,22 @@ struct slot {
     o.min_rcond = R(u.min_rcond);
     return o;
   }
-  // Whether a and b are the same number, -0.0 and 0.0 apart (a NaN never is; a complex
-  // number's parts compare with ==).
+  // Whether a and b are the same number, -0.0 and 0.0 apart: float and double by their bits
+  // (one integer comparison; a NaN matches only the same NaN), other floating types by value
+  // and sign (a NaN never matches), a complex number's parts with ==.
   template <class X>
   KINEGEN_ALWAYS_INLINE static bool _same_bits(const X& a, const X& b) noexcept {
-    if constexpr (std::is_floating_point_v<X>) {
+    if constexpr (std::is_same_v<X, double> && sizeof(double) == sizeof(unsigned long long)) {
+      unsigned long long u, v;
+      std::memcpy(&u, &a, sizeof u);
+      std::memcpy(&v, &b, sizeof v);
+      return u == v;
+    } else if constexpr (std::is_same_v<X, float> && sizeof(float) == sizeof(unsigned)) {
+      unsigned u, v;
+      std::memcpy(&u, &a, sizeof u);
+      std::memcpy(&v, &b, sizeof v);
+      return u == v;
+    } else if constexpr (std::is_floating_point_v<X>) {
       return a == b && std::signbit(a) == std::signbit(b);
     } else {
       return a == b;

@@ -43,8 +43,8 @@ TEST_CASE("linearize kernel: the inertia forces' tangent is their complex step",
     rax[b] = ax[b].real();
     ray[b] = ay[b].real();
   }
-  std::vector<double> c(5 * nb);
-  L::_inertia_coefficients(nb, m, rax.data(), ray.data(), qd, qdd, c.data());
+  std::vector<double> c(5 * nb), forces(nq);
+  L::_inertia_forces(nb, nq, m, j, rax.data(), ray.data(), qd, qdd, forces.data(), c.data());
   L::_inertia_tangent(nb, rax.data(), ray.data(), c.data(), dq, dqd, tangent.data());
   for (int k = 0; k < nq; ++k) {
     INFO("coordinate " << k);

@@ -240,7 +240,7 @@ void emit_banner(std::ostringstream& os, const Mechanism& m, const EmitOptions& 
      << "// Planar Cartesian kinematics of mechanism '" << m.name << "': Phi(q, t) = 0 with\n"
      << "// nu = -Phi_t and gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.\n"
      << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include "
-        "<limits>\n#include <type_traits>\n#include <utility>\n\n"
+        "<cstring>\n#include <limits>\n#include <type_traits>\n#include <utility>\n\n"
      << "namespace " << options.name_space << " {\n\n";
 }
 
@@ -331,7 +331,7 @@ void emit_params(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
         for (int order = 0; order < 3; ++order) member(input_member(m, static_cast<int>(d), order));
     for (const Load::Input* in : m.load_inputs())
       if (in->table_id < 0) member(in->name);
-    os << "  // Whether a and b hold the same values (-0.0 and 0.0 apart, a NaN never).\n"
+    os << "  // Whether a and b hold the same values (_same_bits: -0.0 and 0.0 apart).\n"
        << "  static bool _same_params([[maybe_unused]] const Params& a,\n"
        << "                           [[maybe_unused]] const Params& b) noexcept {\n"
        << "    return " << (same.empty() ? std::string("true") : "");

@@ -2,6 +2,7 @@
 // coordinates' accelerations by the block program and the dynamics kernel, as `kinegen
 // simulate` computes them (analysis/dynamics.cpp). Printed after the force functions it calls.
 #include <algorithm>
+#include <map>
 #include <set>
 #include <sstream>
 #include <string>
@@ -262,7 +263,8 @@ void emit_jacobians_solve(std::ostringstream& os) {
 )";
 }
 
-void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, int nq, int nf) {
+void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, int nq, int nf,
+                             int own_trig) {
   const int work = kernels::LinearizeKernel::_tangent_work_size(nq, nf, ndir);
   os << "  // dynamics_jacobians' work space, caller-owned (no heap).\n"
      << "  template <class T>\n"
@@ -270,6 +272,11 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
      << "    T values[" << std::max(num_values, 1) << "];  // _tangent_values\n"
      << "    T out[nf * " << ndir << "];\n"
      << "    T work[" << work << "];  // _tangent_work_size(nq, nf, " << ndir << ")\n"
+     << "    // sin and cos of the angles dynamics() does not cache, kept from call to call\n"
+     << "    T trig[" << std::max(3 * own_trig, 1) << "];\n"
+     << "    JacobianWork() noexcept {\n"
+     << "      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty\n"
+     << "    }\n"
      << "  };\n\n";
   os << R"(  // dynamics() and the exact d(zdd)/dz (d_z), d(zdd)/dzd (d_zd) and d(zdd)/du (d_u)
   // there, each column-major (d_z[j * nf + i] = d zdd_i / d z_j; d_u: nf x num_inputs), any
@@ -295,7 +302,7 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
     if (!d_z && !d_zd && !d_u) return r;
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
-    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig);
+    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig, j.trig);
     // Every direction, whichever are asked for: constant directions fold into the kernel's
     // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
     constexpr int ndir = 2 * nf + num_inputs;
@@ -336,12 +343,14 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
   emit_jacobians_solve(os);
 }
 
-// _tangent_values(q, qd, t, p, out, trig). The sin and cos of a coordinate the block solver
-// caches come from the work space's cache (_trig): dynamics() left its anchors at q, so they
-// cost a rotation, not a sin and a cos (to a rounding of them). A function split in parts
-// evaluates them itself and ignores trig.
-void emit_tangent_values(std::ostringstream& os, const Program& program, int num_values,
-                         const DynamicsSource& d) {
+// _tangent_values(q, qd, t, p, out, trig, own). sin and cos of the coordinates come from
+// caches (_trig): a coordinate the block solver caches from DynamicsWork's (trig), where
+// dynamics() left its anchors at q; any other from JacobianWork's (own), anchored by the
+// calls before. Near an anchor they cost a rotation, not a sin and a cos (to a rounding of
+// them). A function split in parts evaluates them itself and ignores both. Returns the
+// number of `own` slots.
+int emit_tangent_values(std::ostringstream& os, const Program& program, int num_values,
+                        const DynamicsSource& d) {
   const int max_ops = d.options.max_function_ops;
   const std::string size = idx(std::max(num_values, 1));
   if (max_ops > 0 && (program.operation_count() > max_ops ||
@@ -349,37 +358,41 @@ void emit_tangent_values(std::ostringstream& os, const Program& program, int num
     emit_function(os, "_tangent_values", size.c_str(), program, d.symbols, true, max_ops);
     os << "  template <class T>\n"
        << "  static void _tangent_values(const T* q, const T* qd, T t, const Params& p, T* out,\n"
-       << "                              T*) noexcept {\n"
+       << "                              T*, T*) noexcept {\n"
        << "    _tangent_values(q, qd, t, p, out);\n"
        << "  }\n";
-    return;
+    return 0;
   }
   FunctionPrinter pr(program, d.symbols);
   std::ostringstream trig;
-  std::vector<int> declared(d.trig_slot.size(), 0);
+  std::map<int, int> own;  // coordinate -> its slot in `own`
+  std::set<int> declared;
   for (std::size_t id = 0; id < program.nodes.size(); ++id) {
     const Node& n = program.nodes[id];
     if (n.kind != OpKind::kSin && n.kind != OpKind::kCos) continue;
     const Node& a = program.nodes[n.args[0]];
     if (a.kind != OpKind::kInput || a.input.kind != InputKind::kQ) continue;
     const int c = a.input.index;
-    if (c >= static_cast<int>(d.trig_slot.size()) || d.trig_slot[c] < 0) continue;
-    if (!declared[c]++)
+    const bool cached = c < static_cast<int>(d.trig_slot.size()) && d.trig_slot[c] >= 0;
+    if (declared.insert(c).second) {
+      const int slot = cached ? d.trig_slot[c] : own.emplace(c, own.size()).first->second;
       trig << "    T _sin" << c << ", _cos" << c << ";\n    _trig(_sin" << c << ", _cos" << c
-           << ", q[" << c << "], trig, " << d.trig_slot[c] << ");\n";
+           << ", q[" << c << "], " << (cached ? "trig" : "own") << ", " << slot << ");\n";
+    }
     pr.bind(static_cast<int>(id), (n.kind == OpKind::kSin ? "_sin" : "_cos") + idx(c));
   }
   os << "  template <class T>\n"
      << "  static void _tangent_values([[maybe_unused]] const T* q, [[maybe_unused]] const T* qd,\n"
      << "      [[maybe_unused]] T t, [[maybe_unused]] const Params& p, T* out,\n"
-     << "      [[maybe_unused]] T* trig) noexcept {\n"
+     << "      [[maybe_unused]] T* trig, [[maybe_unused]] T* own) noexcept {\n"
      << "    // out[" << size << "]; " << program.operation_count() << " operations\n";
   if (const std::string used = std_functions(program); !used.empty())
     os << "    using " << used << ";\n";
   if (!trig.str().empty())
-    os << "    // sin and cos from the cache (trig_cache_size), anchored by dynamics() at q\n"
+    os << "    // sin and cos from the caches: DynamicsWork's (trig), JacobianWork's (own)\n"
        << trig.str();
   os << pr.body("    ") << "  }\n";
+  return static_cast<int>(own.size());
 }
 
 void emit_jacobians(std::ostringstream& os, const DynamicsSource& d) {
@@ -426,10 +439,10 @@ void emit_jacobians(std::ostringstream& os, const DynamicsSource& d) {
     r_rows.insert(e->row.begin(), e->row.end());
   os << int_array("_tangent_r_rows", std::vector<int>(r_rows.begin(), r_rows.end()));
 
-  emit_tangent_values(os, program, num_values, d);
+  const int own_trig = emit_tangent_values(os, program, num_values, d);
   os << "\n public:\n";
   emit_jacobians_function(os, num_values, ndir, static_cast<int>(d.model.coordinate_kinds.size()),
-                          nf);
+                          nf, own_trig);
 }
 
 // step_implicit and what both steps share.

@@ -110,10 +110,13 @@ struct LinearizeKernel : DynamicsKernel {
 
   // out = M qdd + h(q, qd), the inertia forces' negative: per body the centre of mass's
   // acceleration (xdd - alpha ay - w^2 ax, ydd + alpha ax - w^2 ay) times m, and about the
-  // frame's origin (ax, ay) x that + j alpha. Extra coordinates' rows are 0.
+  // frame's origin (ax, ay) x that + j alpha. Extra coordinates' rows are 0. With c, also
+  // their derivatives at fixed qdd, 5 numbers per body: each body's forces depend on q only
+  // through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w (the w^2 terms):
+  // d(fx, fy, the moment)/dphi and -d(fx, fy)/dw, for _inertia_tangent.
   template <class T>
   static void _inertia_forces(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
-                              const T* qd, const T* qdd, T* out) noexcept {
+                              const T* qd, const T* qdd, T* out, T* c = nullptr) noexcept {
     for (int b = 0; b < nb; ++b) {
       const T& w = qd[3 * b + 2];
       const T& alpha = qdd[3 * b + 2];
@@ -122,29 +125,18 @@ struct LinearizeKernel : DynamicsKernel {
       out[3 * b] = fx;
       out[3 * b + 1] = fy;
       out[3 * b + 2] = ax[b] * fy - ay[b] * fx + j[b] * alpha;
+      if (c) {
+        c[5 * b] = m[b] * (w * w * ay[b] - alpha * ax[b]);
+        c[5 * b + 1] = -m[b] * (alpha * ay[b] + w * w * ax[b]);
+        c[5 * b + 2] = -ay[b] * fy - ax[b] * fx;
+        c[5 * b + 3] = T(2) * m[b] * w * ax[b];
+        c[5 * b + 4] = T(2) * m[b] * w * ay[b];
+      }
     }
     for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
   }
-  // d(M qdd + h)/dq and dh/dqd at fixed qdd, 5 numbers per body into c: each body's forces
-  // depend on q only through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w
-  // (the w^2 terms): d(fx, fy, the moment)/dphi and -d(fx, fy)/dw.
-  template <class T>
-  static void _inertia_coefficients(int nb, const T* m, const T* ax, const T* ay, const T* qd,
-                                    const T* qdd, T* c) noexcept {
-    for (int b = 0; b < nb; ++b) {
-      const T& w = qd[3 * b + 2];
-      const T& alpha = qdd[3 * b + 2];
-      const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
-      const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
-      c[5 * b] = m[b] * (w * w * ay[b] - alpha * ax[b]);
-      c[5 * b + 1] = -m[b] * (alpha * ay[b] + w * w * ax[b]);
-      c[5 * b + 2] = -ay[b] * fy - ax[b] * fx;
-      c[5 * b + 3] = T(2) * m[b] * w * ax[b];
-      c[5 * b + 4] = T(2) * m[b] * w * ay[b];
-    }
-  }
-  // out += d(M qdd + h)/dq dq + dh/dqd dqd from _inertia_coefficients' c; dq or dqd may be
-  // nullptr: 0.
+  // out += d(M qdd + h)/dq dq + dh/dqd dqd from _inertia_forces' c; dq or dqd may be nullptr:
+  // 0.
   template <class T>
   static void _inertia_tangent(int nb, const T* ax, const T* ay, const T* c, const T* dq,
                                const T* dqd, T* out) noexcept {
@@ -213,7 +205,7 @@ struct LinearizeKernel : DynamicsKernel {
     // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
     const T* lambda = y + nq * nf;
     for (int k = 0; k < nq * nf; ++k) rhs[k] = m_b[k];
-    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, x);
+    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, x, inertia);
     for (int k = 0; k < nq; ++k) rhs[nq * nf + k] = p.applied[k] - x[k];
     if (const int s = solve_transposed(rhs, y, nf + 1)) return s;
     if (const int s = _tangent_motions(p, nq, nf, ndir, slots, dq, dqd, rhs, x, solve)) return s;
@@ -221,7 +213,6 @@ struct LinearizeKernel : DynamicsKernel {
     // free now), so that the directions' chains of dependent operations overlap.
     T* r = x;
     T* f = rhs;
-    _inertia_coefficients(nb, p.mass, p.ax, p.ay, p.qd, p.qdd, inertia);
     for (int i = 0; i < ndir; ++i)
       _tangent_residuals(p, nq, nb, slots[i], lambda, inertia, _moved(p, nq, nf, i, dq, false),
                          _moved(p, nq, nf, i, dqd, true), r + i * nq, f + i * nq);
