@@ -973,7 +973,9 @@ struct press_flywheel {
         });
   }
   // Block k (K x K, factors a, piv) of Phi_q X = B for m columns, earlier blocks solved.
-  template <class S, int K, class Index, class T>
+  // kCheck false: no check that they are finite (a caller that checks what it computes from
+  // them, which any non-finite value reaches).
+  template <class S, int K, bool kCheck = true, class Index, class T>
   static bool _forward_block(Index k, const T* jac, const T* a, const int* piv, const T* b, T* x,
                              int m) noexcept {
     const int b0 = S::block_begin[k];
@@ -990,7 +992,7 @@ struct press_flywheel {
         }
       }
       _lu_solve<K>(a, piv, v);
-      if (!_all_finite<K>(v)) return false;
+      if (kCheck && !_all_finite<K>(v)) return false;
       for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
     }
     return true;
@@ -1000,7 +1002,7 @@ struct press_flywheel {
   // block's factors (block k's K x K at a + S::block_factor_begin[k], its pivots at piv +
   // S::block_begin[k]), checked as _block_forward checks them; then _block_forward_factored and
   // _block_transposed_factored give _block_forward's and _block_transposed's numbers bit for
-  // bit. False from those: a solution that is not finite.
+  // bit. False from those: a solution that is not finite (kCheck false: not checked).
   template <class S, class T, class R>
   static BlockReport<R> _block_factor_all(const T* jac, T* a, int* piv,
                                           const BasicBlockOptions<R>& o) noexcept {
@@ -1011,22 +1013,22 @@ struct press_flywheel {
     });
     return r;
   }
-  template <class S, class T>
+  template <class S, bool kCheck = true, class T>
   static bool _block_forward_factored(const T* jac, const T* a, const int* piv, const T* b, T* x,
                                       int m) noexcept {
     return _each_block_unrolled<S>([&](auto k, auto size) {
-      return _forward_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
-                                                      piv + S::block_begin[k], b, x, m);
+      return _forward_block<S, decltype(size)::value, kCheck>(k, jac, a + S::block_factor_begin[k],
+                                                              piv + S::block_begin[k], b, x, m);
     });
   }
-  template <class S, class T>
+  template <class S, bool kCheck = true, class T>
   static bool _block_transposed_factored(const T* jac, const T* a, const int* piv, T* b, T* y,
                                          int m) noexcept {
     return _each_block_unrolled<S, true>([&](auto k, auto size) {
       for (int col = 0; col < m; ++col)
-        if (!_transposed_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
-                                                         piv + S::block_begin[k], b + col * S::nq,
-                                                         y + col * S::nq))
+        if (!_transposed_block<S, decltype(size)::value, kCheck>(
+                k, jac, a + S::block_factor_begin[k], piv + S::block_begin[k], b + col * S::nq,
+                y + col * S::nq))
           return false;
       return true;
     });
@@ -1045,14 +1047,14 @@ struct press_flywheel {
   // Block k of Phi_q^T y = b with its factors a, piv (K x K: its rows by its coordinates): bc
   // holds the equations of the coordinates (those of later blocks' rows subtracted), yc
   // receives its rows' y. False when they are not finite.
-  template <class S, int K, class Index, class T>
+  template <class S, int K, bool kCheck = true, class Index, class T>
   static bool _transposed_block(Index k, const T* jac, const T* a, const int* piv, T* bc,
                                 T* yc) noexcept {
     const int b0 = S::block_begin[k];
     T v[K];
     for (int j = 0; j < K; ++j) v[j] = bc[S::block_cols[b0 + j]];
     _lu_solve_transposed<K>(a, piv, v);
-    if (!_all_finite<K>(v)) return false;
+    if (kCheck && !_all_finite<K>(v)) return false;
     for (int i = 0; i < K; ++i) _transposed_row<S>(S::block_rows[b0 + i], v[i], k, jac, bc, yc);
     return true;
   }
@@ -1305,7 +1307,8 @@ struct press_flywheel {
     // B e_k), _kStill for a slot that Phi, nu and gamma do not read (a load's input: dq = dqd
     // = 0, r_a = 0), -1 otherwise. Exact: a free item's row is quantity - z or |d|^2 - z^2, so
     // its Phi_z and nu_zd are B's right-hand side, and the solves they spare gave B's numbers;
-    // the terms a zero dq or dqd would multiply are skipped (only a zero's sign can differ).
+    // the terms a zero dq or dqd would multiply are skipped (only a zero's sign can differ,
+    // and a derivative that is not finite there is not multiplied by that zero).
     const int* known = nullptr;
     // Optional (n_r_rows -1: all): the n_r_rows rows r_a can be non-zero on (those of Phi_qq,
     // gamma_q, gamma_qd and gamma_w), so that Y^T r_a skips the others.
@@ -1429,7 +1432,8 @@ struct press_flywheel {
     T* dqd = dq + nq * ndir;
     T* x = dqd + nq * ndir;  // solutions, side by side
     T* rhs = x + nq * ndir;  // their right-hand sides (nf + 1 columns for the transposed)
-    T* inertia = rhs + nq * (ndir > nf + 1 ? ndir : nf + 1);  // 5 nb <= 2 nq
+    // _inertia_forces' 5 numbers per body: 5 nb <= 2 nq, as every body has 3 coordinates.
+    T* inertia = rhs + nq * (ndir > nf + 1 ? ndir : nf + 1);
     const T* m_b = p.mb;  // M B and B^T M B's factors: dynamics()' or computed here
     const T* m_z = p.mz;
     if (!m_b || !m_z) {
@@ -1479,9 +1483,17 @@ struct press_flywheel {
   KINEGEN_ALWAYS_INLINE static const T* _moved(const _TangentPoint<T>& p, int nq, int nf, int i,
                                                const T* d, bool rate) noexcept {
     const int k = p.known ? p.known[i] : -1;
-    if (k == -1 || (rate && k >= 0 && k < nf)) return d + i * nq;
+    if (_solves(p, nf, i, rate)) return d + i * nq;
     if (k == _kStill || (rate ? k < nf : k >= nf)) return nullptr;
     return p.b + (rate ? k - nf : k) * nq;
+  }
+
+  // Whether direction i needs a solve for its dq (rate: dqd); the others are B's columns or 0.
+  template <class T>
+  KINEGEN_ALWAYS_INLINE static bool _solves(const _TangentPoint<T>& p, int nf, int i,
+                                            bool rate) noexcept {
+    const int k = p.known ? p.known[i] : -1;
+    return k == -1 || (rate && k >= 0 && k < nf);
   }
 
   // Each direction's dq = -Phi_q^-1 Phi_w and dqd = -Phi_q^-1 r_v, as _dynamics_tangent
@@ -1491,35 +1503,29 @@ struct press_flywheel {
   KINEGEN_ALWAYS_INLINE static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
                                                     int ndir, const int* slots, T* dq, T* dqd,
                                                     T* rhs, T* x, Solve&& solve) noexcept {
-    const auto known = [&](int i) { return p.known ? p.known[i] : -1; };
-    // Which directions need a solve for their dq (rate: dqd); the others are B's columns or 0.
-    const auto solves = [&](int i, bool rate) {
-      return known(i) == -1 || (rate && known(i) >= 0 && known(i) < nf);
-    };
-    // Solves the m columns in rhs and puts them at d + i nq for the directions i that needed
-    // them; 0 or the solve's status.
-    const auto solve_into = [&](int m, T* d, bool rate) {
-      if (m == 0) return 0;
-      if (const int s = solve(rhs, x, m)) return s;
+    // The m solutions in x, to d + i nq for the directions i that needed them.
+    const auto scatter = [&](T* d, bool rate) {
       for (int i = 0, n = 0; i < ndir; ++i)
-        if (solves(i, rate))
+        if (_solves(p, nf, i, rate))
           for (int k = 0; k < nq; ++k) d[i * nq + k] = x[n++];
-      return 0;
     };
     const auto zero = [&](T* v) {
       for (int k = 0; k < nq; ++k) v[k] = T(0);
     };
     int m = 0;
     for (int i = 0; i < ndir; ++i) {
-      if (!solves(i, false)) continue;
+      if (!_solves(p, nf, i, false)) continue;
       T* v = rhs + m++ * nq;
       zero(v);
       _sparse_column(p.phi_w, slots[i], T(-1), v);
     }
-    if (const int s = solve_into(m, dq, false)) return s;
+    if (m > 0) {
+      if (const int s = solve(rhs, x, m)) return s;
+      scatter(dq, false);
+    }
     m = 0;
     for (int i = 0; i < ndir; ++i) {
-      if (!solves(i, true)) continue;
+      if (!_solves(p, nf, i, true)) continue;
       T* v = rhs + m++ * nq;
       zero(v);
       if (const T* d = _moved(p, nq, nf, i, dq, false)) {
@@ -1529,7 +1535,10 @@ struct press_flywheel {
       _sparse_column(p.nu_w, slots[i], T(-1), v);
       for (int k = 0; k < nq; ++k) v[k] = -v[k];
     }
-    if (const int s = solve_into(m, dqd, true)) return s;
+    if (m > 0) {
+      if (const int s = solve(rhs, x, m)) return s;
+      scatter(dqd, true);
+    }
     return 0;
   }
 
@@ -2538,10 +2547,13 @@ struct press_flywheel {
     T values[28];  // _tangent_values
     T out[nf * 2];
     T work[118];  // _tangent_work_size(nq, nf, 2)
-    // sin and cos of the angles dynamics() does not cache, kept from call to call
+    // A sin/cos cache (as DynamicsWork's) of the angles dynamics() does not cache, kept
+    // from call to call: a call near the last costs a rotation, not a sin and a cos.
     T trig[1];
-    JacobianWork() noexcept {
-      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty
+    JacobianWork() noexcept { reset(); }
+    // Empties the cache (a new start: the same numbers as a fresh JacobianWork).
+    void reset() noexcept {
+      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());
     }
   };
 
@@ -2606,14 +2618,18 @@ struct press_flywheel {
     tp.applied_q = sparse(_applied_q_row, _applied_q_col, 8);
     tp.applied_qd = sparse(_applied_qd_row, _applied_qd_col, 9);
     tp.applied_w = sparse(_applied_w_row, _applied_w_col, 10);
-    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors).
+    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors). The
+    // solves skip their blocks' finiteness checks: the kernel checks the Jacobians, which any
+    // non-finite value of the solutions reaches.
     const int s = _dynamics_tangent<nq, nf, num_bodies>(
         tp, ndir, _tangent_slots.data(), j.out, j.work,
         [&](T* b, T* x, int m) {
-          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, b, x, m) ? 0 : 3;
+          _block_forward_factored<_model, false>(w.jac, w.factors, w.pivots, b, x, m);
+          return 0;
         },
         [&](T* b, T* y, int m) {
-          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, b, y, m) ? 0 : 3;
+          _block_transposed_factored<_model, false>(w.jac, w.factors, w.pivots, b, y, m);
+          return 0;
         });
     if (s != 0) return _fail(r, s, -1);
     for (int i = 0; i < nf * nf; ++i) {

@@ -233,14 +233,18 @@ std::vector<int> tangent_slots(const Mechanism& m) {
 
 // The rest of dynamics_jacobians: the kernel on the block solves, the columns copied out.
 void emit_jacobians_solve(std::ostringstream& os) {
-  os << R"(    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors).
+  os << R"(    // Phi_q's entries and blocks' factors at q are dynamics()' (w.jac, w.factors). The
+    // solves skip their blocks' finiteness checks: the kernel checks the Jacobians, which any
+    // non-finite value of the solutions reaches.
     const int s = _dynamics_tangent<nq, nf, num_bodies>(
         tp, ndir, _tangent_slots.data(), j.out, j.work,
         [&](T* b, T* x, int m) {
-          return _block_forward_factored<_model>(w.jac, w.factors, w.pivots, b, x, m) ? 0 : 3;
+          _block_forward_factored<_model, false>(w.jac, w.factors, w.pivots, b, x, m);
+          return 0;
         },
         [&](T* b, T* y, int m) {
-          return _block_transposed_factored<_model>(w.jac, w.factors, w.pivots, b, y, m) ? 0 : 3;
+          _block_transposed_factored<_model, false>(w.jac, w.factors, w.pivots, b, y, m);
+          return 0;
         });
     if (s != 0) return _fail(r, s, -1);
     for (int i = 0; i < nf * nf; ++i) {
@@ -263,8 +267,9 @@ void emit_jacobians_solve(std::ostringstream& os) {
 )";
 }
 
-void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, int nq, int nf,
-                             int own_trig) {
+// JacobianWork: the tangent's values, outputs and work space, and a sin/cos cache.
+void emit_jacobian_work(std::ostringstream& os, int num_values, int ndir, int nq, int nf,
+                        int own_trig) {
   const int work = kernels::LinearizeKernel::_tangent_work_size(nq, nf, ndir);
   os << "  // dynamics_jacobians' work space, caller-owned (no heap).\n"
      << "  template <class T>\n"
@@ -272,12 +277,20 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
      << "    T values[" << std::max(num_values, 1) << "];  // _tangent_values\n"
      << "    T out[nf * " << ndir << "];\n"
      << "    T work[" << work << "];  // _tangent_work_size(nq, nf, " << ndir << ")\n"
-     << "    // sin and cos of the angles dynamics() does not cache, kept from call to call\n"
+     << "    // A sin/cos cache (as DynamicsWork's) of the angles dynamics() does not cache, kept\n"
+     << "    // from call to call: a call near the last costs a rotation, not a sin and a cos.\n"
      << "    T trig[" << std::max(3 * own_trig, 1) << "];\n"
-     << "    JacobianWork() noexcept {\n"
-     << "      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty\n"
+     << "    JacobianWork() noexcept { reset(); }\n"
+     << "    // Empties the cache (a new start: the same numbers as a fresh JacobianWork).\n"
+     << "    void reset() noexcept {\n"
+     << "      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());\n"
      << "    }\n"
      << "  };\n\n";
+}
+
+void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, int nq, int nf,
+                             int own_trig) {
+  emit_jacobian_work(os, num_values, ndir, nq, nf, own_trig);
   os << R"(  // dynamics() and the exact d(zdd)/dz (d_z), d(zdd)/dzd (d_zd) and d(zdd)/du (d_u)
   // there, each column-major (d_z[j * nf + i] = d zdd_i / d z_j; d_u: nf x num_inputs), any
   // of them nullptr when not wanted: A = [0 I; d_z d_zd] and B = [0; d_u] of x' = f(x, u),
@@ -344,11 +357,12 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
 }
 
 // _tangent_values(q, qd, t, p, out, trig, own). sin and cos of the coordinates come from
-// caches (_trig): a coordinate the block solver caches from DynamicsWork's (trig), where
-// dynamics() left its anchors at q; any other from JacobianWork's (own), anchored by the
-// calls before. Near an anchor they cost a rotation, not a sin and a cos (to a rounding of
-// them). A function split in parts evaluates them itself and ignores both. Returns the
-// number of `own` slots.
+// caches (_trig): a coordinate the block solver caches from DynamicsWork's (trig), anchored
+// where dynamics()' solves started (q itself unless an angle moved by more than _trig's
+// limit, which then anchors the cache at q, as the next solve would); any other from
+// JacobianWork's (own), anchored by the calls before. Near an anchor they cost a rotation,
+// not a sin and a cos (to a rounding of them). A function split in parts evaluates them
+// itself and ignores both. Returns the number of `own` slots.
 int emit_tangent_values(std::ostringstream& os, const Program& program, int num_values,
                         const DynamicsSource& d) {
   const int max_ops = d.options.max_function_ops;

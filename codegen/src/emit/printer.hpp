@@ -67,7 +67,8 @@ class FunctionPrinter {
                    bool outputs_through_table = false) {
     std::ostringstream os;
     int count = 0;  // the named terms not bound to the caller's variables
-    for (std::size_t k = 0; k < p_.nodes.size(); ++k) count += p_.nodes[k].named && !named(static_cast<int>(k));
+    for (std::size_t k = 0; k < p_.nodes.size(); ++k)
+      count += p_.nodes[k].named && !named(static_cast<int>(k));
     if (count > 0) os << indent << "// Intermediate terms (" << count << ")\n";
     int next = 0;
     for (std::size_t k = 0; k < p_.nodes.size(); ++k) {

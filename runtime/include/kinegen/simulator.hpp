@@ -66,7 +66,10 @@ class Simulator {
   // Starts a motion at (t, z, zd): the position solve from the file's q0 (or, with keep_q,
   // from the current q), and the accelerations there.
   Result reset(T t, const T* z, const T* zd, bool keep_q = false) {
-    if (!keep_q) work_.reset();
+    if (!keep_q) {
+      work_.reset();
+      clear(jacobian_work_, 0);
+    }
     t_ = t;
     for (int k = 0; k < nf; ++k) {
       x_[k] = z[k];
@@ -192,6 +195,13 @@ class Simulator {
     using type = typename M::template JacobianWork<T>;
   };
   typename JacobianWorkOf<Model>::type jacobian_work_;
+  // Empties a JacobianWork's sin/cos cache (headers from before it had one: nothing to do).
+  template <class W>
+  static auto clear(W& w, int) -> decltype(w.reset(), void()) {
+    w.reset();
+  }
+  template <class W>
+  static void clear(W&, long) {}
   typename Model::template BlockReport<Real> last_;
   T t_ = T(0);
   T x_[kStates], xd_[kStates];  // the state and its rate at t_

@@ -153,7 +153,9 @@ struct BlockLinearKernel : LuKernel {
         });
   }
   // Block k (K x K, factors a, piv) of Phi_q X = B for m columns, earlier blocks solved.
-  template <class S, int K, class Index, class T>
+  // kCheck false: no check that they are finite (a caller that checks what it computes from
+  // them, which any non-finite value reaches).
+  template <class S, int K, bool kCheck = true, class Index, class T>
   static bool _forward_block(Index k, const T* jac, const T* a, const int* piv, const T* b, T* x,
                              int m) noexcept {
     const int b0 = S::block_begin[k];
@@ -170,7 +172,7 @@ struct BlockLinearKernel : LuKernel {
         }
       }
       _lu_solve<K>(a, piv, v);
-      if (!_all_finite<K>(v)) return false;
+      if (kCheck && !_all_finite<K>(v)) return false;
       for (int j = 0; j < K; ++j) xc[S::block_cols[b0 + j]] = v[j];
     }
     return true;
@@ -180,7 +182,7 @@ struct BlockLinearKernel : LuKernel {
   // block's factors (block k's K x K at a + S::block_factor_begin[k], its pivots at piv +
   // S::block_begin[k]), checked as _block_forward checks them; then _block_forward_factored and
   // _block_transposed_factored give _block_forward's and _block_transposed's numbers bit for
-  // bit. False from those: a solution that is not finite.
+  // bit. False from those: a solution that is not finite (kCheck false: not checked).
   template <class S, class T, class R>
   static BlockReport<R> _block_factor_all(const T* jac, T* a, int* piv,
                                           const BasicBlockOptions<R>& o) noexcept {
@@ -191,22 +193,22 @@ struct BlockLinearKernel : LuKernel {
     });
     return r;
   }
-  template <class S, class T>
+  template <class S, bool kCheck = true, class T>
   static bool _block_forward_factored(const T* jac, const T* a, const int* piv, const T* b, T* x,
                                       int m) noexcept {
     return _each_block_unrolled<S>([&](auto k, auto size) {
-      return _forward_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
-                                                      piv + S::block_begin[k], b, x, m);
+      return _forward_block<S, decltype(size)::value, kCheck>(k, jac, a + S::block_factor_begin[k],
+                                                              piv + S::block_begin[k], b, x, m);
     });
   }
-  template <class S, class T>
+  template <class S, bool kCheck = true, class T>
   static bool _block_transposed_factored(const T* jac, const T* a, const int* piv, T* b, T* y,
                                          int m) noexcept {
     return _each_block_unrolled<S, true>([&](auto k, auto size) {
       for (int col = 0; col < m; ++col)
-        if (!_transposed_block<S, decltype(size)::value>(k, jac, a + S::block_factor_begin[k],
-                                                         piv + S::block_begin[k], b + col * S::nq,
-                                                         y + col * S::nq))
+        if (!_transposed_block<S, decltype(size)::value, kCheck>(
+                k, jac, a + S::block_factor_begin[k], piv + S::block_begin[k], b + col * S::nq,
+                y + col * S::nq))
           return false;
       return true;
     });
@@ -225,14 +227,14 @@ struct BlockLinearKernel : LuKernel {
   // Block k of Phi_q^T y = b with its factors a, piv (K x K: its rows by its coordinates): bc
   // holds the equations of the coordinates (those of later blocks' rows subtracted), yc
   // receives its rows' y. False when they are not finite.
-  template <class S, int K, class Index, class T>
+  template <class S, int K, bool kCheck = true, class Index, class T>
   static bool _transposed_block(Index k, const T* jac, const T* a, const int* piv, T* bc,
                                 T* yc) noexcept {
     const int b0 = S::block_begin[k];
     T v[K];
     for (int j = 0; j < K; ++j) v[j] = bc[S::block_cols[b0 + j]];
     _lu_solve_transposed<K>(a, piv, v);
-    if (!_all_finite<K>(v)) return false;
+    if (kCheck && !_all_finite<K>(v)) return false;
     for (int i = 0; i < K; ++i) _transposed_row<S>(S::block_rows[b0 + i], v[i], k, jac, bc, yc);
     return true;
   }

@@ -65,7 +65,8 @@ struct LinearizeKernel : DynamicsKernel {
     // B e_k), _kStill for a slot that Phi, nu and gamma do not read (a load's input: dq = dqd
     // = 0, r_a = 0), -1 otherwise. Exact: a free item's row is quantity - z or |d|^2 - z^2, so
     // its Phi_z and nu_zd are B's right-hand side, and the solves they spare gave B's numbers;
-    // the terms a zero dq or dqd would multiply are skipped (only a zero's sign can differ).
+    // the terms a zero dq or dqd would multiply are skipped (only a zero's sign can differ,
+    // and a derivative that is not finite there is not multiplied by that zero).
     const int* known = nullptr;
     // Optional (n_r_rows -1: all): the n_r_rows rows r_a can be non-zero on (those of Phi_qq,
     // gamma_q, gamma_qd and gamma_w), so that Y^T r_a skips the others.
@@ -189,7 +190,8 @@ struct LinearizeKernel : DynamicsKernel {
     T* dqd = dq + nq * ndir;
     T* x = dqd + nq * ndir;  // solutions, side by side
     T* rhs = x + nq * ndir;  // their right-hand sides (nf + 1 columns for the transposed)
-    T* inertia = rhs + nq * (ndir > nf + 1 ? ndir : nf + 1);  // 5 nb <= 2 nq
+    // _inertia_forces' 5 numbers per body: 5 nb <= 2 nq, as every body has 3 coordinates.
+    T* inertia = rhs + nq * (ndir > nf + 1 ? ndir : nf + 1);
     const T* m_b = p.mb;  // M B and B^T M B's factors: dynamics()' or computed here
     const T* m_z = p.mz;
     if (!m_b || !m_z) {
@@ -239,9 +241,17 @@ struct LinearizeKernel : DynamicsKernel {
   KINEGEN_ALWAYS_INLINE static const T* _moved(const _TangentPoint<T>& p, int nq, int nf, int i,
                                                const T* d, bool rate) noexcept {
     const int k = p.known ? p.known[i] : -1;
-    if (k == -1 || (rate && k >= 0 && k < nf)) return d + i * nq;
+    if (_solves(p, nf, i, rate)) return d + i * nq;
     if (k == _kStill || (rate ? k < nf : k >= nf)) return nullptr;
     return p.b + (rate ? k - nf : k) * nq;
+  }
+
+  // Whether direction i needs a solve for its dq (rate: dqd); the others are B's columns or 0.
+  template <class T>
+  KINEGEN_ALWAYS_INLINE static bool _solves(const _TangentPoint<T>& p, int nf, int i,
+                                            bool rate) noexcept {
+    const int k = p.known ? p.known[i] : -1;
+    return k == -1 || (rate && k >= 0 && k < nf);
   }
 
   // Each direction's dq = -Phi_q^-1 Phi_w and dqd = -Phi_q^-1 r_v, as _dynamics_tangent
@@ -251,35 +261,29 @@ struct LinearizeKernel : DynamicsKernel {
   KINEGEN_ALWAYS_INLINE static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
                                                     int ndir, const int* slots, T* dq, T* dqd,
                                                     T* rhs, T* x, Solve&& solve) noexcept {
-    const auto known = [&](int i) { return p.known ? p.known[i] : -1; };
-    // Which directions need a solve for their dq (rate: dqd); the others are B's columns or 0.
-    const auto solves = [&](int i, bool rate) {
-      return known(i) == -1 || (rate && known(i) >= 0 && known(i) < nf);
-    };
-    // Solves the m columns in rhs and puts them at d + i nq for the directions i that needed
-    // them; 0 or the solve's status.
-    const auto solve_into = [&](int m, T* d, bool rate) {
-      if (m == 0) return 0;
-      if (const int s = solve(rhs, x, m)) return s;
+    // The m solutions in x, to d + i nq for the directions i that needed them.
+    const auto scatter = [&](T* d, bool rate) {
       for (int i = 0, n = 0; i < ndir; ++i)
-        if (solves(i, rate))
+        if (_solves(p, nf, i, rate))
           for (int k = 0; k < nq; ++k) d[i * nq + k] = x[n++];
-      return 0;
     };
     const auto zero = [&](T* v) {
       for (int k = 0; k < nq; ++k) v[k] = T(0);
     };
     int m = 0;
     for (int i = 0; i < ndir; ++i) {
-      if (!solves(i, false)) continue;
+      if (!_solves(p, nf, i, false)) continue;
       T* v = rhs + m++ * nq;
       zero(v);
       _sparse_column(p.phi_w, slots[i], T(-1), v);
     }
-    if (const int s = solve_into(m, dq, false)) return s;
+    if (m > 0) {
+      if (const int s = solve(rhs, x, m)) return s;
+      scatter(dq, false);
+    }
     m = 0;
     for (int i = 0; i < ndir; ++i) {
-      if (!solves(i, true)) continue;
+      if (!_solves(p, nf, i, true)) continue;
       T* v = rhs + m++ * nq;
       zero(v);
       if (const T* d = _moved(p, nq, nf, i, dq, false)) {
@@ -289,7 +293,10 @@ struct LinearizeKernel : DynamicsKernel {
       _sparse_column(p.nu_w, slots[i], T(-1), v);
       for (int k = 0; k < nq; ++k) v[k] = -v[k];
     }
-    if (const int s = solve_into(m, dqd, true)) return s;
+    if (m > 0) {
+      if (const int s = solve(rhs, x, m)) return s;
+      scatter(dqd, true);
+    }
     return 0;
   }
 
