@@ -32,8 +32,9 @@ struct Setup {
   std::unique_ptr<kc::CompiledModel> model;
   kc::ForceModel forces;
   std::unique_ptr<kc::Linearizer> lin;
-  explicit Setup(const std::string& yaml)
-      : model(compile(yaml)),
+  explicit Setup(const std::string& yaml) : Setup(compile(yaml)) {}
+  explicit Setup(std::unique_ptr<kc::CompiledModel> m)
+      : model(std::move(m)),
         forces(kc::derive_forces(*model)),
         lin(std::make_unique<kc::Linearizer>(*model, forces, 0.0)) {}
   kc::OperatingPoint at(const std::vector<double>& z, const std::vector<double>& zd = {},
@@ -50,6 +51,14 @@ struct Setup {
     return p;
   }
 };
+
+// examples/dynamics/NAME.yaml, its free coordinates as states.
+std::unique_ptr<kc::CompiledModel> example(const std::string& name) {
+  kc::BuildOptions build;
+  build.free_as_state = true;
+  return kc::CompiledModel::from_file(
+      std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/" + name + ".yaml", {}, build);
+}
 
 std::string pendulum(double value0) {
   return R"(
@@ -244,12 +253,8 @@ double reduced_mass(double th, double side) {
 }  // namespace
 
 TEST_CASE("a four-bar held by a diagonal spring: its rest and frequency by hand", "[linearize]") {
-  kc::BuildOptions build;
-  build.free_as_state = true;
-  const auto m = kc::CompiledModel::from_file(
-      std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/four_bar_spring.yaml", {}, build);
-  const kc::ForceModel forces = kc::derive_forces(*m);
-  kc::Linearizer lin(*m, forces, 0);
+  const Setup s(example("four_bar_spring"));
+  kc::Linearizer& lin = *s.lin;
   const kc::Equilibrium e = kc::find_equilibrium(lin, lin.initial());
   // The branch kinegen assembled on (the side of A -> O4 its B lies), from its own B.
   const Eigen::VectorXd& q = e.state.q;
@@ -274,13 +279,9 @@ TEST_CASE("a four-bar held by a diagonal spring: its rest and frequency by hand"
 }
 
 TEST_CASE("the cart-pole's A and B are the textbook linearization about upright", "[linearize]") {
-  kc::BuildOptions build;
-  build.free_as_state = true;
-  const auto m = kc::CompiledModel::from_file(
-      std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/cart_pole.yaml", {}, build);
-  const kc::ForceModel forces = kc::derive_forces(*m);
-  kc::Linearizer lin(*m, forces, 0);
-  REQUIRE(kc::input_names(m->mechanism()) == std::vector<std::string>{"push_x"});
+  const Setup s(example("cart_pole"));
+  kc::Linearizer& lin = *s.lin;
+  REQUIRE(kc::input_names(s.model->mechanism()) == std::vector<std::string>{"push_x"});
   const kc::LinearModel l = kc::linearize(lin, lin.initial());
   // z = (x, phi), phi from the rail; upright phi = pi/2. The pole's centre of mass
   // (x + a cos phi, a sin phi) moves at (x' - a phi', 0) there: T = 1/2 M x'^2 +
@@ -303,13 +304,8 @@ TEST_CASE("the cart-pole's A and B are the textbook linearization about upright"
 
 TEST_CASE("the double cart-pole's A and B are the Lagrangian linearization about upright",
           "[linearize]") {
-  kc::BuildOptions build;
-  build.free_as_state = true;
-  const auto m = kc::CompiledModel::from_file(
-      std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/double_cart_pole.yaml", {}, build);
-  const kc::ForceModel forces = kc::derive_forces(*m);
-  kc::Linearizer lin(*m, forces, 0);
-  const kc::LinearModel l = kc::linearize(lin, lin.initial());
+  const Setup s(example("double_cart_pole"));
+  const kc::LinearModel l = kc::linearize(*s.lin, s.lin->initial());
   // z = (x, phi1, phi2), absolute angles from the rail, upright pi/2 + psi_i. The poles'
   // centres of mass move at (x' - l1/2 psi1', 0) and (x' - l1 psi1' - l2/2 psi2', 0) there:
   // T = 1/2 M x'^2 + 1/2 m1 (x' - l1/2 psi1')^2 + 1/2 I1 psi1'^2 + 1/2 m2 (x' - l1 psi1' -
