@@ -1304,19 +1304,19 @@ struct cam_liftoff {
   static void _inertia_forces(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
                               const T* qd, const T* qdd, T* out, T* c = nullptr) noexcept {
     for (int b = 0; b < nb; ++b) {
-      const T& w = qd[3 * b + 2];
-      const T& alpha = qdd[3 * b + 2];
-      const T fx = m[b] * (qdd[3 * b] - alpha * ay[b] - w * w * ax[b]);
-      const T fy = m[b] * (qdd[3 * b + 1] + alpha * ax[b] - w * w * ay[b]);
+      // Read before any write: out and c may alias the inputs as far as the compiler knows.
+      const T w = qd[3 * b + 2], alpha = qdd[3 * b + 2], mb = m[b], x = ax[b], y = ay[b];
+      const T fx = mb * (qdd[3 * b] - alpha * y - w * w * x);
+      const T fy = mb * (qdd[3 * b + 1] + alpha * x - w * w * y);
       out[3 * b] = fx;
       out[3 * b + 1] = fy;
-      out[3 * b + 2] = ax[b] * fy - ay[b] * fx + j[b] * alpha;
+      out[3 * b + 2] = x * fy - y * fx + j[b] * alpha;
       if (c) {
-        c[5 * b] = m[b] * (w * w * ay[b] - alpha * ax[b]);
-        c[5 * b + 1] = -m[b] * (alpha * ay[b] + w * w * ax[b]);
-        c[5 * b + 2] = -ay[b] * fy - ax[b] * fx;
-        c[5 * b + 3] = T(2) * m[b] * w * ax[b];
-        c[5 * b + 4] = T(2) * m[b] * w * ay[b];
+        c[5 * b] = mb * (w * w * y - alpha * x);
+        c[5 * b + 1] = -mb * (alpha * y + w * w * x);
+        c[5 * b + 2] = -y * fy - x * fx;
+        c[5 * b + 3] = T(2) * mb * w * x;
+        c[5 * b + 4] = T(2) * mb * w * y;
       }
     }
     for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
@@ -1339,9 +1339,10 @@ struct cam_liftoff {
         dfx -= c[5 * b + 3] * dw;
         dfy -= c[5 * b + 4] * dw;
       }
+      const T moment = dn + ax[b] * dfy - ay[b] * dfx;
       out[3 * b] += dfx;
       out[3 * b + 1] += dfy;
-      out[3 * b + 2] += dn + ax[b] * dfy - ay[b] * dfx;
+      out[3 * b + 2] += moment;
     }
   }
 
@@ -1446,7 +1447,18 @@ struct cam_liftoff {
   KINEGEN_ALWAYS_INLINE static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
                                                     int ndir, const int* slots, T* dq, T* dqd,
                                                     T* rhs, T* x, Solve&& solve) noexcept {
-    // The m solutions in x, to d + i nq for the directions i that needed them.
+    // Where the m solutions go: straight to d + i nq when the directions that need them are
+    // consecutive (a model's z's, say), else to x, and then scattered (no copy, same numbers).
+    const auto target = [&](T* d, bool rate) {
+      int first = -1, last = -1, count = 0;
+      for (int i = 0; i < ndir; ++i)
+        if (_solves(p, nf, i, rate)) {
+          if (first < 0) first = i;
+          last = i;
+          ++count;
+        }
+      return last - first + 1 == count ? d + first * nq : nullptr;
+    };
     const auto scatter = [&](T* d, bool rate) {
       for (int i = 0, n = 0; i < ndir; ++i)
         if (_solves(p, nf, i, rate))
@@ -1463,8 +1475,9 @@ struct cam_liftoff {
       _sparse_column(p.phi_w, slots[i], T(-1), v);
     }
     if (m > 0) {
-      if (const int s = solve(rhs, x, m)) return s;
-      scatter(dq, false);
+      T* direct = target(dq, false);
+      if (const int s = solve(rhs, direct ? direct : x, m)) return s;
+      if (!direct) scatter(dq, false);
     }
     m = 0;
     for (int i = 0; i < ndir; ++i) {
@@ -1479,8 +1492,9 @@ struct cam_liftoff {
       for (int k = 0; k < nq; ++k) v[k] = -v[k];
     }
     if (m > 0) {
-      if (const int s = solve(rhs, x, m)) return s;
-      scatter(dqd, true);
+      T* direct = target(dqd, true);
+      if (const int s = solve(rhs, direct ? direct : x, m)) return s;
+      if (!direct) scatter(dqd, true);
     }
     return 0;
   }

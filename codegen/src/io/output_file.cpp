@@ -1,6 +1,7 @@
 #include "kinegen/codegen/io/output_file.hpp"
 
 #include <fcntl.h>
+#include <pthread.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -158,11 +159,20 @@ struct OutputFile::Impl {
   void open_temp(mode_t mode) {
     const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
     std::string pattern = (dir / ("." + target.filename().string() + ".kinegen-XXXXXX")).string();
+    // The file is created and registered for removal with the ending signals held: one that
+    // came in between (a loaded machine can preempt the process there for milliseconds)
+    // would leave the file behind. A held signal is delivered once they are released.
+    sigset_t ending, before;
+    sigemptyset(&ending);
+    for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) sigaddset(&ending, sig);
+    ::pthread_sigmask(SIG_BLOCK, &ending, &before);
     fd = ::mkostemp(pattern.data(), O_CLOEXEC);
-    if (fd < 0) throw UsageError("cannot write '" + name + "': " + error_text(errno));
+    const int err = errno;
+    if (fd >= 0) slot = register_pending(pattern);
+    ::pthread_sigmask(SIG_SETMASK, &before, nullptr);
+    if (fd < 0) throw UsageError("cannot write '" + name + "': " + error_text(err));
     owns_fd = true;
     temp = pattern;
-    slot = register_pending(pattern);
     ::fchmod(fd, mode);
   }
 };
