@@ -2193,14 +2193,11 @@ struct double_cart_pole {
     T values[27];  // _tangent_values
     T out[nf * 7];
     T work[342];  // _tangent_work_size(nq, nf, 7)
-    // A sin/cos cache (as DynamicsWork's) of the angles dynamics() does not cache, kept
-    // from call to call: a call near the last costs a rotation, not a sin and a cos.
-    T trig[3];
-    JacobianWork() noexcept { reset(); }
+    // A sin/cos cache of the angles dynamics() does not cache, kept from call to
+    // call: a call near the last costs a rotation, not a sin and a cos.
+    BasicTrigCache<T, 3> trig;
     // Empties the cache (a new start: the same numbers as a fresh JacobianWork).
-    void reset() noexcept {
-      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());
-    }
+    void reset() noexcept { trig.clear(); }
   };
 
   // dynamics() and the exact d(zdd)/dz (d_z), d(zdd)/dzd (d_zd) and d(zdd)/du (d_u)
@@ -2227,7 +2224,7 @@ struct double_cart_pole {
     if (!d_z && !d_zd && !d_u) return r;
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
-    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig, j.trig);
+    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig, j.trig.data());
     // Every direction, whichever are asked for: constant directions fold into the kernel's
     // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
     constexpr int ndir = 2 * nf + num_inputs;

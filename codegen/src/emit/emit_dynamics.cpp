@@ -2,7 +2,6 @@
 // coordinates' accelerations by the block program and the dynamics kernel, as `kinegen
 // simulate` computes them (analysis/dynamics.cpp). Printed after the force functions it calls.
 #include <algorithm>
-#include <map>
 #include <set>
 #include <sstream>
 #include <string>
@@ -276,16 +275,16 @@ void emit_jacobian_work(std::ostringstream& os, int num_values, int ndir, int nq
      << "  struct JacobianWork {\n"
      << "    T values[" << std::max(num_values, 1) << "];  // _tangent_values\n"
      << "    T out[nf * " << ndir << "];\n"
-     << "    T work[" << work << "];  // _tangent_work_size(nq, nf, " << ndir << ")\n"
-     << "    // A sin/cos cache (as DynamicsWork's) of the angles dynamics() does not cache, kept\n"
-     << "    // from call to call: a call near the last costs a rotation, not a sin and a cos.\n"
-     << "    T trig[" << std::max(3 * own_trig, 1) << "];\n"
-     << "    JacobianWork() noexcept { reset(); }\n"
-     << "    // Empties the cache (a new start: the same numbers as a fresh JacobianWork).\n"
-     << "    void reset() noexcept {\n"
-     << "      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());\n"
-     << "    }\n"
-     << "  };\n\n";
+     << "    T work[" << work << "];  // _tangent_work_size(nq, nf, " << ndir << ")\n";
+  if (own_trig > 0)
+    os << "    // A sin/cos cache of the angles dynamics() does not cache, kept from call to\n"
+       << "    // call: a call near the last costs a rotation, not a sin and a cos.\n"
+       << "    BasicTrigCache<T, " << 3 * own_trig << "> trig;\n"
+       << "    // Empties the cache (a new start: the same numbers as a fresh JacobianWork).\n"
+       << "    void reset() noexcept { trig.clear(); }\n";
+  else
+    os << "    void reset() noexcept {}  // nothing is kept from call to call\n";
+  os << "  };\n\n";
 }
 
 void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, int nq, int nf,
@@ -315,8 +314,10 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
     if (!d_z && !d_zd && !d_u) return r;
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
-    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig, j.trig);
-    // Every direction, whichever are asked for: constant directions fold into the kernel's
+)"
+     << "    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig, "
+     << (own_trig > 0 ? "j.trig.data()" : "static_cast<T*>(nullptr)") << ");\n"
+     << R"(    // Every direction, whichever are asked for: constant directions fold into the kernel's
     // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
     constexpr int ndir = 2 * nf + num_inputs;
     const auto at = [&](int piece) { return j.values + _tangent_begin[piece]; };
@@ -367,8 +368,7 @@ int emit_tangent_values(std::ostringstream& os, const Program& program, int num_
                         const DynamicsSource& d) {
   const int max_ops = d.options.max_function_ops;
   const std::string size = idx(std::max(num_values, 1));
-  if (max_ops > 0 && (program.operation_count() > max_ops ||
-                      static_cast<int>(program.outputs.size()) > max_part_outputs(max_ops))) {
+  if (split_function(program, max_ops)) {
     emit_function(os, "_tangent_values", size.c_str(), program, d.symbols, true, max_ops);
     os << "  template <class T>\n"
        << "  static void _tangent_values(const T* q, const T* qd, T t, const Params& p, T* out,\n"
@@ -379,7 +379,7 @@ int emit_tangent_values(std::ostringstream& os, const Program& program, int num_
   }
   FunctionPrinter pr(program, d.symbols);
   std::ostringstream trig;
-  std::map<int, int> own;  // coordinate -> its slot in `own`
+  int own = 0;  // slots in `own`
   std::set<int> declared;
   for (std::size_t id = 0; id < program.nodes.size(); ++id) {
     const Node& n = program.nodes[id];
@@ -389,7 +389,7 @@ int emit_tangent_values(std::ostringstream& os, const Program& program, int num_
     const int c = a.input.index;
     const bool cached = c < static_cast<int>(d.trig_slot.size()) && d.trig_slot[c] >= 0;
     if (declared.insert(c).second) {
-      const int slot = cached ? d.trig_slot[c] : own.emplace(c, own.size()).first->second;
+      const int slot = cached ? d.trig_slot[c] : own++;
       trig << "    T _sin" << c << ", _cos" << c << ";\n    _trig(_sin" << c << ", _cos" << c
            << ", q[" << c << "], " << (cached ? "trig" : "own") << ", " << slot << ");\n";
     }
@@ -406,7 +406,7 @@ int emit_tangent_values(std::ostringstream& os, const Program& program, int num_
     os << "    // sin and cos from the caches: DynamicsWork's (trig), JacobianWork's (own)\n"
        << trig.str();
   os << pr.body("    ") << "  }\n";
-  return static_cast<int>(own.size());
+  return own;
 }
 
 void emit_jacobians(std::ostringstream& os, const DynamicsSource& d) {
@@ -444,7 +444,7 @@ void emit_jacobians(std::ostringstream& os, const DynamicsSource& d) {
   for (int i = 0; i < ndir; ++i) {
     const bool still =
         !reads(t.phi_w, slots[i]) && !reads(t.nu_w, slots[i]) && !reads(t.gamma_w, slots[i]);
-    known.push_back(i < 2 * nf ? i : still ? -2 : -1);
+    known.push_back(i < 2 * nf ? i : still ? kernels::LinearizeKernel::_kStill : -1);
   }
   os << int_array("_tangent_known", known);
   // The rows the acceleration residual r_a can be non-zero on (the kernel's r_rows).

@@ -101,9 +101,7 @@ void emit_signature(std::ostringstream& os, const std::string& name, bool with_q
 void emit_function(std::ostringstream& os, const char* name, const char* out_size,
                    const Program& program, const SymbolTable& symbols, bool with_qd,
                    int max_ops, const std::vector<int>* out_index, const std::string& tail) {
-  if (max_ops > 0 &&
-      (program.operation_count() > max_ops ||
-       static_cast<int>(program.outputs.size()) > max_part_outputs(max_ops))) {
+  if (split_function(program, max_ops)) {
     const std::vector<ProgramPart> parts = split_program(program, max_ops);
     os << " private:\n";
     for (std::size_t k = 0; k < parts.size(); ++k) {

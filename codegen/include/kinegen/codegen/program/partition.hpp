@@ -19,6 +19,11 @@ namespace kinegen::codegen {
 // operations has about 1600 of them. See docs/scale.md.
 constexpr int kOpsPerStore = 5;
 inline int max_part_outputs(int max_ops) { return std::max(1, max_ops / kOpsPerStore); }
+// Whether a generated function of `program` is split into parts (max_ops > 0: the limit).
+inline bool split_function(const Program& program, int max_ops) {
+  return max_ops > 0 && (program.operation_count() > max_ops ||
+                         static_cast<int>(program.outputs.size()) > max_part_outputs(max_ops));
+}
 
 // What an item of a sequence adds to its part: the expression trees of `nodes` (nodes of
 // `program`; kZero for none), each node counted once per part and constants and inputs free,
