@@ -549,6 +549,17 @@ struct andrews {
 #define KINEGEN_ALWAYS_INLINE
 #endif
 #endif
+  // Keeps GCC's basic-block (SLP) vectorizer out of a function. In the Jacobians' long runs of
+  // scalar code it pairs two values just stored one by one, and such a load waits for the
+  // stores to finish (a failed store-to-load forwarding): the pendulum's took 44 ns, not 20,
+  // and no model gained from it. Define it empty before the header to keep the vectorizer.
+#ifndef KINEGEN_NO_SLP
+#if defined(__GNUC__) && !defined(__clang__)
+#define KINEGEN_NO_SLP [[gnu::optimize("no-tree-slp-vectorize")]]
+#else
+#define KINEGEN_NO_SLP
+#endif
+#endif
   // The real type of a scalar: T itself, or the value_type of std::complex<T>.
   template <class T, class = void>
   struct _RealOf {
@@ -1587,10 +1598,10 @@ struct andrews {
     for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
   }
   // out += d(M qdd + h)/dq dq + dh/dqd dqd from _inertia_forces' c; dq or dqd may be nullptr:
-  // 0.
+  // 0. Always inlined, as _tangent_residuals (below).
   template <class T>
-  static void _inertia_tangent(int nb, const T* ax, const T* ay, const T* c, const T* dq,
-                               const T* dqd, T* out) noexcept {
+  KINEGEN_ALWAYS_INLINE static void _inertia_tangent(int nb, const T* ax, const T* ay, const T* c,
+                                                     const T* dq, const T* dqd, T* out) noexcept {
     for (int b = 0; b < nb; ++b) {
       T dfx = T(0), dfy = T(0), dn = T(0);
       if (dq) {
@@ -1772,11 +1783,13 @@ struct andrews {
   }
 
   // One direction's acceleration residual r (r_a) and force f, as _dynamics_tangent describes
-  // them, from its dq and dqd (nullptr: 0, and the terms they multiply skipped).
+  // them, from its dq and dqd (nullptr: 0, and the terms they multiply skipped). Always inlined:
+  // Clang kept it apart, where the sparsity tables do not fold (4x slower on the pendulum).
   template <class T>
-  static void _tangent_residuals(const _TangentPoint<T>& p, int nq, int nb, int slot,
-                                 const T* lambda, const T* inertia, const T* dq, const T* dqd, T* r,
-                                 T* f) noexcept {
+  KINEGEN_ALWAYS_INLINE static void _tangent_residuals(const _TangentPoint<T>& p, int nq, int nb,
+                                                       int slot, const T* lambda, const T* inertia,
+                                                       const T* dq, const T* dqd, T* r,
+                                                       T* f) noexcept {
     for (int k = 0; k < nq; ++k) r[k] = f[k] = T(0);
     if (dq) {
       _hessian_times(p.phi_qq, p.qdd, dq, r);
@@ -4562,12 +4575,10 @@ struct andrews {
   }
 
  public:
-  // dynamics_jacobians' work space, caller-owned (no heap).
+  // What dynamics_jacobians keeps from call to call, and a large model's work space:
+  // caller-owned (no heap).
   template <class T>
   struct JacobianWork {
-    T values[87];  // _tangent_values
-    T out[nf * 2];
-    T work[274];  // _tangent_work_size(nq, nf, 2)
     void reset() noexcept {}  // nothing is kept from call to call
   };
 
@@ -4580,9 +4591,9 @@ struct andrews {
   // a controller's step, which evaluate f there first), its solution is used, not solved
   // again: the Jacobians then cost the tangent alone.
   template <class T, class U>
-  static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
-      T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options, DynamicsWork<T>& w,
-      JacobianWork<T>& j) noexcept {
+  KINEGEN_NO_SLP static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t,
+      const Params& p, T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options,
+      DynamicsWork<T>& w, [[maybe_unused]] JacobianWork<T>& j) noexcept {
     using R = _real<T>;
     BlockReport<R> r;
     if (_solved_at(z, zd, t, p, options, w)) {
@@ -4595,11 +4606,14 @@ struct andrews {
     if (!d_z && !d_zd && !d_u) return r;
     Params pz = p;
     pz._free = w.state;  // z, zd and now zdd, which gamma of a distance item reads
-    _tangent_values(w.q, w.qd, t, pz, j.values, w.trig, static_cast<T*>(nullptr));
+    T values[87];  // _tangent_values
+    T out[nf * 2];
+    T work[274];  // _tangent_work_size(nq, nf, 2)
+    _tangent_values(w.q, w.qd, t, pz, values, w.trig, static_cast<T*>(nullptr));
     // Every direction, whichever are asked for: constant directions fold into the kernel's
     // loops (a free coordinate's value or rate is known to it: its dq or dqd is B's column).
     constexpr int ndir = 2 * nf + num_inputs;
-    const auto at = [&](int piece) { return j.values + _tangent_begin[piece]; };
+    const auto at = [&](int piece) { return values + _tangent_begin[piece]; };
     _TangentPoint<T> tp;
     tp.nq = nq;
     tp.nf = nf;
@@ -4636,7 +4650,7 @@ struct andrews {
     // solves skip their blocks' finiteness checks: the kernel checks the Jacobians, which any
     // non-finite value of the solutions reaches.
     const int s = _dynamics_tangent<nq, nf, num_bodies>(
-        tp, ndir, _tangent_slots.data(), j.out, j.work,
+        tp, ndir, _tangent_slots.data(), out, work,
         [&](T* b, T* x, int m) {
           _block_forward_factored<_model, false>(w.jac, w.factors, w.pivots, b, x, m);
           return 0;
@@ -4647,11 +4661,11 @@ struct andrews {
         });
     if (s != 0) return _fail(r, s, -1);
     for (int i = 0; i < nf * nf; ++i) {
-      if (d_z) d_z[i] = j.out[i];
-      if (d_zd) d_zd[i] = j.out[nf * nf + i];
+      if (d_z) d_z[i] = out[i];
+      if (d_zd) d_zd[i] = out[nf * nf + i];
     }
     if (d_u)
-      for (int i = 0; i < nf * num_inputs; ++i) d_u[i] = j.out[2 * nf * nf + i];
+      for (int i = 0; i < nf * num_inputs; ++i) d_u[i] = out[2 * nf * nf + i];
     return r;
   }
 

@@ -153,6 +153,17 @@ struct slider_crank {
 #define KINEGEN_ALWAYS_INLINE
 #endif
 #endif
+  // Keeps GCC's basic-block (SLP) vectorizer out of a function. In the Jacobians' long runs of
+  // scalar code it pairs two values just stored one by one, and such a load waits for the
+  // stores to finish (a failed store-to-load forwarding): the pendulum's took 44 ns, not 20,
+  // and no model gained from it. Define it empty before the header to keep the vectorizer.
+#ifndef KINEGEN_NO_SLP
+#if defined(__GNUC__) && !defined(__clang__)
+#define KINEGEN_NO_SLP [[gnu::optimize("no-tree-slp-vectorize")]]
+#else
+#define KINEGEN_NO_SLP
+#endif
+#endif
   // The real type of a scalar: T itself, or the value_type of std::complex<T>.
   template <class T, class = void>
   struct _RealOf {
