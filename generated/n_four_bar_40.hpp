@@ -1501,6 +1501,14 @@ struct n_four_bar_40 {
   };
   template <class T>
   using _real = typename _RealOf<T>::type;
+  // T, in a parameter that takes no part in deducing T: an optional output there accepts a
+  // literal nullptr (std::type_identity_t, which C++17 lacks).
+  template <class T>
+  struct _Given {
+    using type = T;
+  };
+  template <class T>
+  using _given = typename _Given<T>::type;
 
   template <class T>
   static _real<T> _mag(const T& x) noexcept {
@@ -11378,8 +11386,9 @@ struct n_four_bar_40 {
   // again: the Jacobians then cost the tangent alone.
   template <class T, class U>
   KINEGEN_NO_SLP static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t,
-      const Params& p, T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options,
-      DynamicsWork<T>& w, [[maybe_unused]] JacobianWork<T>& j) noexcept {
+      const Params& p, T* zdd, _given<T>* d_z, _given<T>* d_zd, _given<T>* d_u,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w,
+      [[maybe_unused]] JacobianWork<T>& j) noexcept {
     using R = _real<T>;
     BlockReport<R> r;
     if (_solved_at(z, zd, t, p, options, w)) {
@@ -11458,8 +11467,8 @@ struct n_four_bar_40 {
   // The same with the work space on the stack.
   template <class T, class U>
   static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
-      T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options,
-      DynamicsWork<T>& w) noexcept {
+      T* zdd, _given<T>* d_z, _given<T>* d_zd, _given<T>* d_u,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w) noexcept {
     JacobianWork<T> j;
     return dynamics_jacobians(z, zd, t, p, zdd, d_z, d_zd, d_u, options, w, j);
   }
@@ -11502,8 +11511,7 @@ struct n_four_bar_40 {
     };
     const auto jacobian = [&](T at, const T* y, const T*, T* a) {
       T zdd[nf], dz[nf * nf], dzd[nf * nf];
-      r = dynamics_jacobians(y, y + nf, at, p, zdd, dz, dzd, static_cast<T*>(nullptr), options,
-                             w, j);
+      r = dynamics_jacobians(y, y + nf, at, p, zdd, dz, dzd, nullptr, options, w, j);
       _state_jacobian<nf>(dz, dzd, a);
       return r.status;
     };

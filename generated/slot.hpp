@@ -242,6 +242,14 @@ struct slot {
   };
   template <class T>
   using _real = typename _RealOf<T>::type;
+  // T, in a parameter that takes no part in deducing T: an optional output there accepts a
+  // literal nullptr (std::type_identity_t, which C++17 lacks).
+  template <class T>
+  struct _Given {
+    using type = T;
+  };
+  template <class T>
+  using _given = typename _Given<T>::type;
 
   template <class T>
   static _real<T> _mag(const T& x) noexcept {

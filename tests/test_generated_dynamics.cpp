@@ -449,12 +449,11 @@ double kept_against_fresh(double z0, double zd0) {
     typename M::template DynamicsWork<double> wf;
     for (int c = 0; c < M::nq; ++c) wf.q[c] = w.q[c];
     double zdd, kept[2], fresh[2];
-    REQUIRE(M::dynamics_jacobians(&z, &zd, 0.0, p, &zdd, kept, kept + 1,
-                                  static_cast<double*>(nullptr), o, w, j)
-                .status == 0);
-    REQUIRE(M::dynamics_jacobians(&z, &zd, 0.0, p, &zdd, fresh, fresh + 1,
-                                  static_cast<double*>(nullptr), o, wf)
-                .status == 0);
+    // A literal nullptr for the outputs not wanted, as a user writes it.
+    REQUIRE(M::dynamics_jacobians(&z, &zd, 0.0, p, &zdd, kept, kept + 1, nullptr, o, w, j).status ==
+            0);
+    REQUIRE(M::dynamics_jacobians(&z, &zd, 0.0, p, &zdd, fresh, fresh + 1, nullptr, o, wf).status ==
+            0);
     const double scale = std::max({std::abs(fresh[0]), std::abs(fresh[1]), 1.0});
     for (int i = 0; i < 2; ++i) worst = std::max(worst, std::abs(kept[i] - fresh[i]) / scale);
   }

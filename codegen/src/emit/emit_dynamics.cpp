@@ -258,8 +258,8 @@ void emit_jacobians_solve(std::ostringstream& os) {
   // The same with the work space on the stack.
   template <class T, class U>
   static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t, const Params& p,
-      T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options,
-      DynamicsWork<T>& w) noexcept {
+      T* zdd, _given<T>* d_z, _given<T>* d_zd, _given<T>* d_u,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w) noexcept {
     JacobianWork<T> j;
     return dynamics_jacobians(z, zd, t, p, zdd, d_z, d_zd, d_u, options, w, j);
   }
@@ -323,8 +323,9 @@ void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, i
   // again: the Jacobians then cost the tangent alone.
   template <class T, class U>
   KINEGEN_NO_SLP static BlockReport<_real<T>> dynamics_jacobians(const T* z, const T* zd, T t,
-      const Params& p, T* zdd, T* d_z, T* d_zd, T* d_u, const BasicBlockOptions<U>& options,
-      DynamicsWork<T>& w, [[maybe_unused]] JacobianWork<T>& j) noexcept {
+      const Params& p, T* zdd, _given<T>* d_z, _given<T>* d_zd, _given<T>* d_u,
+      const BasicBlockOptions<U>& options, DynamicsWork<T>& w,
+      [[maybe_unused]] JacobianWork<T>& j) noexcept {
     using R = _real<T>;
     BlockReport<R> r;
     if (_solved_at(z, zd, t, p, options, w)) {
@@ -505,8 +506,7 @@ void emit_implicit_step(std::ostringstream& os) {
     };
     const auto jacobian = [&](T at, const T* y, const T*, T* a) {
       T zdd[nf], dz[nf * nf], dzd[nf * nf];
-      r = dynamics_jacobians(y, y + nf, at, p, zdd, dz, dzd, static_cast<T*>(nullptr), options,
-                             w, j);
+      r = dynamics_jacobians(y, y + nf, at, p, zdd, dz, dzd, nullptr, options, w, j);
       _state_jacobian<nf>(dz, dzd, a);
       return r.status;
     };
