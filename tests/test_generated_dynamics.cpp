@@ -24,6 +24,7 @@
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/linearize.hpp"
 #include "n_four_bar_4.hpp"
+#include "n_four_bar_5.hpp"
 #include "pendulum.hpp"
 #include "press_flywheel.hpp"
 #include "slide_distance.hpp"
@@ -205,8 +206,9 @@ void set_input(typename M::Params& p, double u) {
 // and central differences (u, a Params member). Returns the largest differences relative to
 // the Jacobians' scale: {against the command line, against the complex step}.
 template <class M>
-std::pair<double, double> check_jacobians(const char* name, Offset at, double u = 0) {
-  Cli cli(example(name));
+std::pair<double, double> check_jacobians_of(const std::string& file, const char* name, Offset at,
+                                             double u = 0) {
+  Cli cli(file);
   kc::Linearizer lin(*cli.model, cli.forces, 0.0);
   kc::OperatingPoint op = lin.initial();
   op.t = at.t;
@@ -275,6 +277,11 @@ std::pair<double, double> check_jacobians(const char* name, Offset at, double u 
   return {vs_cli, vs_step};
 }
 
+template <class M>
+std::pair<double, double> check_jacobians(const char* name, Offset at, double u = 0) {
+  return check_jacobians_of<M>(example(name), name, at, u);
+}
+
 }  // namespace
 
 TEST_CASE("generated dynamics_jacobians against `kinegen linearize` and the complex step",
@@ -297,6 +304,13 @@ TEST_CASE("generated dynamics_jacobians against `kinegen linearize` and the comp
       check_jacobians<km::double_cart_pole>("double_cart_pole", {0.0, 0.1, -0.4}, -1.5);
   CHECK(pair.first < 1e-14);
   CHECK(pair.second < 1e-12);
+  // A model whose work space is too large for the stack (JacobianWork's arrays instead).
+  static_assert(sizeof(km::n_four_bar_5::JacobianWork<double>) > 512 * sizeof(double));
+  const auto chain = check_jacobians_of<km::n_four_bar_5>(
+      std::string(KINEGEN_SOURCE_DIR) + "/tests/dynamics/n_four_bar_5.yaml", "n_four_bar_5",
+      {0.0, 0.2, 1.0});
+  CHECK(chain.first < 1e-14);
+  CHECK(chain.second < 1e-12);
 }
 
 namespace {
