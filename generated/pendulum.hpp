@@ -891,9 +891,9 @@ struct pendulum {
   // m times that, and ax m (vy + w ax) - ay m (vx - w ay) + j w. Coordinates after the
   // bodies' (extra coordinates, format 6.1) carry no mass: their rows are 0.
   template <class T>
-  static void _mass_times(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
+  static void _mass_times(int num_b, int num_q, const T* m, const T* j, const T* ax, const T* ay,
                           const T* v, T* out) noexcept {
-    for (int b = 0; b < nb; ++b) {
+    for (int b = 0; b < num_b; ++b) {
       const T& vx = v[3 * b];
       const T& vy = v[3 * b + 1];
       const T& w = v[3 * b + 2];
@@ -903,7 +903,7 @@ struct pendulum {
       out[3 * b + 1] = py;
       out[3 * b + 2] = ax[b] * py - ay[b] * px + j[b] * w;
     }
-    for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
+    for (int k = 3 * num_b; k < num_q; ++k) out[k] = T(0);
   }
 
   // In-place LDL^T of a symmetric positive definite n x n matrix (row-major; the lower
@@ -957,24 +957,24 @@ struct pendulum {
   // zdd and adds B zdd to qdd (which holds c). work: nf * nf T's (receives M_z's factors).
   // Returns _ldlt_factor's pivot ratio; zdd and qdd are valid only where it is positive.
   template <class T>
-  static _real<T> _reduced_accelerations(int nq, int nf, const T* b, const T* mb, const T* g,
+  static _real<T> _reduced_accelerations(int num_q, int num_f, const T* b, const T* mb, const T* g,
                                          T* work, T* zdd, T* qdd) noexcept {
-    for (int i = 0; i < nf; ++i) {
+    for (int i = 0; i < num_f; ++i) {
       T r = T(0);
-      for (int k = 0; k < nq; ++k) r += b[i * nq + k] * g[k];
+      for (int k = 0; k < num_q; ++k) r += b[i * num_q + k] * g[k];
       zdd[i] = r;
       for (int j = 0; j <= i; ++j) {
         T s = T(0);
-        for (int k = 0; k < nq; ++k) s += b[i * nq + k] * mb[j * nq + k];
-        work[i * nf + j] = s;
-        work[j * nf + i] = s;
+        for (int k = 0; k < num_q; ++k) s += b[i * num_q + k] * mb[j * num_q + k];
+        work[i * num_f + j] = s;
+        work[j * num_f + i] = s;
       }
     }
-    const _real<T> ratio = _ldlt_factor(nf, work);
+    const _real<T> ratio = _ldlt_factor(num_f, work);
     if (!(ratio > _real<T>(0))) return ratio;
-    _ldlt_solve(nf, work, zdd);
-    for (int i = 0; i < nf; ++i)
-      for (int k = 0; k < nq; ++k) qdd[k] += b[i * nq + k] * zdd[i];
+    _ldlt_solve(num_f, work, zdd);
+    for (int i = 0; i < num_f; ++i)
+      for (int k = 0; k < num_q; ++k) qdd[k] += b[i * num_q + k] * zdd[i];
     return ratio;
   }
   // ---- end of kinegen kernel dynamics
@@ -1072,9 +1072,10 @@ struct pendulum {
   // through its angle (d(ax, ay)/dphi = (-ay, ax)) and on qd through its w (the w^2 terms):
   // d(fx, fy, the moment)/dphi and -d(fx, fy)/dw, for _inertia_tangent.
   template <class T>
-  static void _inertia_forces(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
-                              const T* qd, const T* qdd, T* out, T* c = nullptr) noexcept {
-    for (int b = 0; b < nb; ++b) {
+  static void _inertia_forces(int num_b, int num_q, const T* m, const T* j, const T* ax,
+                              const T* ay, const T* qd, const T* qdd, T* out,
+                              T* c = nullptr) noexcept {
+    for (int b = 0; b < num_b; ++b) {
       // Read before any write: out and c may alias the inputs as far as the compiler knows.
       const T w = qd[3 * b + 2], alpha = qdd[3 * b + 2], mb = m[b], x = ax[b], y = ay[b];
       const T fx = mb * (qdd[3 * b] - alpha * y - w * w * x);
@@ -1090,14 +1091,15 @@ struct pendulum {
         c[5 * b + 4] = T(2) * mb * w * y;
       }
     }
-    for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
+    for (int k = 3 * num_b; k < num_q; ++k) out[k] = T(0);
   }
   // out += d(M qdd + h)/dq dq + dh/dqd dqd from _inertia_forces' c; dq or dqd may be nullptr:
   // 0. Always inlined, as _tangent_residuals (below).
   template <class T>
-  KINEGEN_ALWAYS_INLINE static void _inertia_tangent(int nb, const T* ax, const T* ay, const T* c,
-                                                     const T* dq, const T* dqd, T* out) noexcept {
-    for (int b = 0; b < nb; ++b) {
+  KINEGEN_ALWAYS_INLINE static void _inertia_tangent(int num_b, const T* ax, const T* ay,
+                                                     const T* c, const T* dq, const T* dqd,
+                                                     T* out) noexcept {
+    for (int b = 0; b < num_b; ++b) {
       T dfx = T(0), dfy = T(0), dn = T(0);
       if (dq) {
         const T dphi = dq[3 * b + 2];
@@ -1118,9 +1120,9 @@ struct pendulum {
   }
 
   // The work space _dynamics_tangent needs for ndir directions, in T's.
-  static constexpr int _tangent_work_size(int nq, int nf, int ndir) noexcept {
-    return nq * nf + nq * (nf + 1) + nf * nf + 3 * nq * ndir +
-           nq * (ndir > nf + 1 ? ndir : nf + 1) + 2 * nq;
+  static constexpr int _tangent_work_size(int num_q, int num_f, int ndir) noexcept {
+    return num_q * num_f + num_q * (num_f + 1) + num_f * num_f + 3 * num_q * ndir +
+           num_q * (ndir > num_f + 1 ? ndir : num_f + 1) + 2 * num_q;
   }
 
   // d(zdd)/d(w_slot) for each of the ndir slots (slots[i]: a free item's z or zd, or a
@@ -1139,55 +1141,59 @@ struct pendulum {
                                                      const int* slots, T* dzdd, T* work,
                                                      Solve&& solve,
                                                      SolveTransposed&& solve_transposed) noexcept {
-    const int nq = NQ > 0 ? NQ : p.nq, nf = NF > 0 ? NF : p.nf, nb = NB > 0 ? NB : p.nb;
+    const int num_q = NQ > 0 ? NQ : p.nq, num_f = NF > 0 ? NF : p.nf, num_b = NB > 0 ? NB : p.nb;
     T* mb = work;
-    T* y = mb + nq * nf;  // Phi_q^-T M B, then lambda in column nf
-    T* mz = y + nq * (nf + 1);
-    T* dq = mz + nf * nf;
-    T* dqd = dq + nq * ndir;
-    T* x = dqd + nq * ndir;  // solutions, side by side
-    T* rhs = x + nq * ndir;  // their right-hand sides (nf + 1 columns for the transposed)
+    T* y = mb + num_q * num_f;  // Phi_q^-T M B, then lambda in column nf
+    T* mz = y + num_q * (num_f + 1);
+    T* dq = mz + num_f * num_f;
+    T* dqd = dq + num_q * ndir;
+    T* x = dqd + num_q * ndir;  // solutions, side by side
+    T* rhs = x + num_q * ndir;  // their right-hand sides (nf + 1 columns for the transposed)
     // _inertia_forces' 5 numbers per body: 5 nb <= 2 nq, as every body has 3 coordinates.
-    T* inertia = rhs + nq * (ndir > nf + 1 ? ndir : nf + 1);
+    T* inertia = rhs + num_q * (ndir > num_f + 1 ? ndir : num_f + 1);
     const T* m_b = p.mb;  // M B and B^T M B's factors: dynamics()' or computed here
     const T* m_z = p.mz;
     if (!m_b || !m_z) {
-      for (int k = 0; k < nf; ++k)
-        _mass_times(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.b + k * nq, mb + k * nq);
-      for (int i = 0; i < nf; ++i)
-        for (int k = 0; k < nf; ++k) mz[i * nf + k] = _dot(nq, p.b + i * nq, mb + k * nq);
-      const _real<T> ratio = _ldlt_factor(nf, mz);
+      for (int k = 0; k < num_f; ++k)
+        _mass_times(num_b, num_q, p.mass, p.inertia, p.ax, p.ay, p.b + k * num_q, mb + k * num_q);
+      for (int i = 0; i < num_f; ++i)
+        for (int k = 0; k < num_f; ++k)
+          mz[i * num_f + k] = _dot(num_q, p.b + i * num_q, mb + k * num_q);
+      const _real<T> ratio = _ldlt_factor(num_f, mz);
       if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
       m_b = mb;
       m_z = mz;
     }
     // Y = Phi_q^-T M B; lambda from Phi_q^T lambda = Q^A - (M qdd + h).
-    const T* lambda = y + nq * nf;
-    for (int k = 0; k < nq * nf; ++k) rhs[k] = m_b[k];
-    _inertia_forces(nb, nq, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, x, inertia);
-    for (int k = 0; k < nq; ++k) rhs[nq * nf + k] = p.applied[k] - x[k];
-    if (const int s = solve_transposed(rhs, y, nf + 1)) return s;
-    if (const int s = _tangent_motions(p, nq, nf, ndir, slots, dq, dqd, rhs, x, solve)) return s;
+    const T* lambda = y + num_q * num_f;
+    for (int k = 0; k < num_q * num_f; ++k) rhs[k] = m_b[k];
+    _inertia_forces(num_b, num_q, p.mass, p.inertia, p.ax, p.ay, p.qd, p.qdd, x, inertia);
+    for (int k = 0; k < num_q; ++k) rhs[num_q * num_f + k] = p.applied[k] - x[k];
+    if (const int s = solve_transposed(rhs, y, num_f + 1)) return s;
+    if (const int s = _tangent_motions(p, num_q, num_f, ndir, slots, dq, dqd, rhs, x, solve))
+      return s;
     // Stage by stage across the directions, each direction's r and f apart (in x and rhs,
     // free now), so that the directions' chains of dependent operations overlap.
     T* r = x;
     T* f = rhs;
     for (int i = 0; i < ndir; ++i)
-      _tangent_residuals(p, nq, nb, slots[i], lambda, inertia, _moved(p, nq, nf, i, dq, false),
-                         _moved(p, nq, nf, i, dqd, true), r + i * nq, f + i * nq);
+      _tangent_residuals(p, num_q, num_b, slots[i], lambda, inertia,
+                         _moved(p, num_q, num_f, i, dq, false),
+                         _moved(p, num_q, num_f, i, dqd, true), r + i * num_q, f + i * num_q);
     // y_k . r over r's rows that can be non-zero (p.r_rows) when known.
     const auto y_dot_r = [&](int k, const T* ri) {
-      if (p.n_r_rows < 0) return _dot(nq, y + k * nq, ri);
+      if (p.n_r_rows < 0) return _dot(num_q, y + k * num_q, ri);
       T s = T(0);
-      for (int e = 0; e < p.n_r_rows; ++e) s += y[k * nq + p.r_rows[e]] * ri[p.r_rows[e]];
+      for (int e = 0; e < p.n_r_rows; ++e) s += y[k * num_q + p.r_rows[e]] * ri[p.r_rows[e]];
       return s;
     };
     for (int i = 0; i < ndir; ++i)
-      for (int k = 0; k < nf; ++k)
-        dzdd[i * nf + k] = (p.known && p.known[i] == _kStill ? T(0) : y_dot_r(k, r + i * nq)) -
-                           _dot(nq, p.b + k * nq, f + i * nq);
-    for (int i = 0; i < ndir; ++i) _ldlt_solve(nf, m_z, dzdd + i * nf);
-    for (int k = 0; k < nf * ndir; ++k)
+      for (int k = 0; k < num_f; ++k)
+        dzdd[i * num_f + k] =
+            (p.known && p.known[i] == _kStill ? T(0) : y_dot_r(k, r + i * num_q)) -
+            _dot(num_q, p.b + k * num_q, f + i * num_q);
+    for (int i = 0; i < ndir; ++i) _ldlt_solve(num_f, m_z, dzdd + i * num_f);
+    for (int k = 0; k < num_f * ndir; ++k)
       if (!_finite(_mag(dzdd[k]))) return 3;
     return 0;
   }
@@ -1195,27 +1201,27 @@ struct pendulum {
   // Direction i's dq (rate: dqd): B's column when known, nullptr when known to be 0, else its
   // solution at d + i nq.
   template <class T>
-  KINEGEN_ALWAYS_INLINE static const T* _moved(const _TangentPoint<T>& p, int nq, int nf, int i,
-                                               const T* d, bool rate) noexcept {
+  KINEGEN_ALWAYS_INLINE static const T* _moved(const _TangentPoint<T>& p, int num_q, int num_f,
+                                               int i, const T* d, bool rate) noexcept {
     const int k = p.known ? p.known[i] : -1;
-    if (_solves(p, nf, i, rate)) return d + i * nq;
-    if (k == _kStill || (rate ? k < nf : k >= nf)) return nullptr;
-    return p.b + (rate ? k - nf : k) * nq;
+    if (_solves(p, num_f, i, rate)) return d + i * num_q;
+    if (k == _kStill || (rate ? k < num_f : k >= num_f)) return nullptr;
+    return p.b + (rate ? k - num_f : k) * num_q;
   }
 
   // Whether direction i needs a solve for its dq (rate: dqd); the others are B's columns or 0.
   template <class T>
-  KINEGEN_ALWAYS_INLINE static bool _solves(const _TangentPoint<T>& p, int nf, int i,
+  KINEGEN_ALWAYS_INLINE static bool _solves(const _TangentPoint<T>& p, int num_f, int i,
                                             bool rate) noexcept {
     const int k = p.known ? p.known[i] : -1;
-    return k == -1 || (rate && k >= 0 && k < nf);
+    return k == -1 || (rate && k >= 0 && k < num_f);
   }
 
   // Each direction's dq = -Phi_q^-1 Phi_w and dqd = -Phi_q^-1 r_v, as _dynamics_tangent
   // describes them, in two solves (of the columns not known: _moved), with rhs and x as their
   // work space; 0 or the solve's status.
   template <class T, class Solve>
-  KINEGEN_ALWAYS_INLINE static int _tangent_motions(const _TangentPoint<T>& p, int nq, int nf,
+  KINEGEN_ALWAYS_INLINE static int _tangent_motions(const _TangentPoint<T>& p, int num_q, int num_f,
                                                     int ndir, const int* slots, T* dq, T* dqd,
                                                     T* rhs, T* x, Solve&& solve) noexcept {
     // Where the m solutions go: straight to d + i nq when the directions that need them are
@@ -1223,25 +1229,25 @@ struct pendulum {
     const auto target = [&](T* d, bool rate) {
       int first = -1, last = -1, count = 0;
       for (int i = 0; i < ndir; ++i)
-        if (_solves(p, nf, i, rate)) {
+        if (_solves(p, num_f, i, rate)) {
           if (first < 0) first = i;
           last = i;
           ++count;
         }
-      return last - first + 1 == count ? d + first * nq : nullptr;
+      return last - first + 1 == count ? d + first * num_q : nullptr;
     };
     const auto scatter = [&](T* d, bool rate) {
       for (int i = 0, n = 0; i < ndir; ++i)
-        if (_solves(p, nf, i, rate))
-          for (int k = 0; k < nq; ++k) d[i * nq + k] = x[n++];
+        if (_solves(p, num_f, i, rate))
+          for (int k = 0; k < num_q; ++k) d[i * num_q + k] = x[n++];
     };
     const auto zero = [&](T* v) {
-      for (int k = 0; k < nq; ++k) v[k] = T(0);
+      for (int k = 0; k < num_q; ++k) v[k] = T(0);
     };
     int m = 0;
     for (int i = 0; i < ndir; ++i) {
-      if (!_solves(p, nf, i, false)) continue;
-      T* v = rhs + m++ * nq;
+      if (!_solves(p, num_f, i, false)) continue;
+      T* v = rhs + m++ * num_q;
       zero(v);
       _sparse_column(p.phi_w, slots[i], T(-1), v);
     }
@@ -1252,15 +1258,15 @@ struct pendulum {
     }
     m = 0;
     for (int i = 0; i < ndir; ++i) {
-      if (!_solves(p, nf, i, true)) continue;
-      T* v = rhs + m++ * nq;
+      if (!_solves(p, num_f, i, true)) continue;
+      T* v = rhs + m++ * num_q;
       zero(v);
-      if (const T* d = _moved(p, nq, nf, i, dq, false)) {
+      if (const T* d = _moved(p, num_q, num_f, i, dq, false)) {
         _hessian_times(p.phi_qq, p.qd, d, v);
         _sparse_add(p.nu_q, T(-1), d, v);
       }
       _sparse_column(p.nu_w, slots[i], T(-1), v);
-      for (int k = 0; k < nq; ++k) v[k] = -v[k];
+      for (int k = 0; k < num_q; ++k) v[k] = -v[k];
     }
     if (m > 0) {
       T* direct = target(dqd, true);
@@ -1281,18 +1287,18 @@ struct pendulum {
   // them, from its dq and dqd (nullptr: 0, and the terms they multiply skipped). Always inlined:
   // Clang kept it apart, where the sparsity tables do not fold (4x slower on the pendulum).
   template <class T>
-  KINEGEN_ALWAYS_INLINE static void _tangent_residuals(const _TangentPoint<T>& p, int nq, int nb,
-                                                       int slot, const T* lambda, const T* inertia,
-                                                       const T* dq, const T* dqd, T* r,
-                                                       T* f) noexcept {
-    for (int k = 0; k < nq; ++k) r[k] = f[k] = T(0);
+  KINEGEN_ALWAYS_INLINE static void _tangent_residuals(const _TangentPoint<T>& p, int num_q,
+                                                       int num_b, int slot, const T* lambda,
+                                                       const T* inertia, const T* dq, const T* dqd,
+                                                       T* r, T* f) noexcept {
+    for (int k = 0; k < num_q; ++k) r[k] = f[k] = T(0);
     if (dq) {
       _hessian_times(p.phi_qq, p.qdd, dq, r);
       _sparse_add(p.gamma_q, T(-1), dq, r);
     }
     if (dqd) _sparse_add(p.gamma_qd, T(-1), dqd, r);
     _sparse_column(p.gamma_w, slot, T(-1), r);
-    _inertia_tangent(nb, p.ax, p.ay, inertia, dq, dqd, f);
+    _inertia_tangent(num_b, p.ax, p.ay, inertia, dq, dqd, f);
     if (dq) {
       _hessian_transposed(p.phi_qq, lambda, dq, f);
       _sparse_add(p.applied_q, T(-1), dq, f);

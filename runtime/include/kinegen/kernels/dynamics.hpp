@@ -20,9 +20,9 @@ struct DynamicsKernel : ReportKernel {
   // m times that, and ax m (vy + w ax) - ay m (vx - w ay) + j w. Coordinates after the
   // bodies' (extra coordinates, format 6.1) carry no mass: their rows are 0.
   template <class T>
-  static void _mass_times(int nb, int nq, const T* m, const T* j, const T* ax, const T* ay,
+  static void _mass_times(int num_b, int num_q, const T* m, const T* j, const T* ax, const T* ay,
                           const T* v, T* out) noexcept {
-    for (int b = 0; b < nb; ++b) {
+    for (int b = 0; b < num_b; ++b) {
       const T& vx = v[3 * b];
       const T& vy = v[3 * b + 1];
       const T& w = v[3 * b + 2];
@@ -32,7 +32,7 @@ struct DynamicsKernel : ReportKernel {
       out[3 * b + 1] = py;
       out[3 * b + 2] = ax[b] * py - ay[b] * px + j[b] * w;
     }
-    for (int k = 3 * nb; k < nq; ++k) out[k] = T(0);
+    for (int k = 3 * num_b; k < num_q; ++k) out[k] = T(0);
   }
 
   // In-place LDL^T of a symmetric positive definite n x n matrix (row-major; the lower
@@ -86,24 +86,24 @@ struct DynamicsKernel : ReportKernel {
   // zdd and adds B zdd to qdd (which holds c). work: nf * nf T's (receives M_z's factors).
   // Returns _ldlt_factor's pivot ratio; zdd and qdd are valid only where it is positive.
   template <class T>
-  static _real<T> _reduced_accelerations(int nq, int nf, const T* b, const T* mb, const T* g,
+  static _real<T> _reduced_accelerations(int num_q, int num_f, const T* b, const T* mb, const T* g,
                                          T* work, T* zdd, T* qdd) noexcept {
-    for (int i = 0; i < nf; ++i) {
+    for (int i = 0; i < num_f; ++i) {
       T r = T(0);
-      for (int k = 0; k < nq; ++k) r += b[i * nq + k] * g[k];
+      for (int k = 0; k < num_q; ++k) r += b[i * num_q + k] * g[k];
       zdd[i] = r;
       for (int j = 0; j <= i; ++j) {
         T s = T(0);
-        for (int k = 0; k < nq; ++k) s += b[i * nq + k] * mb[j * nq + k];
-        work[i * nf + j] = s;
-        work[j * nf + i] = s;
+        for (int k = 0; k < num_q; ++k) s += b[i * num_q + k] * mb[j * num_q + k];
+        work[i * num_f + j] = s;
+        work[j * num_f + i] = s;
       }
     }
-    const _real<T> ratio = _ldlt_factor(nf, work);
+    const _real<T> ratio = _ldlt_factor(num_f, work);
     if (!(ratio > _real<T>(0))) return ratio;
-    _ldlt_solve(nf, work, zdd);
-    for (int i = 0; i < nf; ++i)
-      for (int k = 0; k < nq; ++k) qdd[k] += b[i * nq + k] * zdd[i];
+    _ldlt_solve(num_f, work, zdd);
+    for (int i = 0; i < num_f; ++i)
+      for (int k = 0; k < num_q; ++k) qdd[k] += b[i * num_q + k] * zdd[i];
     return ratio;
   }
   // kinegen-kernel-end dynamics
