@@ -4,6 +4,10 @@
 #   cmake -DCLANGXX=clang++ -DDIR=<build>/tests/strict -DINCLUDES=<runtime/include>
 #         -DSYSTEM=<Eigen's> -P clang_strict.cmake
 file(GLOB sources ${DIR}/*.cpp)
+list(LENGTH sources count)
+if(count EQUAL 0)
+  message(FATAL_ERROR "no strict instantiations in ${DIR}: nothing to check")
+endif()
 set(flags -std=c++17 -fsyntax-only -Wall -Wextra -Wpedantic -Wshadow -Werror)
 foreach(dir IN LISTS INCLUDES)
   list(APPEND flags -I${dir})
@@ -20,7 +24,6 @@ foreach(source IN LISTS sources)
     list(APPEND failed ${source})
   endif()
 endforeach()
-list(LENGTH sources count)
 if(failed)
   message(FATAL_ERROR "clang++ warns on: ${failed}")
 endif()

@@ -51,6 +51,11 @@ std::string example(const char* name) {
   return std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/" + name + ".yaml";
 }
 
+// A dynamics mechanism of the tests' own (tests/dynamics/).
+std::string test_mechanism(const char* name) {
+  return std::string(KINEGEN_SOURCE_DIR) + "/tests/dynamics/" + name + ".yaml";
+}
+
 // |a - b| in units of the last place of the larger of |a| and the largest |zdd| (scale).
 double ulps(double a, double b, double scale) {
   const double size = std::max({std::abs(a), std::abs(b), scale});
@@ -187,8 +192,7 @@ TEST_CASE("a free distance item's B is dq/dz of the distance (|d|^2 - z^2 writte
   CHECK(w.qd[0] == Approx(0.5).epsilon(1e-15));
   CHECK(zdd[0] == Approx(1.5).epsilon(1e-15));  // F / m
   CHECK(b_against_complex_step<M>(z, zd, 0.0) < 1e-15);
-  const double d = compare_with_cli<M>(
-      std::string(KINEGEN_SOURCE_DIR) + "/tests/dynamics/slide_distance.yaml", {0.0, 0.5, 0.0});
+  const double d = compare_with_cli<M>(test_mechanism("slide_distance"), {0.0, 0.5, 0.0});
   CHECK(d <= 2);
 }
 
@@ -307,9 +311,8 @@ TEST_CASE("generated dynamics_jacobians against `kinegen linearize` and the comp
   // A model whose work space is too large for the stack (JacobianWork's arrays instead: it has
   // no sin/cos cache of its own, so its size is the arrays').
   static_assert(sizeof(km::n_four_bar_5::JacobianWork<double>) > KINEGEN_STACK_WORK_BYTES);
-  const auto chain = check_jacobians_of<km::n_four_bar_5>(
-      std::string(KINEGEN_SOURCE_DIR) + "/tests/dynamics/n_four_bar_5.yaml", "n_four_bar_5",
-      {0.0, 0.2, 1.0});
+  const auto chain = check_jacobians_of<km::n_four_bar_5>(test_mechanism("n_four_bar_5"),
+                                                          "n_four_bar_5", {0.0, 0.2, 1.0});
   CHECK(chain.first < 1e-14);
   CHECK(chain.second < 1e-12);
 }

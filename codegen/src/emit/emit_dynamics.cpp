@@ -300,21 +300,19 @@ void emit_jacobian_work(std::ostringstream& os, const JacobianSizes& z, int ndir
 // where the compiler sees that nothing else writes them and keeps values in registers rather
 // than storing and reloading them (the pendulum 28 -> 19 ns), else JacobianWork's.
 std::string jacobian_arrays(const JacobianSizes& z) {
-  const std::string values = std::to_string(z.values), out = std::to_string(z.out),
-                    work = std::to_string(z.work);
   // Three arrays, not one: the compiler then knows that writing one leaves the others.
-  return "    // The work space: on the stack where it is small (the compiler then sees that "
-         "nothing\n"
-         "    // else writes it), else JacobianWork's.\n"
-         "    constexpr bool on_stack = sizeof(T) * (" +
-         values + " + " + out + " + " + work +
-         ") <= KINEGEN_STACK_WORK_BYTES;\n"
-         "    T stack_values[on_stack ? " +
-         values + " : 1], stack_out[on_stack ? " + out + " : 1], stack_work[on_stack ? " + work +
-         " : 1];\n"
-         "    T* const values = on_stack ? stack_values : j.values;\n"
-         "    T* const out = on_stack ? stack_out : j.out;\n"
-         "    T* const work = on_stack ? stack_work : j.work;\n";
+  std::ostringstream os;
+  os << "    // The work space: on the stack where it is small (the compiler then sees that "
+        "nothing\n"
+     << "    // else writes it), else JacobianWork's.\n"
+     << "    constexpr bool on_stack = sizeof(T) * (" << z.values << " + " << z.out << " + "
+     << z.work << ") <= KINEGEN_STACK_WORK_BYTES;\n"
+     << "    T stack_values[on_stack ? " << z.values << " : 1], stack_out[on_stack ? " << z.out
+     << " : 1], stack_work[on_stack ? " << z.work << " : 1];\n"
+     << "    T* const values = on_stack ? stack_values : j.values;\n"
+     << "    T* const out = on_stack ? stack_out : j.out;\n"
+     << "    T* const work = on_stack ? stack_work : j.work;\n";
+  return os.str();
 }
 
 void emit_jacobians_function(std::ostringstream& os, int num_values, int ndir, int nq, int nf,
