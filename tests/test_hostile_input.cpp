@@ -288,3 +288,66 @@ TEST_CASE("a pole met in the dynamics' derivatives names the item (exit 2)", "[h
             damper.string() + ":" + std::to_string(line) + ": forces[0] 'd' (spring_damper)",
             "its rates cannot be formed");
 }
+
+// Two items that derive the same Params member (issue 35, item 6): a free `x` (x, x_v, x_a)
+// beside a free `x_a`; a free `x_x` beside a force `x` whose x component is an input (x_x);
+// a free `push_x` beside a force `push` (push_x). Each header redeclared the member and did
+// not compile, after `generate` had exited 0. The refusal names both items, before any file
+// is written; the cart-pole as it is still generates a header that compiles.
+TEST_CASE("generate refuses two items that derive the same Params member", "[hostile]") {
+  const std::string cart_pole = kinegen::test::read_text(std::string(KINEGEN_SOURCE_DIR) +
+                                                         "/examples/dynamics/cart_pole.yaml");
+  const std::string x = "name: x, body: cart", phi = "name: phi, body: pole",
+                    push = "name: push, body: cart";
+  struct Clash {
+    const char* name;
+    std::string text;
+    const char* first;   // the item that declares the member first (free items come before loads)
+    const char* second;  // the item refused
+    const char* member;
+  };
+  const std::vector<Clash> clashes = {
+      {"free_x_and_x_a", replaced(cart_pole, phi, "name: x_a, body: pole"), "free[0] 'x'",
+       "free[1] 'x_a'", "x_a"},
+      {"free_x_x_and_force_x",
+       replaced(replaced(cart_pole, x, "name: x_x, body: cart"), push, "name: x, body: cart"),
+       "free[0] 'x_x'", "forces[0] 'x'", "x_x"},
+      {"free_push_x_and_force_push", replaced(cart_pole, x, "name: push_x, body: cart"),
+       "free[0] 'push_x'", "forces[0] 'push'", "push_x"},
+  };
+  for (const Clash& c : clashes) {
+    SECTION(c.name) {
+      const fs::path dir = scratch(c.name);
+      const fs::path mech = dir / "cart_pole.yaml", out = dir / "out";
+      write_text(mech, c.text);
+      fs::create_directories(out);
+      const auto r = run_kinegen({"generate", mech.string(), "-o", out.string()});
+      INFO(r.err);
+      CHECK(r.exit_code == 2);
+      CHECK(r.err.rfind("error: " + mech.string() + ":", 0) == 0);
+      CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+      CHECK(r.err.find(c.first) != std::string::npos);
+      CHECK(r.err.find(c.second) != std::string::npos);
+      CHECK(r.err.find("'" + std::string(c.member) + "'") != std::string::npos);
+      CHECK(fs::is_empty(out));
+    }
+  }
+  SECTION("no clash: the header compiles") {
+    const fs::path dir = scratch("no_clash");
+    const fs::path mech = dir / "cart_pole.yaml";
+    // x, x_v, x_a and xa, xa_v, xa_a, push_x: near the clashes above, all distinct.
+    write_text(mech, replaced(cart_pole, phi, "name: xa, body: pole"));
+    REQUIRE(run_kinegen({"generate", mech.string(), "-o", dir.string()}).exit_code == 0);
+    write_text(dir / "use.cpp",
+               "#include \"cart_pole.hpp\"\n"
+               "int main() {\n"
+               "  kinegen::models::cart_pole::Params p;\n"
+               "  p.x_a = 1; p.xa = 2; p.xa_a = 3; p.push_x = 4;\n"
+               "  return p.x_a + p.xa + p.xa_a + p.push_x == 10 ? 0 : 1;\n"
+               "}\n");
+    const auto cc = kinegen::test::run_command({KINEGEN_CXX, "-std=c++17", "-fsyntax-only", "-I",
+                                                dir.string(), (dir / "use.cpp").string()});
+    INFO(cc.err);
+    CHECK(cc.exit_code == 0);
+  }
+}

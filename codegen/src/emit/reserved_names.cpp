@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <map>
 #include <unordered_set>
 
 #include "kinegen/codegen/base/diagnostics.hpp"
@@ -188,21 +189,40 @@ void check_header_names(const Mechanism& m) {
   };
   if (auto why = header_name_conflict(m.name, HeaderName::kModel); !why.empty())
     refuse("name", m.name_loc, why);
-  for (const auto& p : m.parameters)
-    if (auto why = header_name_conflict(p.name, HeaderName::kParameter); !why.empty())
-      refuse("parameters." + p.name, p.loc, why);
-  // An input driver's Params members (format 6.3): NAME, NAME_v, NAME_a.
+  // Every member of Params, with the item that declares it: the parameters, an input or free
+  // driver's NAME, NAME_v, NAME_a, and a load input's name (a torque's NAME, a force's NAME_x
+  // and NAME_y). Two items may derive the same member (a free `x` and a free `x_a`; a free
+  // `push_x` and a force `push`), which the loader cannot see because the items live in
+  // different namespaces there; the header would not compile.
+  struct Owner {
+    std::string item;
+    SourceLoc loc;
+  };
+  std::map<std::string, Owner> members;
+  const auto declare = [&](const std::string& member, const std::string& item, SourceLoc loc,
+                           bool derived) {
+    const std::string what = derived ? "its Params member '" + member + "'" : "";
+    if (auto why = header_name_conflict(member, HeaderName::kParameter); !why.empty())
+      refuse(item, loc, derived ? what + ": " + why : why);
+    const auto [it, fresh] = members.emplace(member, Owner{item, loc});
+    if (fresh || it->second.item == item) return;
+    const Owner& first = it->second;
+    refuse(item, loc,
+           (derived ? what : "the Params member '" + member + "'") + " is also the Params member " +
+               "of " + first.item +
+               (first.loc.line > 0 ? " (line " + std::to_string(first.loc.line) + ")" : "") +
+               ", so the generated header would declare it twice");
+  };
+  for (const auto& p : m.parameters) declare(p.name, "parameters." + p.name, p.loc, false);
+  // An input driver's Params members (docs/format.md, drivers): NAME, NAME_v, NAME_a; a free
+  // item is kept among the drivers as one.
   for (const auto& d : m.drivers) {
     if (!d.law.input) continue;
-    for (const char* suffix : {"", "_v", "_a"}) {
-      const std::string member = d.name + suffix;
-      if (auto why = header_name_conflict(member, HeaderName::kParameter); !why.empty())
-        refuse(d.item, d.loc, "its Params member '" + member + "': " + why);
-      for (const auto& p : m.parameters)
-        if (p.name == member)
-          refuse(d.item, d.loc, "its Params member '" + member + "' is also a parameter's name");
-    }
+    for (const char* suffix : {"", "_v", "_a"}) declare(d.name + suffix, d.item, d.loc, true);
   }
+  for (const auto& load : m.forces.loads)
+    for (const auto& in : load.inputs)
+      if (in.table_id < 0) declare(in.name, load.item, load.loc, true);
 }
 
 std::string namespace_conflict(const std::string& ns) {
