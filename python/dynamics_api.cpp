@@ -46,6 +46,11 @@ Eigen::VectorXd values(const std::vector<double>& v, Eigen::Index n, const std::
   if (static_cast<Eigen::Index>(v.size()) != n)
     throw kc::UsageError(what + " expects " + std::to_string(n) + " value" + (n == 1 ? "" : "s") +
                          " (" + names + "), got " + std::to_string(v.size()));
+  // As the command line's --at: a point is finite numbers.
+  for (std::size_t k = 0; k < v.size(); ++k)
+    if (!std::isfinite(v[k]))
+      throw kc::UsageError(what + "[" + std::to_string(k) + "] is " + kc::format_number(v[k]) +
+                           ", not a finite number (" + what + ": " + names + ")");
   return Eigen::Map<const Eigen::VectorXd>(v.data(), n);
 }
 
@@ -91,6 +96,7 @@ kc::Linearizer& DynamicsApi::linearizer(double t0, const std::string& command) {
 
 kc::OperatingPoint DynamicsApi::point(kc::Linearizer& lin, double t, const OptionalValues& z,
                                       const OptionalValues& zd, const OptionalValues& u) const {
+  if (!std::isfinite(t)) throw kc::UsageError("t must be finite");
   kc::OperatingPoint p = lin.initial();
   p.t = t;
   const std::string names = joined(free_names());
@@ -154,9 +160,20 @@ py::array_t<double> DynamicsApi::dynamics(double t, const std::vector<double>& z
     kc::Linearizer& lin = linearizer(linearizer_ ? t0_ : t, "dynamics");
     const kc::OperatingPoint p = point(lin, t, z, zd, u);
     kc::MotionState state;
-    if (!lin.evaluate(p, state))
-      throw kc::AnalysisError(model_.mechanism().source + ": dynamics at " + kc::format_time(t) +
-                              ": " + lin.reason());
+    const std::string where = model_.mechanism().source + ": dynamics at " + kc::format_time(t);
+    if (!lin.evaluate(p, state)) throw kc::AnalysisError(where + ": " + lin.reason());
+    // Finite inputs can still overflow the forces (an input of 1e308 on a mass below 1): a
+    // zdd that is not finite is refused, never returned as a result.
+    if (!state.zdd.allFinite()) {
+      std::string values;
+      for (Eigen::Index k = 0; k < state.zdd.size(); ++k) {
+        if (k) values += ", ";
+        values += kc::format_number(state.zdd[k]);
+      }
+      throw kc::AnalysisError(where + ": the accelerations zdd are not finite (" + values +
+                              "): the forces at this point overflow a double (the inputs u or "
+                              "the state z, zd too large)");
+    }
     return state.zdd;
   });
   return vector(zdd);

@@ -124,16 +124,33 @@ std::vector<std::string> names_of(const py::object& value, const char* argument)
   return names;
 }
 
+// params={name: value}: the command line's --param NAME=VALUE. A key that is not a str, or a
+// value that is neither a number nor an expression string, is a TypeError that says so in
+// Python's terms (the library would report "--param 1", and pybind11 a bare cast error).
 std::vector<kc::ParamOverride> overrides_of(const py::dict& params) {
   std::vector<kc::ParamOverride> out;
   for (const auto& [key, value] : params) {
-    const std::string name = py::str(key);
+    if (!py::isinstance<py::str>(key))
+      throw py::type_error("params: the key " + std::string(py::repr(key)) + " (" +
+                           std::string(py::str(py::type::of(key).attr("__name__"))) +
+                           ") is not a parameter name; params maps parameter names (str) to "
+                           "numbers or expression strings, e.g. params={'l': 2.0}");
+    const std::string name = key.cast<std::string>();
     // A number as the command line would read it back (17 digits: the same double), or an
     // expression as text.
-    if (py::isinstance<py::str>(value))
+    if (py::isinstance<py::str>(value)) {
       out.push_back({name, value.cast<std::string>()});
-    else
-      out.push_back({name, kc::format_number(value.cast<double>())});
+      continue;
+    }
+    double number = 0;
+    try {
+      number = value.cast<double>();
+    } catch (const py::cast_error&) {
+      throw py::type_error("params['" + name + "'] expects a number or an expression string, not " +
+                           std::string(py::str(py::type::of(value).attr("__name__"))) + " " +
+                           std::string(py::repr(value)));
+    }
+    out.push_back({name, kc::format_number(number)});
   }
   return out;
 }
@@ -162,8 +179,13 @@ class Mechanism {
   // needs every one.
   Mechanism(std::string path, py::dict params, py::dict inputs) : path_(std::move(path)) {
     overrides_ = overrides_of(params);
-    for (const auto& [name, file] : inputs)
+    for (const auto& [name, file] : inputs) {
+      if (!py::isinstance<py::str>(name))
+        throw py::type_error("inputs: the key " + std::string(py::repr(name)) +
+                             " is not an input's name; inputs maps input names (str) to CSV "
+                             "paths, e.g. inputs={'crank': 'crank.csv'}");
       build_.inputs.emplace_back(py::str(name), py::str(file));
+    }
     std::vector<std::string> warnings;
     translate(path_, [&] {
       Locked locked;
@@ -211,6 +233,11 @@ class Mechanism {
       if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
       if (!std::isfinite(t0) || !std::isfinite(t1))
         throw kc::UsageError("--t0 and --t1 must be finite");
+      // As the command line's grid check: every t0 + k (t1 - t0) / steps must be a number.
+      if (!std::isfinite(t1 - t0))
+        throw kc::UsageError("--t1 - --t0 overflows (" + kc::format_number(t1) + " - " +
+                             kc::format_number(t0) +
+                             "); the times must be within about 1e308 of each other");
       kc::SensitivityModel sens;
       kc::AnalysisOptions options;
       std::unique_ptr<kc::ForceModel> force_model;

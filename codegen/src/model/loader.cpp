@@ -92,6 +92,10 @@ void Loader::check_keys(const YAML::Node& map, const std::string& item,
 std::string Loader::name_of(const YAML::Node& node, const std::string& item) {
   if (!node.IsScalar()) fail(item, loc_of(node), "a name must be a plain string");
   const std::string name = node.Scalar();
+  if (name.size() > kMaxNameLength)
+    fail(item, loc_of(node),
+         "the name is " + std::to_string(name.size()) + " characters long; a name has at most " +
+             std::to_string(kMaxNameLength));
   if (!is_valid_identifier(name))
     fail(item, loc_of(node),
          "'" + name +

@@ -25,6 +25,8 @@ constexpr std::size_t kMaxExpressionLength = 4096;
 constexpr int kMaxNesting = 64;
 constexpr std::size_t kMaxPieces = 1000;
 constexpr std::size_t kMaxFileSize = kMaxMechanismBytes;  // base/read_file.hpp
+// A name's length (is_valid_identifier refuses longer ones too; the loader says why).
+constexpr std::size_t kMaxNameLength = 64;
 
 class Loader {
  public:
