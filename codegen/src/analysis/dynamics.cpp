@@ -284,17 +284,43 @@ void ReducedDynamics::report_t0_failure(double t0) {
                      "this free coordinate carries no inertia at " + format_time(t0) +
                          " (format 7.1: it moves only massless bodies): " + reason_);
   }
-  // Where the file's own value0 does not assemble, the file is at fault (exit 2).
+  // Where the file's own value0 does not assemble, the file is at fault (exit 2). The item
+  // blamed is the first whose value0 does not assemble when the free items take theirs one
+  // at a time, in `free:` order, from the assembled position (the others at their assembled
+  // values), not merely the first item that has a value0.
+  const std::string reason = reason_;
+  const Eigen::VectorXd q = w.q_last;  // the assembled position (a failed solve keeps it)
+  Eigen::VectorXd z(nf_);
+  const Eigen::VectorXd zd = Eigen::VectorXd::Zero(nf_);
+  w.free_values.run(q.data(), nullptr, t0, model_.params().data(), z.data());
+  std::string before;  // the items already at their value0
+  for (int k = 0; k < nf_; ++k) {
+    const Constraint& c = m.drivers[free[k]];
+    if (!c.free->value0) continue;
+    z[k] = model_.geometry_number(*c.free->value0, c.item + " value0");
+    w.q_last = q;
+    w.have_last = false;
+    MotionState trial;
+    if (!solve(t0, z.data(), zd.data(), trial) && failure_ != MotionFailure::kReducedMass)
+      throw InputError(
+          m.source, c.item + " value0", c.free->value0->loc,
+          "the mechanism does not assemble with this free coordinate at its value0" +
+              (before.empty() ? std::string() : " (with " + before + " at value0 too)") + " at " +
+              format_time(t0) + ": " + reason_);
+    before += (before.empty() ? "" : ", ") + c.item;
+  }
+  w.q_last = q;
+  w.have_last = false;
   for (int k = 0; k < nf_; ++k) {
     const Constraint& c = m.drivers[free[k]];
     if (c.free->value0)
       throw InputError(m.source, c.item + " value0", c.free->value0->loc,
                        "the mechanism does not assemble with the free coordinates at their "
                        "value0 at " +
-                           format_time(t0) + ": " + reason_);
+                           format_time(t0) + ": " + reason);
   }
   throw InputError(m.source, "free", m.drivers[free.front()].loc,
-                   "the mechanism does not assemble at " + format_time(t0) + ": " + reason_);
+                   "the mechanism does not assemble at " + format_time(t0) + ": " + reason);
 }
 
 // A singular position (Phi_q lost rank: the block solver's singular pivot, or the condition
@@ -425,13 +451,33 @@ bool ReducedDynamics::reduce(double t, MotionState& out) {
                 "a non-finite value in the generalized forces or dq/dz (a load, a table or the "
                 "state)");
   if (!(ratio > 1e-13)) {
+    // Which free items are to blame, from B^T M B itself (the factorization stops at its
+    // first bad pivot and leaves no trace of the others): those whose own reduced mass
+    // b_k^T M b_k is 0 against the largest; else the first whose column depends on the
+    // earlier ones' (it moves only what they move).
+    const Eigen::MatrixXd mz = b_.transpose() * w.mb;
+    const double largest = mz.diagonal().cwiseAbs().maxCoeff();
     std::string names;
     for (int k = 0; k < nf_; ++k)
-      if (!(w.reduced[k * nf_ + k] != 0) || ratio == 0)
+      if (!(mz(k, k) > 1e-13 * largest))
         names += (names.empty() ? "" : ", ") + m.drivers[free[k]].item;
-    return fail(MotionFailure::kReducedMass,
-                "the reduced mass B^T M B is singular (pivot ratio " + format_estimate(ratio) +
-                    "): a free coordinate moves no mass (" + names + ")");
+    std::string why = "a free coordinate moves no mass (" + names + ")";
+    if (names.empty()) {
+      for (int k = 1; k < nf_ && names.empty(); ++k) {
+        const Eigen::MatrixXd lead = mz.topLeftCorner(k + 1, k + 1);
+        const Eigen::VectorXd ev =
+            Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(lead).eigenvalues();
+        if (ev.minCoeff() > 1e-13 * ev.cwiseAbs().maxCoeff()) continue;
+        names = m.drivers[free[k]].item;
+        std::string earlier;
+        for (int j = 0; j < k; ++j) earlier += (j ? ", " : "") + m.drivers[free[j]].item;
+        why = "a free coordinate moves only the mass that the others move (" + names + ", with " +
+              earlier + ")";
+      }
+      if (names.empty()) why = "the free coordinates' reduced masses are too far apart";
+    }
+    return fail(MotionFailure::kReducedMass, "the reduced mass B^T M B is singular (pivot ratio " +
+                                                 format_estimate(ratio) + "): " + why);
   }
   return true;
 }

@@ -123,6 +123,81 @@ bool is_valid_identifier(const std::string& name) {
   return cpp_keywords().count(name) == 0;
 }
 
+namespace {
+
+// Line `line` (0-based) of `text`, its end's blanks removed, shortened to 80 characters and
+// its control characters shown as '?' ("" for a blank or absent line).
+std::string line_text(const std::string& text, int line) {
+  std::size_t begin = 0;
+  for (int k = 0; k < line; ++k) {
+    begin = text.find('\n', begin);
+    if (begin == std::string::npos) return "";
+    ++begin;
+  }
+  std::string shown = text.substr(begin, text.find('\n', begin) - begin);
+  while (!shown.empty() && (shown.back() == '\r' || shown.back() == ' ')) shown.pop_back();
+  if (shown.find_first_not_of(" \t") == std::string::npos) return "";
+  constexpr std::size_t kShown = 80;
+  if (shown.size() > kShown) shown = shown.substr(0, kShown) + "...";
+  for (char& ch : shown)
+    if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) ch = '?';
+  return shown;
+}
+
+// What a YAML syntax error at (line, column) (0-based) adds to the parser's message: the line
+// it names, and where a flow bracket ('[' or '{') still open there was opened, since the
+// parser notices a missing ']' or '}' only lines later.
+std::string syntax_context(const std::string& text, int line, int column) {
+  std::string out;
+  if (const std::string here = line_text(text, line); !here.empty())
+    out = " in the line: \"" + here + "\"";
+  struct Open {
+    char bracket;
+    int line;
+  };
+  std::vector<Open> open;
+  char quote = 0;
+  char before = '\n';  // the last character other than a blank, outside quotes
+  int l = 0, c = 0;
+  for (std::size_t k = 0; k < text.size() && (l < line || (l == line && c < column)); ++k) {
+    const char ch = text[k];
+    if (ch == '\n') {
+      ++l;
+      c = 0;
+      before = '\n';
+      continue;
+    }
+    ++c;
+    if (quote) {
+      if (ch == quote) quote = 0;
+      continue;
+    }
+    if (ch == ' ' || ch == '\t') continue;
+    if (ch == '#' && (k == 0 || text[k - 1] == ' ' || text[k - 1] == '\t' || before == '\n')) {
+      k = std::min(text.find('\n', k), text.size()) - 1;  // a comment: to the line's end
+      continue;
+    }
+    // A quote opens a quoted scalar only where a scalar starts (not in "it's").
+    const bool starts = before == '\n' || before == ':' || before == ',' || before == '[' ||
+                        before == '{' || before == '-';
+    before = ch;
+    if ((ch == '"' || ch == '\'') && starts) {
+      quote = ch;
+    } else if (ch == '[' || ch == '{') {
+      open.push_back({ch, l});
+    } else if ((ch == ']' || ch == '}') && !open.empty()) {
+      open.pop_back();
+    }
+  }
+  if (!open.empty() && open.back().line != line)
+    out += "; the '" + std::string(1, open.back().bracket) + "' opened at line " +
+           std::to_string(open.back().line + 1) + " is not closed: \"" +
+           line_text(text, open.back().line) + "\"";
+  return out;
+}
+
+}  // namespace
+
 Mechanism parse_mechanism(const std::string& yaml_text, const std::string& source) {
   if (yaml_text.size() > kMaxFileSize)
     throw InputError(source, "file", {},
@@ -132,7 +207,8 @@ Mechanism parse_mechanism(const std::string& yaml_text, const std::string& sourc
   try {
     root = YAML::Load(yaml_text);
   } catch (const YAML::ParserException& e) {
-    throw InputError(source, "YAML syntax", {e.mark.line + 1, e.mark.column + 1}, e.msg);
+    throw InputError(source, "YAML syntax", {e.mark.line + 1, e.mark.column + 1},
+                     e.msg + syntax_context(yaml_text, e.mark.line, e.mark.column));
   }
   return Loader(source).load(root);
 }

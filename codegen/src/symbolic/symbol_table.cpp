@@ -250,6 +250,41 @@ SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& ove
   }
   for (std::size_t c = 0; c < m.coordinates.size(); ++c)
     names_[m.coordinates[c].name + "_d"] = qd_[3 * m.bodies.size() + c];
+  // A name read above its definition is an "unknown symbol" to the parser, which sends the
+  // user looking for a typo: say where it is defined instead.
+  const auto in_order = [&](const Expr& value, Scope scope, const std::string& item,
+                            const std::string& self, bool is_parameter) {
+    try {
+      return parse(value, scope, item);
+    } catch (const InputError& e) {
+      const std::string unknown = "unknown symbol '";
+      const std::string& detail = e.detail();
+      const std::size_t at = detail.find(unknown);
+      if (at == std::string::npos) throw;
+      const std::size_t from = at + unknown.size();
+      const std::string name = detail.substr(from, detail.find('\'', from) - from);
+      const int use = value.loc.line;
+      std::string why;
+      for (const Parameter& p : m.parameters)
+        if (p.name == name)
+          why = name == self ? "'" + name + "' refers to itself"
+                             : name + " is defined at line " + std::to_string(p.loc.line) +
+                                   ", after its use at line " + std::to_string(use) +
+                                   " (a parameter may use only the parameters above it)";
+      for (const Definition& d : m.definitions)
+        if (d.name == name)
+          why = name == self ? "'" + name + "' refers to itself"
+                : is_parameter
+                    ? name + " is a definition (line " + std::to_string(d.loc.line) +
+                          "), which a parameter cannot use (a parameter may use only the "
+                          "parameters above it)"
+                    : name + " is defined at line " + std::to_string(d.loc.line) +
+                          ", after its use at line " + std::to_string(use) +
+                          " (a definition may use only the definitions above it)";
+      if (why.empty()) throw;
+      throw InputError(source_, e.item(), e.loc(), "cannot read '" + value.text + "': " + why);
+    }
+  };
   // Parameters in file order, each seeing only the earlier ones: a value that reads another
   // parameter makes a derived one (unless --param overrides it, which drops the formula).
   params_.reserve(m.parameters.size());
@@ -257,7 +292,7 @@ SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& ove
     const Parameter& p = m.parameters[i];
     const bool forced = std::find(overridden.begin(), overridden.end(), p.name) != overridden.end();
     if (!forced) {
-      const ex value = parse(p.value, Scope::kGeometry, "parameters." + p.name);
+      const ex value = in_order(p.value, Scope::kGeometry, "parameters." + p.name, p.name, true);
       if (!value.info(GiNaC::info_flags::numeric) && has_symbol(value)) {
         derived_.push_back({p.name, static_cast<int>(i), value});
         names_[p.name] = value;
@@ -274,7 +309,7 @@ SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& ove
   // Definitions, in order, each in the names before it; a context's restrictions apply to
   // what a definition stands for (parse checks the substituted expression).
   for (const Definition& d : m.definitions)
-    names_[d.name] = parse(d.value, Scope::kDriver, "definitions." + d.name);
+    names_[d.name] = in_order(d.value, Scope::kDriver, "definitions." + d.name, d.name, false);
 }
 
 bool SymbolTable::has_symbol(const ex& e) {
