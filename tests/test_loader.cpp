@@ -3,14 +3,20 @@
 // valid input must mean what the format says (exact decimals, expressions, defaults).
 #include <ginac/ginac.h>
 
+#include <atomic>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
 #include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
+#include "kinegen/codegen/model/table.hpp"
 
 namespace {
 
@@ -495,3 +501,63 @@ TEST_CASE("expression constraints use x_<body>, y_<body>, phi_<body>, parameters
 }
 
 }  // namespace
+
+// Tables (issue 35, item 8): more than the 1000 tables a process once allowed, equal tables
+// sharing a number, and a table read without a lock while another thread registers thousands
+// of others (the registry growing past its first chunk) keeps its values.
+TEST_CASE("tables: many, shared when equal, read without a lock", "[loader][tables]") {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "loader_tables";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name) << text;
+  };
+  // x(t) = c t: the not-a-knot spline reproduces it exactly.
+  const auto table = [&](double c) {
+    std::string rows = "t,value\n";
+    for (int t = 0; t < 5; ++t) rows += std::to_string(t) + "," + kc::format_number(c * t) + "\n";
+    return rows;
+  };
+  write("m.yaml",
+        "name: slide\nbodies:\n  - {name: block, q0: [0, 0, 0]}\njoints:\n"
+        "  - {type: absolute_y, body: block, value: 0}\n"
+        "  - {type: absolute_angle, body: block, value: 0}\n"
+        "drivers:\n  - {type: absolute_x, body: block, table: x.csv}\n");
+  const std::string mech = (dir / "m.yaml").string();
+  std::vector<int> ids;
+  for (int k = 0; k < 1100; ++k) {
+    const double c = 1 + k * 1e-3;
+    write("x.csv", table(c));
+    const auto model = kc::CompiledModel::from_file(mech);
+    const int id = model->mechanism().drivers[0].law.table_id;
+    double f[3];
+    REQUIRE(kc::registered_table(id).eval(3, f));
+    REQUIRE(f[0] == Approx(3 * c).epsilon(1e-14));
+    ids.push_back(id);
+  }
+  // The same values again: the same number.
+  write("x.csv", table(1 + 7 * 1e-3));
+  CHECK(kc::load_mechanism(mech).drivers[0].law.table_id == ids[7]);
+
+  write("x.csv", table(0.5));
+  const int id = kc::load_mechanism(mech).drivers[0].law.table_id;
+  std::atomic<bool> done{false};
+  std::thread churn([&] {
+    for (int k = 0; k < 3000; ++k) {
+      const std::vector<double> t = {0, 1, 2, 3}, y = {0, k + 1.0, 0, 1};
+      (void)kc::register_table(kc::fit_not_a_knot(t, y));
+    }
+    done = true;
+  });
+  bool right = true;
+  long reads = 0;
+  while (!done) {
+    double f[3];
+    right = right && kc::registered_table(id).eval(1.5, f) && std::abs(f[0] - 0.75) <= 1e-15;
+    ++reads;
+  }
+  churn.join();
+  CHECK(right);
+  CHECK(reads > 0);
+}

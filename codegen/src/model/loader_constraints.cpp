@@ -190,7 +190,12 @@ void Loader::read_law(const YAML::Node& c, const std::string& item, Constraint& 
           "a periodic table must start at t = 0 (its first t is " + format_number(t.front()) + ")");
     const Spline spline = law.period ? fit_periodic(t, v) : fit_not_a_knot(t, v);
     check_spline(spline, law.table, src);
-    law.table_id = register_table(spline);
+    try {
+      law.table_id = register_table(spline);
+    } catch (const std::length_error& e) {
+      fail(item + " table", loc_of(table),
+           std::string(e.what()) + "; load fewer different tables in one process");
+    }
     return;
   }
   const YAML::Node f = c["f"];

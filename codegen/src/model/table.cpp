@@ -5,16 +5,17 @@
 
 #include <Eigen/SparseLU>
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <deque>
 #include <filesystem>
 #include <limits>
 #include <mutex>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <unordered_map>
 
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/base/read_file.hpp"
@@ -73,37 +74,85 @@ std::vector<double> solve(const std::vector<Eigen::Triplet<double>>& entries,
   return std::vector<double>(m.data(), m.data() + m.size());
 }
 
-std::deque<Spline>& tables() {
-  static std::deque<Spline> all;
-  return all;
+// The tables, by number. A number's spline is reached through two levels of atomic pointers,
+// so that evaluation takes no lock while registration (under the mutex) adds chunks: a chunk,
+// once made, is never moved or freed, and a slot's spline is published (release) before its
+// number is handed out.
+constexpr int kChunkSize = 1024;
+constexpr int kMaxTables = 1 << 20;
+constexpr int kChunks = kMaxTables / kChunkSize;
+
+struct Registry {
+  std::mutex mutex;  // registration
+  std::atomic<std::atomic<const Spline*>*> chunks[kChunks] = {};
+  int next = 0;                                       // the next number
+  std::unordered_multimap<std::size_t, int> by_hash;  // for sharing equal tables
+};
+
+Registry& registry() {
+  static Registry* r = new Registry;  // never destroyed: tables are read until the exit
+  return *r;
 }
 
-std::mutex& tables_mutex() {
-  static std::mutex mutex;
-  return mutex;
+std::size_t hash_of(const Spline& s) {
+  std::size_t h = std::hash<double>()(s.period) ^ (std::hash<double>()(s.rise) << 1) ^
+                  (s.periodic ? 0x9e3779b97f4a7c15ull : 0);
+  for (const std::vector<double>* v : {&s.t, &s.y, &s.m})
+    for (double x : *v) h = h * 1099511628211ull ^ std::hash<double>()(x);
+  return h;
+}
+
+bool same(const Spline& a, const Spline& b) {
+  return a.t == b.t && a.y == b.y && a.m == b.m && a.periodic == b.periodic &&
+         a.period == b.period && a.rise == b.rise;
+}
+
+std::atomic<const Spline*>* slot_of(Registry& r, int id) {
+  if (id < 0 || id >= kMaxTables) return nullptr;
+  std::atomic<const Spline*>* chunk = r.chunks[id / kChunkSize].load(std::memory_order_acquire);
+  return chunk ? &chunk[id % kChunkSize] : nullptr;
 }
 
 }  // namespace
 
 int register_table(const Spline& spline) {
-  std::lock_guard<std::mutex> lock(tables_mutex());
-  auto& all = tables();
-  for (std::size_t k = 0; k < all.size(); ++k) {
-    const Spline& s = all[k];
-    if (s.t == spline.t && s.y == spline.y && s.m == spline.m && s.periodic == spline.periodic &&
-        s.period == spline.period && s.rise == spline.rise)
-      return static_cast<int>(k);
-  }
-  if (all.size() >= 1000) throw std::length_error("more than 1000 tables in one process");
-  all.push_back(spline);
-  return static_cast<int>(all.size()) - 1;
+  Registry& r = registry();
+  const std::size_t h = hash_of(spline);
+  std::lock_guard<std::mutex> lock(r.mutex);
+  const auto [first, last] = r.by_hash.equal_range(h);
+  for (auto it = first; it != last; ++it)
+    if (same(*slot_of(r, it->second)->load(std::memory_order_relaxed), spline)) return it->second;
+  if (r.next >= kMaxTables)
+    throw std::length_error("more than " + std::to_string(kMaxTables) +
+                            " different tables in one process");
+  const int id = r.next++;
+  auto& chunk = r.chunks[id / kChunkSize];
+  if (!chunk.load(std::memory_order_relaxed))
+    chunk.store(new std::atomic<const Spline*>[kChunkSize](), std::memory_order_release);
+  slot_of(r, id)->store(new Spline(spline), std::memory_order_release);
+  r.by_hash.emplace(h, id);
+  return id;
 }
 
 const Spline& registered_table(int id) {
-  std::lock_guard<std::mutex> lock(tables_mutex());
-  return tables().at(
-      static_cast<std::size_t>(id));  // elements never move (a deque grown at its end)
+  std::atomic<const Spline*>* slot = slot_of(registry(), id);
+  const Spline* spline = slot ? slot->load(std::memory_order_acquire) : nullptr;
+  if (!spline) throw std::logic_error("table " + std::to_string(id) + " is not registered");
+  return *spline;
 }
+
+namespace {
+
+// register_table, its limit an InputError naming the table's file, item and line.
+int register_from(const Spline& spline, const TableSource& source) {
+  try {
+    return register_table(spline);
+  } catch (const std::length_error& e) {
+    fail(source, std::string(e.what()) + "; load fewer different tables in one process");
+  }
+}
+
+}  // namespace
 
 GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::numeric& x) {
   using GiNaC::numeric;
@@ -187,7 +236,7 @@ bool apply_load_input(Mechanism& m, const std::string& name, const std::string& 
       const TableSource src{m.source, l.item + " --input " + name, l.loc, false};
       std::vector<double> t, v;
       read_table(fs::absolute(path).string(), src, t, v);
-      in.table_id = register_table(fit_not_a_knot(t, v));
+      in.table_id = register_from(fit_not_a_knot(t, v), src);
       return true;
     }
   return false;
@@ -216,7 +265,7 @@ void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::st
     driver->law.table = path;
     const Spline spline = fit_not_a_knot(t, v);
     check_spline(spline, path, src);
-    driver->law.table_id = register_table(spline);
+    driver->law.table_id = register_from(spline, src);
   }
   if (!required) return;
   for (const Constraint& d : m.drivers) {

@@ -16,9 +16,14 @@ using GiNaC::numeric;
 
 namespace {
 
-int small_integer(const ex& e, const char* what) {
+// The largest table number (table.cpp's registry holds 2^20 tables).
+constexpr long kMaxTableNumber = (1L << 20) - 1;
+
+// A law's number, a derivative's order, a driver's index or a table's number (up to
+// `largest`: the table registry holds up to 2^20 of them, table.cpp).
+int small_integer(const ex& e, const char* what, long largest = 1000) {
   if (!GiNaC::is_a<numeric>(e) || !GiNaC::ex_to<numeric>(e).is_integer() ||
-      GiNaC::ex_to<numeric>(e).is_negative() || GiNaC::ex_to<numeric>(e) > 1000)
+      GiNaC::ex_to<numeric>(e).is_negative() || GiNaC::ex_to<numeric>(e) > largest)
     throw std::logic_error(std::string("kinegen_law: the ") + what + " is not a small integer");
   return GiNaC::ex_to<numeric>(e).to_int();
 }
@@ -150,7 +155,7 @@ ex floor_derivative(const ex&, unsigned) { return 0; }
 ex table_eval(const ex& id, const ex& order, const ex& x) {
   if (decides(x) && !GiNaC::ex_to<numeric>(x).is_rational()) {
     double f[3];
-    const Spline& s = registered_table(small_integer(id, "table"));
+    const Spline& s = registered_table(small_integer(id, "table", kMaxTableNumber));
     const int n = small_integer(order, "order");
     if (n > 2 || !s.eval(GiNaC::ex_to<numeric>(x).to_double(), f))
       return numeric(std::numeric_limits<double>::quiet_NaN());
@@ -174,7 +179,7 @@ ex table_derivative(const ex& id, const ex& order, const ex& x, unsigned diff_pa
 }
 
 void table_print(const ex& id, const ex& order, const ex& x, const GiNaC::print_context& c) {
-  c.s << "table" << small_integer(id, "table")
+  c.s << "table" << small_integer(id, "table", kMaxTableNumber)
       << std::string(static_cast<std::size_t>(small_integer(order, "order")), '\'') << "(";
   x.print(c);
   c.s << ")";
@@ -233,7 +238,7 @@ bool is_table(const ex& e, int& id, int& order) {
   if (!GiNaC::is_a<GiNaC::function>(e) ||
       GiNaC::ex_to<GiNaC::function>(e).get_serial() != kinegen_table_SERIAL::serial)
     return false;
-  id = small_integer(e.op(0), "table");
+  id = small_integer(e.op(0), "table", kMaxTableNumber);
   order = small_integer(e.op(1), "order");
   return true;
 }
