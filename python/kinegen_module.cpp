@@ -166,6 +166,15 @@ std::vector<std::string> split(const std::string& line) {
   }
 }
 
+// As the command line's grid check: every t0 + k (t1 - t0) / steps must be a number, so the
+// span of two finite times must be one too (-1e308 to 1e308 is not).
+void check_span(double t0, double t1) {
+  if (std::isfinite(t0) && std::isfinite(t1) && !std::isfinite(t1 - t0))
+    throw kc::UsageError("--t1 - --t0 overflows (" + kc::format_number(t1) + " - " +
+                         kc::format_number(t0) +
+                         "); the times must be within about 1e308 of each other");
+}
+
 py::array_t<double> to_numpy(const Eigen::VectorXd& v) {
   py::array_t<double> a(v.size());
   std::copy(v.data(), v.data() + v.size(), a.mutable_data());
@@ -233,11 +242,7 @@ class Mechanism {
       if (steps < 0) throw kc::UsageError("--steps must be 0 or more");
       if (!std::isfinite(t0) || !std::isfinite(t1))
         throw kc::UsageError("--t0 and --t1 must be finite");
-      // As the command line's grid check: every t0 + k (t1 - t0) / steps must be a number.
-      if (!std::isfinite(t1 - t0))
-        throw kc::UsageError("--t1 - --t0 overflows (" + kc::format_number(t1) + " - " +
-                             kc::format_number(t0) +
-                             "); the times must be within about 1e308 of each other");
+      check_span(t0, t1);
       kc::SensitivityModel sens;
       kc::AnalysisOptions options;
       std::unique_ptr<kc::ForceModel> force_model;
@@ -394,8 +399,10 @@ class Mechanism {
   py::object view(const std::string& path, const kinegen::python::ViewArgs& args) {
     std::vector<std::string> warnings;
     std::string failure;
-    std::string html = translate(
-        path_, [&] { return kinegen::python::view_html(*model_, args, &warnings, &failure); });
+    std::string html = translate(path_, [&] {
+      if (args.t0 && args.t1) check_span(*args.t0, *args.t1);
+      return kinegen::python::view_html(*model_, args, &warnings, &failure);
+    });
     warn_all(warnings);
     py::object page =
         translate(path_, [&] { return kinegen::python::make_page(std::move(html), path); });
@@ -541,7 +548,10 @@ message.
           [](Mechanism& mech, double t1, int steps, double rtol, double atol,
              const std::string& method, double t0, const std::string& integrator, bool forces) {
             kinegen::python::SimulateArgs a{t0, t1, steps, rtol, atol, method, integrator, forces};
-            return mech.with_dynamics([&](auto& d) { return d.simulate(a); });
+            return mech.with_dynamics([&](auto& d) {
+              check_span(t0, t1);
+              return d.simulate(a);
+            });
           },
           py::arg("t1"), py::arg("steps"), py::kw_only(), py::arg("rtol") = 1e-8,
           py::arg("atol") = 1e-10, py::arg("method") = "minimal", py::arg("t0") = 0.0,

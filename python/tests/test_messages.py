@@ -75,6 +75,13 @@ def test_times_whose_span_overflows_are_a_usage_error():
         m.analyze(-1e308, 1e308, 4)
     assert "t1 - t0 overflows" in str(e.value)
     assert len(m.analyze(-1, 1, 4)["t"]) == 5
+    with pytest.raises(kinegen.UsageError) as e:
+        m.view("", t0=-1e308, t1=1e308, steps=4)
+    assert "t1 - t0 overflows" in str(e.value)
+    p = kinegen.Mechanism(str(DYN / "pendulum.yaml"))
+    with pytest.raises(kinegen.UsageError) as e:
+        p.simulate(1e308, 4, t0=-1e308)
+    assert "t1 - t0 overflows" in str(e.value)
 
 
 def test_a_name_over_the_limit_says_the_limit(tmp_path):
