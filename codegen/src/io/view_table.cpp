@@ -1,11 +1,12 @@
 // The runs `kinegen view` shows: a CSV read back, an analysis run in-process, a set of modes.
 #include <sys/stat.h>
-#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <sstream>
 
@@ -235,75 +236,287 @@ RunTable analysis_table(const CompiledModel& model, const TimeGrid& grid, bool f
   return run;
 }
 
-ModeSet read_modes_json(const std::string& path, const CompiledModel& model) {
-  const FileText text = read_bounded(path, kMaxModesBytes);
-  if (!text.ok()) throw UsageError(text.problem("'" + path + "'", kMaxModesBytes));
-  YAML::Node root;
-  try {
-    root = YAML::Load(text.text);
-  } catch (const YAML::Exception& e) {
-    throw InputError(path, "modes", {e.mark.line + 1}, e.msg);
+namespace {
+
+// A modes JSON is parsed here rather than by yaml-cpp, whose nodes cost some 200 bytes of memory
+// per byte of text and which reads a flow map's key of any kind: the text is bounded before it
+// is read (modes_bytes_limit), the nesting while it is parsed, and each value costs one node.
+struct JsonValue {
+  enum class Kind { kNull, kBool, kNumber, kString, kArray, kObject };
+  Kind kind = Kind::kNull;
+  double number = 0;
+  std::string text;               // a string's value
+  std::vector<JsonValue> items;   // an array's values, an object's values
+  std::vector<std::string> keys;  // an object's keys (items[k] is keys[k]'s value)
+  int line = 0;
+  const JsonValue* find(const std::string& key) const {
+    for (std::size_t k = 0; k < keys.size(); ++k)
+      if (keys[k] == key) return &items[k];
+    return nullptr;
   }
-  const auto fail = [&](const YAML::Node& at, const std::string& item, const std::string& what) {
-    throw InputError(path, item, {at.IsDefined() ? at.Mark().line + 1 : 0}, what);
-  };
-  if (!root.IsMap()) fail(root, "modes", "expected an object with q, frequencies and shapes");
-  const auto labels = coordinate_labels(model.mechanism());
-  const int nq = model.nq();
-  const auto numbers = [&](const YAML::Node& node, const std::string& item, int size) {
-    if (!node.IsSequence()) fail(node, item, "expected a list of numbers");
-    if (size >= 0 && static_cast<int>(node.size()) != size)
-      fail(node, item,
-           std::to_string(node.size()) + " values, expected " + std::to_string(size) +
-               " (one per coordinate: " + std::to_string(nq) + ")");
-    Eigen::VectorXd v(node.size());
-    for (std::size_t k = 0; k < node.size(); ++k) {
-      try {
-        v[k] = node[k].as<double>();
-      } catch (const YAML::Exception&) {
-        fail(node[k], item + "[" + std::to_string(k) + "]", "not a number");
+};
+
+// Deeper than this is not a modes JSON (the shapes and the matrices are 3 levels).
+constexpr int kMaxModesDepth = 8;
+
+class JsonParser {
+ public:
+  JsonParser(const std::string& path, const std::string& text) : path_(path), text_(text) {}
+
+  JsonValue parse() {
+    JsonValue v = value(1);
+    space();
+    if (at_ < text_.size()) fail("modes", "text after the JSON value: " + excerpt());
+    return v;
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& item, const std::string& what) const {
+    throw InputError(path_, item, {line_}, what);
+  }
+  // The text at the parser, for a message: up to 24 characters, on one line.
+  std::string excerpt() const {
+    if (at_ >= text_.size()) return "the end of the file";
+    std::string out = "'";
+    for (std::size_t k = at_; k < text_.size() && k < at_ + 24; ++k) {
+      const char ch = text_[k];
+      if (ch == '\n' || ch == '\r') break;
+      out += static_cast<unsigned char>(ch) < 0x20 ? ' ' : ch;
+    }
+    return out + "'";
+  }
+  // A key that is not a string, as written: up to its ':' on its line (at most 40 characters).
+  std::string key_excerpt() const {
+    std::string out;
+    for (std::size_t k = at_; k < text_.size() && out.size() < 40; ++k) {
+      const char ch = text_[k];
+      if (ch == ':' || ch == '\n' || ch == '\r') break;
+      out += static_cast<unsigned char>(ch) < 0x20 ? ' ' : ch;
+    }
+    while (!out.empty() && out.back() == ' ') out.pop_back();
+    return out.empty() ? excerpt() : out;
+  }
+  void space() {
+    while (at_ < text_.size()) {
+      const char ch = text_[at_];
+      if (ch == '\n') ++line_;
+      if (ch != ' ' && ch != '\t' && ch != '\n' && ch != '\r') return;
+      ++at_;
+    }
+  }
+  bool take(const char* word) {
+    const std::size_t n = std::strlen(word);
+    if (text_.compare(at_, n, word) != 0) return false;
+    at_ += n;
+    return true;
+  }
+
+  JsonValue value(int depth) {
+    space();
+    if (depth > kMaxModesDepth)
+      fail("modes", "nested deeper than " + std::to_string(kMaxModesDepth) +
+                        " levels; a modes JSON has 3 (its shapes, lists of lists of numbers)");
+    if (++values_ % 65536 == 0) interruption_point();
+    JsonValue v;
+    v.line = line_;
+    if (at_ >= text_.size()) fail("modes", "the file ends where a value should be");
+    const char ch = text_[at_];
+    if (ch == '{' || ch == '[') {
+      const char close = ch == '{' ? '}' : ']';
+      v.kind = ch == '{' ? JsonValue::Kind::kObject : JsonValue::Kind::kArray;
+      ++at_;
+      space();
+      if (at_ < text_.size() && text_[at_] == close) {
+        ++at_;
+        return v;
       }
-      if (!std::isfinite(v[k])) fail(node[k], item + "[" + std::to_string(k) + "]", "not finite");
+      while (true) {
+        space();
+        if (v.kind == JsonValue::Kind::kObject) {
+          if (at_ >= text_.size() || text_[at_] != '"')
+            fail("key " + key_excerpt(),
+                 "a key must be a string in double quotes (the keys are q, frequencies, shapes, "
+                 "...)");
+          v.keys.push_back(string());
+          space();
+          if (at_ >= text_.size() || text_[at_] != ':')
+            fail(v.keys.back(), "expected ':' after the key, found " + excerpt());
+          ++at_;
+        }
+        v.items.push_back(value(depth + 1));
+        space();
+        if (at_ < text_.size() && text_[at_] == ',') {
+          ++at_;
+          continue;
+        }
+        if (at_ < text_.size() && text_[at_] == close) {
+          ++at_;
+          return v;
+        }
+        fail("modes", std::string("expected ',' or '") + close + "', found " + excerpt());
+      }
+    }
+    if (ch == '"') {
+      v.kind = JsonValue::Kind::kString;
+      v.text = string();
+      return v;
+    }
+    if (take("null")) return v;
+    if (take("true") || take("false")) {
+      v.kind = JsonValue::Kind::kBool;
+      return v;
+    }
+    // Numbers, and the NaN and Infinity that Python's json module writes for non-finite ones.
+    v.kind = JsonValue::Kind::kNumber;
+    if (take("NaN")) {
+      v.number = std::numeric_limits<double>::quiet_NaN();
+      return v;
+    }
+    const bool minus = text_[at_] == '-';
+    if (take(minus ? "-Infinity" : "Infinity")) {
+      v.number = minus ? -HUGE_VAL : HUGE_VAL;
+      return v;
+    }
+    std::size_t end = at_;
+    while (end < text_.size() && text_[end] != 0 && std::strchr("+-0123456789.eE", text_[end]))
+      ++end;
+    const auto [stop, ec] = std::from_chars(text_.data() + at_, text_.data() + end, v.number);
+    if (end == at_ || ec == std::errc::invalid_argument || stop != text_.data() + end)
+      fail("modes",
+           "expected a value (a number, a string, a list or an object), found " + excerpt());
+    if (ec == std::errc::result_out_of_range)  // beyond a double: inf or 0, as strtod reads it
+      v.number = std::strtod(text_.substr(at_, end - at_).c_str(), nullptr);
+    at_ = end;
+    return v;
+  }
+
+  std::string string() {
+    const int line = line_;
+    ++at_;  // the opening quote
+    std::string out;
+    while (at_ < text_.size() && text_[at_] != '"') {
+      char ch = text_[at_++];
+      if (ch == '\n') fail("modes", "a string is not closed on its line");
+      if (ch == '\\' && at_ < text_.size()) {
+        ch = text_[at_++];
+        if (ch == 'u') {  // kept as written: no key or value read here needs it decoded
+          out += "\\u";
+          continue;
+        }
+        const char* from = "\"\\/bfnrt";
+        const char* to = "\"\\/\b\f\n\r\t";
+        const char* k = std::strchr(from, ch);
+        if (!k || ch == 0) fail("modes", std::string("an unknown escape \\") + ch + " in a string");
+        ch = to[k - from];
+      }
+      out += ch;
+    }
+    if (at_ >= text_.size()) {
+      line_ = line;
+      fail("modes", "a string is not closed");
+    }
+    ++at_;
+    return out;
+  }
+
+  const std::string& path_;
+  const std::string& text_;
+  std::size_t at_ = 0, values_ = 0;
+  int line_ = 1;
+};
+
+// The largest modes JSON of a mechanism with nq coordinates: `kinegen modes` writes fewer than
+// 8 (nq + 1)^2 numbers (q, the shapes as dq and dz, M_z, K_z, C_z, the frequencies), each in
+// under 26 characters; this allows 64 a number (a file written with indentation, one number a
+// line) and 64 KiB besides, within kMaxModesBytes.
+std::size_t modes_bytes_limit(int nq) {
+  const auto n = static_cast<std::size_t>(nq) + 1;
+  return std::min(kMaxModesBytes, (std::size_t{64} << 10) + 8 * n * n * 64);
+}
+
+}  // namespace
+
+ModeSet read_modes_json(const std::string& path, const CompiledModel& model) {
+  const int nq = model.nq();
+  const std::size_t limit = modes_bytes_limit(nq);
+  const FileText text = read_bounded(path, limit);
+  if (!text.ok())
+    throw UsageError(text.problem("'" + path + "'", limit) +
+                     (text.status == FileText::Status::kTooLarge
+                          ? ", the most a modes JSON of " + model.mechanism().source + " (" +
+                                std::to_string(nq) + " coordinates) may be"
+                          : ""));
+  const JsonValue root = JsonParser(path, text.text).parse();
+  const auto fail = [&](const JsonValue* at, const std::string& item, const std::string& what) {
+    throw InputError(path, item, {at ? at->line : 0}, what);
+  };
+  if (root.kind != JsonValue::Kind::kObject)
+    fail(&root, "modes", "expected an object with q, frequencies and shapes");
+  const auto labels = coordinate_labels(model.mechanism());
+  const auto numbers = [&](const JsonValue& node, const std::string& item, int size) {
+    if (node.kind != JsonValue::Kind::kArray) fail(&node, item, "expected a list of numbers");
+    if (size >= 0 && static_cast<int>(node.items.size()) != size)
+      fail(&node, item,
+           std::to_string(node.items.size()) + " values, expected " + std::to_string(size) +
+               " (one per coordinate: " + std::to_string(nq) + ")");
+    Eigen::VectorXd v(node.items.size());
+    for (std::size_t k = 0; k < node.items.size(); ++k) {
+      const JsonValue& x = node.items[k];
+      if (x.kind != JsonValue::Kind::kNumber)
+        fail(&x, item + "[" + std::to_string(k) + "]", "not a number");
+      v[k] = x.number;
+      if (!std::isfinite(v[k])) fail(&x, item + "[" + std::to_string(k) + "]", "not finite");
     }
     return v;
   };
-  // `kinegen modes`' JSON adds what the page does not draw (format 7.4: the point, M_z, K_z,
+  // `kinegen modes`' JSON adds what the page does not draw (docs/linear.md: the point, M_z, K_z,
   // C_z, the damped frequencies, ...); those keys are read past, anything else is a mistake.
   const std::string known =
       " coordinates q frequencies shapes t equilibrium stability free z mass stiffness damping "
       "damped_frequencies damping_ratios kinds shapes_z ";
-  for (const auto& key : root) {
-    const std::string k = key.first.as<std::string>();
-    if (known.find(" " + k + " ") == std::string::npos)
-      fail(key.first, k,
+  for (std::size_t k = 0; k < root.keys.size(); ++k) {
+    const std::string& key = root.keys[k];
+    if (key.find(' ') != std::string::npos || known.find(" " + key + " ") == std::string::npos)
+      fail(&root.items[k], key,
            "unknown key (the keys are coordinates, q, frequencies, shapes, and those kinegen "
            "modes writes beside them)");
+    for (std::size_t j = 0; j < k; ++j)
+      if (root.keys[j] == key) fail(&root.items[k], key, "given twice");
   }
-  if (const YAML::Node c = root["coordinates"]) {
-    if (!c.IsSequence() || c.size() != labels.size())
+  if (const JsonValue* c = root.find("coordinates")) {
+    if (c->kind != JsonValue::Kind::kArray || c->items.size() != labels.size())
       fail(c, "coordinates", "expected the mechanism's " + std::to_string(nq) + " coordinates");
-    for (std::size_t k = 0; k < labels.size(); ++k)
-      if (c[k].as<std::string>("") != labels[k])
-        fail(c[k], "coordinates[" + std::to_string(k) + "]",
-             "'" + c[k].as<std::string>("") + "' where the mechanism has '" + labels[k] + "'");
+    for (std::size_t k = 0; k < labels.size(); ++k) {
+      const JsonValue& x = c->items[k];
+      const std::string name = x.kind == JsonValue::Kind::kString ? x.text : "";
+      if (name != labels[k])
+        fail(&x, "coordinates[" + std::to_string(k) + "]",
+             "'" + name + "' where the mechanism has '" + labels[k] + "'");
+    }
   }
   ModeSet modes;
   modes.source = path;
   for (const char* key : {"q", "frequencies", "shapes"})
-    if (!root[key]) fail(root, key, "missing");
-  modes.q = numbers(root["q"], "q", nq);
-  const Eigen::VectorXd f = numbers(root["frequencies"], "frequencies", -1);
+    if (!root.find(key)) fail(&root, key, "missing");
+  modes.q = numbers(*root.find("q"), "q", nq);
+  const JsonValue& frequencies = *root.find("frequencies");
+  // A mechanism has at most one mode per coordinate: more would only cost the page memory.
+  if (frequencies.kind == JsonValue::Kind::kArray && frequencies.items.size() > labels.size())
+    fail(&frequencies, "frequencies",
+         std::to_string(frequencies.items.size()) + " modes; the mechanism has at most " +
+             std::to_string(nq) + " (one per coordinate)");
+  const Eigen::VectorXd f = numbers(frequencies, "frequencies", -1);
   modes.frequencies.assign(f.data(), f.data() + f.size());
-  const YAML::Node shapes = root["shapes"];
-  if (!shapes.IsSequence() || shapes.size() != modes.frequencies.size())
-    fail(shapes, "shapes",
+  const JsonValue& shapes = *root.find("shapes");
+  if (shapes.kind != JsonValue::Kind::kArray || shapes.items.size() != modes.frequencies.size())
+    fail(&shapes, "shapes",
          "expected one shape per frequency (" + std::to_string(modes.frequencies.size()) + ")");
-  for (std::size_t k = 0; k < shapes.size(); ++k) {
-    modes.shapes.push_back(numbers(shapes[k], "shapes[" + std::to_string(k) + "]", nq));
+  for (std::size_t k = 0; k < shapes.items.size(); ++k) {
+    modes.shapes.push_back(numbers(shapes.items[k], "shapes[" + std::to_string(k) + "]", nq));
     if (modes.shapes.back().cwiseAbs().maxCoeff() == 0)
-      fail(shapes[k], "shapes[" + std::to_string(k) + "]", "a shape of zeros");
+      fail(&shapes.items[k], "shapes[" + std::to_string(k) + "]", "a shape of zeros");
   }
-  if (modes.frequencies.empty()) fail(root["frequencies"], "frequencies", "no modes");
+  if (modes.frequencies.empty()) fail(&frequencies, "frequencies", "no modes");
   return modes;
 }
 
