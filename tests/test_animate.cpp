@@ -3,6 +3,7 @@
 // (tests/support/closed_form.hpp) puts it: the link colour along each link, not at the
 // mirror images of those places. Also the animation's structure and the usage errors.
 // Skips, with a message, where Chromium or libpng is missing (CI installs both).
+#include <algorithm>
 #include <array>
 #include <catch2/catch.hpp>
 #include <cmath>
@@ -305,4 +306,117 @@ TEST_CASE("animate --forces: one arrow per joint, along its reaction, to one sca
       CHECK(p[3][1] - p[0][1] == Approx(-per_force * fy).margin(0.02));
     }
   }
+}
+
+namespace {
+
+// The first frame's value of `attribute` of the first element after `marker` in the SVG.
+std::string after(const std::string& svg, const std::string& marker, const std::string& name) {
+  const auto at = svg.find(marker);
+  REQUIRE(at != std::string::npos);
+  std::smatch m;
+  const std::string rest = svg.substr(at);
+  REQUIRE(std::regex_search(rest, m, std::regex(" " + name + "=\"([^\"]*)\"")));
+  return m[1].str();
+}
+
+std::vector<std::array<double, 2>> pairs(const std::string& text) {
+  std::vector<std::array<double, 2>> out;
+  const std::regex pair_re("(-?[0-9.]+),(-?[0-9.]+)");
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), pair_re);
+       it != std::sregex_iterator(); ++it)
+    out.push_back({std::stod((*it)[1].str()), std::stod((*it)[2].str())});
+  return out;
+}
+
+double distance(const std::array<double, 2>& a, double x, double y) {
+  return std::hypot(a[0] - x, a[1] - y);
+}
+
+}  // namespace
+
+TEST_CASE("animate --mode: a body whose only joint is at its origin is drawn, at its size",
+          "[animate]") {
+  // The pendulum of examples/dynamics without its named point: its rod has one joint, at its
+  // frame's origin, and its centre of mass at [a, 0]. The mode swings it about the hanging rest
+  // (theta = -pi/2): frame 0 is the rest, the centre of mass a = 0.5 below the pivot.
+  const fs::path dir = scratch("mode_bare");
+  const fs::path mech = dir / "bare.yaml", svg_file = dir / "bare.svg";
+  std::ofstream(mech) << "name: bare\nparameters: {m: 1.0, a: 0.5, g: 9.81}\ngravity: [0, -g]\n"
+                         "bodies:\n  - {name: rod, q0: [0, 0, 0], mass: m, inertia: 0.08, "
+                         "com: [a, 0]}\njoints:\n  - {type: revolute, name: pivot, i: ground, "
+                         "j: rod}\nfree:\n  - {type: absolute_angle, name: theta, body: rod, "
+                         "value0: -1.5}\n";
+  const auto r =
+      run_command({KINEGEN_EXE, "animate", mech.string(), "--mode", "1", "-o", svg_file.string()});
+  INFO(r.err);
+  REQUIRE(r.exit_code == 0);
+  const std::string svg = read(svg_file);
+  const double scale = attribute(svg, "data-kinegen-scale");
+  const double x0 = attribute(svg, "data-kinegen-x0"), y0 = attribute(svg, "data-kinegen-y0");
+  // The rod (0.5 to its centre of mass) between 100 px and the picture's 800 (was 7.2e11 px/m).
+  CHECK(0.5 * scale > 100);
+  CHECK(0.5 * scale < 800);
+  // A bar from the pivot to the centre of mass, each end within 1 px.
+  const auto bar = pairs(after(svg, "<!-- body rod -->", "points"));
+  REQUIRE(bar.size() == 2);
+  const double pivot = std::min(distance(bar[0], x0, y0), distance(bar[1], x0, y0));
+  const double com =
+      std::min(distance(bar[0], x0, y0 + 0.5 * scale), distance(bar[1], x0, y0 + 0.5 * scale));
+  CHECK(pivot <= 1);
+  CHECK(com <= 1);
+}
+
+TEST_CASE("animate --mode: a flywheel on its pivot is a disc there, its torsion spring a coil",
+          "[animate]") {
+  // Nothing but a wheel turning about its centre against a rotational spring: everything drawn
+  // is at one place, which once made a view of 1e11 px/m.
+  const fs::path dir = scratch("mode_flywheel");
+  const fs::path mech = dir / "flywheel.yaml", svg_file = dir / "flywheel.svg";
+  std::ofstream(mech) << "name: flywheel\nbodies:\n  - {name: wheel, q0: [0, 0, 0], mass: 2, "
+                         "inertia: 0.05}\njoints:\n  - {type: revolute, name: axle, i: ground, "
+                         "j: wheel}\nfree:\n  - {type: absolute_angle, name: theta, body: wheel, "
+                         "value0: 0}\nforces:\n  - {type: rotational_spring_damper, name: "
+                         "torsion, i: ground, j: wheel, stiffness: 20, damping: 0.1}\n";
+  const auto r =
+      run_command({KINEGEN_EXE, "animate", mech.string(), "--mode", "1", "-o", svg_file.string()});
+  INFO(r.err);
+  REQUIRE(r.exit_code == 0);
+  const std::string svg = read(svg_file);
+  const double scale = attribute(svg, "data-kinegen-scale");
+  const double x0 = attribute(svg, "data-kinegen-x0"), y0 = attribute(svg, "data-kinegen-y0");
+  CHECK(scale < 1e4);
+  const auto disc = pairs(after(svg, "<!-- body wheel -->", "cx") + "," +
+                          after(svg, "<!-- body wheel -->", "cy"));
+  REQUIRE(disc.size() == 1);
+  CHECK(distance(disc[0], x0, y0) <= 1);
+  CHECK(after(svg, "<!-- body wheel -->", "r") == "11.00");
+  // The coil starts 3 px from the axle.
+  const auto coil =
+      pairs(after(svg, "<!-- forces[0] 'torsion' (rotational_spring_damper) -->", "d"));
+  REQUIRE(coil.size() > 10);
+  CHECK(std::abs(distance(coil[0], x0, y0) - 3) <= 0.1);
+}
+
+TEST_CASE("animate --mode: --steps beyond what fits is refused before it costs memory",
+          "[animate]") {
+  const fs::path dir = scratch("mode_steps");
+  const std::string svg = (dir / "m.svg").string();
+  const std::string mech = KINEGEN_SOURCE_DIR "/examples/dynamics/pendulum.yaml";
+  // 1 GiB of address space and 20 s of CPU: the frames once took 3.1 GB before bad_alloc.
+  const fs::path out = dir / "out.txt", err = dir / "err.txt";
+  kinegen::test::ChildProcess child(
+      {KINEGEN_EXE, "animate", mech, "--mode", "1", "--steps", "2147483647", "-o", svg},
+      "/dev/null", out.string(), err.string(), 20, rlim_t{1} << 30);
+  const int code = child.wait();
+  const std::string text = read(err);
+  INFO(text);
+  CHECK(code == 2);
+  CHECK(text.rfind("error: ", 0) == 0);
+  CHECK(std::count(text.begin(), text.end(), '\n') == 1);
+  // The pendulum: 3 coordinates and one point, 5 numbers a frame.
+  CHECK(text.find("--steps 2147483647: animate --mode keeps every frame in memory, at most "
+                  "16777216 numbers (5 a frame here); --steps 3355442 is the most that fits") !=
+        std::string::npos);
+  CHECK_FALSE(fs::exists(svg));
 }

@@ -97,6 +97,77 @@
              coordinates };
   }
 
+  // ---- The loads' symbols in pixels (y down), as animate_svg.cpp draws them: lists of strokes.
+  const kZigWidth = 5, kSideBySide = 8, kZigs = 10, kArrowLength = 40, kHead = 9;
+  const kTorqueRadius = 16, kBodyDisc = 11;
+  function springStrokes(a, b, spring, damper) {
+    const ab = [b[0] - a[0], b[1] - a[1]], len = Math.hypot(ab[0], ab[1]);
+    const d = len > 1e-9 ? [ab[0] / len, ab[1] / len] : [1, 0], n = [-d[1], d[0]];
+    const at = (u, off) => [a[0] + u * ab[0] + off * n[0], a[1] + u * ab[1] + off * n[1]];
+    const out = [];
+    const zigzag = (u0, u1, off) => {
+      const z = [at(u0, off)];
+      for (let k = 1; k < kZigs; k++)
+        z.push(at(u0 + (u1 - u0) * k / kZigs, off + (k % 2 ? kZigWidth : -kZigWidth)));
+      z.push(at(u1, off));
+      return z;
+    };
+    const dashpot = (u0, u1, off) => {
+      const c0 = u0 + 0.3 * (u1 - u0), c1 = u0 + 0.7 * (u1 - u0), p = u0 + 0.55 * (u1 - u0);
+      out.push([at(u0, off), at(c0, off)]);
+      out.push([at(c1, off + kZigWidth), at(c0, off + kZigWidth), at(c0, off - kZigWidth),
+                at(c1, off - kZigWidth)]);
+      out.push([at(p, off + 0.6 * kZigWidth), at(p, off - 0.6 * kZigWidth)]);
+      out.push([at(p, off), at(u1, off)]);
+    };
+    if (spring && damper) {
+      out.push([a, at(0.15, 0)]);
+      out.push([at(0.15, kSideBySide), at(0.15, -kSideBySide)]);
+      out.push(zigzag(0.15, 0.85, kSideBySide));
+      dashpot(0.15, 0.85, -kSideBySide);
+      out.push([at(0.85, kSideBySide), at(0.85, -kSideBySide)]);
+      out.push([at(0.85, 0), b]);
+    } else if (damper) {
+      dashpot(0, 1, 0);
+    } else {
+      out.push([a].concat(zigzag(0.2, 0.8, 0), [b]));
+    }
+    return out;
+  }
+  function coilStrokes(c) {
+    const spiral = [];
+    for (let k = 0; k <= 40; k++) {
+      const u = k / 40, angle = 5 * Math.PI * u;
+      spiral.push([c[0] + (3 + 10 * u) * Math.cos(angle), c[1] - (3 + 10 * u) * Math.sin(angle)]);
+    }
+    return [spiral];
+  }
+  function forceStrokes(at, dir) {
+    const len = Math.hypot(dir[0], dir[1]) || 1, d = [dir[0] / len, -dir[1] / len];
+    const n = [-d[1], d[0]], base = [at[0] - kHead * d[0], at[1] - kHead * d[1]];
+    return [[[at[0] - kArrowLength * d[0], at[1] - kArrowLength * d[1]], at],
+            [[base[0] + 0.45 * kHead * n[0], base[1] + 0.45 * kHead * n[1]], at,
+             [base[0] - 0.45 * kHead * n[0], base[1] - 0.45 * kHead * n[1]]]];
+  }
+  function torqueStrokes(c, sign) {
+    const arc = [];
+    for (let k = 0; k <= 24; k++) {
+      const u = sign > 0 ? k / 24 : 1 - k / 24, angle = Math.PI * (-1 / 3 + 1.5 * u);
+      arc.push([c[0] + kTorqueRadius * Math.cos(angle), c[1] - kTorqueRadius * Math.sin(angle)]);
+    }
+    const end = arc[arc.length - 1], prev = arc[arc.length - 2];
+    const tl = Math.hypot(end[0] - prev[0], end[1] - prev[1]);
+    const t = [(end[0] - prev[0]) / tl, (end[1] - prev[1]) / tl], n = [-t[1], t[0]];
+    const base = [end[0] - kHead * t[0], end[1] - kHead * t[1]];
+    return [arc, [[base[0] + 0.45 * kHead * n[0], base[1] + 0.45 * kHead * n[1]], end,
+                  [base[0] - 0.45 * kHead * n[0], base[1] - 0.45 * kHead * n[1]]]];
+  }
+  function pathData(strokes) {
+    const parts = [];
+    for (const s of strokes) s.forEach((p, k) => parts.push((k ? 'L' : 'M') + px2(p[0]) + ',' + px2(p[1])));
+    return parts.join(' ');
+  }
+
   // ---- The drawing: the scene's pieces as SVG elements, moved to a row's positions.
   function el(parent, tag, attrs) {
     const e = document.createElementNS(SVGNS, tag);
@@ -182,6 +253,16 @@
         stroke: c.ground, 'stroke-width': 2, 'stroke-dasharray': '6 4' },
         (q) => [this.world(q, st.a.body, st.a.s), this.world(q, st.b.body, st.b.s)]),
         'strut', k, st.name));
+      (s.springs || []).forEach((sp, k) => {
+        const e = this.hover(el(this.svg, 'path', { fill: 'none', stroke: c.spring,
+          'stroke-width': 1.8, 'stroke-linejoin': 'round' }), 'spring', k, sp.name);
+        if (sp.rotational && !sp.spring) e.setAttribute('stroke-dasharray', '3 2');
+        this.updates.push((q) => {
+          const a = this.px(this.world(q, sp.a.body, sp.a.s));
+          e.setAttribute('d', pathData(sp.rotational ? coilStrokes(a) : springStrokes(a,
+            this.px(this.world(q, sp.b.body, sp.b.s)), sp.spring, sp.damper)));
+        });
+      });
       s.bodies.forEach((b, k) => this.body(b, k));
       s.pitch_circles.forEach((pc, k) => this.pitchCircle(pc, k));
       s.pitch_lines.forEach((l, k) => this.hover(this.shape('polyline', { fill: 'none',
@@ -201,6 +282,16 @@
                 [m[0] - h, m[1] + h]];
       }), 'weld', k, wd.name));
       this.reactions(run);
+      (s.loads || []).forEach((l, k) => {
+        const e = this.hover(el(this.svg, 'path', { fill: 'none', stroke: c.load,
+          'stroke-width': 2.5, 'stroke-linejoin': 'round', 'stroke-linecap': 'round' }), 'load',
+          k, l.name);
+        this.updates.push((q) => {
+          const at = this.px(this.world(q, l.body, l.s));
+          e.setAttribute('d', pathData(l.torque ? torqueStrokes(at, l.dir[0])
+                                                : forceStrokes(at, l.dir)));
+        });
+      });
       s.points.forEach((p, k) => {
         this.circle({ r: 3.5, fill: c.point }, p, 'point', k, p.name);
         const t = el(this.svg, 'text', { 'font-family': 'sans-serif', 'font-size': 13,
@@ -253,7 +344,16 @@
       const c = this.c, pts = b.outline;
       const outline = (q) => pts.map((s) => this.world(q, k, s));
       if (pts.length === 1) {
-        this.circle({ r: 6, fill: c.link }, { body: k, s: pts[0] }, 'body', k, b.name);
+        // A disc about its one point, wider than a pin, and a radius along its x axis that
+        // shows its rotation (as animate draws it).
+        this.circle({ r: kBodyDisc, fill: c.link, 'fill-opacity': 0.35, stroke: c.link,
+                      'stroke-width': 3 }, { body: k, s: pts[0] }, 'body', k, b.name);
+        this.shape('polyline', { fill: 'none', stroke: c.link, 'stroke-width': 3,
+          'stroke-linecap': 'round', 'data-kind': 'body-mark' }, (q) => {
+          const m = this.world(q, k, pts[0]), r = this.rotate(this.angle(q, k),
+                                                                [kBodyDisc / this.view.scale, 0]);
+          return [m, [m[0] + r[0], m[1] + r[1]]];
+        });
         return;
       }
       const style = { stroke: c.link, 'stroke-width': 8, 'stroke-linejoin': 'round',

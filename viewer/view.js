@@ -114,6 +114,12 @@
         if (r.name === s.pins[k].name) lines = lines.concat(columns(r.columns));
     } else if (kind === 'gear') lines.push('centre ' + at(s.pitch_circles[k]));
     else if (kind === 'slider') lines.push(at(s.sliders[k]));
+    else if (kind === 'spring') {
+      const sp = s.springs[k];
+      lines.push(sp.rotational ? 'about ' + at(sp.a) : 'from ' + at(sp.a) + '\nto ' + at(sp.b));
+    } else if (kind === 'load') {
+      lines.push((s.loads[k].torque ? 'about ' : 'onto the point ') + at(s.loads[k]));
+    }
     return lines.join('\n');
   }
   function tip(targets) {
@@ -226,10 +232,24 @@
     const names = run.names, find = (n) => names.indexOf(n);
     const t = data.modes ? 0 : run.time;
     if (data.modes) {
-      addPlot(t, run.coordinates.filter((c) => names[c].endsWith('.phi')).slice(0, 6));
+      // The coordinates that move in the first mode (a slider's x, not its constant phi):
+      // |dq| above 1e-9 of the largest, in file order.
+      const shape = data.modes.shapes[0];
+      const largest = shape.reduce((m, v) => Math.max(m, Math.abs(v)), 0);
+      addPlot(t, run.coordinates.filter((c, i) => Math.abs(shape[i]) > 1e-9 * largest)
+        .slice(0, 6));
       return;
     }
-    addPlot(t, data.scene.bodies.map((b) => find(b.name + '.phi')).filter((c) => c >= 0));
+    // The bodies' angles that change; where none does (blocks on sliders), their x and y that do.
+    const moves = (c) => {
+      const a = run.column(c);
+      for (let k = 1; k < a.length; k++) if (a[k] !== a[0]) return true;
+      return false;
+    };
+    const of = (suffixes) => data.scene.bodies.flatMap((b) => suffixes.map((s) => find(b.name + s)))
+      .filter((c) => c >= 0 && moves(c));
+    const angles = of(['.phi']);
+    addPlot(t, angles.length ? angles : of(['.x', '.y']).slice(0, 8));
     const forces = [];
     for (const r of data.scene.reactions) forces.push(r.fx, r.fy);
     const points = [];

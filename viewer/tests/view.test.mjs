@@ -496,3 +496,153 @@ test('a damaged page says so rather than show nothing', async () => {
     await close();
   }
 });
+
+// ---- Everything drawn: bodies without named points, springs and dampers, loads, modes of
+// sliders, tall mechanisms.
+
+// A rod on a pivot at its frame's origin, its centre of mass at [a, 0], no named point.
+const BARE_PENDULUM = `name: bare_pendulum
+parameters: {m: 1.0, a: 0.5, g: 9.81}
+gravity: [0, -g]
+bodies:
+  - {name: rod, q0: [0, 0, 0], mass: m, inertia: "m*(2*a)^2/12", com: [a, 0]}
+joints:
+  - {type: revolute, name: pivot, i: ground, j: rod}
+free:
+  - {type: absolute_angle, name: theta, body: rod, value0: "-pi/2 + 0.05"}
+`;
+// Two blocks on a rail, each on a prismatic joint at its origin (no named point): a spring from
+// the ground to the first, a spring and a damper side by side between them, a push on the second.
+const TWO_MASSES = `name: two_masses
+parameters: {k: 100, c: 0.5}
+bodies:
+  - {name: m1, q0: [1, 0, 0], mass: 1}
+  - {name: m2, q0: [2, 0, 0], mass: 1}
+joints:
+  - {type: translational, name: rail1, i: ground, j: m1, vi: [1, 0]}
+  - {type: translational, name: rail2, i: ground, j: m2, vi: [1, 0]}
+free:
+  - {type: absolute_x, name: x1, body: m1, value0: 1.1}
+  - {type: absolute_x, name: x2, body: m2, value0: 2}
+forces:
+  - {type: spring_damper, name: s1, i: ground, j: m1, si: [0, 0], sj: [0, 0], stiffness: k, length0: 1}
+  - {type: spring_damper, name: s2, i: m1, j: m2, stiffness: k, damping: c, length0: 1}
+  - {type: force, name: push, body: m2, f: [-1, 0]}
+`;
+
+// The strokes' points of a path's d ("M x,y L x,y ...").
+function pathPoints(d) {
+  return d.trim().split(/\s+/).map((p) => p.slice(1).split(',').map(Number));
+}
+
+function simulated(dir, name, yaml, steps = 40) {
+  const file = path.join(dir, name + '.yaml'), csvFile = path.join(dir, name + '.csv');
+  fs.writeFileSync(file, yaml);
+  const r = kinegen('simulate', file, '--t1', '1', '--steps', String(steps), '-q', '-o', csvFile);
+  assert.equal(r.code, 0, r.err);
+  return { file, csv: readCsv(csvFile), csvFile };
+}
+
+test('a body whose only joint is at its origin, with no named point, is drawn at its joint; a ' +
+     'tall mechanism fits the page with its title', async () => {
+  const dir = scratch('bare_pendulum');
+  const { file, csv, csvFile } = simulated(dir, 'bare_pendulum', BARE_PENDULUM);
+  const html = path.join(dir, 'page.html');
+  view(file, '--csv', csvFile, '-o', html);
+  const { page, log, close } = await open(html);
+  try {
+    for (const k of [0, 13, 40]) {
+      await slide(page, k);
+      const q = rowOf(csv, k), d = await drawn(page);
+      const rod = d.bodies.find((b) => b.name === 'rod');
+      assert.ok(rod, 'row ' + k + ': the rod is drawn');
+      // Through its joint (the pivot, at the world's origin) and its centre of mass.
+      const pivot = toPixels(d.map, [0, 0]), com = toPixels(d.map, world(q, 'rod', [0.5, 0]));
+      for (const [want, what] of [[pivot, 'pivot'], [com, 'centre of mass']]) {
+        const off = Math.min(...rod.points.map((p) => Math.hypot(p[0] - want[0], p[1] - want[1])));
+        assert.ok(off <= 1, `row ${k}: the rod passes ${off.toFixed(2)} px from its ${what}`);
+      }
+      assert.ok(Math.hypot(com[0] - pivot[0], com[1] - pivot[1]) > 100, 'drawn large enough');
+      near([d.pins[0].x, d.pins[0].y], pivot, 'row ' + k + ' pivot');
+    }
+    // Tall and narrow: the whole picture within the window, and its title within the picture.
+    const fit = await page.evaluate(() => {
+      const svg = document.getElementById('kinegen-drawing');
+      const title = svg.querySelector('text').getBBox(), box = svg.getBoundingClientRect();
+      return { titleRight: title.x + title.width, width: +svg.getAttribute('width'),
+               bottom: box.bottom, right: box.right, viewport: [innerWidth, innerHeight] };
+    });
+    assert.ok(fit.titleRight <= fit.width, `the title ends at ${fit.titleRight} of ${fit.width}`);
+    assert.ok(fit.bottom <= fit.viewport[1] && fit.right <= fit.viewport[0],
+              `the picture ends at (${fit.right}, ${fit.bottom}) in a ${fit.viewport} window`);
+    clean(log);
+  } finally {
+    await close();
+  }
+});
+
+test('springs and dampers between their two points, loads where they act', async () => {
+  const dir = scratch('two_masses');
+  const { file, csv, csvFile } = simulated(dir, 'two_masses', TWO_MASSES);
+  const html = path.join(dir, 'page.html');
+  view(file, '--csv', csvFile, '-o', html);
+  const { page, log, close } = await open(html);
+  try {
+    for (const k of [0, 7, 40]) {
+      await slide(page, k);
+      const q = rowOf(csv, k), d = await drawn(page);
+      const shapes = await page.$$eval('path[data-kind="spring"], path[data-kind="load"]',
+        (es) => es.map((e) => ({ kind: e.dataset.kind, name: e.dataset.name, d: e.getAttribute('d') })));
+      const m1 = toPixels(d.map, world(q, 'm1', [0, 0])), m2 = toPixels(d.map, world(q, 'm2', [0, 0]));
+      const ends = { s1: [toPixels(d.map, [0, 0]), m1], s2: [m1, m2] };
+      for (const name of ['s1', 's2']) {
+        const sp = shapes.find((s) => s.kind === 'spring' && s.name.includes(`'${name}'`));
+        assert.ok(sp, `row ${k}: spring ${name} drawn`);
+        const pts = pathPoints(sp.d);
+        near(pts[0], ends[name][0], `row ${k}: ${name}'s first end`);
+        near(pts[pts.length - 1], ends[name][1], `row ${k}: ${name}'s second end`);
+        // A zig-zag: it leaves the line between its ends, on both sides.
+        const [a, b] = ends[name], len = Math.hypot(b[0] - a[0], b[1] - a[1]);
+        const side = pts.map((p) => ((b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])) / len);
+        assert.ok(Math.max(...side) >= 4 && Math.min(...side) <= -4, `row ${k}: ${name} zig-zags`);
+      }
+      // The damper beside s2: a dashpot's cylinder (strokes across the line), and the push on m2
+      // as an arrow whose head is at m2's origin, pointing along -x.
+      assert.ok(pathPoints(shapes.find((s) => s.name.includes("'s2'")).d).length > 20);
+      const push = pathPoints(shapes.find((s) => s.kind === 'load').d);
+      near(push[1], m2, `row ${k}: the push's head`);
+      assert.ok(push[0][0] - push[1][0] > 30 && Math.abs(push[0][1] - push[1][1]) < 0.5,
+                `row ${k}: the push comes from +x, along x`);
+      // The blocks: each body is drawn at its joint (a disc about its origin).
+      const discs = await page.$$eval('circle[data-kind="body"]', (es) => es.map((e) =>
+        ({ name: e.dataset.name, x: +e.getAttribute('cx'), y: +e.getAttribute('cy') })));
+      near([discs.find((c) => c.name === 'm1').x, discs.find((c) => c.name === 'm1').y], m1, 'm1');
+      near([discs.find((c) => c.name === 'm2').x, discs.find((c) => c.name === 'm2').y], m2, 'm2');
+    }
+    clean(log);
+  } finally {
+    await close();
+  }
+});
+
+test('modes of sliders: the first plot shows the coordinates that move', async () => {
+  const dir = scratch('two_masses_modes');
+  const file = path.join(dir, 'two_masses.yaml'), modes = path.join(dir, 'modes.json');
+  const html = path.join(dir, 'modes.html');
+  fs.writeFileSync(file, TWO_MASSES);
+  const r = kinegen('modes', file, '--format', 'json', '-o', modes);
+  assert.equal(r.code, 0, r.err);
+  view(file, '--modes', modes, '-o', html);
+  const { page, log, close } = await open(html);
+  try {
+    const series = await page.evaluate(() => window.kinegen.plots[0].ycs.map((c) => {
+      const col = window.kinegen.run.column(c);
+      return { name: window.kinegen.run.names[c], range: Math.max(...col) - Math.min(...col) };
+    }));
+    assert.deepEqual(series.map((s) => s.name), ['m1.x', 'm2.x']);
+    for (const s of series) assert.ok(s.range > 1e-3, s.name + ' moves: ' + s.range);
+    clean(log);
+  } finally {
+    await close();
+  }
+});

@@ -4,6 +4,7 @@
 #include <limits>
 #include <string>
 
+#include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/equilibrium.hpp"
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/base/log.hpp"
@@ -19,6 +20,20 @@ int run_animate_mode(const Common& c, kc::AnimateOptions options, const std::str
     throw kc::UsageError("--amplitude must be a finite number above 0");
   if (options.grid.steps < 1) throw kc::UsageError("--steps must be at least 1");
   LinearSetup s = load_linear(c, "animate --mode", at, {"t", "z", "u"});
+  // Every frame's positions are kept (and drawn into the SVG): the count is checked before
+  // anything is computed or kept for it, as animate's analysis does (require_kept_rows).
+  {
+    const kc::Mechanism& mech = s.model->mechanism();
+    const std::size_t per_frame = static_cast<std::size_t>(mech.nq()) + 2 * mech.points.size();
+    const long long most = static_cast<long long>(kc::kMaxKeptValues / per_frame) - 1;
+    if (options.grid.steps > most)
+      throw kc::UsageError("--steps " + std::to_string(options.grid.steps) +
+                           ": animate --mode keeps every frame in memory, at most " +
+                           std::to_string(kc::kMaxKeptValues) + " numbers (" +
+                           std::to_string(per_frame) + " a frame here); --steps " +
+                           std::to_string(most) +
+                           " is the most that fits (the default, 40, draws a smooth period)");
+  }
   kc::OperatingPoint unset = s.at;
   unset.z.setConstant(std::numeric_limits<double>::quiet_NaN());
   const bool at_equilibrium =

@@ -102,6 +102,84 @@ void Picture::collect() {
     named_.push_back({m.points[p].body, model_.point_offsets()[p]});
     attach(m.points[p].body, model_.point_offsets()[p]);
   }
+  collect_loads();
+}
+
+void Picture::collect_loads() {
+  const Mechanism& m = model_.mechanism();
+  // A value that does not change (a number, a parameter's expression); false for one that
+  // reads the time, the state or an input.
+  const auto constant = [&](const Expr& e, const std::string& item, double& v) {
+    if (e.text == "input") return false;
+    try {
+      v = number(e, item);
+    } catch (const std::exception&) {
+      return false;
+    }
+    return std::isfinite(v);
+  };
+  const auto point = [&](const Vec2& v, const std::string& item, Vector2d& out) {
+    return constant(v.x, item, out[0]) && constant(v.y, item, out[1]);
+  };
+  for (const Load& l : m.forces.loads) {
+    const std::string& name = l.item;  // with its name: "forces[2] 'push' (force)"
+    double k = 1, c = 1, fx = 1, fy = 1;
+    Vector2d si, sj, s;
+    switch (l.kind) {
+      case Load::Kind::kSpringDamper:
+      case Load::Kind::kRotationalSpringDamper: {
+        AnimateDrawing::Spring sp;
+        sp.name = name;
+        const bool stiff = !(constant(l.stiffness, l.item, k) && k == 0);
+        sp.damper = !(constant(l.damping, l.item, c) && c == 0);
+        sp.spring = stiff || !sp.damper;
+        if (l.kind == Load::Kind::kSpringDamper) {
+          if (!point(l.si, l.item, si) || !point(l.sj, l.item, sj)) continue;
+          sp.a = {l.i, si};
+          sp.b = {l.j, sj};
+        } else {
+          // At the pin that joins its two bodies, else at body j's origin (i's if j is ground).
+          sp.rotational = true;
+          sp.a = {l.j != kGround ? l.j : l.i, Vector2d::Zero()};
+          for (const Constraint& j : m.joints) {
+            if (std::string(j.kind->name) != "revolute") continue;
+            if (!((j.i == l.i && j.j == l.j) || (j.i == l.j && j.j == l.i))) continue;
+            const int on = j.j != kGround ? j.j : j.i;
+            Vector2d at;
+            if (point(j.vector(on == j.j ? "sj" : "si"), j.item, at)) sp.a = {on, at};
+            break;
+          }
+          sp.b = sp.a;
+        }
+        springs_.push_back(sp);
+        break;
+      }
+      case Load::Kind::kForce: {
+        if (!point(l.s, l.item, s)) continue;
+        const bool cx = constant(l.f.x, l.item, fx), cy = constant(l.f.y, l.item, fy);
+        if (cx && cy) {  // one arrow along the force (none for a zero force)
+          if (fx != 0 || fy != 0)
+            loads_.push_back({{l.body, s}, Vector2d(fx, fy).normalized(), false, name});
+          continue;
+        }
+        // Along each component's axis that is not a constant 0: the positive direction where
+        // it varies, its sign where it is constant.
+        if (!(cx && fx == 0))
+          loads_.push_back({{l.body, s}, Vector2d(cx && fx < 0 ? -1 : 1, 0), false, name});
+        if (!(cy && fy == 0))
+          loads_.push_back({{l.body, s}, Vector2d(0, cy && fy < 0 ? -1 : 1), false, name});
+        break;
+      }
+      case Load::Kind::kTorque: {
+        double v = 1;
+        const bool cv = constant(l.value, l.item, v);
+        if (cv && v == 0) continue;
+        loads_.push_back(
+            {{l.body, Vector2d::Zero()}, Vector2d(cv && v < 0 ? -1 : 1, 0), true, name});
+        break;
+      }
+    }
+  }
 }
 
 // A curve key of `c` at u (format 6.2): the curve reads only its own coordinate (checked
@@ -158,8 +236,19 @@ void Picture::infer_attachments() {
       if (b != c.body && fixed_in(b, c, s)) add_unique(body_points_[b], s, tol);
     if (c.body != kGround && fixed_in(kGround, c, s)) add_unique(ground_pivots_, s, tol);
   }
-  for (auto& pts : body_points_) {
-    // Fewer than two points make no bar: the frame's origin is the body's other landmark.
+  const auto& masses = model_.mechanism().forces.bodies;
+  for (std::size_t k = 0; k < body_points_.size(); ++k) {
+    auto& pts = body_points_[k];
+    // Fewer than two points make no bar: the centre of mass, then the frame's origin, are the
+    // body's other landmarks. A body left with one point is drawn as a disc (draw_bodies).
+    if (pts.size() < 2 && k < masses.size()) {
+      const std::string item = "bodies[" + std::to_string(k) + "] com";
+      try {
+        const Vector2d com(number(masses[k].com.x, item), number(masses[k].com.y, item));
+        if (com.allFinite()) add_unique(pts, com, tol);
+      } catch (const std::exception&) {  // not a number here: the frame's origin draws it
+      }
+    }
     if (pts.size() < 2) add_unique(pts, Vector2d::Zero(), tol);
     // A simple polygon: points in angular order around their centroid.
     Vector2d centre = Vector2d::Zero();
@@ -211,16 +300,43 @@ void Picture::fit() {
     }
     for (const auto& c : curves_)
       for (const auto& p : c.points) box.extend(world(q, c.body, p));
+    for (const auto& sp : springs_) {
+      box.extend(world(q, sp.a.body, sp.a.s));
+      box.extend(world(q, sp.b.body, sp.b.s));
+    }
+    for (const auto& l : loads_) box.extend(world(q, l.at.body, l.at.s));
   }
   for (const auto& g : ground_pivots_) box.extend(g);
+  // Everything drawn at (nearly) one place, as a flywheel on its pivot: a view a quarter of the
+  // length scale across, not one that magnifies rounding (the pixels' symbols stay their size).
+  const double least = 0.25 * model_.symbolic().length_scale;
+  if (box.sizes().maxCoeff() < least) {
+    const Vector2d centre = box.center();
+    box.extend(centre - Vector2d(least, least) / 2);
+    box.extend(centre + Vector2d(least, least) / 2);
+  }
   const Vector2d size = box.sizes().cwiseMax(1e-9 * model_.symbolic().length_scale);
   const double w = options_.width;
-  const double inner = w - 2 * kMargin;
-  scale_ = std::min(inner / size[0], inner / size[1]);
+  // At most kMaxAspect of the width tall, title included: a tall mechanism fits a screen beside
+  // the page's controls.
+  const double inner = std::max(10.0, w - 2 * kMargin);
+  const double inner_height = std::max(10.0, kMaxAspect * w - 2 * kMargin - kTitle);
+  scale_ = std::min(inner / size[0], inner_height / size[1]);
   width_ = size[0] * scale_ + 2 * kMargin;
   height_ = size[1] * scale_ + 2 * kMargin + kTitle;
   x0_ = kMargin - scale_ * box.min()[0];
   y0_ = kMargin + kTitle + scale_ * box.max()[1];
+  // Wide enough for the title: a narrow picture is widened, the mechanism in its middle.
+  const double title = std::min(w, 2 * kMargin + 8.0 * static_cast<double>(title_chars()));
+  if (width_ < title) {
+    x0_ += (title - width_) / 2;
+    width_ = title;
+  }
+}
+
+std::size_t Picture::title_chars() const {
+  // The page's and animate's titles: the name and the time ("   t = -1.234e-05 .. 6.283").
+  return std::max(model_.mechanism().name.size() + 30, options_.title.size());
 }
 
 }  // namespace io_detail

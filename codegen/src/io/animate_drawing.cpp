@@ -24,6 +24,8 @@ AnimateDrawing Picture::drawing() {
   d.pitch_circles = pitch_circles_;
   d.welds = welds_;
   d.curves = curves_;
+  d.springs = springs_;
+  d.loads = loads_;
   // The constraint behind each element: the kinds add theirs in constraint order.
   std::array<std::vector<const Constraint*>*, 7> by = {
       &d.pin_by, &d.slider_by, &d.strut_by, &d.circle_by, &d.line_by, &d.weld_by, &d.curve_by};
@@ -35,7 +37,8 @@ AnimateDrawing Picture::drawing() {
                {"force", kForceColour}, {"ground", kGroundColour},
                {"pin", kPinStroke},     {"slider", kSliderFill},
                {"point", kPointColour}, {"path", kPathColour},
-               {"gear", kGearColour}};
+               {"gear", kGearColour},   {"spring", kSpringColour},
+               {"load", kLoadColour}};
   return d;
 }
 

@@ -5,6 +5,89 @@
 
 namespace kinegen::codegen::io_detail {
 
+namespace {
+constexpr double kZigWidth = 5;    // a zig-zag's and a dashpot's half width
+constexpr double kSideBySide = 8;  // a spring and a damper in parallel: each this far aside
+constexpr int kZigs = 10;
+constexpr double kArrowLength = 40, kHead = 9;
+constexpr double kTorqueRadius = 16;
+}  // namespace
+
+Strokes spring_strokes(const Vector2d& a, const Vector2d& b, bool spring, bool damper) {
+  const Vector2d ab = b - a;
+  const double length = ab.norm();
+  const Vector2d d = length > 1e-9 ? Vector2d(ab / length) : Vector2d(1, 0);
+  const Vector2d n(-d[1], d[0]);
+  const auto at = [&](double u, double off) -> Vector2d { return a + u * ab + off * n; };
+  Strokes out;
+  const auto zigzag = [&](double u0, double u1, double off) {
+    std::vector<Vector2d> z{at(u0, off)};
+    for (int k = 1; k < kZigs; ++k)
+      z.push_back(at(u0 + (u1 - u0) * k / kZigs, off + (k % 2 ? kZigWidth : -kZigWidth)));
+    z.push_back(at(u1, off));
+    return z;
+  };
+  const auto dashpot = [&](double u0, double u1, double off) {
+    const double c0 = u0 + 0.3 * (u1 - u0), c1 = u0 + 0.7 * (u1 - u0), p = u0 + 0.55 * (u1 - u0);
+    out.push_back({at(u0, off), at(c0, off)});
+    out.push_back({at(c1, off + kZigWidth), at(c0, off + kZigWidth), at(c0, off - kZigWidth),
+                   at(c1, off - kZigWidth)});
+    out.push_back({at(p, off + 0.6 * kZigWidth), at(p, off - 0.6 * kZigWidth)});
+    out.push_back({at(p, off), at(u1, off)});
+  };
+  if (spring && damper) {
+    out.push_back({a, at(0.15, 0)});
+    out.push_back({at(0.15, kSideBySide), at(0.15, -kSideBySide)});
+    out.push_back(zigzag(0.15, 0.85, kSideBySide));
+    dashpot(0.15, 0.85, -kSideBySide);
+    out.push_back({at(0.85, kSideBySide), at(0.85, -kSideBySide)});
+    out.push_back({at(0.85, 0), b});
+  } else if (damper) {
+    dashpot(0, 1, 0);
+  } else {
+    std::vector<Vector2d> z = zigzag(0.2, 0.8, 0);
+    z.insert(z.begin(), a);
+    z.push_back(b);
+    out.push_back(z);
+  }
+  return out;
+}
+
+Strokes coil_strokes(const Vector2d& centre) {
+  std::vector<Vector2d> spiral;
+  for (int k = 0; k <= 40; ++k) {  // two and a half turns, from 3 to 13 pixels
+    const double u = k / 40.0, angle = 5 * kPi * u;
+    spiral.push_back(centre + (3 + 10 * u) * Vector2d(std::cos(angle), -std::sin(angle)));
+  }
+  return {spiral};
+}
+
+Strokes force_strokes(const Vector2d& at, const Vector2d& dir) {
+  const Vector2d d = Vector2d(dir[0], -dir[1]).normalized(), n(-d[1], d[0]);
+  const Vector2d base = at - kHead * d;
+  return {{at - kArrowLength * d, at}, {base + 0.45 * kHead * n, at, base - 0.45 * kHead * n}};
+}
+
+Strokes torque_strokes(const Vector2d& centre, double sign) {
+  std::vector<Vector2d> arc;
+  for (int k = 0; k <= 24; ++k) {  // from -60 to 210 degrees, counter-clockwise (y up)
+    const double u = sign > 0 ? k / 24.0 : 1 - k / 24.0, angle = kPi * (-1.0 / 3 + 1.5 * u);
+    arc.push_back(centre + kTorqueRadius * Vector2d(std::cos(angle), -std::sin(angle)));
+  }
+  const Vector2d end = arc.back(), t = (end - arc[arc.size() - 2]).normalized(), n(-t[1], t[0]);
+  const Vector2d base = end - kHead * t;
+  return {arc, {base + 0.45 * kHead * n, end, base - 0.45 * kHead * n}};
+}
+
+std::string path_data(const Strokes& strokes) {
+  std::string d;
+  for (const auto& stroke : strokes)
+    for (std::size_t k = 0; k < stroke.size(); ++k)
+      d += (d.empty() ? "" : " ") + std::string(k ? "L" : "M") + num(stroke[k][0]) + "," +
+           num(stroke[k][1]);
+  return d;
+}
+
 void Picture::element(std::ostringstream& os, const std::string& tag, const std::string& fixed,
                       const std::vector<Animated>& animated, const std::string& content) {
   const int shown = still() ? options_.frame : 0;
@@ -61,6 +144,7 @@ std::string Picture::emit() {
   draw_guides(os);
   draw_ground_pivots(os);
   draw_struts(os);
+  draw_springs(os);
   draw_bodies(os);
   draw_gears(os);
   draw_curves(os);
@@ -68,6 +152,7 @@ std::string Picture::emit() {
   draw_pins(os);
   draw_welds(os);
   draw_reactions(os);
+  draw_loads(os);
   draw_points(os);
   os << "</svg>\n";
   return os.str();
@@ -157,9 +242,22 @@ void Picture::draw_bodies(std::ostringstream& os) {
     };
     os << "  <!-- body " << escape(m.bodies[b].name) << " -->\n";
     if (pts.size() == 1) {
-      element(os, "circle", "r=\"6\" fill=\"" + std::string(kLinkColour) + "\"",
+      // A disc about its one point, wider than a pin, and a radius along its x axis that
+      // shows its rotation (a flywheel on its pivot, a block at its slider).
+      element(os, "circle",
+              "r=\"" + num(kBodyDiscRadius) + "\" fill=\"" + std::string(kLinkColour) +
+                  "\" fill-opacity=\"0.35\" stroke=\"" + kLinkColour + "\" stroke-width=\"3\"",
               {{"cx", [&, shape](int f) { return num(px(shape(f)[0])[0]); }},
                {"cy", [&, shape](int f) { return num(px(shape(f)[0])[1]); }}});
+      auto mark = [&, b](int f) {
+        const Vector2d c = world(q_[f], b, body_points_[b][0]);
+        return std::vector<Vector2d>{
+            c, c + rotate(q_[f][3 * b + 2], Vector2d(kBodyDiscRadius / scale_, 0))};
+      };
+      element(os, "polyline",
+              "fill=\"none\" stroke=\"" + std::string(kLinkColour) +
+                  "\" stroke-width=\"3\" stroke-linecap=\"round\"",
+              {{"points", [&, mark](int f) { return points_at(f, mark); }}});
       continue;
     }
     const std::string tag = pts.size() == 2 ? "polyline" : "polygon";
@@ -300,6 +398,41 @@ void Picture::draw_reactions(std::ostringstream& os) {
        << "\" font-family=\"sans-serif\" font-size=\"12\" fill=\"" << kForceColour
        << "\">reactions: the longest arrow is "
        << escape(format_number(largest_force_, NumberStyle::kShort)) << "</text>\n";
+  }
+}
+
+// Springs and dampers: a zig-zag, a dashpot, both side by side; a coil for a rotational one
+// (dashed when it only damps).
+void Picture::draw_springs(std::ostringstream& os) {
+  for (const auto& sp : springs_) {
+    auto d = [&, sp](int f) {
+      const Vector2d a = px(world(q_[f], sp.a.body, sp.a.s));
+      if (sp.rotational) return path_data(coil_strokes(a));
+      return path_data(
+          spring_strokes(a, px(world(q_[f], sp.b.body, sp.b.s)), sp.spring, sp.damper));
+    };
+    os << "  <!-- " << escape(sp.name) << " -->\n";
+    element(os, "path",
+            "fill=\"none\" stroke=\"" + std::string(kSpringColour) +
+                "\" stroke-width=\"1.8\" stroke-linejoin=\"round\"" +
+                (sp.rotational && !sp.spring ? " stroke-dasharray=\"3 2\"" : ""),
+            {{"d", d}});
+  }
+}
+
+// Applied forces and torques: arrows of one length (where each acts and which way, not how
+// much; a varying force: the positive direction of each component).
+void Picture::draw_loads(std::ostringstream& os) {
+  for (const auto& l : loads_) {
+    auto d = [&, l](int f) {
+      const Vector2d at = px(world(q_[f], l.at.body, l.at.s));
+      return path_data(l.torque ? torque_strokes(at, l.dir[0]) : force_strokes(at, l.dir));
+    };
+    os << "  <!-- " << escape(l.name) << " -->\n";
+    element(os, "path",
+            "fill=\"none\" stroke=\"" + std::string(kLoadColour) +
+                "\" stroke-width=\"2.5\" stroke-linejoin=\"round\" stroke-linecap=\"round\"",
+            {{"d", d}});
   }
 }
 

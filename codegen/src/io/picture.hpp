@@ -32,6 +32,8 @@ constexpr const char* kSliderFill = "#9ecae1";
 constexpr const char* kPointColour = "#d62728";
 constexpr const char* kPathColour = "#ff7f0e";
 constexpr const char* kGearColour = "#2ca02c";
+constexpr const char* kSpringColour = "#8c564b";
+constexpr const char* kLoadColour = "#9467bd";
 constexpr double kPi = 3.14159265358979323846;
 
 inline Vector2d rotate(double phi, const Vector2d& s) {
@@ -82,6 +84,23 @@ inline void add_unique(std::vector<Vector2d>& points, const Vector2d& p, double 
   points.push_back(p);
 }
 
+// The loads' symbols in pixels (y down), each a list of strokes (polylines); drawing.js draws
+// the same. A spring-damper from a to b: the first stroke starts at a, the last ends at b.
+using Strokes = std::vector<std::vector<Vector2d>>;
+Strokes spring_strokes(const Vector2d& a, const Vector2d& b, bool spring, bool damper);
+Strokes coil_strokes(const Vector2d& centre);
+// A force's arrow onto `at`, along `dir` (world: y up).
+Strokes force_strokes(const Vector2d& at, const Vector2d& dir);
+// A torque's curved arrow about `centre`, counter-clockwise for sign > 0.
+Strokes torque_strokes(const Vector2d& centre, double sign);
+// SVG path data: "M x,y L x,y ..." per stroke.
+std::string path_data(const Strokes& strokes);
+
+// A single-point body's disc (pixels): a body drawn at one place is seen around its pin.
+constexpr double kBodyDiscRadius = 11;
+// The picture is at most this part of its width tall (the page beside its controls).
+constexpr double kMaxAspect = 0.75;
+
 class Picture {
  public:
   Picture(const CompiledModel& model, const AnimateOptions& options)
@@ -120,6 +139,8 @@ class Picture {
   // body's drawing, whichever body the file put it on: this draws mechanisms written with
   // `expression` constraints, where the joints are not named.
   void infer_attachments();
+  // The loads of `forces:`: springs, dampers, forces and torques (AnimateDrawing's).
+  void collect_loads();
   // Extents of everything drawn, over every frame; the world-to-pixel map from them.
   void fit();
   Vector2d px(const Vector2d& w) const { return {x0_ + scale_ * w[0], y0_ - scale_ * w[1]}; }
@@ -159,6 +180,12 @@ class Picture {
   void draw_reactions(std::ostringstream& os);
   // Named points and their labels.
   void draw_points(std::ostringstream& os);
+  // Springs and dampers (zig-zags, dashpots, coils).
+  void draw_springs(std::ostringstream& os);
+  // Applied forces and torques: arrows of fixed length.
+  void draw_loads(std::ostringstream& os);
+  // The title's width in pixels, about (14 px sans-serif).
+  std::size_t title_chars() const;
   static constexpr double kMargin = 40;  // pixels around the extents (ground marks, labels)
   static constexpr double kTitle = 24;   // pixels above for the title line
   const CompiledModel& model_;
@@ -174,6 +201,8 @@ class Picture {
   std::vector<Slider> pitch_lines_;  // travel: of the pinion's centre along the line
   std::vector<Attach> welds_;
   std::vector<Sketch::Curve> curves_;
+  std::vector<AnimateDrawing::Spring> springs_;
+  std::vector<AnimateDrawing::Load> loads_;
   // Each drawing constraint with the Sketch's element counts after it (AnimateDrawing's *_by).
   std::vector<std::pair<const Constraint*, std::array<std::size_t, 7>>> drawn_;
   // With options_.forces.

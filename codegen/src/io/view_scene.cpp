@@ -208,6 +208,24 @@ void write_scene(Json& json, const CompiledModel& model, const AnimateDrawing& d
          columns.group(m.points[k].name, {".x", ".y", ".vx", ".vy", ".ax", ".ay"}));
     json.close('}');
   }
+  json.close(']').key("springs").open('[');
+  for (const auto& sp : d.springs) {
+    json.item().open('{').key("a").open('{');
+    attach(json, sp.a);
+    json.close('}').key("b").open('{');
+    attach(json, sp.b);
+    json.close('}').key("spring").raw(sp.spring ? "true" : "false");
+    json.key("damper").raw(sp.damper ? "true" : "false");
+    json.key("rotational").raw(sp.rotational ? "true" : "false");
+    json.key("name").string(sp.name).close('}');
+  }
+  json.close(']').key("loads").open('[');
+  for (const auto& l : d.loads) {
+    json.item().open('{');
+    attach(json, l.at);
+    json.key("dir").vec(l.dir).key("torque").raw(l.torque ? "true" : "false");
+    json.key("name").string(l.name).close('}');
+  }
   json.close(']');
   reactions(json, model, columns);
   json.key("view").open('{');

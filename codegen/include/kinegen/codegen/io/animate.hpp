@@ -58,6 +58,25 @@ struct AnimateDrawing {
   std::vector<Sketch::Circle> pitch_circles;
   std::vector<Attach> welds;
   std::vector<Sketch::Curve> curves;
+  // The loads (`forces:`). A spring_damper between its two points: a zig-zag where it is stiff,
+  // a dashpot where it damps; a rotational one (rotational) a coil about a == b, the pin that
+  // joins its bodies (else body j's origin).
+  struct Spring {
+    Attach a, b;
+    bool spring = true, damper = false, rotational = false;
+    std::string name;
+  };
+  std::vector<Spring> springs;
+  // A force: an arrow of fixed length onto its point, along the force where it is constant,
+  // else along the positive axis of each varying component (one arrow each). A torque: a curved
+  // arrow about its body's origin, dir[0] > 0 counter-clockwise.
+  struct Load {
+    Attach at;
+    Eigen::Vector2d dir = Eigen::Vector2d::UnitX();
+    bool torque = false;
+    std::string name;
+  };
+  std::vector<Load> loads;
   // The constraint that drew each pin, slider, strut, pitch circle, pitch line, weld, curve.
   std::vector<const Constraint*> pin_by, slider_by, strut_by, circle_by, line_by, weld_by, curve_by;
   // px = x0 + scale x, py = y0 - scale y; the picture's size, margin and title line (pixels).
