@@ -3,9 +3,11 @@
 
 #include <memory>
 
+#include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/io/output_file.hpp"
 #include "kinegen/codegen/io/view.hpp"
+#include "kinegen/codegen/model/table.hpp"
 #include "locked.hpp"
 
 namespace py = pybind11;
@@ -72,6 +74,14 @@ std::string view_html(const kc::CompiledModel& model, const ViewArgs& a,
   if (a.max_rows < 2) throw kc::UsageError("max_rows must be at least 2");
   if (grid && *a.steps < 0) throw kc::UsageError("--steps must be 0 or more");
   kc::require_viewer();
+  if (grid) {
+    // An analysis needs every coordinate driven: a free item (its motion is a simulation's) or
+    // an input left without its table is refused, as `analyze` and the command line refuse it,
+    // never drawn at 0.
+    kc::require_driven(model);
+    kc::Mechanism copy = model.mechanism();
+    kc::apply_inputs(copy, {}, true);
+  }
   kc::ViewOptions options;
   options.width = a.width;
   if (!a.modes.empty())

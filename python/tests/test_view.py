@@ -101,3 +101,24 @@ def test_a_run_that_fails_keeps_its_page(four_bar, tmp_path):
     assert "error: " + str(e.value) + "\n" == r.stderr.splitlines(keepends=True)[-1]
     assert (tmp_path / "py.html").read_bytes() == cli.read_bytes()
     assert b'"rows":34' in cli.read_bytes()
+
+
+def test_view_of_an_analysis_refuses_free_coordinates_as_the_command_line(four_bar, source,
+                                                                          tmp_path):
+    # A mechanism with `free:` has no analysis: its free coordinates move under the forces
+    # (simulate). The page of one would draw every free coordinate at 0 and its pins as ground
+    # pivots; the command line refuses it, and so does Mechanism.view, with the same error.
+    for name in ["pendulum.yaml", "four_bar_spring.yaml", "cart_pole.yaml"]:
+        path = str(source / "examples" / "dynamics" / name)
+        out = tmp_path / (name + ".html")
+        r = run("view", path, "--t0", "0", "--t1", "1", "--steps", "4", "-o", str(out))
+        assert r.returncode == 2 and not out.exists()
+        assert "free coordinate" in r.stderr
+        with pytest.raises(kinegen.UsageError) as e:
+            kinegen.Mechanism(path).view(str(out), t0=0, t1=1, steps=4)
+        assert "free coordinate" in str(e.value)
+        assert not out.exists()
+        # analyze refuses it the same way.
+        with pytest.raises(kinegen.UsageError) as a:
+            kinegen.Mechanism(path).analyze(t0=0, t1=1, steps=4)
+        assert str(a.value) == str(e.value)
