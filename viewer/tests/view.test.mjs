@@ -588,6 +588,9 @@ test('springs and dampers between their two points, loads where they act', async
   view(file, '--csv', csvFile, '-o', html);
   const { page, log, close } = await open(html);
   try {
+    // The first plot: the blocks' x, which move (their angles are constant).
+    assert.deepEqual(await page.evaluate(() => window.kinegen.plots[0].ycs.map((c) =>
+      window.kinegen.run.names[c])), ['m1.x', 'm2.x']);
     for (const k of [0, 7, 40]) {
       await slide(page, k);
       const q = rowOf(csv, k), d = await drawn(page);
