@@ -132,6 +132,18 @@ TEST_CASE("view --modes: the JSON is read with bounded memory and nesting", "[vi
   REQUIRE_THROWS_WITH(
       read("deep.json", four_bar_modes(", \"mass\": " + std::string(9, '[') + std::string(9, ']'))),
       Catch::Contains("deep.json:5: modes: nested deeper than 8 levels"));
+  // A key the page reads past is parsed and dropped, however long (within the size bound); what
+  // it keeps is bounded by the mechanism's size: here 9 coordinates, (9 + 2)^2 + 8 values.
+  std::string zeros = "0";
+  for (int k = 0; k < 20000; ++k) zeros += ", 0";
+  CHECK(read("long.json", four_bar_modes(", \"mass\": [" + zeros + "]")).q[8] == 1.5);
+  std::string shapes = "[0, 0, 1, 0, 0, 0, 0, 0, 0]";
+  for (int k = 0; k < 20; ++k) shapes += ", [0, 0, 1, 0, 0, 0, 0, 0, 0]";
+  std::string wide = four_bar_modes();
+  wide.replace(wide.find("[[0, 0, 1, 0, 0, 0, 0, 0, 0]]"), 29, "[" + shapes + "]");
+  REQUIRE_THROWS_WITH(read("wide.json", wide),
+                      Catch::Contains("wide.json:4: modes: more than 129 values in its "
+                                      "coordinates, q, frequencies and shapes"));
   // More modes than coordinates.
   std::string many = four_bar_modes();
   many.replace(many.find("[1.5]"), 5, "[1, 2, 3, 4, 5, 6, 7, 8, 9, 10]");

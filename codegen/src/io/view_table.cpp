@@ -261,10 +261,13 @@ constexpr int kMaxModesDepth = 8;
 
 class JsonParser {
  public:
-  JsonParser(const std::string& path, const std::string& text) : path_(path), text_(text) {}
+  // budget: the most values kept (those of the keys the page reads; the others are parsed and
+  // dropped), from the mechanism's size.
+  JsonParser(const std::string& path, const std::string& text, std::size_t budget)
+      : path_(path), text_(text), budget_(budget) {}
 
   JsonValue parse() {
-    JsonValue v = value(1);
+    JsonValue v = value(1, true);
     space();
     if (at_ < text_.size()) fail("modes", "text after the JSON value: " + excerpt());
     return v;
@@ -311,12 +314,18 @@ class JsonParser {
     return true;
   }
 
-  JsonValue value(int depth) {
+  // The value at the parser; built when `keep`, else only read past. At the root, the values of
+  // the keys the page does not read are read past (their keys are kept, to be checked).
+  JsonValue value(int depth, bool keep) {
     space();
     if (depth > kMaxModesDepth)
       fail("modes", "nested deeper than " + std::to_string(kMaxModesDepth) +
                         " levels; a modes JSON has 3 (its shapes, lists of lists of numbers)");
     if (++values_ % 65536 == 0) interruption_point();
+    if (keep && ++kept_ > budget_)
+      fail("modes", "more than " + std::to_string(budget_) +
+                        " values in its coordinates, q, frequencies and shapes, more than the "
+                        "mechanism's coordinates have");
     JsonValue v;
     v.line = line_;
     if (at_ >= text_.size()) fail("modes", "the file ends where a value should be");
@@ -330,6 +339,7 @@ class JsonParser {
         ++at_;
         return v;
       }
+      std::string key;
       while (true) {
         space();
         if (v.kind == JsonValue::Kind::kObject) {
@@ -337,13 +347,17 @@ class JsonParser {
             fail("key " + key_excerpt(),
                  "a key must be a string in double quotes (the keys are q, frequencies, shapes, "
                  "...)");
-          v.keys.push_back(string());
+          key = string();
+          if (keep) v.keys.push_back(key);
           space();
           if (at_ >= text_.size() || text_[at_] != ':')
-            fail(v.keys.back(), "expected ':' after the key, found " + excerpt());
+            fail(key, "expected ':' after the key, found " + excerpt());
           ++at_;
         }
-        v.items.push_back(value(depth + 1));
+        const bool read = depth > 1 || v.kind != JsonValue::Kind::kObject || key == "q" ||
+                          key == "frequencies" || key == "shapes" || key == "coordinates";
+        JsonValue item = value(depth + 1, keep && read);
+        if (keep) v.items.push_back(std::move(item));
         space();
         if (at_ < text_.size() && text_[at_] == ',') {
           ++at_;
@@ -421,7 +435,7 @@ class JsonParser {
 
   const std::string& path_;
   const std::string& text_;
-  std::size_t at_ = 0, values_ = 0;
+  std::size_t budget_, at_ = 0, values_ = 0, kept_ = 0;
   int line_ = 1;
 };
 
@@ -446,7 +460,11 @@ ModeSet read_modes_json(const std::string& path, const CompiledModel& model) {
                           ? ", the most a modes JSON of " + model.mechanism().source + " (" +
                                 std::to_string(nq) + " coordinates) may be"
                           : ""));
-  const JsonValue root = JsonParser(path, text.text).parse();
+  // Kept: the object, coordinates, q, frequencies (at most nq) and shapes (as many, of nq each)
+  // with their lists: at most (nq + 2)^2 + 1 values.
+  const auto n = static_cast<std::size_t>(nq) + 2;
+  const std::size_t budget = n * n + 8;
+  const JsonValue root = JsonParser(path, text.text, budget).parse();
   const auto fail = [&](const JsonValue* at, const std::string& item, const std::string& what) {
     throw InputError(path, item, {at ? at->line : 0}, what);
   };
