@@ -8,12 +8,19 @@
 //  3. self-consistency: D and D + 10 digits agree to ~D - 5 digits;
 //  4. the double simulation (CVODE at rtol 1e-12) against the reference;
 //  5. the command line: --reference D writes simulate's columns, and bad D exits 2.
+#include <signal.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
+#include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "kinegen/codegen/analysis/compiled_model.hpp"
@@ -366,4 +373,235 @@ TEST_CASE("reference dynamics: kinegen simulate --reference", "[reference_dynami
     CHECK(r.err.rfind("error: ", 0) == 0);
     CHECK(r.out.empty());
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Breakpoints: no extrapolation step spans a driver's or a load's kink (analysis/breakpoints.hpp).
+
+namespace {
+
+std::string driven_pendulum_text() {
+  return read_text(fs::path(KINEGEN_SOURCE_DIR) / "examples/dynamics/driven_pendulum.yaml");
+}
+
+// The driven pendulum with its shaker's law replaced by `law` (the rest of the driver's entry)
+// and `forces` appended (a YAML forces: section or "").
+std::string driven_pendulum_file(const std::string& name, const std::string& law,
+                                 const std::string& forces = "") {
+  std::string text = driven_pendulum_text();
+  const std::string from = "f: \"amplitude*sin(omega*t)\"";
+  REQUIRE(text.find(from) != std::string::npos);
+  text.replace(text.find(from), from.size(), law);
+  return write_yaml(name, text + forces);
+}
+
+// The largest difference of z and zd at the last row, relative to max(|value|, 1).
+double last_row_gap(const cg::ReferenceSimulatedRow& ref, const cg::SimulatedRow& d) {
+  double worst = 0;
+  for (std::size_t i = 0; i < ref.z.size(); ++i) {
+    worst =
+        std::max(worst, gap(ref.z[i], cg::exact_numeric(d.z[i])) / std::max(1.0, std::abs(d.z[i])));
+    worst = std::max(worst,
+                     gap(ref.zd[i], cg::exact_numeric(d.zd[i])) / std::max(1.0, std::abs(d.zd[i])));
+  }
+  return worst;
+}
+
+}  // namespace
+
+TEST_CASE("reference dynamics: the press with flywheel across its poly345 strokes",
+          "[reference_dynamics][breakpoints]") {
+  // The forming force is poly345 of the ram's depth and speed: kinks of the state, located and
+  // restarted from. theta at t = 3: 20.2092458080 (CVODE at rtol 1e-13, RK4 at h = 1e-4,
+  // Simbody at 1e-12 and 40 digits agree to 1e-11); with one row or 300 alike.
+  const std::string file =
+      (fs::path(KINEGEN_SOURCE_DIR) / "examples/dynamics/press_flywheel.yaml").string();
+  const double want = 20.2092458080;
+  std::vector<double> theta;
+  for (const int steps : {1, 300}) {
+    const Run r = reference(file, {0, 3, steps}, 20);
+    theta.push_back(r.rows.back().z[0].to_double());
+    WARN("press_flywheel, --reference 20 --steps "
+         << steps << ": theta(3) = " << std::setprecision(14) << theta.back() << " (" << r.seconds
+         << " s, " << r.stats.steps << " steps)");
+    CHECK(std::abs(theta.back() - want) < 1e-10 * want);
+  }
+  const std::vector<cg::SimulatedRow> d = in_double(file, {0, 3, 1}, 1e-13, 1e-15);
+  CHECK(std::abs(d.back().z[0] - theta[0]) < 1e-10 * want);
+  CHECK(std::abs(theta[0] - theta[1]) < 1e-12 * want);
+}
+
+TEST_CASE(
+    "reference dynamics: against CVODE at rtol 1e-13 on laws in pieces, periods, tables "
+    "and clamped laws, independently of --steps",
+    "[reference_dynamics][breakpoints]") {
+  // The driven pendulum's shaker: a periodic dwell-rise (poly345) -dwell-return (harmonic, whose
+  // f'' jumps), a periodic table, and a clamped cycloidal torque pulse on the rod.
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "reference_dynamics";
+  fs::create_directories(dir);
+  {
+    std::ofstream csv(dir / "shaker.csv");
+    csv << "t,value\n";
+    for (int k = 0; k <= 8; ++k)
+      csv << k / 8.0 << "," << (k == 8 ? 0.0 : 0.1 * std::sin(2 * M_PI * k / 8.0)) << "\n";
+  }
+  const std::vector<std::string> files = {
+      driven_pendulum_file("shaker_pieces",
+                           "period: 1, f: [{until: 0.25, f: \"0\"}, {until: 0.5, f: "
+                           "\"amplitude*poly345(4*t - 1)\"}, {until: 0.75, f: \"amplitude\"}, "
+                           "{f: \"amplitude*(1 - harmonic(4*t - 3))\"}]"),
+      driven_pendulum_file("shaker_table", "period: 1, table: shaker.csv"),
+      driven_pendulum_file(
+          "shaker_kick", "f: \"amplitude*sin(omega*t)\"",
+          "forces:\n  - {type: torque, name: kick, body: rod, value: \"0.5*cycloidal(t/0.3) - "
+          "0.5*cycloidal((t - 0.6)/0.3)\"}\n")};
+  for (const std::string& file : files) {
+    const double t1 = 1.3;
+    const Run one = reference(file, {0, t1, 1}, 20), three = reference(file, {0, t1, 3}, 20);
+    const std::vector<cg::SimulatedRow> d = in_double(file, {0, t1, 1}, 1e-13, 1e-15);
+    const double cvode = last_row_gap(one.rows.back(), d.back());
+    const double steps = last_row_gap(one.rows.back(), cg::to_simulated_row(three.rows.back()));
+    WARN(fs::path(file).filename().string()
+         << " to t = " << t1 << ": reference against CVODE (rtol 1e-13, atol 1e-15) " << cvode
+         << ", --steps 1 against 3 " << steps << " (" << one.seconds << " s)");
+    CHECK(cvode < 1e-10);
+    CHECK(steps < 1e-12);
+  }
+}
+
+TEST_CASE("reference dynamics: --reference D accepts 16 to 60 digits",
+          "[reference_dynamics][cli]") {
+  const std::string file = std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/pendulum.yaml";
+  const auto run = [&](const std::string& digits) {
+    return kinegen::test::run_command(
+        {KINEGEN_EXE, "simulate", file, "--t1", "0.1", "--steps", "1", "--reference", digits});
+  };
+  for (const char* bad : {"15", "61", "200"}) {
+    const auto r = run(bad);
+    INFO(bad << ": " << r.err);
+    CHECK(r.exit_code == 2);
+    CHECK(r.err.find("between 16 and 60") != std::string::npos);
+    CHECK(r.out.empty());
+  }
+  for (const char* good : {"16", "60"}) {
+    const auto r = run(good);
+    INFO(good << ": " << r.err);
+    CHECK(r.exit_code == 0);
+  }
+}
+
+TEST_CASE("reference dynamics: the first SIGINT stops --reference at once, rows kept (exit 1)",
+          "[reference_dynamics][cli]") {
+  // One row at t0, the next at t = 1000: without an interruption point inside the steps the run
+  // would not stop before that row.
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "reference_sigint";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path target = dir / "out.csv", err = dir.parent_path() / "reference_sigint.txt";
+  const std::string file = std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/pendulum.yaml";
+  kinegen::test::ChildProcess child({KINEGEN_EXE, "simulate", file, "--t1", "2000", "--steps", "2",
+                                     "--reference", "60", "-o", target.string()},
+                                    "/dev/null", "/dev/null", err.string());
+  // Well into the first step: after 2 s of the child's CPU time (reading the pendulum and
+  // solving t0 take a fraction of that), however loaded the machine.
+  const auto cpu_seconds = [&] {
+    std::ifstream stat("/proc/" + std::to_string(child.pid) + "/stat");
+    std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
+    std::istringstream fields(text.substr(text.rfind(')') + 2));
+    std::string field;
+    long ticks = 0;
+    for (int k = 3; k <= 15 && fields >> field; ++k)
+      if (k >= 14) ticks += std::stol(field);  // utime, stime
+    return static_cast<double>(ticks) / ::sysconf(_SC_CLK_TCK);
+  };
+  for (int k = 0; k < 6000 && cpu_seconds() < 2; ++k)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const auto sent = std::chrono::steady_clock::now();
+  ::kill(child.pid, SIGINT);
+  const int status = child.wait();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
+  const std::string message = read_text(err);
+  INFO(message);
+  WARN("--reference 60 stopped " << seconds * 1e3 << " ms after SIGINT");
+  CHECK(status == 1);
+  CHECK(message.rfind("error: " + file + ": interrupted at t = ", 0) == 0);
+  CHECK(seconds < 30);  // not a timing test: the old code ran on to the row at t = 1000
+  // The row at t0 is kept, under the header.
+  const std::string csv = read_text(target);
+  CHECK(std::count(csv.begin(), csv.end(), '\n') == 2);
+}
+
+// ---------------------------------------------------------------------------------------------
+// stop_when on the reference: the first crossing from < 0 to >= 0 after t0, brief ones too.
+
+namespace {
+
+struct StopRun {
+  std::vector<cg::ReferenceSimulatedRow> rows;
+  cg::ReferenceSimulationStats stats;
+};
+
+StopRun stop_run(const std::string& name, const std::string& stop_when, double t1, int steps,
+                 int digits = 20) {
+  const std::string file = write_yaml(name, pendulum_text() + "stop_when: \"" + stop_when + "\"\n");
+  cg::BuildOptions build;
+  build.free_as_state = true;
+  const auto model = cg::CompiledModel::from_file(file, {}, build);
+  const cg::ForceModel forces = cg::derive_forces(*model);
+  StopRun r;
+  r.stats = cg::run_reference_simulation_exact(
+      *model, forces, {0, t1, steps}, digits,
+      [&](const cg::ReferenceSimulatedRow& row) { r.rows.push_back(row); });
+  return r;
+}
+
+}  // namespace
+
+TEST_CASE(
+    "reference dynamics: stop_when finds a brief dip above 0 and the first of fast "
+    "oscillations",
+    "[reference_dynamics][stop_when]") {
+  // 1e-5 - 40 (t - 0.5)^2 is above 0 only on 0.5 -+ 5e-4: its first crossing is 0.5 - 5e-4.
+  for (const double dip : {1e-5, 1e-9}) {
+    const std::string expr = cg::format_number(dip) + " - 40*(t - 0.5)^2";
+    const StopRun r = stop_run("stop_dip", expr, 1, 1);
+    const double want = 0.5 - std::sqrt(dip / 40);
+    INFO(expr << ": stopped " << r.stats.stopped << " at " << r.stats.stop_time);
+    CHECK(r.stats.stopped);
+    REQUIRE(r.rows.size() == 2);
+    CHECK(std::abs(r.rows.back().row.t.to_double() - want) < 1e-13);
+  }
+  // sin(1e4 t) is 0 at t0 (no crossing), positive, then crosses up first at 2 pi / 1e4.
+  const StopRun r = stop_run("stop_sin", "sin(10000*t)", 0.01, 1);
+  CHECK(r.stats.stopped);
+  CHECK(std::abs(r.stats.stop_time - 2 * M_PI / 1e4) < 1e-15);
+  // Above 0 at t0: one row, at t0.
+  const StopRun at_t0 = stop_run("stop_at_t0", "1 - t", 1, 4);
+  CHECK(at_t0.stats.stopped);
+  CHECK(at_t0.rows.size() == 1);
+  CHECK(at_t0.stats.stop_time == 0);
+}
+
+TEST_CASE(
+    "reference dynamics: simulate --reference says where stop_when stopped it, and names "
+    "a stop_when that is no real number",
+    "[reference_dynamics][stop_when][cli]") {
+  const std::string dip =
+      write_yaml("stop_dip_cli", pendulum_text() + "stop_when: \"1e-5 - 40*(t - 0.5)^2\"\n");
+  const auto r = kinegen::test::run_command(
+      {KINEGEN_EXE, "simulate", dip, "--t1", "1", "--steps", "1", "--reference", "20"});
+  INFO(r.err);
+  CHECK(r.exit_code == 0);
+  CHECK(r.err.find("stopped at t = 0.4995") != std::string::npos);
+  CHECK(r.err.find(": 1e-5 - 40*(t - 0.5)^2 crossed 0") != std::string::npos);
+  const std::string text = pendulum_text();
+  const auto line = std::count(text.begin(), text.end(), '\n') + 1;
+  const std::string nan = write_yaml("stop_nan", text + "stop_when: \"sqrt(0.5 - t) - 10\"\n");
+  const auto n = kinegen::test::run_command(
+      {KINEGEN_EXE, "simulate", nan, "--t1", "1", "--steps", "4", "--reference", "20"});
+  INFO(n.err);
+  CHECK(n.exit_code == 1);
+  CHECK(n.err.rfind("error: " + nan + ":" + std::to_string(line) + ": stop_when: ", 0) == 0);
+  CHECK(std::count(n.out.begin(), n.out.end(), '\n') == 3);  // header, t = 0 and 0.25
 }

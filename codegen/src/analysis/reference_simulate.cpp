@@ -1,12 +1,17 @@
 // The reference integrator: Gragg-Bulirsch-Stoer extrapolation in CLN arithmetic on
 // ReferenceDynamics (see analysis/reference_dynamics.hpp). The step, order and rejection rules
 // are those of Hairer, Norsett and Wanner, Solving ODEs I, section II.9 (their code ODEX),
-// without dense output: steps land exactly on the grid's times and on a stop_when root.
+// without dense output: steps land exactly on the grid's times, on every breakpoint (a driver's
+// or a load's kink in t, analysis/breakpoints.hpp; a state-dependent one located like a
+// stop_when root) and on a stop_when root. No step spans a breakpoint: the extrapolation
+// assumes a smooth right-hand side over its step.
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 
+#include "kinegen/codegen/analysis/breakpoints.hpp"
 #include "kinegen/codegen/analysis/kinematics.hpp"
 #include "kinegen/codegen/analysis/reference_dynamics.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
@@ -27,6 +32,9 @@ constexpr double kFacMin = 0.02, kFacMax = 4.0, kSafe1 = 0.65, kSafe2 = 0.94;
 constexpr double kOrderDown = 0.8, kOrderUp = 0.9;
 // Consecutive failed evaluations (Newton, a branch, ...) that end the run.
 constexpr int kMaxFailures = 40;
+// stop_when's error bound E, relative to its scale: below what a double run resolves, so the
+// reference finds every crossing a double run can.
+constexpr double kStopErrorBound = 1e-15;
 
 // |x| as a double, at most 1e300 (a scaled error of a wild first try may exceed double's
 // range when D is large).
@@ -79,6 +87,8 @@ class Extrapolation {
   void derivative(const numeric& t, const Vector& y, Vector& f, ReferenceMotionState& s) {
     const int nf = dyn_.nf();
     ++stats.evaluations;
+    // An evaluation takes milliseconds at the digits allowed: a stop asked for is seen at once.
+    interruption_point();
     dyn_.evaluate(t, Vector(y.begin(), y.begin() + nf), Vector(y.begin() + nf, y.begin() + 2 * nf),
                   s);
     f.resize(y.size());
@@ -115,10 +125,16 @@ class Extrapolation {
       double h_next = h;
       std::string reason;
       try {
+        const int order = k_;
         if (attempt(p, t_new, y, h_next)) {
           StepPoint next = point(t_new, y);
           ++stats.steps;
+          // A step cut short (a grid time, a breakpoint, stop_when's limit) keeps its order
+          // and the larger step size: the lower order that is cheaper on a short step fails
+          // the next full step's error test, and each rejection lowers the order further,
+          // down to steps of 1e-14 (the pendulum at 60 digits near a stop_when root).
           h_ = last ? std::max(h_next, h_) : h_next;
+          if (last) k_ = std::max(k_, order);
           p = std::move(next);
           return;
         }
@@ -137,6 +153,13 @@ class Extrapolation {
       if (++failures >= kMaxFailures || !(h_ > 1e-14 * std::max(1.0, std::abs(p.t.to_double()))))
         throw AnalysisError(reason);
     }
+  }
+
+  // The step size and order of `o` (a copy taken before a step that is taken again).
+  void restore_controller(const Extrapolation& o) {
+    h_ = o.h_;
+    k_ = o.k_;
+    reject_ = o.reject_;
   }
 
   ReferenceSimulationStats stats;
@@ -257,8 +280,24 @@ class Extrapolation {
 
 namespace {
 
+// stop_when's failure to evaluate, named by the file, the item and its line: not one of the
+// integrator's failures (no smaller step helps), so the run ends with this message as it is.
+class StopWhenError : public AnalysisError {
+ public:
+  using AnalysisError::AnalysisError;
+};
+
+// Whether e holds a derivative the expression language cannot write (a function without one).
+bool has_unknown_derivative(const ex& e) {
+  if (GiNaC::is_a<GiNaC::fderivative>(e)) return true;
+  for (std::size_t k = 0; k < e.nops(); ++k)
+    if (has_unknown_derivative(e.op(k))) return true;
+  return false;
+}
+
 // stop_when (format 7.3) at a state in high precision: its tape, or, where it reads force
-// columns, the expression evaluated with them (ReferenceForces) substituted.
+// columns, the expression evaluated with them (ReferenceForces) substituted. Without force
+// columns its exact rate too: g' = dg/dt + dg/dq qd (at qdd = 0, one output) + dg/dqd qdd.
 class StopFunction {
  public:
   StopFunction(const CompiledModel& model, const ForceModel& forces, ReferenceDynamics& dyn)
@@ -268,7 +307,25 @@ class StopFunction {
     if (sym.stop_when.is_zero() && !model.mechanism().stop_when) return;
     active_ = true;
     if (sym.stop_force_columns.empty()) {
-      handle_ = dyn.evaluator().add_outputs({sym.stop_when});
+      std::vector<ex> outputs{sym.stop_when};
+      try {
+        ex rate0 = sym.stop_when.diff(s.t());
+        std::vector<ex> by_qd;
+        for (int k = 0; k < s.nq(); ++k) {
+          rate0 += sym.stop_when.diff(s.q(k)) * s.qd(k);
+          by_qd.push_back(sym.stop_when.diff(s.qd(k)));
+        }
+        bool known = !has_unknown_derivative(rate0);
+        for (const ex& d : by_qd) known = known && !has_unknown_derivative(d);
+        if (known) {
+          outputs.push_back(rate0);
+          outputs.insert(outputs.end(), by_qd.begin(), by_qd.end());
+          has_rate_ = true;
+        }
+      } catch (const std::exception&) {
+        has_rate_ = false;  // no rate: the steps are not limited by it
+      }
+      handle_ = dyn.evaluator().add_outputs(outputs);
       return;
     }
     forces_ = std::make_unique<ReferenceForces>(model, forces, dyn.digits());
@@ -282,9 +339,33 @@ class StopFunction {
       }
   }
   bool active() const { return active_; }
+  bool has_rate() const { return has_rate_; }
 
-  numeric operator()(const ReferenceMotionState& st) {
-    if (handle_ >= 0) return dyn_.evaluator().evaluate(handle_, st.q, st.qd, st.t)[0];
+  numeric operator()(const ReferenceMotionState& st) { return value_and_rate(st, nullptr); }
+
+  // g at st and, when rate is given and has_rate(), g' there. Throws StopWhenError when g is
+  // not a finite real number.
+  numeric value_and_rate(const ReferenceMotionState& st, numeric* rate) {
+    try {
+      if (handle_ >= 0) {
+        const Vector v = dyn_.evaluator().evaluate(handle_, st.q, st.qd, st.t);
+        if (rate && has_rate_) {
+          numeric r = v[1];
+          for (std::size_t k = 0; k < st.qdd.size(); ++k) r = r + v[2 + k] * st.qdd[k];
+          *rate = r;
+        }
+        return v[0];
+      }
+      return with_force_columns(st);
+    } catch (const StopWhenError&) {
+      throw;
+    } catch (const std::exception& e) {
+      fail(st.t, e.what());
+    }
+  }
+
+ private:
+  numeric with_force_columns(const ReferenceMotionState& st) {
     const DigitsGuard guard(dyn_.digits());
     ReferenceRow row;
     row.t = st.t;
@@ -303,14 +384,21 @@ class StopFunction {
       map[symbol] = columns[model_.symbolic().stop_force_columns[k]];
     const ex v = GiNaC::evalf(expression_.subs(map));
     if (!GiNaC::is_a<numeric>(v) || !GiNaC::ex_to<numeric>(v).is_real())
-      throw AnalysisError("stop_when does not evaluate to a real number in the reference");
+      fail(st.t, "not a real number");
     return dyn_.to_float(GiNaC::ex_to<numeric>(v));
   }
 
- private:
+  [[noreturn]] void fail(const numeric& t, const std::string& why) const {
+    const Mechanism& m = model_.mechanism();
+    const int line = m.stop_when ? m.stop_when->loc.line : 0;
+    throw StopWhenError(m.source + ":" + std::to_string(line) +
+                        ": stop_when: not a finite real number at " + format_time(t.to_double()) +
+                        " (" + why + ")");
+  }
+
   const CompiledModel& model_;
   ReferenceDynamics& dyn_;
-  bool active_ = false;
+  bool active_ = false, has_rate_ = false;
   int handle_ = -1;
   std::unique_ptr<ReferenceForces> forces_;
   ex expression_;
@@ -388,33 +476,91 @@ class RowBuilder {
   numeric energy0_;
 };
 
-// The root of stop_when between two accepted points (g(a) < 0 <= g(b)), by the Illinois
-// method on the time, each trial point integrated from a with the same controller.
-StepPoint find_root(Extrapolation gbs, StopFunction& stop, const StepPoint& a, numeric ga,
-                    StepPoint b, numeric gb, const numeric& tolerance) {
+// The root of a function of the state between two accepted points a and b (f(a) and f(b) of
+// opposite signs, f(a) != 0), by the Illinois method on the time, each trial point integrated
+// from a with the same controller: the first point at or past the root, within `tolerance`.
+template <class F>
+StepPoint locate_root(const Extrapolation& gbs, F&& f, const StepPoint& a, numeric fa, StepPoint b,
+                      numeric fb, const numeric& tolerance) {
   StepPoint lo = a;
+  const bool a_negative = fa.is_negative();
   int side = 0;
   for (int it = 0; it < 200 && b.t - lo.t > tolerance; ++it) {
-    numeric t = (lo.t * gb - b.t * ga) / (gb - ga);
+    numeric t = (lo.t * fb - b.t * fa) / (fb - fa);
     if (!(t > lo.t && t < b.t)) t = (lo.t + b.t) / 2;
     StepPoint m = a;
     Extrapolation sub = gbs;
     while (m.t < t) sub.step(m, t);
-    const numeric gm = stop(m.state);
-    if (gm.is_negative()) {
+    const numeric fm = f(m.state);
+    if (!fm.is_zero() && fm.is_negative() == a_negative) {
       lo = std::move(m);
-      ga = gm;
-      if (side == -1) gb = gb / 2;
+      fa = fm;
+      if (side == -1) fb = fb / 2;
       side = -1;
     } else {
       b = std::move(m);
-      gb = gm;
-      if (side == 1) ga = ga / 2;
+      fb = fm;
+      if (side == 1) fa = fa / 2;
       side = 1;
     }
   }
   return b;
 }
+
+// stop_when's root between two accepted points (g(a) < 0 <= g(b)).
+StepPoint find_root(const Extrapolation& gbs, StopFunction& stop, const StepPoint& a,
+                    const numeric& ga, const StepPoint& b, const numeric& gb,
+                    const numeric& tolerance) {
+  return locate_root(
+      gbs, [&](const ReferenceMotionState& s) { return stop(s); }, a, ga, b, gb, tolerance);
+}
+
+// The drivers' and loads' kinks that depend on the state (analysis/breakpoints.hpp): each
+// switch's argument at a state, and the first level one of them crosses between two points.
+class StateBreakpoints {
+ public:
+  StateBreakpoints(const CompiledModel& model, const ForceModel& forces, ReferenceDynamics& dyn)
+      : dyn_(dyn), switches_(state_switches(model, forces)) {
+    if (switches_.empty()) return;
+    std::vector<ex> arguments;
+    for (const StateSwitch& s : switches_) arguments.push_back(s.argument);
+    handle_ = dyn.evaluator().add_outputs(arguments);
+  }
+  bool active() const { return handle_ >= 0; }
+  Vector values(const ReferenceMotionState& s) {
+    return dyn_.evaluator().evaluate(handle_, s.q, s.qd, s.t);
+  }
+
+  // The step from a to b (switch values va, vb) ends at the first crossing of a level that
+  // starts off it (a level that a or b lies on is no crossing to locate: the step already ends
+  // or starts there), located to `tolerance`; b itself when none is crossed.
+  StepPoint first_crossing(const Extrapolation& gbs, const StepPoint& a, const Vector& va,
+                           const StepPoint& b, const Vector& vb, const numeric& tolerance) {
+    std::optional<StepPoint> first;
+    for (std::size_t k = 0; k < switches_.size(); ++k) {
+      const double x = va[k].to_double(), y = vb[k].to_double();
+      if (!std::isfinite(x) || !std::isfinite(y)) continue;
+      const double margin = 1e-12 * std::max({std::abs(x), std::abs(y), 1.0});
+      std::vector<double> levels;
+      switches_[k].levels.within(std::min(x, y) - margin, std::max(x, y) + margin, levels);
+      for (double level : levels) {
+        const numeric l = exact_numeric(level);
+        const numeric fa = va[k] - l, fb = vb[k] - l;
+        if (fa.is_zero() || fb.is_zero() || fa.is_negative() == fb.is_negative()) continue;
+        const StepPoint at = locate_root(
+            gbs, [&](const ReferenceMotionState& s) { return values(s)[k] - l; }, a, fa, b, fb,
+            tolerance);
+        if (!first || at.t < first->t) first = at;
+      }
+    }
+    return first ? *first : b;
+  }
+
+ private:
+  ReferenceDynamics& dyn_;
+  std::vector<StateSwitch> switches_;
+  int handle_ = -1;
+};
 
 }  // namespace
 
@@ -440,9 +586,9 @@ SimulatedRow to_simulated_row(const ReferenceSimulatedRow& r) {
 ReferenceSimulationStats run_reference_simulation_exact(
     const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid, int digits,
     const std::function<void(const ReferenceSimulatedRow&)>& sink, const SimulateOptions& options) {
-  if (digits < kMinReferenceDigits || digits > kMaxReferenceDigits)
-    throw UsageError("reference digits must be between " + std::to_string(kMinReferenceDigits) +
-                     " and " + std::to_string(kMaxReferenceDigits) + ", not " +
+  if (digits < kMinSimulateReferenceDigits || digits > kMaxSimulateReferenceDigits)
+    throw UsageError("--reference must be between " + std::to_string(kMinSimulateReferenceDigits) +
+                     " and " + std::to_string(kMaxSimulateReferenceDigits) + " digits, not " +
                      std::to_string(digits));
   const int columns = extrapolation_columns(digits);
   ReferenceDynamics dyn(model, forces, digits + guard_digits(columns), grid.t0);
@@ -476,41 +622,150 @@ ReferenceSimulationStats run_reference_simulation_exact(
     interruption_point();
   };
   emit(p);
-  numeric g = stop.active() ? stop(p.state) : numeric(0);
   const numeric root_tolerance =
       numeric(10).power(-(digits - 5)) *
       dyn.to_float(exact_numeric(std::max(std::abs(grid.t1), grid.t1 - grid.t0)));
-  for (int k = 1; k <= grid.steps; ++k) {
-    const numeric target = dyn.to_float(exact_numeric(grid.at(k)));
-    while (p.t < target) {
-      if (gbs.stats.steps >= options.max_steps)
-        fail(p.t, "the integrator took more steps than its limit");
-      StepPoint previous = p;
-      const Extrapolation before = gbs;
-      try {
-        gbs.step(p, target);
-        if (!stop.active()) continue;
-        const numeric g_new = stop(p.state);
-        if (g.is_negative() && !g_new.is_negative()) {
-          emit(find_root(before, stop, previous, g, p, g_new, root_tolerance));
-          return gbs.stats;
-        }
-        g = g_new;
-      } catch (const AnalysisError& e) {
-        fail(p.t, e.what());
-      }
+  // stop_when (docs/format.md, Simulation): g and g' at the last point; a g > 0 at t0 stops
+  // there, a g = 0 at t0 is no crossing (monitoring starts once g < 0).
+  numeric g, g_rate;
+  double g_scale = 1;
+  if (stop.active()) {
+    g = stop.value_and_rate(p.state, &g_rate);
+    g_scale = std::max(g_scale, bounded(g));
+    if (g.is_positive()) {
+      gbs.stats.stopped = true;
+      gbs.stats.stop_time = p.t.to_double();
+      return gbs.stats;
     }
-    emit(p);
+  }
+  // The largest step g allows from a point: |g'| h <= (|g| + E)/8, E = kStopErrorBound times
+  // g's scale (the largest |g| so far, at least 1), so that no excursion of g beyond E fits
+  // between two points unseen.
+  const auto stop_limit = [&](const numeric& value, const numeric& rate) {
+    const double r = bounded(rate);
+    return r > 0 ? (bounded(value) + kStopErrorBound * g_scale) / (8 * r) : 1e300;
+  };
+  // The breakpoints in t, in the arithmetic's precision; those of the state, located on the way.
+  std::vector<numeric> fixed;
+  for (double b : breakpoints(model, forces, grid.t0, grid.t1))
+    fixed.push_back(dyn.to_float(exact_numeric(b)));
+  std::size_t next = 0;
+  StateBreakpoints kinks(model, forces, dyn);
+  Vector kink_values = kinks.active() ? kinks.values(p.state) : Vector{};
+  const auto stopped = [&](const StepPoint& root) {
+    emit(root);
+    gbs.stats.stopped = true;
+    gbs.stats.stop_time = root.t.to_double();
+    return gbs.stats;
+  };
+  try {
+    for (int k = 1; k <= grid.steps; ++k) {
+      const numeric target = dyn.to_float(exact_numeric(grid.at(k)));
+      while (p.t < target) {
+        if (gbs.stats.steps >= options.max_steps)
+          fail(p.t, "the integrator took more steps than its limit");
+        while (next < fixed.size() && !(fixed[next] > p.t)) ++next;
+        numeric end = next < fixed.size() && fixed[next] < target ? fixed[next] : target;
+        const StepPoint previous = p;
+        const Extrapolation before = gbs;
+        try {
+          numeric g_new, rate_new;
+          for (int tries = 0;; ++tries) {
+            if (stop.active() && stop.has_rate()) {
+              const double limit = stop_limit(g, g_rate);
+              if (limit < (end - p.t).to_double()) end = dyn.to_float(p.t + exact_numeric(limit));
+            }
+            gbs.step(p, end);
+            if (kinks.active()) {
+              const Vector v = kinks.values(p.state);
+              StepPoint at =
+                  kinks.first_crossing(before, previous, kink_values, p, v, root_tolerance);
+              if (at.t < p.t) p = std::move(at);
+            }
+            if (!stop.active()) break;
+            g_new = stop.value_and_rate(p.state, &rate_new);
+            // The limit at the step's end too: else the step again, shorter.
+            const double h = (p.t - previous.t).to_double();
+            if (!stop.has_rate() || stop_limit(g_new, rate_new) >= h || tries >= 40) break;
+            end = dyn.to_float(previous.t +
+                               exact_numeric(std::min(stop_limit(g_new, rate_new), h / 2)));
+            p = previous;
+            gbs.restore_controller(before);
+          }
+          if (kinks.active()) kink_values = kinks.values(p.state);
+          if (!stop.active()) continue;
+          g_scale = std::max(g_scale, bounded(g_new));
+          if (g.is_negative() && !g_new.is_negative())
+            return stopped(find_root(before, stop, previous, g, p, g_new, root_tolerance));
+          // A local maximum inside the step (g' from + to -) that reaches 0: the first crossing
+          // lies before it.
+          if (stop.has_rate() && g.is_negative() && g_rate.is_positive() &&
+              rate_new.is_negative()) {
+            const auto rate = [&](const ReferenceMotionState& st) {
+              numeric r;
+              stop.value_and_rate(st, &r);
+              return r;
+            };
+            const StepPoint top =
+                locate_root(before, rate, previous, g_rate, p, rate_new, root_tolerance);
+            const numeric g_top = stop(top.state);
+            if (!g_top.is_negative())
+              return stopped(find_root(before, stop, previous, g, top, g_top, root_tolerance));
+          }
+          g = g_new;
+          g_rate = rate_new;
+        } catch (const StopWhenError&) {
+          throw;
+        } catch (const AnalysisError& e) {
+          fail(p.t, e.what());
+        }
+      }
+      emit(p);
+    }
+  } catch (const Interrupted&) {
+    throw AnalysisError(file + ": interrupted at " + format_time(p.t.to_double()));
   }
   return gbs.stats;
 }
+
+namespace {
+
+// "" when every value of the row is finite, else which one is not (the outputs' accelerations
+// apart: an output that reads velocities has none, nan by the format).
+std::string finite_row(const SimulatedRow& r) {
+  const auto all = [](const Eigen::VectorXd& v) { return v.allFinite(); };
+  if (!all(r.state.q) || !all(r.state.qd) || !all(r.state.qdd)) return "a coordinate";
+  if (!all(r.z) || !all(r.zd) || !all(r.zdd)) return "a free coordinate";
+  for (const auto& p : r.state.points)
+    if (!p.r.allFinite() || !p.v.allFinite() || !p.a.allFinite()) return "a point";
+  for (const auto& o : r.state.outputs)
+    if (!std::isfinite(o[0]) || !std::isfinite(o[1])) return "an output";
+  for (double f : r.state.forces)
+    if (!std::isfinite(f)) return "a force column";
+  for (double e : {r.kinetic, r.potential, r.work, r.balance})
+    if (!std::isfinite(e)) return "an energy column";
+  return "";
+}
+
+}  // namespace
 
 ReferenceSimulationStats run_reference_simulation(
     const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid, int digits,
     const std::function<void(const SimulatedRow&)>& sink, const SimulateOptions& options) {
   return run_reference_simulation_exact(
       model, forces, grid, digits,
-      [&](const ReferenceSimulatedRow& row) { sink(to_simulated_row(row)); }, options);
+      [&](const ReferenceSimulatedRow& row) {
+        const SimulatedRow r = to_simulated_row(row);
+        // Exact values beyond double's range (a table of 1e308) would round to inf: the run
+        // ends before such a row (docs/format.md, Simulation: a row is never non-finite).
+        std::string what = finite_row(r);
+        if (!what.empty())
+          throw AnalysisError(model.mechanism().source + ": reference simulation: at " +
+                              format_time(r.state.t) + " " + what +
+                              " is beyond double's range; the rows before are kept");
+        sink(r);
+      },
+      options);
 }
 
 }  // namespace kinegen::codegen

@@ -35,10 +35,11 @@ kc::SimulateOptions check_options(const Options& o) {
     throw kc::UsageError("--t1 (" + kc::format_number(o.t1) + ") must come after --t0 (" +
                          kc::format_number(o.t0) + "): a simulation runs forward in time");
   if (o.steps < 1) throw kc::UsageError("--steps must be at least 1");
-  if (o.reference_digits != 0 && (o.reference_digits < kc::kMinReferenceDigits ||
-                                  o.reference_digits > kc::kMaxReferenceDigits))
-    throw kc::UsageError("--reference must be between " + std::to_string(kc::kMinReferenceDigits) +
-                         " and " + std::to_string(kc::kMaxReferenceDigits) + " digits, not " +
+  if (o.reference_digits != 0 && (o.reference_digits < kc::kMinSimulateReferenceDigits ||
+                                  o.reference_digits > kc::kMaxSimulateReferenceDigits))
+    throw kc::UsageError("--reference must be between " +
+                         std::to_string(kc::kMinSimulateReferenceDigits) + " and " +
+                         std::to_string(kc::kMaxSimulateReferenceDigits) + " digits, not " +
                          std::to_string(o.reference_digits));
   return kc::simulate_options(o.rtol, o.atol, o.method, o.integrator, "--");
 }
@@ -83,8 +84,11 @@ int run_simulate(const Common& c, const Options& o) {
   };
   try {
     if (o.reference_digits != 0) {
-      kc::run_reference_simulation(*model, forces, {o.t0, o.t1, o.steps}, o.reference_digits, sink,
-                                   options);
+      const auto stats = kc::run_reference_simulation(*model, forces, {o.t0, o.t1, o.steps},
+                                                      o.reference_digits, sink, options);
+      if (stats.stopped)  // the wording of the double run's
+        std::cerr << "stopped at " << kc::format_time(stats.stop_time) << ": "
+                  << one_line(model->mechanism().stop_when->text) << " crossed 0\n";
     } else {
       kc::run_simulation(*model, forces, {o.t0, o.t1, o.steps}, sink, options);
     }

@@ -35,6 +35,11 @@
 
 namespace kinegen::codegen {
 
+// The digits `simulate --reference D` accepts: below 16 it is no reference for double, above 60
+// a run's cost grows beyond any test's use (the cost per step grows like D^2 to D^3).
+inline constexpr int kMinSimulateReferenceDigits = 16;
+inline constexpr int kMaxSimulateReferenceDigits = 60;
+
 // A state of the equations of motion in high precision.
 struct ReferenceMotionState {
   GiNaC::numeric t;
@@ -108,11 +113,18 @@ SimulatedRow to_simulated_row(const ReferenceSimulatedRow& row);
 struct ReferenceSimulationStats {
   long steps = 0, rejected = 0, evaluations = 0;
   int largest_column = 0;  // of the extrapolation tableau (order 2 * column)
+  // A stop_when crossing (or stop_when > 0 at t0) ended the run at stop_time.
+  bool stopped = false;
+  double stop_time = 0;
 };
 
 // Integrates over the grid like run_simulation (rows at the grid's times, one at a stop_when
 // root where the run ends; options: forces_columns, progress, interrupted, max_steps; rtol,
-// atol, integrator and method do not apply). Throws AnalysisError after the rows so far.
+// atol, integrator and method do not apply). Every step ends at each breakpoint
+// (analysis/breakpoints.hpp), those of the state located to the root tolerance. Throws
+// AnalysisError after the rows so far, also when interrupted (interruption_point(), checked at
+// every evaluation: "FILE: interrupted at t = T"); UsageError for digits outside
+// [kMinSimulateReferenceDigits, kMaxSimulateReferenceDigits] or too many breakpoints.
 ReferenceSimulationStats run_reference_simulation_exact(
     const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid, int digits,
     const std::function<void(const ReferenceSimulatedRow&)>& sink,
