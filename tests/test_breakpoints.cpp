@@ -2,6 +2,7 @@
 // piece boundaries and period seams, clamped laws' ends with linear and nonlinear arguments,
 // the knots of driver tables (plain and periodic), of input tables and of load input tables,
 // and none where a law's argument depends on the state.
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <filesystem>
@@ -13,6 +14,7 @@
 #include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "support/run_command.hpp"
 
 namespace {
 
@@ -138,4 +140,72 @@ TEST_CASE("breakpoints: far more periods than a run can restart at is refused", 
       crank("tiny_period", "period: 1e-6, f: [{until: 5e-7, f: \"t\"}, {f: \"1e-6 - t\"}]"));
   CHECK(kc::breakpoints(*model, 0, 1e-4).size() == 199);
   CHECK_THROWS_AS(kc::breakpoints(*model, 0, 10), kc::UsageError);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Input tables (docs/format.md, Simulation: inputs): one that does not cover the run is a usage
+// error before it; the rows inside a table's range are written when the run fails after it; no
+// row holds a non-finite value.
+
+namespace {
+
+std::string example(const std::string& name) {
+  return (fs::path(KINEGEN_SOURCE_DIR) / "examples" / name).string();
+}
+
+int lines(const std::string& text) {
+  return static_cast<int>(std::count(text.begin(), text.end(), '\n'));
+}
+
+}  // namespace
+
+TEST_CASE("simulate: an input table that does not cover the run is refused before it",
+          "[breakpoints][cli]") {
+  const std::string early = write("push_early.csv", "t,value\n0,0\n0.2,0\n0.4,0\n0.6,0\n");
+  const std::string late = write("push_late.csv", "t,value\n0.1,0\n0.5,0\n0.8,0\n1.2,0\n");
+  for (const std::string& table : {early, late}) {
+    for (const char* digits : {"", "20"}) {
+      std::vector<std::string> argv{KINEGEN_EXE, "simulate", example("dynamics/cart_pole.yaml"),
+                                    "--t1",      "1",        "--steps",
+                                    "10",        "--input",  "push_x=" + table};
+      if (*digits) argv.insert(argv.end(), {"--reference", digits});
+      const auto r = kinegen::test::run_command(argv);
+      INFO(r.err);
+      CHECK(r.exit_code == 2);
+      CHECK(r.out.empty());
+      CHECK(r.err.rfind("error: ", 0) == 0);
+      CHECK(r.err.find("--input push_x=" + table + ": the table covers t = ") != std::string::npos);
+      CHECK(r.err.find(", the run t = 0 to 1") != std::string::npos);
+    }
+  }
+}
+
+TEST_CASE("a table that ends inside the run: the reference writes every row before its end",
+          "[breakpoints][cli]") {
+  // The driven pendulum's shaker from a table that ends at 0.55: rows at 0, 0.1, ..., 0.5.
+  write("shaker_short.csv", "t,value\n0,0\n0.15,0.01\n0.3,0.02\n0.45,0.01\n0.55,0\n");
+  std::ifstream in(example("dynamics/driven_pendulum.yaml"));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string from = "f: \"amplitude*sin(omega*t)\"";
+  REQUIRE(text.find(from) != std::string::npos);
+  text.replace(text.find(from), from.size(), "table: shaker_short.csv");
+  const std::string file = write("shaker_short.yaml", text);
+  const auto r = kinegen::test::run_command(
+      {KINEGEN_EXE, "simulate", file, "--t1", "1", "--steps", "10", "--reference", "16"});
+  INFO(r.err);
+  CHECK(r.exit_code == 1);
+  CHECK(lines(r.out) == 7);  // the header and t = 0 .. 0.5
+}
+
+TEST_CASE("the reference never writes a non-finite row (an input table of 1e308)",
+          "[breakpoints][cli]") {
+  const std::string table =
+      write("push_huge.csv", "t,value\n0,1e308\n0.5,1e308\n1,1e308\n2,1e308\n");
+  const auto r = kinegen::test::run_command(
+      {KINEGEN_EXE, "simulate", example("dynamics/cart_pole.yaml"), "--t1", "1", "--steps", "10",
+       "--reference", "16", "--input", "push_x=" + table});
+  INFO(r.err);
+  CHECK(r.exit_code == 1);
+  CHECK(r.err.rfind("error: ", 0) == 0);
+  for (const char* bad : {"inf", "nan", "Inf", "NaN"}) CHECK(r.out.find(bad) == std::string::npos);
 }

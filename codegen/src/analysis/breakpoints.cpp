@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <set>
@@ -306,6 +307,37 @@ std::vector<StateSwitch> state_switches(const CompiledModel& model, const ForceM
     if (!seen) out.push_back(std::move(s));
   }
   return out;
+}
+
+}  // namespace kinegen::codegen
+
+namespace kinegen::codegen {
+
+void check_input_coverage(const CompiledModel& model, const std::string& name,
+                          const std::string& path, double t0, double t1) {
+  const Mechanism& m = model.mechanism();
+  int id = -1;
+  for (const Constraint& d : m.drivers)
+    if (d.name == name && d.law.table_id >= 0) id = d.law.table_id;
+  for (const Load& l : m.forces.loads)
+    for (const Load::Input& in : l.inputs)
+      if (in.name == name && in.table_id >= 0) id = in.table_id;
+  if (id < 0) return;
+  const Spline& s = registered_table(id);
+  if (s.periodic || s.t.empty()) return;
+  const double lo = s.t.front(), hi = s.t.back();
+  const double slack =
+      8 * std::numeric_limits<double>::epsilon() * std::max(std::abs(lo), std::abs(hi));
+  if (std::min(t0, t1) >= lo - slack && std::max(t0, t1) <= hi + slack) return;
+  // 15 digits: a table's 0.1 reads 0.1, not its double's 0.10000000000000001.
+  const auto shown = [](double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.15g", v);
+    return std::string(text);
+  };
+  throw UsageError("--input " + name + "=" + path + ": the table covers t = " + shown(lo) + " to " +
+                   shown(hi) + ", the run t = " + shown(t0) + " to " + shown(t1) +
+                   ": an input table must cover the whole run (it is never extrapolated)");
 }
 
 }  // namespace kinegen::codegen

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "cli.hpp"
+#include "kinegen/codegen/analysis/breakpoints.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/reference_dynamics.hpp"
 #include "kinegen/codegen/base/interrupt.hpp"
@@ -60,6 +61,9 @@ int run_simulate(const Common& c, const Options& o) {
   kc::BuildOptions build;
   build.free_as_state = true;
   auto model = load(c, build);
+  for (const std::string& in : c.inputs)  // load() checked the NAME=FILE form
+    kc::check_input_coverage(*model, in.substr(0, in.find('=')), in.substr(in.find('=') + 1), o.t0,
+                             o.t1);
   const kc::ForceModel forces = kc::derive_forces(*model);
   std::vector<std::string> force_names;
   if (o.with_forces) {

@@ -25,6 +25,7 @@
 #include <ginac/ginac.h>
 
 #include <cstddef>
+#include <string>
 #include <vector>
 
 namespace kinegen::codegen {
@@ -63,5 +64,12 @@ std::vector<double> breakpoints(const CompiledModel& model, const ForceModel& fo
 // Every non-smooth call of the drivers and loads whose argument depends on the state, once
 // each (the press's poly345(depth/ramp): levels 0 and 1 of depth/ramp).
 std::vector<StateSwitch> state_switches(const CompiledModel& model, const ForceModel& forces);
+
+// The input table `--input NAME=PATH` (an input driver's, or a load input's)
+// covers [t0, t1] (up to a few ulps of its ends): else a UsageError naming the table, its range
+// and the run's, before the run (a table is never extrapolated; without this the run fails
+// somewhere later, blaming the first thing the table's end breaks). Nothing for another name.
+void check_input_coverage(const CompiledModel& model, const std::string& name,
+                          const std::string& path, double t0, double t1);
 
 }  // namespace kinegen::codegen
