@@ -94,7 +94,7 @@ struct andrews {
     double c0 = 4530.0;
     double lo = 0.07785;
     double beta0 = -0.06171389001427645;
-    // Input driver beta (f: input): its value, rate and acceleration, set at run time
+    // Free item beta (free:): its value, rate and acceleration, set at run time
     double beta = 0, beta_v = 0, beta_a = 0;
     // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,
     // which the functions then read instead of the free items' members above.

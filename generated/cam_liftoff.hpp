@@ -49,7 +49,7 @@ struct cam_liftoff {
     double k = 500.0;
     double H = 0.1;
     double L0 = 0.09;
-    // Input driver theta (f: input): its value, rate and acceleration, set at run time
+    // Free item theta (free:): its value, rate and acceleration, set at run time
     double theta = 0, theta_v = 0, theta_a = 0;
     // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,
     // which the functions then read instead of the free items' members above.

@@ -43,9 +43,9 @@ struct cart_pole {
     double m = 0.2;
     double a = 0.3;
     double g = 9.81;
-    // Input driver x (f: input): its value, rate and acceleration, set at run time
+    // Free item x (free:): its value, rate and acceleration, set at run time
     double x = 0, x_v = 0, x_a = 0;
-    // Input driver phi (f: input): its value, rate and acceleration, set at run time
+    // Free item phi (free:): its value, rate and acceleration, set at run time
     double phi = 0, phi_v = 0, phi_a = 0;
     double push_x = 0;  // a load's input (format 7.5), set at run time
     // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,

@@ -48,11 +48,11 @@ struct double_cart_pole {
     double l1 = 0.6;
     double l2 = 0.4;
     double g = 9.81;
-    // Input driver x (f: input): its value, rate and acceleration, set at run time
+    // Free item x (free:): its value, rate and acceleration, set at run time
     double x = 0, x_v = 0, x_a = 0;
-    // Input driver phi1 (f: input): its value, rate and acceleration, set at run time
+    // Free item phi1 (free:): its value, rate and acceleration, set at run time
     double phi1 = 0, phi1_v = 0, phi1_a = 0;
-    // Input driver phi2 (f: input): its value, rate and acceleration, set at run time
+    // Free item phi2 (free:): its value, rate and acceleration, set at run time
     double phi2 = 0, phi2_v = 0, phi2_a = 0;
     double push_x = 0;  // a load's input (format 7.5), set at run time
     // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,

@@ -44,7 +44,7 @@ struct driven_pendulum {
     double g = 9.81;
     double amplitude = 0.1;
     double omega = 4.0;
-    // Input driver theta (f: input): its value, rate and acceleration, set at run time
+    // Free item theta (free:): its value, rate and acceleration, set at run time
     double theta = 0, theta_v = 0, theta_a = 0;
     // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,
     // which the functions then read instead of the free items' members above.

@@ -47,7 +47,7 @@ struct four_bar_damped {
     double d = 0.3;
     double damping = 0.5;
     double theta0 = 0;
-    // Input driver theta (f: input): its value, rate and acceleration, set at run time
+    // Free item theta (free:): its value, rate and acceleration, set at run time
     double theta = 0, theta_v = 0, theta_a = 0;
     // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,
     // which the functions then read instead of the free items' members above.

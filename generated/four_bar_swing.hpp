@@ -45,7 +45,7 @@ struct four_bar_swing {
     double b = 0.35;
     double c = 0.25;
     double d = 0.3;
-    // Input driver theta (f: input): its value, rate and acceleration, set at run time
+    // Free item theta (free:): its value, rate and acceleration, set at run time
     double theta = 0, theta_v = 0, theta_a = 0;
     // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,
     // which the functions then read instead of the free items' members above.

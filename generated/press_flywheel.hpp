@@ -50,7 +50,7 @@ struct press_flywheel {
     double contact = 0.02;
     double ramp = 0.002;
     double vs = 0.02;
-    // Input driver theta (f: input): its value, rate and acceleration, set at run time
+    // Free item theta (free:): its value, rate and acceleration, set at run time
     double theta = 0, theta_v = 0, theta_a = 0;
     // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,
     // which the functions then read instead of the free items' members above.

@@ -89,8 +89,8 @@ void add_common(CLI::App* cmd, Common& c) {
   cmd->add_option("--param", c.params, "Override a parameter: NAME=VALUE (repeatable)")
       ->type_name("NAME=VALUE");
   cmd->add_option("--input", c.inputs,
-                  "An input driver's values (f: input): NAME=FILE.csv, columns t,value, "
-                  "interpolated as a table (repeatable)")
+                  "A run-time input's values, of an input driver (f: input) or a load's input: "
+                  "NAME=FILE.csv, columns t,value, interpolated as a table (repeatable)")
       ->type_name("NAME=FILE");
 }
 

@@ -306,8 +306,9 @@ void emit_params(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
   for (std::size_t d = 0; d < m.drivers.size(); ++d) {
     if (!m.drivers[d].law.input) continue;
     const int k = static_cast<int>(d);
-    os << "    // Input driver " << m.drivers[d].name
-       << " (f: input): its value, rate and acceleration, set at run time\n"
+    os << "    // " << (m.drivers[d].free ? "Free item " : "Input driver ") << m.drivers[d].name
+       << (m.drivers[d].free ? " (free:)" : " (f: input)")
+       << ": its value, rate and acceleration, set at run time\n"
        << "    double " << input_member(m, k, 0) << " = 0, " << input_member(m, k, 1) << " = 0, "
        << input_member(m, k, 2) << " = 0;\n";
   }
