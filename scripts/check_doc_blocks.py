@@ -14,14 +14,22 @@ it are flags (GitHub shows only the language):
                 (standard output and error). A command whose output shows an `error:` line must
                 exit non-zero, any other must exit 0.
   yaml          a whole mechanism (it has `bodies:`) must load and assemble
-                (`kinegen analyze FILE --steps 0`); a part of one needs `from=PATH`, and its
-                lines must appear in that file in order.
+                (`kinegen analyze FILE --steps 0`; with `free:`, a `kinegen simulate` of one
+                short step, which also checks the free items' counts and masses); a part of one needs `from=PATH`, and its
+                lines must appear in that file in order, or `into=PATH`: its top-level keys
+                are added to the mechanism PATH (a list's items appended, a mapping's keys
+                set, any other value replaced) and the result must load (`kinegen eval`).
   cpp           a whole program (it has `int main`) is compiled against the runtime and the
                 committed generated headers, and run; otherwise `from=PATH` as for yaml.
   python        runs, with the module on PYTHONPATH.
   cmake         needs `from=PATH`.
 Flags: `norun` (shown, not run: setup commands, an interface summary), `from=PATH` (an excerpt),
+`into=PATH` (a part of a mechanism, added to PATH),
 `nocompare` (run, exit status checked, output not compared). Blocks without a language are text.
+With `--reference FILE.md` (docs/format.md) the check also asks kinegen which keys it reads
+(the message an unknown key gets lists them): every top-level key, every type of joint, driver,
+free item and load, and every key of each must appear in a tested yaml block of that page (a
+key that every type of a list takes, such as `name`, once per list).
 Prints one line per block and a summary; exits 1 if any block fails.
 """
 import argparse
@@ -30,6 +38,8 @@ import re
 import shutil
 import subprocess
 import sys
+
+import yaml
 
 LINKED = ["examples", "tests", "generated", "scripts", "runtime", "docs", "viewer", "bench"]
 
@@ -76,6 +86,113 @@ def excerpt_ok(text, source_root, rel):
             return False, f"line not in {rel} (in order): {want}"
         k += 1
     return True, ""
+
+
+def merged_mechanism(text, source_root, rel):
+    """The mechanism at rel with the block's top-level keys added, as YAML text, or an error."""
+    path = os.path.join(source_root, rel)
+    if not os.path.isfile(path):
+        return None, f"into={rel}: no such file"
+    with open(path, encoding="utf-8") as f:
+        base = yaml.safe_load(f)
+    part = yaml.safe_load(text)
+    if not isinstance(part, dict):
+        return None, "a part of a mechanism is a mapping of top-level keys"
+    for key, value in part.items():
+        if isinstance(value, list) and isinstance(base.get(key), list):
+            base[key] = base[key] + value
+        elif isinstance(value, dict) and isinstance(base.get(key), dict):
+            base[key] = {**base[key], **value}
+        else:
+            base[key] = value
+    return yaml.safe_dump(base, sort_keys=False), ""
+
+
+GENERIC = {"name", "period", "table", "value0", "v0"}
+
+
+def expected_keys(doc, env, cwd):
+    """The keys kinegen lists for an unknown key (or type) in doc, in its message's order."""
+    with open(os.path.join(cwd, "probe.yaml"), "w") as f:
+        yaml.safe_dump(doc, f, sort_keys=False)
+    r = run("kinegen eval probe.yaml", env, cwd)
+    m = re.search(r"\(expected(?: one of)?: ([^)]*)\)", r.stdout)
+    if not m:
+        raise RuntimeError(f"no list of keys in: {r.stdout.strip()}")
+    return m.group(1).split(", ")
+
+
+def keys_kinegen_reads(env, cwd):
+    """{(list, type or None): [keys]} and {list: [types]}, as kinegen's loader names them."""
+    body = {"name": "b", "q0": [0, 0, 0]}
+    base = {"name": "probe", "bodies": [body]}
+    probe = "zz_probe"
+    keys = {("top", None): expected_keys({**base, probe: 1}, env, cwd),
+            ("bodies", None): expected_keys({**base, "bodies": [{**body, probe: 1}]}, env, cwd),
+            ("coordinates", None): expected_keys(
+                {**base, "coordinates": [{"name": "c", "q0": 0, probe: 1}]}, env, cwd),
+            ("points", None): expected_keys(
+                {**base, "points": [{"name": "p", "body": "b", probe: 1}]}, env, cwd),
+            ("pieces", None): expected_keys(
+                {**base, "drivers": [{"type": "absolute_angle", "body": "b",
+                                      "f": [{"until": 1, "f": "0", probe: 1}, {"f": "0"}]}]},
+                env, cwd)}
+    types = {}
+    for lst in ("joints", "drivers", "free", "forces"):
+        types[lst] = expected_keys({**base, lst: [{"type": probe}]}, env, cwd)
+        for t in types[lst]:
+            keys[(lst, t)] = [k for k in expected_keys({**base, lst: [{"type": t, probe: 1}]},
+                                                       env, cwd) if k != "type"]
+    return keys, types
+
+
+def keys_shown(parsed):
+    """(list, type, key) triples in a parsed block; list None where the block does not say."""
+    seen = set()
+    lists = ("joints", "drivers", "free", "forces", "bodies", "coordinates", "points")
+
+    def items(lst, value):
+        for item in value if isinstance(value, list) else []:
+            if not isinstance(item, dict):
+                continue
+            for k, v in item.items():
+                seen.add((lst, item.get("type"), k))
+                if k == "f" and isinstance(v, list):
+                    for piece in v:
+                        if isinstance(piece, dict):
+                            seen.update(("pieces", None, pk) for pk in piece)
+
+    if isinstance(parsed, dict):
+        for k, v in parsed.items():
+            seen.add(("top", None, k))
+            if k in lists:
+                items(k, v)
+    elif isinstance(parsed, list):
+        items(None, parsed)
+    return seen
+
+
+def coverage(shown, keys, types):
+    """What kinegen reads that no tested block of the reference shows."""
+    missing = []
+    def has(lst, t, k):
+        return any(s[2] == k and s[0] in (lst, None) and (t is None or s[1] == t) for s in shown)
+    for (lst, t), ks in keys.items():
+        if t is not None:
+            continue
+        missing += [f"{lst}: key '{k}'" for k in ks if not has(lst, None, k)]
+    for lst, ts in types.items():
+        # Keys that any type of the list takes (or most: a law's period and table) once per list.
+        every = set.intersection(*(set(keys[(lst, t)]) for t in ts)) | GENERIC
+        for t in ts:
+            if not has(lst, t, "type") and not any(s[1] == t and s[0] in (lst, None) for s in shown):
+                missing.append(f"{lst}: type '{t}'")
+                continue
+            for k in keys[(lst, t)]:
+                ok = has(lst, None, k) if k in every else has(lst, t, k)
+                if not ok:
+                    missing.append(f"{lst}: {t} key '{k}'")
+    return sorted(set(missing))
 
 
 def console_steps(text):
@@ -138,6 +255,7 @@ def main():
     ap.add_argument("--python-path", default="")
     ap.add_argument("--cxx", default="g++")
     ap.add_argument("--eigen", default="/usr/include/eigen3")
+    ap.add_argument("--reference", help="the page that must show every key kinegen reads")
     ap.add_argument("--update", action="store_true",
                     help="rewrite the shown output of console blocks with what they print")
     ap.add_argument("files", nargs="+")
@@ -153,6 +271,7 @@ def main():
         env["PYTHONPATH"] = os.path.abspath(a.python_path)
     env["MPLBACKEND"] = "Agg"
     failed = ran = shown = 0
+    reference_shown = set()
     for md in a.files:
         rel_md = os.path.relpath(md, src)
         for n, (line, lang, flags, text) in enumerate(blocks(md)):
@@ -172,6 +291,14 @@ def main():
             try:
                 if flags.get("from"):
                     ok, why = excerpt_ok(text, src, flags["from"])
+                elif lang == "yaml" and flags.get("into"):
+                    merged, why = merged_mechanism(text, src, flags["into"])
+                    ok = merged is not None
+                    if ok:
+                        with open(os.path.join(cwd, "block.yaml"), "w") as f:
+                            f.write(merged)
+                        r = run("kinegen eval block.yaml", env, cwd)
+                        ok, why = r.returncode == 0, r.stdout[-2000:]
                 elif lang in ("console", "sh"):
                     changes = [] if a.update else None
                     ok, why = check_console(text, flags, env, cwd, changes)
@@ -187,8 +314,11 @@ def main():
                     else:
                         with open(os.path.join(cwd, "block.yaml"), "w") as f:
                             f.write(text + "\n")
-                        r = run("kinegen analyze block.yaml --t0 0 --t1 0 --steps 0 -o -", env,
-                                cwd)
+                        if re.search(r"^free:", text, re.M):
+                            cmd = "kinegen simulate block.yaml --t1 1e-3 --steps 1 -q -o -"
+                        else:
+                            cmd = "kinegen analyze block.yaml --t0 0 --t1 0 --steps 0 -o -"
+                        r = run(cmd, env, cwd)
                         ok, why = r.returncode == 0, r.stdout[-2000:]
                 elif lang == "cpp":
                     if "int main" not in text:
@@ -209,6 +339,11 @@ def main():
                     ok, why = False, f"language '{lang}' needs from=PATH or norun"
             except subprocess.TimeoutExpired:
                 ok, why = False, "timed out"
+            if ok and lang == "yaml" and a.reference and os.path.samefile(md, a.reference):
+                try:
+                    reference_shown |= keys_shown(yaml.safe_load(text))
+                except yaml.YAMLError:
+                    pass
             ran += 1
             if not ok:
                 failed += 1
@@ -216,6 +351,17 @@ def main():
             else:
                 print(f"ok   {where} ({lang})")
     print(f"{ran - failed} of {ran} blocks hold; {shown} marked norun (shown, not run)")
+    if a.reference:
+        probe_dir = os.path.join(a.work, "keys")
+        os.makedirs(probe_dir)
+        keys, types = keys_kinegen_reads(env, probe_dir)
+        missing = coverage(reference_shown, keys, types)
+        n = sum(len(v) for v in keys.values()) + sum(len(v) for v in types.values())
+        for m in missing:
+            print(f"FAIL {os.path.relpath(a.reference, src)}: no tested yaml block shows {m}")
+        print(f"{os.path.relpath(a.reference, src)}: {len(missing)} of the {n} keys and types "
+              f"kinegen reads missing from its tested blocks")
+        failed += len(missing)
     return 1 if failed else 0
 
 
