@@ -179,12 +179,14 @@ py::array_t<double> DynamicsApi::dynamics(double t, const std::vector<double>& z
   return vector(zdd);
 }
 
-py::dict DynamicsApi::equilibrium(double t, const OptionalValues& u) {
+py::dict DynamicsApi::equilibrium(double t, const OptionalValues& u, const OptionalValues& start,
+                                  bool nearest) {
   std::vector<double> columns;
   const kc::Equilibrium e = under_lock([&] {
     kc::Linearizer& lin = linearizer(t, "equilibrium");
-    kc::Equilibrium found =
-        kc::find_equilibrium(lin, point(lin, t, std::nullopt, std::nullopt, u));
+    kc::Equilibrium found = kc::find_equilibrium(
+        lin, point(lin, t, start, std::nullopt, u),
+        nearest ? kc::EquilibriumSearch::kNearest : kc::EquilibriumSearch::kRest);
     kc::ForceSolver solver(model_, *forces_);
     solver.set_inputs(lin.dynamics().input_slots());
     solver.solve(found.at.t, found.state.q, found.state.qd, found.state.qdd, columns);
@@ -208,6 +210,8 @@ py::dict DynamicsApi::equilibrium(double t, const OptionalValues& u) {
   out["unstable"] = r.unstable;
   out["neutral"] = r.neutral;
   out["iterations"] = e.iterations;
+  out["flow_steps"] = e.flow_steps;
+  out["left_start"] = e.left_start;
   out["residual"] = vector(e.force);
   return out;
 }
@@ -237,7 +241,7 @@ py::dict DynamicsApi::modes(double t, const OptionalValues& z, const OptionalVal
   py::dict out;
   out["t"] = a.at.t;
   out["equilibrium"] = !z.has_value();
-  out["stability"] = kc::to_string(a.stiffness.stability);
+  out["stability"] = kc::to_string(a.stability);
   out["free"] = free_names();
   out["z"] = vector(a.at.z);
   out["coordinates"] = kc::coordinate_labels(model_.mechanism());

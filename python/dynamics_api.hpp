@@ -43,7 +43,10 @@ class DynamicsApi {
   // linearizes (u defaults to zeros).
   py::array_t<double> dynamics(double t, const std::vector<double>& z,
                                const std::vector<double>& zd, const OptionalValues& u);
-  py::dict equilibrium(double t, const OptionalValues& u);
+  // Where the overdamped release from `start` (default value0) comes to rest, or with nearest
+  // Newton's nearest root from it.
+  py::dict equilibrium(double t, const OptionalValues& u, const OptionalValues& start = {},
+                       bool nearest = false);
   py::dict modes(double t, const OptionalValues& z, const OptionalValues& u);
   py::dict linearize(double t, const OptionalValues& z, const OptionalValues& zd,
                      const OptionalValues& u);

@@ -570,11 +570,15 @@ message.
           "linearize linearizes.")
       .def(
           "equilibrium",
-          [](Mechanism& mech, double t, kinegen::python::OptionalValues u) {
-            return mech.with_dynamics([&](auto& d) { return d.equilibrium(t, u); });
+          [](Mechanism& mech, double t, kinegen::python::OptionalValues u,
+             kinegen::python::OptionalValues start, bool nearest) {
+            return mech.with_dynamics([&](auto& d) { return d.equilibrium(t, u, start, nearest); });
           },
           py::kw_only(), py::arg("t") = 0.0, py::arg("u") = py::none(),
-          "kinegen equilibrium: Newton from value0 on B^T Q^A = 0; a dict with z, q, the "
+          py::arg("start") = py::none(), py::arg("nearest") = false,
+          "kinegen equilibrium: where the overdamped release from start (the free coordinates; "
+          "default value0) comes to rest, or with nearest=True Newton's nearest root of "
+          "B^T Q^A = 0 from it (kinegen equilibrium --from, --nearest); a dict with z, q, the "
           "reactions (forces), M_z, K_z, the stability and its directions.")
       .def(
           "modes",

@@ -123,7 +123,8 @@ TEST_CASE("a pendulum swings at sqrt(m g a / I) / (2 pi) about its lowest positi
 TEST_CASE("the upright pendulum is an unstable equilibrium, along theta", "[linearize]") {
   const double m = 1.5, a = 0.4, g = 9.81, inertia = m * (2 * a) * (2 * a) / 12 + m * a * a;
   Setup s(pendulum(1.4));
-  const kc::Equilibrium e = kc::find_equilibrium(*s.lin, s.lin->initial());
+  const kc::Equilibrium e =
+      kc::find_equilibrium(*s.lin, s.lin->initial(), kc::EquilibriumSearch::kNearest);
   CHECK(e.at.z[0] == Approx(kPi / 2).margin(1e-14));
   CHECK(e.stiffness.stability == kc::Stability::kUnstable);
   REQUIRE(e.stiffness.unstable == std::vector<std::string>{"theta"});
@@ -131,6 +132,24 @@ TEST_CASE("the upright pendulum is an unstable equilibrium, along theta", "[line
   const kc::ModalAnalysis modes = kc::modal_analysis(*s.lin, e.at);
   CHECK(modes.modes[0].kind == kc::Stability::kUnstable);
   CHECK(modes.modes[0].frequency == 0);
+}
+
+TEST_CASE("released from near upright, the pendulum comes to rest at the bottom", "[linearize]") {
+  // From 1.4 rad gravity turns it down through 0 to -pi/2; from exactly upright (pi/2 in
+  // double, an equilibrium to rounding) it is left along +theta and falls over the top to
+  // 3 pi/2.
+  for (const auto& [value0, rest] : {std::pair{1.4, -kPi / 2}, std::pair{kPi / 2, 3 * kPi / 2}}) {
+    INFO("value0 " << value0);
+    Setup s(pendulum(0));
+    const kc::Equilibrium e = kc::find_equilibrium(*s.lin, s.at({value0}));
+    CHECK(e.at.z[0] == Approx(rest).margin(1e-14));
+    CHECK(e.stiffness.stability == kc::Stability::kStable);
+    CHECK(e.left_start == (value0 == kPi / 2));
+    CHECK(e.flow_steps > 0);
+    // At rest to rounding: |B^T Q^A| within the bound Newton stops at.
+    CHECK(std::abs(e.force[0]) <= e.bound[0]);
+    CHECK(e.bound[0] < 1e-13 * 1.5 * 9.81 * 0.4);
+  }
 }
 
 TEST_CASE("a mass between two springs rests where they balance and swings at sqrt(k / m)",
@@ -276,6 +295,52 @@ TEST_CASE("a four-bar held by a diagonal spring: its rest and frequency by hand"
   const kc::ModalAnalysis modes = kc::modal_analysis(lin, e.at);
   const double f = std::sqrt(v_second(th, side) / reduced_mass(th, side)) / (2 * kPi);
   CHECK(std::abs(modes.modes[0].frequency / f - 1) < 1e-9);
+}
+
+TEST_CASE(
+    "the four-bar with a spring released rests at the minimum downhill; Newton's nearest "
+    "root is the maximum uphill",
+    "[linearize][equilibrium]") {
+  const Setup s(example("four_bar_spring"));
+  kc::Linearizer& lin = *s.lin;
+  // Either side of the potential's maximum near 0.61 rad: from 0.7 the crank is released
+  // upwards (to the rest near 4.27 rad), from 0.5 downwards (to the same rest a turn lower);
+  // Newton from either goes to the maximum.
+  for (const double start : {0.7, 0.5}) {
+    INFO("from " << start);
+    const kc::Equilibrium rest = kc::find_equilibrium(lin, s.at({start}));
+    const kc::Equilibrium nearest =
+        kc::find_equilibrium(lin, s.at({start}), kc::EquilibriumSearch::kNearest);
+    // The branch, from kinegen's own B (as above).
+    const Eigen::VectorXd& q = rest.state.q;
+    const double bx = q[3] + kB * std::cos(q[5]), by = q[4] + kB * std::sin(q[5]);
+    const FourBar<double> plus = four_bar(rest.at.z[0], 1.0);
+    const double side = std::hypot(plus.bx - bx, plus.by - by) < 1e-6 ? 1.0 : -1.0;
+    // By hand: the overdamped flow M dth/ds = -V' turns the crank downhill from the start to
+    // the first zero of V' that way, a minimum of V; uphill the first zero is a maximum.
+    const auto first_zero = [&](double from, double step) {
+      double a = from, b = from + step;
+      while (v_prime(a, side) * v_prime(b, side) > 0) a = b, b += step;
+      for (int it = 0; it < 200; ++it) {
+        const double mid = (a + b) / 2;
+        if (mid == a || mid == b) break;
+        (v_prime(a, side) * v_prime(mid, side) <= 0 ? b : a) = mid;
+      }
+      return (a + b) / 2;
+    };
+    const double downhill = v_prime(start, side) > 0 ? -1e-3 : 1e-3;
+    const double bottom = first_zero(start, downhill), top = first_zero(start, -downhill);
+    REQUIRE(v_second(bottom, side) > 0);
+    REQUIRE(v_second(top, side) < 0);
+    CHECK(rest.at.z[0] == Approx(bottom).margin(1e-12));
+    CHECK(rest.stiffness.stability == kc::Stability::kStable);
+    CHECK(rest.flow_steps > 0);
+    CHECK(std::abs(rest.force[0]) <= rest.bound[0]);
+    CHECK(nearest.at.z[0] == Approx(top).margin(1e-12));
+    CHECK(nearest.stiffness.stability == kc::Stability::kUnstable);
+    CHECK(nearest.flow_steps == 0);
+    CHECK(std::abs(nearest.force[0]) <= nearest.bound[0]);
+  }
 }
 
 TEST_CASE("the cart-pole's A and B are the textbook linearization about upright", "[linearize]") {

@@ -54,6 +54,30 @@ def test_equilibrium_modes_linearize_equal_command_line(name):
                 assert got[key] == value, (command, key)
 
 
+def test_equilibrium_start_and_nearest_equal_command_line():
+    # The four-bar with a spring released from 0.7 rad (start=, --from) rests at a minimum of
+    # its potential (stable); Newton's nearest root from there (nearest=, --nearest) is a
+    # maximum (unstable): different points, each the command line's to its 17 digits.
+    path = str(DYN / "four_bar_spring.yaml")
+    m = kinegen.Mechanism(path)
+    found = {}
+    for nearest in (False, True):
+        got = m.equilibrium(start=[0.7], nearest=nearest)
+        args = ["equilibrium", path, "--from", "theta=0.7", "--format", "json"]
+        r = run(*args, *(["--nearest"] if nearest else []))
+        assert r.returncode == 0, r.stderr
+        want = json.loads(r.stdout)
+        assert np.array_equal(got["z"], want["z"])
+        assert got["stability"] == want["stability"]
+        assert got["flow_steps"] == want["flow_steps"]
+        found[nearest] = got
+    assert found[False]["stability"] == "stable" and found[False]["flow_steps"] > 0
+    assert found[True]["stability"] == "unstable" and found[True]["flow_steps"] == 0
+    assert abs(found[False]["z"][0] - found[True]["z"][0]) > 1
+    with pytest.raises(kinegen.UsageError):
+        m.equilibrium(start=[1.0, 2.0])
+
+
 def test_linearize_is_the_derivative_of_dynamics():
     m = kinegen.Mechanism(str(DYN / "cart_pole.yaml"))
     assert m.free == ["x", "phi"] and m.inputs == ["push_x"]

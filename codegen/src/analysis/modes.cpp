@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <limits>
 
 #include "kinegen/codegen/analysis/equilibrium.hpp"
 #include "kinegen/codegen/base/format.hpp"
@@ -39,7 +40,9 @@ std::vector<Mode> undamped_modes(const ReducedStiffness& r, const Eigen::MatrixX
 }
 
 // With damping: the state matrix's eigenvalues s = -zeta w +- i w sqrt(1 - zeta^2), one mode
-// per pair (Im s > 0) or per real s.
+// per pair (Im s > 0) or per real s. A mode grows (unstable) where Re s exceeds the eigenvalues'
+// rounding (64 eps |A|); it is neutral only where K_z has zero stiffness (r.kinds): each such
+// direction puts one root at s = 0, the real roots nearest 0, whatever the damping's size.
 std::vector<Mode> damped_modes(const ReducedStiffness& r, const Eigen::MatrixXd& b) {
   const Eigen::Index nf = r.mass.rows();
   Eigen::MatrixXd a = Eigen::MatrixXd::Zero(2 * nf, 2 * nf);
@@ -48,30 +51,42 @@ std::vector<Mode> damped_modes(const ReducedStiffness& r, const Eigen::MatrixXd&
   a.bottomLeftCorner(nf, nf) = -m.solve(r.stiffness);
   a.bottomRightCorner(nf, nf) = -m.solve(r.damping);
   Eigen::EigenSolver<Eigen::MatrixXd> eig(a);
+  const double rounding = 64 * std::numeric_limits<double>::epsilon() * a.cwiseAbs().maxCoeff() *
+                          static_cast<double>(2 * nf);
+  // The real roots' indices by |s|: the first `zero` of them are the neutral directions.
+  const auto zero =
+      static_cast<std::size_t>(std::count(r.kinds.begin(), r.kinds.end(), Stability::kNeutral));
+  std::vector<Eigen::Index> real;
+  for (Eigen::Index k = 0; k < 2 * nf; ++k)
+    if (std::abs(eig.eigenvalues()[k].imag()) <= rounding) real.push_back(k);
+  std::stable_sort(real.begin(), real.end(), [&](Eigen::Index x, Eigen::Index y) {
+    return std::abs(eig.eigenvalues()[x]) < std::abs(eig.eigenvalues()[y]);
+  });
   std::vector<Mode> modes;
-  const double scale = eig.eigenvalues().cwiseAbs().maxCoeff();
   for (Eigen::Index k = 0; k < 2 * nf; ++k) {
     const std::complex<double> s = eig.eigenvalues()[k];
-    if (s.imag() < 0) continue;  // the pair's other half
+    const auto rank = std::find(real.begin(), real.end(), k);
+    if (rank == real.end() && s.imag() < 0) continue;  // the pair's other half
     Mode mode;
     const double w = std::abs(s);
     Eigen::VectorXcd v = eig.eigenvectors().col(k).head(nf);
     Eigen::Index at = 0;
     v.cwiseAbs().maxCoeff(&at);
     v /= v[at];  // the largest component real: the shape is its real part
-    if (s.imag() > 1e-12 * scale) {
+    mode.kind = s.real() > rounding ? Stability::kUnstable : Stability::kStable;
+    if (rank == real.end()) {
       mode.frequency = w / kTwoPi;
       mode.damped_frequency = s.imag() / kTwoPi;
       mode.damping_ratio = -s.real() / w;
       mode.eigenvalue = w * w;
-      if (s.real() > 0) mode.kind = Stability::kUnstable;
     } else {
       // Real: a decaying (overdamped), growing or neutral motion, no oscillation.
       mode.eigenvalue = s.real();
       mode.damping_ratio = s.real() < 0 ? 1 : 0;
-      mode.kind = s.real() > 1e-9 * scale              ? Stability::kUnstable
-                  : std::abs(s.real()) <= 1e-9 * scale ? Stability::kNeutral
-                                                       : Stability::kStable;
+      if (static_cast<std::size_t>(rank - real.begin()) < zero) {
+        mode.kind = Stability::kNeutral;
+        mode.eigenvalue = mode.damping_ratio = 0;
+      }
     }
     set_shape(mode, v.real(), b);
     modes.push_back(std::move(mode));
@@ -97,6 +112,15 @@ ModalAnalysis modal_analysis(Linearizer& lin, OperatingPoint p) {
   out.modes = out.damped ? damped_modes(r, b) : undamped_modes(r, b);
   std::stable_sort(out.modes.begin(), out.modes.end(),
                    [](const Mode& x, const Mode& y) { return x.frequency < y.frequency; });
+  // The verdict of the modes: one that grows makes the point unstable (negative damping does,
+  // with a positive K_z), one of zero stiffness neutral.
+  const auto any = [&](Stability kind) {
+    return std::any_of(out.modes.begin(), out.modes.end(),
+                       [&](const Mode& x) { return x.kind == kind; });
+  };
+  out.stability = any(Stability::kUnstable)  ? Stability::kUnstable
+                  : any(Stability::kNeutral) ? Stability::kNeutral
+                                             : Stability::kStable;
   return out;
 }
 

@@ -1,5 +1,7 @@
-// `kinegen equilibrium`: where the mechanism comes to rest under its loads (format 7.4): z, q
-// and the joint reactions there, and whether it is stable.
+// `kinegen equilibrium`: where the mechanism comes to rest under its loads (docs/format.md,
+// Equilibrium and small oscillations): by default where the overdamped release from value0 (or
+// --from) comes to rest, with --nearest Newton's nearest root; z, q and the joint reactions
+// there, and whether it is stable.
 #include "kinegen/codegen/analysis/equilibrium.hpp"
 
 #include <memory>
@@ -15,7 +17,8 @@ namespace kinegen::cli {
 namespace {
 
 struct Options {
-  std::string at, format, output = "-";
+  std::string at, from, format, output = "-";
+  bool nearest = false;
 };
 
 std::string verdict(const kc::ReducedStiffness& r) {
@@ -38,8 +41,13 @@ std::string verdict(const kc::ReducedStiffness& r) {
 void write_text(std::ostream& out, const kc::Mechanism& m, const kc::Equilibrium& e,
                 const std::vector<std::string>& force_names, const std::vector<double>& forces) {
   const auto free = kc::state_names(m);
-  out << "equilibrium of " << m.name << " at " << kc::format_time(e.at.t) << " (" << e.iterations
-      << " Newton step" << (e.iterations == 1 ? "" : "s") << "): " << verdict(e.stiffness) << "\n";
+  out << "equilibrium of " << m.name << " at " << kc::format_time(e.at.t) << " (";
+  if (e.left_start) out << "the start is not stable: left along its most unstable direction, ";
+  if (e.flow_steps > 0)
+    out << "released: " << e.flow_steps << " step" << (e.flow_steps == 1 ? "" : "s")
+        << " of the overdamped flow, then ";
+  out << e.iterations << " Newton step" << (e.iterations == 1 ? "" : "s")
+      << "): " << verdict(e.stiffness) << "\n";
   for (Eigen::Index k = 0; k < e.at.z.size(); ++k)
     out << free[k] << " = " << number(e.at.z[k]) << "\n";
   out << "stiffness eigenvalues (K_z v = lambda M_z v):";
@@ -96,8 +104,13 @@ void write_csv(std::ostream& out, const kc::Mechanism& m, const kc::Equilibrium&
 int run_equilibrium(const Common& c, const Options& o) {
   const std::string format = output_format(o.format, o.output, "text", {"text", "csv", "json"});
   LinearSetup s = load_linear(c, "equilibrium", o.at, {"t", "u"});
-  const kc::Equilibrium e = kc::find_equilibrium(*s.linearizer, s.at);
-  // The reactions (format 6.5's columns) at rest there, the run-time inputs as given.
+  const kc::OperatingPoint start =
+      kc::parse_operating_point(s.model->mechanism(), o.from, {"z"}, s.at, "--from");
+  const kc::Equilibrium e = kc::find_equilibrium(
+      *s.linearizer, start,
+      o.nearest ? kc::EquilibriumSearch::kNearest : kc::EquilibriumSearch::kRest);
+  // The reactions (the forces columns of `analyze --forces`) at rest there, the run-time inputs as
+  // given.
   kc::ForceSolver solver(*s.model, *s.forces);
   solver.set_inputs(s.linearizer->dynamics().input_slots());
   std::vector<double> forces;
@@ -128,7 +141,13 @@ Subcommand add_equilibrium(CLI::App& app, Common& common) {
   add_common(cmd, common);
   cmd->add_option("--at", o->at,
                   "t=T and the run-time inputs u=U1,... (or by name) to hold (default t = 0, "
-                  "u = 0); Newton starts from the free items' value0");
+                  "u = 0)");
+  cmd->add_option("--from", o->from,
+                  "The start: z=Z1,... or free coordinates by name, Z=V,... (default: the free "
+                  "items' value0)");
+  cmd->add_flag("--nearest", o->nearest,
+                "Newton's nearest root of B^T Q^A = 0 from the start, whatever its stability "
+                "(default: where the overdamped release from the start comes to rest)");
   cmd->add_option("--format", o->format,
                   "text (default), csv or json (default from -o's extension)");
   cmd->add_option("-o,--output", o->output, "Output file (default: standard output)");

@@ -1,6 +1,6 @@
-// `kinegen modes`: small oscillations about the equilibrium (format 7.4): M_z, K_z, C_z, the
-// natural frequencies (damped ones with their damping ratios) and the mode shapes as dq of
-// every coordinate, as text or as JSON that `kinegen view --modes` plays.
+// `kinegen modes`: small oscillations about the equilibrium (docs/format.md, Equilibrium and small
+// oscillations): M_z, K_z, C_z, the natural frequencies (damped ones with their damping ratios) and
+// the mode shapes as dq of every coordinate, as text or as JSON that `kinegen view --modes` plays.
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -36,8 +36,7 @@ void write_text(std::ostream& out, const kc::Mechanism& m, const kc::ModalAnalys
   for (Eigen::Index k = 0; k < a.at.z.size(); ++k)
     at += (k ? ", " : "") + names[k] + " = " + number(a.at.z[k]);
   out << "modes of " << m.name << " at " << kc::format_time(a.at.t) << ", " << at
-      << (equilibrium ? " (the equilibrium): " : ": ") << kc::to_string(a.stiffness.stability)
-      << "\n";
+      << (equilibrium ? " (the equilibrium): " : ": ") << kc::to_string(a.stability) << "\n";
   out << "M_z = " << matrix_text(a.stiffness.mass) << "\n";
   out << "K_z = " << matrix_text(a.stiffness.stiffness) << "\n";
   if (a.damped) out << "C_z = " << matrix_text(a.stiffness.damping) << "\n";
@@ -45,12 +44,12 @@ void write_text(std::ostream& out, const kc::Mechanism& m, const kc::ModalAnalys
   for (std::size_t k = 0; k < a.modes.size(); ++k) {
     const kc::Mode& mode = a.modes[k];
     out << "mode " << k + 1 << ": ";
-    if (mode.kind != kc::Stability::kStable || mode.frequency == 0) {
-      out << (mode.kind == kc::Stability::kUnstable  ? "unstable (it grows)"
-              : mode.kind == kc::Stability::kNeutral ? "neutral (zero stiffness)"
-                                                     : "overdamped (it decays)");
-    } else {
-      out << number(mode.frequency) << " Hz";
+    if (mode.kind == kc::Stability::kUnstable) out << "unstable (it grows)";
+    if (mode.kind == kc::Stability::kNeutral) out << "neutral (zero stiffness)";
+    if (mode.kind == kc::Stability::kStable && mode.frequency == 0) out << "overdamped (it decays)";
+    if (mode.frequency > 0) {
+      // A growing oscillation has a frequency too (a negative damping ratio).
+      out << (mode.kind == kc::Stability::kStable ? "" : ", ") << number(mode.frequency) << " Hz";
       if (a.damped)
         out << ", damping ratio " << number(mode.damping_ratio) << ", damped "
             << number(mode.damped_frequency) << " Hz";
@@ -87,7 +86,7 @@ void write_json(std::ostream& out, const kc::Mechanism& m, const kc::ModalAnalys
       << ", \"shapes\": " << shapes << "]"
       << ", \"t\": " << json_number(a.at.t)
       << ", \"equilibrium\": " << (equilibrium ? "true" : "false") << ", \"stability\": \""
-      << kc::to_string(a.stiffness.stability) << "\", \"free\": " << json_strings(free)
+      << kc::to_string(a.stability) << "\", \"free\": " << json_strings(free)
       << ", \"z\": " << json_vector(a.at.z) << ", \"mass\": " << json_matrix(a.stiffness.mass)
       << ", \"stiffness\": " << json_matrix(a.stiffness.stiffness)
       << ", \"damping\": " << json_matrix(a.stiffness.damping)
@@ -109,8 +108,11 @@ int run_modes(const Common& c, const Options& o) {
   if (at_equilibrium) p = kc::find_equilibrium(*s.linearizer, s.at).at;
   const kc::ModalAnalysis a = kc::modal_analysis(*s.linearizer, p);
   if (!at_equilibrium) {
-    const Eigen::VectorXd terms = s.linearizer->force_terms();
-    if ((a.force.cwiseAbs().array() > 1e-8 * terms.array()).any())
+    // Beyond rounding only: the bound at which `equilibrium`'s Newton stops, so that the point
+    // it printed is an equilibrium here too.
+    const Eigen::VectorXd bound =
+        kc::rest_bound(*s.linearizer, a.state, a.stiffness.mass, a.stiffness.stiffness);
+    if ((a.force.cwiseAbs().array() > bound.array()).any())
       kc::Log::global().warning(s.model->mechanism().source +
                                 ": --at z is not an equilibrium (B^T Q^A = " +
                                 kc::format_estimate(a.force.cwiseAbs().maxCoeff()) +
