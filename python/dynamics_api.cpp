@@ -183,6 +183,9 @@ py::dict DynamicsApi::equilibrium(double t, const OptionalValues& u, const Optio
                                   bool nearest) {
   std::vector<double> columns;
   const kc::Equilibrium e = under_lock([&] {
+    // A fresh Linearizer, as the command line's: each solve starts from the last state solved,
+    // so the release's path (and z to its last bit) would depend on earlier calls.
+    linearizer_.reset();
     kc::Linearizer& lin = linearizer(t, "equilibrium");
     kc::Equilibrium found = kc::find_equilibrium(
         lin, point(lin, t, start, std::nullopt, u),
@@ -219,6 +222,7 @@ py::dict DynamicsApi::equilibrium(double t, const OptionalValues& u, const Optio
 py::dict DynamicsApi::modes(double t, const OptionalValues& z, const OptionalValues& u) {
   int nf = 0;
   const kc::ModalAnalysis a = under_lock([&] {
+    linearizer_.reset();  // as in equilibrium()
     kc::Linearizer& lin = linearizer(t, "modes");
     nf = lin.nf();
     kc::OperatingPoint p = point(lin, t, z, std::nullopt, u);

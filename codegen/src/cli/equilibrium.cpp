@@ -66,8 +66,9 @@ void write_json(std::ostream& out, const kc::Mechanism& m, const kc::Equilibrium
   const std::vector<std::string> z_names(free.begin(), free.begin() + e.at.z.size());
   const kc::ReducedStiffness& r = e.stiffness;
   out << "{\"t\": " << json_number(e.at.t) << ", \"stability\": \"" << kc::to_string(r.stability)
-      << "\", \"iterations\": " << e.iterations << ", \"free\": " << json_strings(z_names)
-      << ", \"z\": " << json_vector(e.at.z)
+      << "\", \"iterations\": " << e.iterations << ", \"flow_steps\": " << e.flow_steps
+      << ", \"left_start\": " << (e.left_start ? "true" : "false")
+      << ", \"free\": " << json_strings(z_names) << ", \"z\": " << json_vector(e.at.z)
       << ", \"coordinates\": " << json_strings(kc::coordinate_labels(m))
       << ", \"q\": " << json_vector(e.state.q) << ", \"forces\": "
       << json_object(force_names, Eigen::Map<const Eigen::VectorXd>(
