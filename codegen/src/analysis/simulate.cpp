@@ -14,6 +14,7 @@
 #include <limits>
 #include <memory>
 
+#include "kinegen/codegen/analysis/breakpoints.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/base/interrupt.hpp"
@@ -283,6 +284,7 @@ class Integration {
     SimulateSummary s;
     s.integrator = integrator_;
     s.steps = steps_;
+    s.restarts = restarts_;
     long value = 0;
     if (CVodeGetNumErrTestFails(cvode_, &value) == CV_SUCCESS) s.error_test_failures = value;
     s.evaluations = evaluations_;
@@ -688,7 +690,8 @@ SimulateSummary run_simulation(const CompiledModel& model, const ForceModel& for
                                const std::function<void(const SimulatedRow&)>& sink,
                                const SimulateOptions& options) {
   std::unique_ptr<MotionFormulation> f = make_formulation(options.method, model, forces, grid.t0);
-  Integration integration(model, forces, *f, options, grid.t0, grid.t1, {});
+  Integration integration(model, forces, *f, options, grid.t0, grid.t1,
+                          breakpoints(model, forces, grid.t0, grid.t1));
   std::unique_ptr<ForceSolver> force_solver;
   if (options.forces_columns) force_solver = std::make_unique<ForceSolver>(model, forces);
   OutputEvaluator outputs(model);

@@ -77,7 +77,8 @@ void report(const kc::Mechanism& m, const kc::SimulateSummary& s) {
   if (s.drifted) log.warning(m.source + ": " + s.drift);
   log.detail("integrator " + s.integrator + ": " + std::to_string(s.steps) + " steps, " +
              std::to_string(s.evaluations) + " evaluations, " +
-             std::to_string(s.error_test_failures) + " error-test failures");
+             std::to_string(s.error_test_failures) + " error-test failures, " +
+             std::to_string(s.restarts) + " restarts at breakpoints");
   log.detail("largest |energy.balance| " + kc::format_estimate(s.largest_balance) + " at " +
              kc::format_time(s.largest_balance_time) + " (" +
              kc::format_estimate(s.largest_ratio) +

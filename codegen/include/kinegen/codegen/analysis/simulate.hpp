@@ -91,6 +91,7 @@ struct SimulateOptions {
 struct SimulateSummary {
   std::string integrator;  // "BDF" or "Adams", and why when auto chose
   long steps = 0, evaluations = 0, error_test_failures = 0;
+  long restarts = 0;  // at breakpoints, where a driver's or a load's function is not smooth
   // The largest |energy.balance| at the internal steps, its time, and its ratio to the bound's
   // tolerance term C (rtol + atol/S) (S + X) there.
   double largest_balance = 0, largest_balance_time = 0, largest_ratio = 0;
