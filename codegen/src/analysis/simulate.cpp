@@ -410,6 +410,11 @@ class Integration {
       }
       return;
     }
+    // A singular position the formulation recognizes there is the cause to name (the minimal
+    // coordinates lose their accuracy as q(z) folds, before any evaluation fails).
+    if (o_.method == Method::kMinimal)
+      if (const std::string cause = f_.diagnose(t, y.data()); !cause.empty())
+        throw failure(t, cause);
     throw failure(
         t, "the energy balance is off by " + format_estimate(std::abs(balance)) + ", past " +
                limit + ": the integration lost its accuracy; try a tighter --rtol (now " +
