@@ -144,9 +144,9 @@ TEST_CASE("stiff springs end within the balance's bound or with exit 1, never wi
   // k = 1e6 over 100 s; they used to exit 0 with 2.7%, 17.8% and 1.2% of the energy lost.
   for (const Case c : {Case{1e10, 2e2, 1}, Case{1e12, 2e3, 1}, Case{1e6, 0, 100}}) {
     CAPTURE(c.k, c.c, c.t1);
-    const fs::path yaml = write_yaml("stiff_" + std::to_string(static_cast<int>(std::log10(c.k))) +
-                                         (c.c > 0 ? "_damped" : ""),
-                                     oscillator(c.k, c.c, 0.01));
+    const fs::path yaml = write_yaml(
+        "stiff_" + std::to_string(static_cast<int>(std::log10(c.k))) + (c.c > 0 ? "_damped" : ""),
+        oscillator(c.k, c.c, 0.01));
     const Run run = simulate(yaml, {"--t1", std::to_string(c.t1), "--steps", "200", "-q"});
     INFO("stderr: " << run.r.err);
     if (run.r.exit_code == 0) {
@@ -241,8 +241,8 @@ TEST_CASE("the integrator's step limit counts over the whole run, not per row",
   // any one of the 200 row intervals.
   int rows = 0;
   try {
-    kc::run_simulation(*model, forces, {0, 6.3, 200}, [&](const kc::SimulatedRow&) { ++rows; },
-                       o);
+    kc::run_simulation(
+        *model, forces, {0, 6.3, 200}, [&](const kc::SimulatedRow&) { ++rows; }, o);
     FAIL("the run passed its step limit");
   } catch (const kc::AnalysisError& e) {
     CHECK(std::string(e.what()).find("2000 steps in all") != std::string::npos);
@@ -268,7 +268,8 @@ TEST_CASE("stop_when: the first crossing of a fast oscillation, not a later one"
 
 TEST_CASE("stop_when above 0 at t0 stops there with one row; a zero at t0 is no crossing",
           "[simulate_trust]") {
-  const Run above = simulate(write_yaml("above", pendulum("1 - t")), {"--t1", "1", "--steps", "10"});
+  const Run above =
+      simulate(write_yaml("above", pendulum("1 - t")), {"--t1", "1", "--steps", "10"});
   INFO("stderr: " << above.r.err);
   CHECK(above.r.exit_code == 0);
   CHECK(above.rows.rows() == 1);
@@ -309,8 +310,8 @@ TEST_CASE("stop_when: randomized dips of 1e-3 to 1e-9 found at their first cross
     t.precision(17);
     r << rtol;
     t << t1;
-    const Run run = simulate(yaml, {"--t1", t.str(), "--steps", std::to_string(steps), "--rtol",
-                                    r.str(), "-q"});
+    const Run run = simulate(
+        yaml, {"--t1", t.str(), "--steps", std::to_string(steps), "--rtol", r.str(), "-q"});
     INFO("stderr: " << run.r.err);
     REQUIRE(run.r.exit_code == 0);
     REQUIRE(run.rows.rows() >= 2);
@@ -417,8 +418,7 @@ TEST_CASE("--rtol alone tightens a run: the double pendulum to 1e-9 rad at --rto
     }
 }
 
-TEST_CASE("rows do not depend on --steps beyond the tolerance (dense output)",
-          "[simulate_trust]") {
+TEST_CASE("rows do not depend on --steps beyond the tolerance (dense output)", "[simulate_trust]") {
   const fs::path yaml = write_yaml("grid", kDoublePendulum);
   const Run coarse = simulate(yaml, {"--t1", "3", "--steps", "10", "-q"});
   const Run fine = simulate(yaml, {"--t1", "3", "--steps", "1000", "-q"});

@@ -107,9 +107,8 @@ struct SimulateSummary {
 // --method, --integrator with prefix "--"; the Python module's keywords with ""), each checked:
 // a UsageError naming the setting and its value. One rule for both front ends.
 // atol empty: kAtolPerRtol times rtol.
-SimulateOptions simulate_options(double rtol, std::optional<double> atol,
-                                 const std::string& method, const std::string& integrator,
-                                 const std::string& prefix);
+SimulateOptions simulate_options(double rtol, std::optional<double> atol, const std::string& method,
+                                 const std::string& integrator, const std::string& prefix);
 
 // The extra columns of a simulated row: each free item's Z, Z.v, Z.a, then the energy.
 struct SimulatedRow {
