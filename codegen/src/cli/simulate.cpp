@@ -71,9 +71,9 @@ std::function<void(double)> progress_after_a_second(double t0, double t1) {
 // figures.
 void report(const kc::Mechanism& m, const kc::SimulateSummary& s) {
   kc::Log& log = kc::Log::global();
-  if (s.stopped)
-    log.info("stopped at " + kc::format_time(s.stop_time) + ": " + one_line(m.stop_when->text) +
-             " crossed 0");
+  if (s.stopped)  // as the reference run says it
+    std::cerr << "stopped at " << kc::format_time(s.stop_time) << ": "
+              << one_line(m.stop_when->text) << " crossed 0\n";
   if (s.drifted) log.warning(m.source + ": " + s.drift);
   log.detail("integrator " + s.integrator + ": " + std::to_string(s.steps) + " steps, " +
              std::to_string(s.evaluations) + " evaluations, " +
