@@ -106,13 +106,14 @@ kc::OperatingPoint DynamicsApi::point(kc::Linearizer& lin, double t, const Optio
   return p;
 }
 
-py::dict DynamicsApi::simulate(const SimulateArgs& a) {
+py::dict DynamicsApi::simulate(const SimulateArgs& a, std::vector<std::string>& warnings) {
   // The command line's checks (cli/simulate.cpp) and its model: the free coordinates the
   // state, every input driver given its table.
   if (a.steps < 1) throw kc::UsageError("--steps must be at least 1");
   if (!std::isfinite(a.t0) || !std::isfinite(a.t1) || !(a.t1 > a.t0))
     throw kc::UsageError("t1 must come after t0, both finite: a simulation runs forward in time");
   kc::SimulateOptions options = kc::simulate_options(a.rtol, a.atol, a.method, a.integrator, "");
+  options.allow_drift = a.allow_drift;
   std::vector<std::string> columns;
   std::vector<std::vector<double>> rows;
   {
@@ -134,7 +135,7 @@ py::dict DynamicsApi::simulate(const SimulateArgs& a) {
     kc::require_kept_rows("simulate", a.steps + 1LL, columns.size());
     const int nb = static_cast<int>(model_.mechanism().bodies.size());
     // As the CSV: the text parsed back (17 digits round-trip a double), so bit for bit.
-    kc::run_simulation(
+    const kc::SimulateSummary summary = kc::run_simulation(
         model_, *forces_, {a.t0, a.t1, a.steps},
         [&](const kc::SimulatedRow& row) {
           std::string line = kc::simulate_csv_row(row, nb);
@@ -144,6 +145,7 @@ py::dict DynamicsApi::simulate(const SimulateArgs& a) {
           rows.push_back(std::move(v));
         },
         options);
+    if (summary.drifted) warnings.push_back(model_.mechanism().source + ": " + summary.drift);
   }
   py::dict out;
   for (std::size_t c = 0; c < columns.size(); ++c) {

@@ -25,9 +25,11 @@ using OptionalValues = std::optional<std::vector<double>>;
 struct SimulateArgs {
   double t0 = 0, t1 = 0;
   int steps = 0;
-  double rtol = 1e-8, atol = 1e-10;
+  double rtol = 1e-8;
+  std::optional<double> atol;  // default: 1e-2 rtol, as the command line's
   std::string method = "minimal", integrator = "auto";
   bool forces = false;
+  bool allow_drift = false;
 };
 
 class DynamicsApi {
@@ -38,7 +40,7 @@ class DynamicsApi {
 
   // Column name -> numpy array, simulate's CSV columns in their order; the warnings of the
   // run in *warnings. Runs without the GIL.
-  py::dict simulate(const SimulateArgs& args);
+  py::dict simulate(const SimulateArgs& args, std::vector<std::string>& warnings);
   // zdd at (t, z, zd, u): the right-hand side of x' = f(x, u) that Mechanism.linearize
   // linearizes (u defaults to zeros).
   py::array_t<double> dynamics(double t, const std::vector<double>& z,

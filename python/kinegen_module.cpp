@@ -545,19 +545,26 @@ message.
           "as a kinegen.Page, written to path if given; Jupyter shows it inline.")
       .def(
           "simulate",
-          [](Mechanism& mech, double t1, int steps, double rtol, double atol,
-             const std::string& method, double t0, const std::string& integrator, bool forces) {
-            kinegen::python::SimulateArgs a{t0, t1, steps, rtol, atol, method, integrator, forces};
-            return mech.with_dynamics([&](auto& d) {
+          [](Mechanism& mech, double t1, int steps, double rtol, std::optional<double> atol,
+             const std::string& method, double t0, const std::string& integrator, bool forces,
+             bool allow_drift) {
+            kinegen::python::SimulateArgs a{t0,     t1,         steps,  rtol,       atol,
+                                            method, integrator, forces, allow_drift};
+            std::vector<std::string> warnings;
+            py::dict rows = mech.with_dynamics([&](auto& d) {
               check_span(t0, t1);
-              return d.simulate(a);
+              return d.simulate(a, warnings);
             });
+            warn_all(warnings);
+            return rows;
           },
           py::arg("t1"), py::arg("steps"), py::kw_only(), py::arg("rtol") = 1e-8,
-          py::arg("atol") = 1e-10, py::arg("method") = "minimal", py::arg("t0") = 0.0,
+          py::arg("atol") = py::none(), py::arg("method") = "minimal", py::arg("t0") = 0.0,
           py::arg("integrator") = "auto", py::arg("forces") = false,
+          py::arg("allow_drift") = false,
           "Forward dynamics (kinegen simulate): rows at t0 + k (t1 - t0) / steps, a dict from "
-          "simulate's CSV column names to numpy arrays, in the CSV's order.")
+          "simulate's CSV column names to numpy arrays, in the CSV's order. atol defaults to "
+          "1e-2 rtol; allow_drift: an energy balance past its bound warns instead of raising.")
       .def(
           "dynamics",
           [](Mechanism& mech, double t, const std::vector<double>& z,

@@ -33,6 +33,32 @@ def test_simulate_equals_command_line_bit_for_bit(tmp_path):
         assert np.array_equal(got[name], values[:, k]), name
 
 
+def test_simulate_atol_follows_rtol_and_allow_drift_warns(tmp_path):
+    """atol defaults to 1e-2 rtol, as the command line's --atol; allow_drift turns a balance
+    past its bound into one warning."""
+    m = kinegen.Mechanism(str(DYN / "pendulum.yaml"))
+    default = m.simulate(1, 4, rtol=1e-11)
+    given = m.simulate(1, 4, rtol=1e-11, atol=1e-13)
+    assert np.array_equal(default["theta"], given["theta"])
+    assert not np.array_equal(m.simulate(1, 4, rtol=1e-11, atol=1e-10)["theta"], given["theta"])
+    with pytest.raises(kinegen.UsageError, match="usable range"):
+        m.simulate(1, 4, rtol=1e-20)
+    spring = tmp_path / "spring.yaml"
+    spring.write_text(
+        "name: oscillator\nparameters: {m: 1, k: 1e6}\nbodies:\n"
+        "  - {name: mass, q0: [0.01, 0, 0], mass: m}\n"
+        "joints:\n  - {type: translational, name: guide, i: ground, j: mass, vi: [1, 0]}\n"
+        "free:\n  - {type: absolute_x, name: x, body: mass, value0: 0.01, v0: 0}\n"
+        "forces:\n  - {type: spring_damper, name: spring, i: ground, j: mass, si: [-1, 0], "
+        "sj: [0, 0], stiffness: k, damping: 0, length0: 1}\n")
+    s = kinegen.Mechanism(str(spring))
+    with pytest.raises(kinegen.AnalysisError, match="energy balance"):
+        s.simulate(100, 100, rtol=1e-4)
+    with pytest.warns(UserWarning, match="energy balance"):
+        rows = s.simulate(100, 100, rtol=1e-4, allow_drift=True)
+    assert len(rows["t"]) == 101
+
+
 @pytest.mark.parametrize("name", ["pendulum", "four_bar_damped", "cart_pole"])
 def test_equilibrium_modes_linearize_equal_command_line(name):
     path = str(DYN / (name + ".yaml"))

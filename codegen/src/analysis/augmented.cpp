@@ -13,6 +13,7 @@
 
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/base/format.hpp"
+#include "diagnosis.hpp"
 #include "kinegen/codegen/model/table.hpp"
 
 namespace kinegen::codegen {
@@ -123,11 +124,25 @@ class AugmentedLagrangian : public MotionFormulation {
   bool rhs(double t, const double* y, double* ydot) override;
   const MotionState& state() const override { return state_; }
   Energy energy() override;
+  double activity(const Energy& e) override;
   MotionFailure failure() const override { return failure_; }
   const std::string& reason() const override { return reason_; }
   bool has_projection() const override { return true; }
   bool project(double t, const double* y, double* correction) override;
   bool project_error(double t, double* error) override;
+  std::string diagnose(double t, const double* y) override {
+    std::string rows;
+    if (nq_ <= analysis_detail::kMaxDiagnosedNq)
+      rows = analysis_detail::singular_rows(
+          model_, analysis_detail::jacobian_at(model_, Vec::Map(y, nq_), t));
+    return "the augmented method could not pass this position: its error test failed "
+           "repeatedly with Phi_q there" +
+           (rows.empty() ? std::string(" not examined (more than ") +
+                               std::to_string(analysis_detail::kMaxDiagnosedNq) + " coordinates)"
+                         : rows) +
+           "; near a singular position the projections' rounding can exceed the absolute "
+           "tolerance: try a looser --atol (such as 1e-13) or --rtol";
+  }
 
  private:
   bool fail(MotionFailure f, std::string reason) {
@@ -465,6 +480,17 @@ Energy AugmentedLagrangian::energy() {
   nonconservative_.run(s.q.data(), s.qd.data(), s.t, model_.params().data(), qnc.data());
   e.power = s.qd.dot(qnc) + constraint_power_;
   return e;
+}
+
+double AugmentedLagrangian::activity(const Energy& /*e*/) {
+  const MotionState& s = state_;
+  const double* params = model_.params().data();
+  Vec applied(nq_), qnc(nq_);
+  applied_.run(s.q.data(), s.qd.data(), s.t, params, applied.data());
+  nonconservative_.run(s.q.data(), s.qd.data(), s.t, params, qnc.data());
+  // Q^A = -V_q + Q^nc: the potential's forces are Q^A - Q^nc.
+  return s.qd.cwiseProduct(qnc).cwiseAbs().sum() +
+         s.qd.cwiseProduct(applied - qnc).cwiseAbs().sum() + std::abs(constraint_power_);
 }
 
 // Bayo and Ledesma's mass-orthogonal projections: q = argmin |q - q*|_M on Phi(q, t) = 0 (Newton

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "cli.hpp"
@@ -13,6 +14,7 @@
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/reference_dynamics.hpp"
 #include "kinegen/codegen/base/interrupt.hpp"
+#include "kinegen/codegen/base/log.hpp"
 #include "kinegen/codegen/io/output_file.hpp"
 
 namespace kinegen::cli {
@@ -22,7 +24,10 @@ namespace {
 struct Options {
   double t0 = 0, t1 = 0;
   int steps = 0;
-  double rtol = 1e-8, atol = 1e-10;
+  double rtol = 1e-8;
+  std::optional<double> atol;  // default: 1e-2 rtol
+  double max_step = 0;
+  bool allow_drift = false;
   std::string method = "minimal", integrator = "auto";
   std::string output;
   bool with_forces = false;
@@ -42,7 +47,13 @@ kc::SimulateOptions check_options(const Options& o) {
                          std::to_string(kc::kMinSimulateReferenceDigits) + " and " +
                          std::to_string(kc::kMaxSimulateReferenceDigits) + " digits, not " +
                          std::to_string(o.reference_digits));
-  return kc::simulate_options(o.rtol, o.atol, o.method, o.integrator, "--");
+  kc::SimulateOptions options = kc::simulate_options(o.rtol, o.atol, o.method, o.integrator, "--");
+  if (!(o.max_step >= 0) || !std::isfinite(o.max_step))
+    throw kc::UsageError("--max-step must be a finite number above 0, not " +
+                         kc::format_number(o.max_step));
+  options.max_step = o.max_step;
+  options.allow_drift = o.allow_drift;
+  return options;
 }
 
 // The progress bar, drawn only once a run has taken a second.
@@ -54,6 +65,24 @@ std::function<void(double)> progress_after_a_second(double t0, double t1) {
     if (std::chrono::steady_clock::now() - start < std::chrono::seconds(1) && t < t1) return;
     bar(static_cast<int>(std::lround(1000 * (t - t0) / (t1 - t0))), 1000);
   };
+}
+
+// What the run did: the stop_when line, the drift warning, and with -v the integrator's
+// figures.
+void report(const kc::Mechanism& m, const kc::SimulateSummary& s) {
+  kc::Log& log = kc::Log::global();
+  if (s.stopped)  // as the reference run says it
+    std::cerr << "stopped at " << kc::format_time(s.stop_time) << ": "
+              << one_line(m.stop_when->text) << " crossed 0\n";
+  if (s.drifted) log.warning(m.source + ": " + s.drift);
+  log.detail("integrator " + s.integrator + ": " + std::to_string(s.steps) + " steps, " +
+             std::to_string(s.evaluations) + " evaluations, " +
+             std::to_string(s.error_test_failures) + " error-test failures, " +
+             std::to_string(s.restarts) + " restarts at breakpoints");
+  log.detail("largest |energy.balance| " + kc::format_estimate(s.largest_balance) + " at " +
+             kc::format_time(s.largest_balance_time) + " (" +
+             kc::format_estimate(s.largest_ratio) +
+             " of its tolerance term C (rtol + atol/S) (S + X))");
 }
 
 int run_simulate(const Common& c, const Options& o) {
@@ -94,7 +123,9 @@ int run_simulate(const Common& c, const Options& o) {
         std::cerr << "stopped at " << kc::format_time(stats.stop_time) << ": "
                   << one_line(model->mechanism().stop_when->text) << " crossed 0\n";
     } else {
-      kc::run_simulation(*model, forces, {o.t0, o.t1, o.steps}, sink, options);
+      const kc::SimulateSummary s =
+          kc::run_simulation(*model, forces, {o.t0, o.t1, o.steps}, sink, options);
+      report(model->mechanism(), s);
     }
   } catch (const kc::AnalysisError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
@@ -117,7 +148,15 @@ Subcommand add_simulate(CLI::App& app, Common& common) {
   cmd->add_option("--steps", o->steps, "Rows on the grid: N steps (N + 1 rows)")->required();
   cmd->add_option("--rtol", o->rtol, "Relative tolerance of the integrator (default 1e-8)");
   cmd->add_option("--atol", o->atol,
-                  "Absolute tolerance, times each state's scale (default 1e-10)");
+                  "Absolute tolerance, times each state's scale (default 1e-2 times --rtol); "
+                  "usable: 1e-18 to 1e-2 (--rtol: 1e-14 to 1e-2)");
+  cmd->add_option("--max-step", o->max_step,
+                  "The integrator's largest internal step (default: none; stop_when limits it "
+                  "near crossings)")
+      ->type_name("H");
+  cmd->add_flag("--allow-drift", o->allow_drift,
+                "An energy balance past its bound (the run's accuracy witness) is a warning with "
+                "the largest value and its time, not a failure");
   cmd->add_option("--method", o->method,
                   "minimal (default): minimal coordinates, the free items as the state; "
                   "augmented: an augmented Lagrangian in all coordinates, which passes "

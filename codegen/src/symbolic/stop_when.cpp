@@ -2,6 +2,8 @@
 // It may name the CSV's columns (B.x, P.vy, J.fn), which the expression language has no
 // syntax for: each such column is rewritten to a name of its own (`B__x`; "__" is never a
 // user's name) and defined for this one parse.
+#include "kinegen/codegen/symbolic/stop_when.hpp"
+
 #include <cctype>
 #include <map>
 
@@ -17,6 +19,24 @@ ex time_derivative(const ex& e, const SymbolTable& s) {
   ex d = 0;
   for (int k = 0; k < s.nq(); ++k) d += e.diff(s.q(k)) * s.qd(k);
   return d;
+}
+
+// Whether e holds a derivative GiNaC could not write out (a function without one).
+bool has_unknown_derivative(const ex& e) {
+  if (GiNaC::is_a<GiNaC::fderivative>(e)) return true;
+  for (std::size_t k = 0; k < e.nops(); ++k)
+    if (has_unknown_derivative(e.op(k))) return true;
+  return false;
+}
+
+void collect_symbols(const ex& e, std::vector<GiNaC::symbol>& out) {
+  if (GiNaC::is_a<GiNaC::symbol>(e)) {
+    const auto& s = GiNaC::ex_to<GiNaC::symbol>(e);
+    for (const auto& known : out)
+      if (known.is_equal(s)) return;
+    out.push_back(s);
+  }
+  for (std::size_t k = 0; k < e.nops(); ++k) collect_symbols(e.op(k), out);
 }
 
 std::string alias(const std::string& column) {
@@ -104,6 +124,40 @@ void derive_stop_when(const Mechanism& m, SymbolTable& s, SymbolicModel& model,
     k = end;
   }
   model.stop_when = s.parse(Expr{rewritten, m.stop_when->loc}, Scope::kLoad, "stop_when");
+}
+
+std::vector<GiNaC::ex> stop_when_rate(const SymbolicModel& model, const SymbolTable& s) {
+  const ex& g = model.stop_when;
+  try {
+    // The force columns' symbols, in stop_force_columns order: the extra parameters.
+    std::vector<GiNaC::symbol> symbols;
+    collect_symbols(g, symbols);
+    std::vector<ex> forces(model.stop_force_columns.size(), ex(0));
+    for (const GiNaC::symbol& symbol : symbols) {
+      const Input in = s.classify(symbol);
+      const int extra = in.index - s.num_params();
+      if (in.kind == InputKind::kParam && extra >= 0 && extra < static_cast<int>(forces.size()))
+        forces[extra] = symbol;
+    }
+    std::vector<ex> d_qd, d_q;
+    ex rate0 = g.diff(s.t());
+    for (int k = 0; k < s.nq(); ++k) {
+      d_qd.push_back(g.diff(s.qd(k)));
+      d_q.push_back(g.diff(s.q(k)));
+      rate0 += d_q.back() * s.qd(k);
+    }
+    std::vector<ex> pieces{rate0};
+    pieces.insert(pieces.end(), d_qd.begin(), d_qd.end());
+    pieces.insert(pieces.end(), d_q.begin(), d_q.end());
+    for (const ex& f : forces)
+      pieces.push_back(GiNaC::is_a<GiNaC::symbol>(f) ? g.diff(GiNaC::ex_to<GiNaC::symbol>(f))
+                                                     : ex(0));
+    for (const ex& p : pieces)
+      if (has_unknown_derivative(p)) return {};
+    return pieces;
+  } catch (const std::exception&) {
+    return {};  // a function without a derivative: the simulation uses differences
+  }
 }
 
 }  // namespace kinegen::codegen

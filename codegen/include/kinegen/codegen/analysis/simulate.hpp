@@ -10,6 +10,7 @@
 #include <Eigen/Dense>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -32,6 +33,10 @@ class MotionFormulation {
   virtual bool rhs(double t, const double* y, double* ydot) = 0;
   virtual const MotionState& state() const = 0;
   virtual Energy energy() = 0;  // at state()
+  // The sum of |power| over the loads, dampers, prescribed drivers and the potential's forces
+  // at state() (per coordinate; e its energy()): the rate of the energy exchanged, X' in the
+  // energy balance's bound.
+  virtual double activity(const Energy& e) = 0;
   virtual MotionFailure failure() const = 0;
   virtual const std::string& reason() const = 0;
   // Projection onto the constraints after each step (CVODE's CVodeSetProjFn): the
@@ -59,6 +64,12 @@ std::unique_ptr<MotionFormulation> minimal_formulation(const CompiledModel& mode
 enum class Integrator { kAuto, kBdf, kAdams };
 enum class Method { kMinimal, kAugmented };
 
+// The usable tolerances (docs/dynamics.md): outside, simulate_options() is a UsageError.
+inline constexpr double kMinRtol = 1e-14, kMaxRtol = 1e-2;
+inline constexpr double kMinAtol = 1e-18, kMaxAtol = 1e-2;
+// --atol when not given: this times --rtol.
+inline constexpr double kAtolPerRtol = 1e-2;
+
 struct SimulateOptions {
   double rtol = 1e-8;
   double atol = 1e-10;  // times each state's scale
@@ -71,12 +82,32 @@ struct SimulateOptions {
   std::function<void(double)> progress;
   std::function<bool()> interrupted;
   long max_steps = 10000000;  // internal steps in all
+  // The energy balance past its bound is a warning (once, at the end), not a failure.
+  bool allow_drift = false;
+  double max_step = 0;  // the integrator's largest step; 0: none
+};
+
+// What a run did (`simulate -v`), and what it warns about.
+struct SimulateSummary {
+  std::string integrator;  // "BDF" or "Adams", and why when auto chose
+  long steps = 0, evaluations = 0, error_test_failures = 0;
+  long restarts = 0;  // at breakpoints, where a driver's or a load's function is not smooth
+  // The largest |energy.balance| at the internal steps, its time, and its ratio to the bound's
+  // tolerance term C (rtol + atol/S) (S + X) there.
+  double largest_balance = 0, largest_balance_time = 0, largest_ratio = 0;
+  // With allow_drift: the balance passed its bound (the largest excess, its time, the limit).
+  bool drifted = false;
+  std::string drift;
+  // A stop_when crossing ended the run at stop_time.
+  bool stopped = false;
+  double stop_time = 0;
 };
 
 // SimulateOptions from the settings as a user names them (the command line's --rtol, --atol,
 // --method, --integrator with prefix "--"; the Python module's keywords with ""), each checked:
 // a UsageError naming the setting and its value. One rule for both front ends.
-SimulateOptions simulate_options(double rtol, double atol, const std::string& method,
+// atol empty: kAtolPerRtol times rtol.
+SimulateOptions simulate_options(double rtol, std::optional<double> atol, const std::string& method,
                                  const std::string& integrator, const std::string& prefix);
 
 // The extra columns of a simulated row: each free item's Z, Z.v, Z.a, then the energy.
@@ -98,9 +129,10 @@ std::unique_ptr<MotionFormulation> make_formulation(Method method, const Compile
 // Integrates over the grid (rows at its times, and one at a stop_when root, where the run
 // ends). Throws AnalysisError on failure, after the rows so far; InputError for the checks of
 // format 7.1 at t0.
-void run_simulation(const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid,
-                    const std::function<void(const SimulatedRow&)>& sink,
-                    const SimulateOptions& options);
+SimulateSummary run_simulation(const CompiledModel& model, const ForceModel& forces,
+                               const TimeGrid& grid,
+                               const std::function<void(const SimulatedRow&)>& sink,
+                               const SimulateOptions& options);
 
 // The CSV header of `simulate`: analyze's columns (with the force columns when given), then
 // Z, Z.v, Z.a per free item, then energy.kinetic, energy.potential, energy.work and
