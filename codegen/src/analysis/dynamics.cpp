@@ -305,13 +305,19 @@ void ReducedDynamics::check_at_t0(double t0) {
                          std::to_string(kernels::ReportKernel::_kMaxContinuationSteps) +
                          " continuation steps from their values at the q0 pose: give q0 near "
                          "the position at value0");
+  // A failure's diagnosis starts again from the assembled position.
+  const auto refuse = [&] {
+    w.q_last = q;
+    w.have_last = false;
+    report_t0_failure(t0);
+  };
   for (int i = 1; i < steps; ++i) {
     const Eigen::VectorXd z = at_q + (z0 - at_q) * (static_cast<double>(i) / steps);
-    if (!solve(t0, z.data(), zd0.data(), initial_)) report_t0_failure(t0);
+    if (!solve(t0, z.data(), zd0.data(), initial_)) refuse();
   }
   const bool assembled = solve(t0, z0.data(), zd0.data(), initial_);
   condition0_ = condition_;
-  if (!assembled) report_t0_failure(t0);
+  if (!assembled) refuse();
 }
 
 // The state at t0 did not solve: the input is at fault (exit 2), and this says where.
