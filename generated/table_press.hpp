@@ -432,11 +432,17 @@ struct table_press {
     return x;
   }
 
+  // BlockReport::status values by name (kinegen::Status has the same order).
+  static constexpr int _kStatusConverged = 0, _kStatusMaxIterations = 1, _kStatusSingular = 2,
+                       _kStatusNonFinite = 3, _kStatusInconsistent = 4, _kStatusBudgetExhausted = 5,
+                       _kStatusBranchJump = 6, _kStatusTooFar = 7;
+  // A first solve's continuation takes at most this many steps (else _kStatusTooFar).
+  static constexpr int _kMaxContinuationSteps = 100000;
   // Outcome of a block solve. status: the order of kinegen::Status (0 converged, 1 Newton did
   // not converge within max_iterations, 2 a block's Jacobian is singular, 3 a non-finite value
   // appeared, 4 Newton's step vanished but the residual did not, 5 a fixed iteration budget ran
   // out with the residual above tolerance, 6 a block's determinant changed sign: another
-  // assembly branch).
+  // assembly branch, 7 a first solve's continuation would take too many steps).
   template <class R>
   struct BlockReport {
     int status = 0;

@@ -632,3 +632,33 @@ TEST_CASE("generated forces with the step's factors equal the in-process ForceSo
   CHECK(balanced <= 1e-12);
   CHECK(torn <= 1e-12);
 }
+
+// Solver::forces reuses its last step's factors only for the step's t, q, parameters and
+// options: after params().b changes (or an option), it factors again, as a fresh Solver does.
+TEST_CASE("Solver::forces after a parameter or an option change equals a fresh Solver's",
+          "[forces][generated][reuse]") {
+  using M = km::four_bar_balanced;
+  using S = kinegen::Solver<M>;
+  S solver;
+  S::Vector q = S::initial_estimate(), qd, qdd;
+  for (int i = 0; i < 3; ++i) REQUIRE(solver.step(0.01 * i, q, qd, qdd));
+  const double t = 0.02;
+  M::Params p;
+  p.b = 0.36;
+  solver.system().params().b = p.b;
+  S::LambdaVector changed, fresh_lambda;
+  REQUIRE(solver.forces(q, qd, qdd, t, changed));
+  S fresh(p);
+  REQUIRE(fresh.forces(q, qd, qdd, t, fresh_lambda));
+  INFO("max |lambda| " << fresh_lambda.cwiseAbs().maxCoeff());
+  CHECK((changed - fresh_lambda).cwiseAbs().maxCoeff() <=
+        1e-12 * fresh_lambda.cwiseAbs().maxCoeff());
+  // An option that the factors depend on: a min_rcond no block passes is a refusal, not the
+  // old factors' answer.
+  S other;
+  S::Vector q2 = S::initial_estimate(), qd2, qdd2;
+  for (int i = 0; i < 3; ++i) REQUIRE(other.step(0.01 * i, q2, qd2, qdd2));
+  other.options().min_rcond = 2;
+  S::LambdaVector refused;
+  CHECK(other.forces(q2, qd2, qdd2, t, refused).status == kinegen::Status::kSingular);
+}

@@ -151,8 +151,15 @@ class TimeLoop {
     return blocks_ ? blocks_->newton_coordinates() : all_coordinates_;
   }
 
-  // The first row: Newton from the file's q0 estimates, then the checks of the assembly.
+  // The first row: from the file's q0 estimates, by the drivers' continuation where the
+  // solver has it (the dense path, as a generated Solver's first solve: docs/embedding.md),
+  // then the checks of the assembly.
   void solve_first(double t) {
+    if constexpr (std::is_same_v<S, analysis_detail::Solver>) {
+      int steps = 1;
+      if (const Result r = solver_.first_position(row_.q, t, &steps); !r) fail("position", t, r);
+      continued_ = steps > 1;
+    }
     Refusal refused;
     const auto solve = [&] {
       if (!(blocks_ ? solve_blocks(t, true, refused) : solve_dense(t, true, refused)))
@@ -164,7 +171,7 @@ class TimeLoop {
       // As on the dense path, but a changed estimate is solved again from scratch (then
       // analyze and a Solver started from the file's q0 differ by whole turns).
       const Eigen::VectorXd before = row_.q;
-      keep_turns_of_estimates(solver_, model_, row_.q, t);
+      if (!continued_) keep_turns_of_estimates(solver_, model_, row_.q, t);
       if (row_.q != before) {
         blocks_->reset();
         solve();
@@ -274,7 +281,8 @@ class TimeLoop {
     if (auto r = solver_.position(row_.q, t); !r) return refuse("position", r);
     first_solve_ = false;
     if (first) {
-      keep_turns_of_estimates(solver_, model_, row_.q, t);
+      // After a continuation every angle has its continued value, as in a generated Solver.
+      if (!continued_) keep_turns_of_estimates(solver_, model_, row_.q, t);
       check_redundancy(model_, row_.q, t, options_);
       check_assembly(model_, row_.q, options_);
     }
@@ -425,6 +433,7 @@ class TimeLoop {
   std::vector<int> all_coordinates_;
   StateRow row_;
   OutputEvaluator outputs_;
+  bool continued_ = false;   // the first solve followed the drivers from q0 (first_position)
   bool first_solve_ = true;  // the first position solve starts from the file's q0
   const SensitivityModel* sensitivity_;
   std::unique_ptr<ProgramEvaluator<double>> phi_p_eval_;

@@ -18,7 +18,10 @@ namespace kinegen::codegen::analysis_detail {
 // which is how sensitivities reuse it without a solver interface of their own.
 class RhsSystem : public ProgramSystem {
  public:
-  using ProgramSystem::ProgramSystem;
+  explicit RhsSystem(const CompiledModel& model)
+      : ProgramSystem(model), kinds_(&model.symbolic().coordinate_kinds) {}
+  // What coordinate k measures (the first solve's continuation steps by it).
+  CoordinateKind coordinate_kind(int k) const { return (*kinds_)[k]; }
   void nu(const double* q, double t, double* out) const {
     if (rhs_)
       std::copy(rhs_, rhs_ + nc(), out);
@@ -28,6 +31,7 @@ class RhsSystem : public ProgramSystem {
   void use_rhs(const double* rhs) { rhs_ = rhs; }
 
  private:
+  const std::vector<CoordinateKind>* kinds_;
   const double* rhs_ = nullptr;
 };
 

@@ -19,6 +19,35 @@ namespace kinegen::codegen {
 
 namespace {
 
+// The continuation steps of a first solve from the free items' values at_q to z: each item's
+// change against 0.25 rad (an angle) or 0.1 length scales (a length, a distance), its kind read
+// as the generated header reads it (the first coordinate of the item's row, as free_scale).
+int continuation_steps(const CompiledModel& model, const std::vector<int>& free_rows,
+                       const Eigen::VectorXd& at_q, const Eigen::VectorXd& z) {
+  const Mechanism& m = model.mechanism();
+  const std::vector<int> free = m.free_drivers();
+  const auto& rows = model.programs().jac_rows;
+  const auto& cols = model.programs().jac_cols;
+  const auto& kinds = model.symbolic().coordinate_kinds;
+  constexpr int kMax = kernels::ReportKernel::_kMaxContinuationSteps;
+  double need = 0;
+  for (std::size_t k = 0; k < free_rows.size(); ++k) {
+    int column = 0;
+    for (std::size_t e = 0; e < rows.size(); ++e) {
+      if (rows[e] == free_rows[k]) {
+        column = cols[e];
+        break;
+      }
+    }
+    const bool angle = !is_distance(m.drivers[free[k]]) && kinds[column] == CoordinateKind::kAngle;
+    const double limit = angle ? 0.25 : 0.1 * model.symbolic().length_scale;
+    const double n = std::abs(z[k] - at_q[k]) / limit;
+    if (!(n <= need)) need = n;
+  }
+  if (!(need <= kMax)) return kMax + 1;
+  return need > 1 ? static_cast<int>(std::ceil(need)) : 1;
+}
+
 using K = kernels::DynamicsKernel;
 using analysis_detail::singular_rows;
 
@@ -263,9 +292,32 @@ void ReducedDynamics::check_at_t0(double t0) {
   w.q_last = q;
   w.have_last = false;
   initial_.t = t0;
+  // A value0 far from the quantity at the assembled position is reached by continuation, as
+  // a generated dynamics() with a fresh work space reaches it (docs/embedding.md, "First
+  // solves and branches"): steps of at most 0.25 rad (an angle) or 0.1 length scales (a
+  // length, a distance), each solved from the last and checked against its prediction.
+  Eigen::VectorXd at_q(nf_);
+  w.free_values.run(q.data(), nullptr, t0, model_.params().data(), at_q.data());
+  const int steps = continuation_steps(model_, free_rows_, at_q, z0);
+  if (steps > kernels::ReportKernel::_kMaxContinuationSteps)
+    throw InputError(m.source, "free", m.drivers[free.front()].loc,
+                     "the free items' value0 lie more than " +
+                         std::to_string(kernels::ReportKernel::_kMaxContinuationSteps) +
+                         " continuation steps from their values at the q0 pose: give q0 near "
+                         "the position at value0");
+  // A failure's diagnosis starts again from the assembled position.
+  const auto refuse = [&] {
+    w.q_last = q;
+    w.have_last = false;
+    report_t0_failure(t0);
+  };
+  for (int i = 1; i < steps; ++i) {
+    const Eigen::VectorXd z = at_q + (z0 - at_q) * (static_cast<double>(i) / steps);
+    if (!solve(t0, z.data(), zd0.data(), initial_)) refuse();
+  }
   const bool assembled = solve(t0, z0.data(), zd0.data(), initial_);
   condition0_ = condition_;
-  if (!assembled) report_t0_failure(t0);
+  if (!assembled) refuse();
 }
 
 // The state at t0 did not solve: the input is at fault (exit 2), and this says where.

@@ -78,10 +78,17 @@ void emit_dynamics_tables(std::ostringstream& os, const Mechanism& m,
      << "    Params solved_p;\n"
      << "    BasicBlockOptions<_real<T>> solved_o;\n"
      << "    BlockReport<_real<T>> solved_r;\n"
+     << "    // The z of the last successful dynamics() (assembled), which q continues: a call\n"
+     << "    // whose z is further away, or the first, reaches z by continuation "
+        "(_continue_free).\n"
+     << "    bool assembled = false;\n"
+     << "    T assembled_z[nf];\n"
      << "    DynamicsWork() noexcept { reset(); }\n"
      << "    // Back to the file's q0, no recorded branch, an empty cache (a new start).\n"
      << "    void reset() noexcept {\n"
      << "      solved = false;\n"
+     << "      assembled = false;\n"
+     << "      for (T& v : assembled_z) v = T(0);\n"
      << "      for (int k = 0; k < nq; ++k) q[k] = T(q0[k]);\n"
      << "      for (int k = 0; k < num_blocks; ++k) block_signs[k] = 0;\n"
      << "      for (T& v : trig) v = T(std::numeric_limits<_real<T>>::quiet_NaN());  // empty\n"
@@ -106,6 +113,10 @@ void emit_dynamics_function(std::ostringstream& os) {
       w.state[2 * nf + k] = T(0);  // qdd = c first: the accelerations at zdd = 0
     }
     pz._free = w.state;
+    if (_far_from_assembly(z, w)) {
+      const BlockReport<R> rc = _continue_free(z, t, pz, o, w);
+      if (rc.status != 0) return rc;
+    }
     BlockReport<R> r = solve_step(w.q, t, pz, w.qd, w.qdd, o, w.trig, w.block_signs);
     if (r.status != 0) return r;
     // B: Phi_q B = -Phi_z, the free rows' unit vectors (2 z for |d|^2 - z^2), each block
@@ -145,6 +156,54 @@ void emit_dynamics_function(std::ostringstream& os) {
     w.solved_p = p;
     w.solved_o = o;
     w.solved_r = r;
+    w.assembled = true;
+    for (int k = 0; k < nf; ++k) w.assembled_z[k] = z[k];
+    return r;
+  }
+
+  // First solves and branches (docs/embedding.md): a fresh work space's position, or one whose
+  // z is more than a continuation step from the last solved z, is reached by continuation from
+  // w.q: each free item moves from its value at w.q (the file's q0 pose at first) to z in
+  // steps of at most 0.25 rad (an angle) or 0.1 length_scale (a length, a distance), each a
+  // position solve from the last; the first step records the blocks' determinant signs (a
+  // fresh work space) and every later solve holds them (status 6).
+  template <class T>
+  static _real<T> _continuation_need(const T& from, const T& to, int k) noexcept {
+    using R = _real<T>;
+    const bool angle = !free_distance[k] && coordinate_kinds[_free_column(k)] == 1;
+    return _mag(to - from) / (angle ? R(0.25) : R(0.1 * length_scale));
+  }
+  template <class T>
+  static bool _far_from_assembly(const T* z, const DynamicsWork<T>& w) noexcept {
+    if (!w.assembled) return true;
+    for (int k = 0; k < nf; ++k)
+      if (!(_continuation_need(w.assembled_z[k], z[k], k) <= 1)) return true;
+    return false;
+  }
+  template <class T, class R>
+  static BlockReport<R> _continue_free(const T* z, T t, Params& pz, const BasicBlockOptions<R>& o,
+                                       DynamicsWork<T>& w) noexcept {
+    using std::sqrt;
+    BlockReport<R> r;
+    // The free items' values at w.q: each free row at z = 0 is the quantity (a distance's:
+    // its square).
+    T from[nf], out[nc];
+    for (int k = 0; k < nf; ++k) w.state[k] = T(0);
+    phi(w.q, t, pz, out);
+    R need = 0;
+    for (int k = 0; k < nf; ++k) {
+      from[k] = free_distance[k] ? T(sqrt(out[free_rows[k]])) : out[free_rows[k]];
+      const R n = _continuation_need(from[k], z[k], k);
+      if (!(n <= need)) need = n;
+    }
+    if (!(need == need)) return _fail(r, _kStatusNonFinite, -1);
+    if (need > R(_kMaxContinuationSteps)) return _fail(r, _kStatusTooFar, -1);
+    const int steps = need > 1 ? static_cast<int>(std::ceil(need)) : 1;
+    for (int i = 1; i < steps && r.status == 0; ++i) {
+      for (int k = 0; k < nf; ++k) w.state[k] = from[k] + (z[k] - from[k]) * T(i) / T(steps);
+      r = solve_position(w.q, t, pz, o, w.trig, w.block_signs);
+    }
+    for (int k = 0; k < nf; ++k) w.state[k] = z[k];
     return r;
   }
 

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <cstring>
 #include <limits>
 #include <type_traits>
 
@@ -109,6 +110,12 @@ template <class Model, class Scalar>
 struct StepFactorsOf<Model, Scalar, true> {
   using type = typename Model::template StepFactors<Scalar>;
 };
+// Whether the header has the block-linear kernels with all blocks' factors kept
+// (block_factor_begin), on which the first solve's continuation runs.
+template <class Model, class = void>
+struct HasBlockFactors : std::false_type {};
+template <class Model>
+struct HasBlockFactors<Model, std::void_t<decltype(Model::block_factor_begin)>> : std::true_type {};
 template <class Model, class = void>
 struct NumForceColumns : std::integral_constant<int, 1> {};
 template <class Model>
@@ -199,12 +206,28 @@ class Solver {
 
   // Newton from the q given; q is overwritten with the solution (or the last iterate).
   // Result::iterations is the largest count of any block; Result::block names the block that
-  // failed. Success means the residual was checked (SolverOptions::residual_tolerance).
+  // failed. Success means the residual was checked (SolverOptions::residual_tolerance), and the
+  // branch: each block's determinant sign against the first solve's, and each angle Newton
+  // iterates within a turn of the q given (else Status::kBranchJump).
+  // The first solve (of a new Solver, or after reset()) starts from the q given as the start
+  // pose (normally initial_estimate()) and follows the drivers from their values there to t
+  // by continuation (docs/embedding.md, "First solves and branches"), so that it lands on the
+  // assembly the motion from that pose reaches, or fails with a status.
   Result position(Vector& q, Scalar t) {
     if constexpr (kBlockSolver) {
-      return checked(q, t, solve_block_position(q, t, block_options()));
+      if (!assembled_) {
+        forget_branch();
+        if (const Result c = continue_first(q, t); !c) return c;
+      }
+      Vector given = q;
+      Result r = checked(q, t, solve_block_position(q, t, block_options()));
+      if (r && assembled_ && left_turn(given, q)) r.status = Status::kBranchJump;
+      if (r) assembled_ = true;
+      return r;
     } else {
-      return dense_.position(q, t);
+      Result r = assembled_ ? dense_.position(q, t) : dense_.first_position(q, t);
+      if (r) assembled_ = true;
+      return r;
     }
   }
   // Solves Phi_q qd = nu at a solved q.
@@ -259,7 +282,11 @@ class Solver {
     const auto& p = dense_.system().params();
     Result r;
     if constexpr (kStepFactors) {
-      const bool reuse = factors_valid_ && t == t_factored_ && q == q_factored_;
+      // The step's factors hold for its t, q, parameters and options only.
+      const bool reuse =
+          factors_valid_ && same_bits(t, t_factored_) &&
+          std::memcmp(q.data(), q_factored_.data(), sizeof(Scalar) * Model::nq) == 0 &&
+          same_bits(p, params_factored_) && same_options(dense_.options(), options_factored_);
       r = detail::to_result<Model>(Model::solve_forces(q.data(), qd.data(), qdd.data(), t, p,
                                                        lambda.data(), block_options(),
                                                        reuse ? &factors_ : nullptr));
@@ -309,6 +336,7 @@ class Solver {
     signs_.fill(0);
     signs_new_.fill(0);
     factors_valid_ = false;
+    assembled_ = false;
   }
 
  private:
@@ -345,10 +373,14 @@ class Solver {
     Result r;
     if constexpr (kBlockSolver && detail::HasAcceleration<Model>::value) {
       // Without a prediction the first solve iterates to convergence even when the options
-      // fix the iteration count.
+      // fix the iteration count; the very first starts by the drivers' continuation.
       auto o = block_options();
       if (!has_previous_) o.fixed_iterations = 0;
-      r = checked(q, t, solve_block_step(q, t, qd, qdd, o));
+      if (!assembled_) {
+        forget_branch();
+        r = continue_first(q, t);
+      }
+      if (r) r = checked(q, t, solve_block_step(q, t, qd, qdd, o));
     } else {
       r = position(q, t);
       if (r) {
@@ -384,10 +416,167 @@ class Solver {
     signs_ = signs_new_;
     t_previous_ = t;
     has_previous_ = true;
+    assembled_ = true;
     if constexpr (kStepFactors) {  // forces() at this t and q reuses the step's factors
       factors_valid_ = true;
       t_factored_ = t;
       q_factored_ = q;
+      params_factored_ = dense_.system().params();
+      options_factored_ = dense_.options();
+    }
+    return r;
+  }
+
+  // Whether two values are the same bits (a NaN matches only itself, -0 is not 0), as the
+  // generated _same_bits compares: a value of another source is never taken for this one.
+  template <class X>
+  static bool same_bits(const X& a, const X& b) {
+    static_assert(std::is_trivially_copyable_v<X>);
+    return std::memcmp(&a, &b, sizeof(X)) == 0;
+  }
+  static bool same_options(const SolverOptions& a, const SolverOptions& b) {
+    return same_bits(a.tolerance, b.tolerance) && a.max_iterations == b.max_iterations &&
+           same_bits(a.min_rcond, b.min_rcond) &&
+           same_bits(a.residual_tolerance, b.residual_tolerance) &&
+           a.max_halvings == b.max_halvings &&
+           same_bits(a.singular_pivot_ratio, b.singular_pivot_ratio) &&
+           a.fixed_iterations == b.fixed_iterations;
+  }
+
+  // Before a first solve: no determinant sign and no sin/cos anchor of another solve is kept.
+  void forget_branch() {
+    signs_new_.fill(0);
+    trig_ = empty_trig_cache();
+  }
+  // Whether an angle Newton iterates moved by a turn or more from the q given: the same pose
+  // (sin and cos cannot tell), but not the continued value.
+  static bool left_turn(const Vector& given, const Vector& q) {
+    using std::abs;
+    for (const int k : predicted_coordinates())
+      if (detail::model_coordinate_kind<Model>(k) == CoordinateKind::kAngle &&
+          !(static_cast<double>(abs(q[k] - given[k])) < kTurn))
+        return true;
+    return false;
+  }
+  static constexpr double kTurn = 6.283185307179586;
+
+  // The first solve's continuation (detail::first_position on the dense path), on the
+  // header's block-linear kernels: Newton on Phi(q, t) = (1 - s) Phi(q_given, t), s = 1/n ..
+  // 1, each step from the last; every block's determinant sign is held to its sign at the
+  // first step's solution (a rough q0 is no assembly; that solution is) and every angle to
+  // within half a turn of the step before (Status::kBranchJump).
+  // Success leaves q at the solution for t, which the ordinary solve then refines and checks;
+  // n = 1 (the q given fits) leaves q as it is. Nothing is allocated.
+  Result continue_first(Vector& q, Scalar t) {
+    Result r;
+    if constexpr (detail::HasBlockFactors<Model>::value) {
+      using R = typename Eigen::NumTraits<Scalar>::Real;
+      using std::abs;
+      constexpr int kNq = Model::nq, kNc = Model::nc, kBlocks = Model::num_blocks;
+      constexpr int kNnz = Model::jac_nnz > 0 ? Model::jac_nnz : 1;
+      constexpr int kFactors =
+          Model::block_factor_begin[kBlocks] > 0 ? Model::block_factor_begin[kBlocks] : 1;
+      const Params& p = dense_.system().params();
+      Scalar offset[kNc], res[kNc], jac[kNnz], dq[kNq], a[kFactors];
+      int piv[kNq];
+      signed char start_signs[kBlocks], signs[kBlocks];
+      Model::phi(q.data(), t, p, offset);
+      Model::phi_q(q.data(), t, p, jac);
+      double best_size[kNc] = {}, best_entry[kNc] = {};
+      int best_col[kNc];
+      for (int row = 0; row < kNc; ++row) best_col[row] = -1;
+      bool finite = q.allFinite();
+      for (int e = 0; e < Model::jac_nnz; ++e) {
+        const int row = Model::jac_rows[e], col = Model::jac_cols[e];
+        const double v = static_cast<double>(abs(jac[e]));
+        finite = finite && v - v == 0;
+        if (v * detail::model_coordinate_scale<Model>(col) > best_size[row]) {
+          best_size[row] = v * detail::model_coordinate_scale<Model>(col);
+          best_entry[row] = v;
+          best_col[row] = col;
+        }
+      }
+      detail::ContinuationSteps steps(Model::length_scale);
+      for (int row = 0; row < kNc; ++row) {
+        const double off = static_cast<double>(abs(offset[row]));
+        finite = finite && off - off == 0;
+        if (best_col[row] >= 0)
+          steps.add_row(off, best_entry[row], detail::model_coordinate_kind<Model>(best_col[row]));
+      }
+      if (!finite || !steps.finite()) {
+        r.status = Status::kNonFinite;
+        return r;
+      }
+      if (steps.count() <= 1) return r;
+      if (steps.count() > detail::kMaxContinuationSteps) {
+        r.status = Status::kTooFar;
+        return r;
+      }
+      const int n = static_cast<int>(steps.count());
+      const auto o = Model::template _options_as<R>(block_options());
+      // Factors every block at q (jac evaluated there) and takes their determinant signs.
+      const auto factor = [&](signed char* out) {
+        const auto report = Model::template _block_factor_all<Model>(jac, a, piv, o);
+        if (report.status != 0) return detail::to_result<Model>(report);
+        for (int k = 0; k < kBlocks; ++k) {
+          const int b0 = Model::block_begin[k];
+          Model::template _with_block_size<Model>(Model::block_begin[k + 1] - b0, [&](auto size) {
+            constexpr int K = decltype(size)::value;
+            out[k] = static_cast<signed char>(
+                Model::template _lu_det_sign<K>(a + Model::block_factor_begin[k], piv + b0));
+          });
+        }
+        return Result{};
+      };
+      const R eps = std::numeric_limits<R>::epsilon();
+      const R tolerance = R(dense_.options().tolerance);
+      for (int i = 1; i <= n; ++i) {
+        const Scalar w = Scalar(n - i) / Scalar(n);
+        const Vector before = q;
+        bool converged = false;
+        for (int it = 1; it <= dense_.options().max_iterations && !converged; ++it) {
+          Model::phi(q.data(), t, p, res);
+          for (int row = 0; row < kNc; ++row) res[row] -= w * offset[row];
+          if (i > 1 || it > 1) Model::phi_q(q.data(), t, p, jac);
+          if (r = factor(signs); !r) return r;
+          if (!Model::template _block_forward_factored<Model>(jac, a, piv, res, dq, 1)) {
+            r.status = Status::kNonFinite;
+            return r;
+          }
+          converged = true;
+          for (int k = 0; k < kNq; ++k) {
+            const R scale = R(detail::model_coordinate_scale<Model>(k));
+            q[k] -= dq[k];
+            converged =
+                converged && kernels::NewtonKernel::_step_converged(
+                                 R(abs(dq[k])) / scale, R(abs(q[k])) / scale, tolerance, eps);
+          }
+          r.iterations = std::max(r.iterations, it);
+        }
+        if (!q.allFinite()) {
+          r.status = Status::kNonFinite;
+          return r;
+        }
+        if (!converged) {
+          r.status = Status::kMaxIterations;
+          return r;
+        }
+        for (int k = 0; k < kBlocks; ++k) {
+          if (i == 1) start_signs[k] = signs[k];
+          if (signs[k] != start_signs[k]) {
+            r.status = Status::kBranchJump;
+            r.block = k;
+            return r;
+          }
+        }
+        for (int k = 0; k < kNq; ++k) {
+          if (detail::model_coordinate_kind<Model>(k) == CoordinateKind::kAngle &&
+              !(static_cast<double>(abs(q[k] - before[k])) < kTurn / 2)) {
+            r.status = Status::kBranchJump;
+            return r;
+          }
+        }
+      }
     }
     return r;
   }
@@ -508,6 +697,11 @@ class Solver {
   bool factors_valid_ = false;
   Scalar t_factored_ = Scalar(0);
   Vector q_factored_ = Vector::Zero();
+  Params params_factored_{};
+  SolverOptions options_factored_{};
+  // Whether a solve succeeded since construction or reset(): until then a solve is a first
+  // solve, by continuation from the q given.
+  bool assembled_ = false;
   // The generated sin/cos cache: anchors with their exact sin and cos, NaN when empty, so that
   // a step near the last one rotates instead of calling sin and cos.
   static constexpr int kTrigCache = kBlockSolver ? detail::TrigCacheSize<Model>::value : 0;

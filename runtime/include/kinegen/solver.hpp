@@ -19,14 +19,18 @@ namespace kinegen {
 
 // Why a solve stopped.
 enum class Status {
-  kConverged,      // success
-  kMaxIterations,  // Newton did not converge within the iteration budget
-  kSingular,       // Phi_q is singular or nearly so at the current configuration
-  kNonFinite,      // a residual, Jacobian or step contained NaN or infinity
-  kInconsistent,   // Newton's step vanished but Phi is not zero: no solution near here
+  kConverged,        // success
+  kMaxIterations,    // Newton did not converge within the iteration budget
+  kSingular,         // Phi_q is singular or nearly so at the current configuration
+  kNonFinite,        // a residual, Jacobian or step contained NaN or infinity
+  kInconsistent,     // Newton's step vanished but Phi is not zero: no solution near here
   kBudgetExhausted,  // a fixed iteration budget ran out with the residual above tolerance
   kBranchJump,       // converged, but on another assembly branch than the motion's
+  kTooFar,           // a first solve's continuation would take more than kMaxContinuationSteps
 };
+
+static_assert(static_cast<int>(Status::kBranchJump) == kernels::ReportKernel::_kStatusBranchJump &&
+              static_cast<int>(Status::kTooFar) == kernels::ReportKernel::_kStatusTooFar);
 
 inline const char* to_string(Status s) {
   switch (s) {
@@ -42,6 +46,9 @@ inline const char* to_string(Status s) {
     case Status::kBranchJump:
       return "the solution jumped to another assembly branch (a block's determinant changed "
              "sign, or the position is not the one the velocities predict)";
+    case Status::kTooFar:
+      return "the first solve would have to follow the drivers too far from the start pose "
+             "(more than 100000 continuation steps): start from a pose near t";
   }
   return "unknown";
 }
@@ -393,6 +400,149 @@ Result position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
   return result;
 }
 
+// First solves (docs/embedding.md, "First solves and branches"). A Newton solve straight
+// from the start pose (normally the file's q0) at a time where it does not fit can land on
+// another assembly. Instead the first solve follows the drivers there: with offset = Phi(q_start,
+// t), it solves Phi(q, t) = (1 - s) offset for s = 1/n, 2/n, ..., 1, each from the last, so
+// that each driven quantity moves from its value at the start pose to its value at t in steps
+// of at most kContinuationAngle rad or kContinuationLength length scales. Rows the start pose
+// satisfies (joints) keep offset 0, so only the drivers move.
+inline constexpr double kContinuationAngle = 0.25;
+inline constexpr double kContinuationLength = 0.1;
+inline constexpr int kMaxContinuationSteps = kernels::ReportKernel::_kMaxContinuationSteps;
+inline constexpr double kHalfTurn = 3.14159265358979323846;
+
+template <class System, class = void>
+struct HasCoordinateKind : std::false_type {};
+template <class System>
+struct HasCoordinateKind<System,
+                         std::void_t<decltype(std::declval<const System&>().coordinate_kind(0))>>
+    : std::true_type {};
+template <class System>
+CoordinateKind coordinate_kind(const System& sys, int k) {
+  if constexpr (HasCoordinateKind<System>::value) {
+    return sys.coordinate_kind(k);
+  } else {
+    return body_coordinate_kind(k);
+  }
+}
+
+// Accumulates, row by row, how many continuation steps the offset needs: a row's driven
+// quantity changes by |offset_r| / |dPhi_r/dq_k|, k its largest scaled entry, whose kind
+// sets the step (an angle: kContinuationAngle; else kContinuationLength length scales).
+class ContinuationSteps {
+ public:
+  explicit ContinuationSteps(double length_scale) : length_(length_scale) {}
+  // One row: |offset|, and |dPhi_r/dq_k| and the kind of its largest scaled entry.
+  void add_row(double offset, double entry, CoordinateKind kind) {
+    const double limit =
+        kind == CoordinateKind::kAngle ? kContinuationAngle : kContinuationLength * length_;
+    const double need = offset == 0 ? 0.0 : offset / (entry * limit);
+    if (!(need <= worst_)) worst_ = need;  // NaN sticks
+  }
+  bool finite() const { return worst_ == worst_ && worst_ < 1e300; }
+  // Steps to take: 1 when the start pose fits (an ordinary solve).
+  double count() const { return std::max(1.0, std::ceil(worst_)); }
+
+ private:
+  double length_;
+  double worst_ = 0;
+};
+
+// The continuation's system: Phi(q, t) - w offset; Phi_q is the system's.
+template <class System>
+class OffsetSystem {
+ public:
+  using Scalar = typename System::Scalar;
+  static constexpr int kNq = System::kNq;
+  static constexpr int kNc = System::kNc;
+  OffsetSystem(const System& sys, const Scalar* offset, Scalar weight)
+      : sys_(sys), offset_(offset), weight_(weight) {}
+  int nq() const { return sys_.nq(); }
+  int nc() const { return sys_.nc(); }
+  double length_scale() const { return sys_.length_scale(); }
+  double coordinate_scale(int k) const { return detail::coordinate_scale(sys_, k); }
+  void phi(const Scalar* q, Scalar t, Scalar* out) const {
+    sys_.phi(q, t, out);
+    for (int r = 0; r < sys_.nc(); ++r) out[r] -= weight_ * offset_[r];
+  }
+  template <class Matrix>
+  void jacobian(const Scalar* q, Scalar t, Matrix& jac) const {
+    sys_.jacobian(q, t, jac);
+  }
+
+ private:
+  const System& sys_;
+  const Scalar* offset_;
+  Scalar weight_;
+};
+
+// The dense path's first solve: the continuation above, each step by position(), its
+// determinant sign checked against the first step's (a rough q0 is no assembly: the first
+// step's solution is) and its angles against the step before (a sign change, or an angle that
+// moved by half a turn or more in one step, is a jump: kBranchJump). On success q
+// is the solution at t. steps, when given, receives the number of continuation steps (1: the
+// start pose fitted, an ordinary solve).
+template <class System, class WS, class VQ>
+Result first_position(const System& sys, WS& ws, VQ& q, typename System::Scalar t,
+                      const SolverOptions& options, int* steps_taken = nullptr) {
+  using Scalar = typename System::Scalar;
+  using std::abs;
+  Result result;
+  typename WS::VectorC offset(ws.rhs.size());
+  sys.phi(q.data(), t, offset.data());
+  sys.jacobian(q.data(), t, ws.jac);
+  ws.factored = false;
+  if (!all_finite(offset) || !all_finite(ws.jac) || !all_finite(q)) {
+    result.status = Status::kNonFinite;
+    return result;
+  }
+  ContinuationSteps steps(sys.length_scale());
+  for (int r = 0; r < offset.size(); ++r) {
+    int best = -1;
+    double size = 0;
+    for (int k = 0; k < ws.jac.cols(); ++k) {
+      const double v = static_cast<double>(abs(ws.jac(r, k))) * coordinate_scale(sys, k);
+      if (v > size) size = v, best = k;
+    }
+    if (best >= 0)
+      steps.add_row(static_cast<double>(abs(offset[r])), static_cast<double>(abs(ws.jac(r, best))),
+                    coordinate_kind(sys, best));
+  }
+  if (!steps.finite()) {
+    result.status = Status::kNonFinite;
+    return result;
+  }
+  if (steps_taken)
+    *steps_taken = static_cast<int>(std::min(steps.count(), 2.0 * kMaxContinuationSteps));
+  if (steps.count() <= 1) return position(sys, ws, q, t, options);
+  if (steps.count() > kMaxContinuationSteps) {
+    result.status = Status::kTooFar;
+    return result;
+  }
+  const int n = static_cast<int>(steps.count());
+  int sign = 0;  // det(Phi_q)'s at the first step's solution, the assembly the steps continue
+  VQ before = q;
+  for (int i = 1; i <= n; ++i) {
+    const OffsetSystem<System> path(sys, offset.data(), Scalar(n - i) / Scalar(n));
+    before = q;
+    result = position(path, ws, q, t, options);
+    if (!result) return result;
+    if (i == 1) sign = ws.det_sign;
+    bool jumped = ws.det_sign != sign;
+    for (int k = 0; k < q.size(); ++k)
+      if (coordinate_kind(sys, k) == CoordinateKind::kAngle &&
+          !(static_cast<double>(abs(q[k] - before[k])) < kHalfTurn))
+        jumped = true;
+    if (jumped) {
+      result.status = Status::kBranchJump;
+      return result;
+    }
+  }
+  ws.factored = false;
+  return result;
+}
+
 // Phi_q qd = nu
 template <class System, class WS, class VQ>
 Result velocity(const System& sys, WS& ws, const VQ& q, typename System::Scalar t, VQ& qd,
@@ -436,6 +586,7 @@ class GeneratedSystem {
   int nc() const { return kNc; }
   double length_scale() const { return Model::length_scale; }
   double coordinate_scale(int k) const { return detail::model_coordinate_scale<Model>(k); }
+  CoordinateKind coordinate_kind(int k) const { return detail::model_coordinate_kind<Model>(k); }
 
   void phi(const Scalar* q, Scalar t, Scalar* out) const { Model::phi(q, t, params_, out); }
   void nu(const Scalar* q, Scalar t, Scalar* out) const { Model::nu(q, t, params_, out); }
@@ -470,6 +621,13 @@ class BasicSolver {
 
   // Newton from the q given; q is overwritten with the solution (or the last iterate).
   Result position(Vector& q, Scalar t) { return detail::position(system_, ws_, q, t, options_); }
+  // A first solve: from the q given (the start pose, normally the model's q0) to t by
+  // continuation of the drivers (detail::first_position), so that it lands on the assembly
+  // the motion from the start pose reaches, or fails.
+  // steps, when given, receives the number of continuation steps (1: an ordinary solve).
+  Result first_position(Vector& q, Scalar t, int* steps = nullptr) {
+    return detail::first_position(system_, ws_, q, t, options_, steps);
+  }
   // Solves Phi_q qd = nu at a solved q.
   Result velocity(const Vector& q, Scalar t, Vector& qd) {
     return detail::velocity(system_, ws_, q, t, qd, options_);
