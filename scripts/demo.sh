@@ -34,7 +34,7 @@ failed() {
 stage "installing packages (only those missing; apt-get may ask for your password)"
 scripts/setup.sh packages >>"$log" 2>&1 || failed "installing packages"
 took
-stage "building kinegen (about 4 min on 2 cores; less when done before)"
+stage "building kinegen (minutes on 2 cores; less when done before)"
 scripts/setup.sh build "${targets[@]}" 2>&1 | tee -a "$log" | scripts/build_progress.sh ||
   failed "building"
 took
