@@ -479,7 +479,8 @@ class Solver {
       const Params& p = dense_.system().params();
       Scalar offset[kNc], res[kNc], jac[kNnz], dq[kNq], a[kFactors];
       int piv[kNq];
-      signed char start_signs[kBlocks], signs[kBlocks];
+      // Zeroed: GCC 12 at -O3 cannot see that the first step sets them before they are read.
+      signed char start_signs[kBlocks] = {}, signs[kBlocks] = {};
       Model::phi(q.data(), t, p, offset);
       Model::phi_q(q.data(), t, p, jac);
       double best_size[kNc] = {}, best_entry[kNc] = {};
