@@ -1,4 +1,4 @@
-// The generated dynamics in numbers: the exact dynamics_jacobians (after a
+// The generated dynamics (format 7.5) in numbers: the exact dynamics_jacobians (after a
 // dynamics() at the point, and alone) against the central differences a user would write
 // (2 (2 nf + nu) calls of dynamics()), their times and
 // errors (the exact Jacobians' own error against the complex step of dynamics() in

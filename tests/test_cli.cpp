@@ -1,5 +1,5 @@
 // End-to-end tests of the kinegen binary against the outward contract
-// (docs/format.md, Commands): CSV layout of `analyze`, JSON of `eval`,
+// (shared spec, mechanism-format.md section 3): CSV layout of `analyze`, JSON of `eval`,
 // what `generate` writes, exit statuses 0/1/2, one `error:` line per failure, and no output
 // file left behind by bad input.
 #include <algorithm>
@@ -661,7 +661,7 @@ TEST_CASE("eval rejects a --q or --qd of the wrong length", "[cli]") {
 }
 
 TEST_CASE("eval names the mechanism file when --q has the wrong length", "[cli]") {
-  // Every error names the file. Known to fail: the message names only --q.
+  // Spec section 3: every error names the file. Known to fail: the message names only --q.
   const auto r = kinegen({"eval", example("slider_crank").string(), "--q", "1,2"});
   CHECK(r.exit_code == 2);
   CHECK(r.err.find(example("slider_crank").string()) != std::string::npos);

@@ -1,4 +1,4 @@
-// The generated kinetostatics (solve_forces, force_columns) against
+// The generated kinetostatics (solve_forces, force_columns; mechanism format 6.5) against
 // independent truths: virtual power on a slider-crank whose only mass is the slider, the
 // closed form of an accelerating crank under gravity (also with Params changed at run time),
 // the in-process ForceSolver of `analyze --forces` over a turn of the balanced four-bar, float

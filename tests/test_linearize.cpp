@@ -1,4 +1,4 @@
-// Equilibrium, modes and linear models against independent truths: a
+// Equilibrium, modes and linear models (format 7.4, 7.5) against independent truths: a
 // pendulum's small-oscillation frequency sqrt(m g a / I) / (2 pi) and its upright equilibrium's
 // negative stiffness; a mass between two springs (equilibrium, frequency, damping ratio); a
 // four-bar held by a diagonal spring against a hand-written solve of its potential and kinetic
@@ -122,7 +122,7 @@ TEST_CASE("a pendulum swings at sqrt(m g a / I) / (2 pi) about its lowest positi
 
 TEST_CASE("the upright pendulum is an unstable equilibrium, along theta", "[linearize]") {
   const double m = 1.5, a = 0.4, g = 9.81, inertia = m * (2 * a) * (2 * a) / 12 + m * a * a;
-  Setup s(pendulum);
+  Setup s(pendulum(1.4));
   const kc::Equilibrium e =
       kc::find_equilibrium(*s.lin, s.lin->initial(), kc::EquilibriumSearch::kNearest);
   CHECK(e.at.z[0] == Approx(kPi / 2).margin(1e-14));
@@ -401,7 +401,7 @@ using CL = std::complex<long double>;
 
 // zdd at (t, z, zd, u) in complex arithmetic (C, or CL for a reference beyond double's
 // rounding), by an independent dense implementation of
-// the reduction on the model's first-order programs: Newton on all of Phi from the
+// format 7.2's reduction on the model's first-order programs: Newton on all of Phi from the
 // real solution, qd and c = qdd(zdd = 0) from Phi_q, B from Phi_q B = E (the free rows, whose
 // equations are quantity - z), M B as the inertia forces of accelerations B, and
 // (B^T M B) zdd = B^T (Q^A + inertia forces at c).
@@ -636,7 +636,7 @@ forces:
   for (const std::string& yaml : {x, d}) {
     Setup s(yaml);
     const kc::LinearModel l = kc::linearize(*s.lin, s.at({2.5}, {0.5}));
-    CHECK(l.xdot[1] == Approx.epsilon(1e-15));
+    CHECK(l.xdot[1] == Approx(1.5).epsilon(1e-15));
     CHECK(std::abs(l.a(1, 0)) < 1e-15);
     CHECK(std::abs(l.a(1, 1)) < 1e-15);
   }

@@ -89,7 +89,7 @@ namespace {
 // d(zdd)/du = 1 / (J + m a^2).
 template <class T>
 void check_pinned_body() {
-  const T m, j(0.2), a(0.4), g, z(0.7), zd;
+  const T m(1.5), j(0.2), a(0.4), g(9.81), z(0.7), zd(1.3);
   const T ip = j + m * a * a;
   const T q[] = {T(0), T(0), z}, qd[] = {T(0), T(0), zd};
   const T zdd = -m * g * a * std::cos(z) / ip;

@@ -1,5 +1,5 @@
 // In-process validation of mechanism files: every hostile input must become one InputError
-// that names the file, the offending item and its 1-based YAML line, and
+// that names the file, the offending item and its 1-based YAML line (spec section 3), and
 // valid input must mean what the format says (exact decimals, expressions, defaults).
 #include <ginac/ginac.h>
 

@@ -1,4 +1,4 @@
-// Outputs: values with exact first and second time derivatives, in the analysis
+// Outputs (format 6.4): values with exact first and second time derivatives, in the analysis
 // rows (CSV), the 40-digit reference, `eval`'s JSON, sensitivities and the generated header's
 // outputs function, against hand-derived closed forms of tests/support/closed_form.hpp and the
 // complex step; and hostile outputs refused with one error line.
@@ -287,11 +287,11 @@ TEST_CASE("the generated outputs function agrees with analyze and with the compl
   CHECK(worst_a < 1e-12);
   // The four-bar's header too, at one closed-form state.
   using FourBar = kinegen::models::four_bar_outputs;
-  const auto st = cf::four_bar_state;
+  const auto st = cf::four_bar_state(1.3);
   std::array<double, 4> value, velocity, acceleration;
   FourBar::outputs(st.q.data(), st.qd.data(), st.qdd.data(), 1.3, FourBar::Params{}, value.data(),
                    velocity.data(), acceleration.data());
-  const auto truth = four_bar_truth;
+  const auto truth = four_bar_truth(1.3);
   for (int o = 0; o < 4; ++o) {
     CHECK(std::abs(value[o] - truth[o][0]) <= 1e-13 * (1 + std::abs(truth[o][0])));
     CHECK(std::abs(velocity[o] - truth[o][1]) <= 1e-13 * (1 + std::abs(truth[o][1])));

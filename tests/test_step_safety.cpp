@@ -47,7 +47,7 @@ std::array<double, 9> four_bar_q(double th, double s) {
 // q of crank and slider.
 std::array<double, 6> slider_crank_q(double th, double r) {
   const double l = 2 * r, ax = r * std::cos(th), ay = r * std::sin(th);
-  const double n = std::sqrt, ux = 1 / n, uy = 0.5 / n;
+  const double n = std::sqrt(1.25), ux = 1 / n, uy = 0.5 / n;
   const double along = ax * ux + ay * uy, across = -ax * uy + ay * ux;
   const double s = along + std::sqrt(l * l - across * across);
   const double sx = s * ux, sy = s * uy;

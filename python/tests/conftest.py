@@ -18,7 +18,7 @@ def source():
 
 
 def has_free_coordinates(path):
-    # A top-level `free:` list; such mechanisms move under their forces
+    # Format 7.1: a top-level `free:` list; such mechanisms move under their forces
     # (simulate), and `analyze` refuses them without --input for each free item.
     return any(line.startswith("free:") for line in open(path))
 

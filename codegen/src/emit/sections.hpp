@@ -38,7 +38,7 @@ struct DynamicsSource {
   const std::vector<int>& trig_slot;  // as emit_forces'
 };
 
-// dynamics(), its work space and its exact Jacobians (emit_dynamics.cpp),
+// dynamics(), its work space and its exact Jacobians (format 7.2, 7.5; emit_dynamics.cpp),
 // after the force functions they call.
 void emit_dynamics(std::ostringstream& os, const DynamicsSource& d);
 

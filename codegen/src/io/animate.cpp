@@ -182,7 +182,7 @@ void Picture::collect_loads() {
   }
 }
 
-// A curve key of `c` at u: the curve reads only its own coordinate (checked
+// A curve key of `c` at u (format 6.2): the curve reads only its own coordinate (checked
 // when it was derived), so every extra coordinate is set to u.
 Vector2d Picture::curve_point(const Constraint& c, const std::string& key, double u) const {
   const SymbolTable& s = model_.symbols();

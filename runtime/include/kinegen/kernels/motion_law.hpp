@@ -1,4 +1,4 @@
-// Motion laws: cycloidal, harmonic, 3-4-5 and 4-5-6-7 polynomial rises
+// Motion laws (mechanism format 6.3): cycloidal, harmonic, 3-4-5 and 4-5-6-7 polynomial rises
 // from 0 to 1, each its formula on [0, 1) and clamped outside it (0 for x < 0 and 1 for x >= 1,
 // every derivative 0 there): a value exactly at 0 or 1 is the limit from the right, as a
 // driver's pieces take the later piece at a boundary, so that laws that join smoothly (a

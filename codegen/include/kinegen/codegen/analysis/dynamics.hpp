@@ -1,5 +1,5 @@
-// Forward dynamics in minimal coordinates, in-process: the free items
-// are input drivers whose values are the state z. At (t, z, zd) the block program
+// Forward dynamics in minimal coordinates (mechanism format 7.2), in-process: the free items
+// (7.1) are input drivers whose values are the state z. At (t, z, zd) the block program
 // solves q(z, t), qd = B zd + b and c, the acceleration at zdd = 0; B = dq/dz comes from
 // Phi_q B = E (E: the free rows' unit vectors) with one factorization of Phi_q; then the
 // dynamics kernel (kernels/dynamics.hpp) solves (B^T M B) zdd = B^T (Q^A - M c - ...) and
@@ -38,7 +38,7 @@ struct MotionState {
   Eigen::VectorXd q, qd, qdd;  // nq
 };
 
-// The energy terms of `simulate` at one state.
+// The energy terms of format 7.3 at one state.
 struct Energy {
   double kinetic = 0;    // 1/2 qd^T M qd
   double potential = 0;  // gravity and springs (preloads included)

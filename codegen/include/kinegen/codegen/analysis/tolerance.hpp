@@ -41,7 +41,7 @@ struct ToleranceOptions {
   std::function<void(const std::string&)> warn;
 };
 
-// The quantities are every body's x, y, phi, every extra coordinate and every
+// The quantities are every body's x, y, phi, every extra coordinate (format 6.1) and every
 // point's x, y, in CSV order.
 struct ToleranceResult {
   std::vector<std::string> quantities;

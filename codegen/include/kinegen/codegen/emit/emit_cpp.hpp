@@ -1,4 +1,4 @@
-// The C++ back end: one self-contained header per mechanism.
+// The C++ back end: one self-contained header per mechanism (spec section 4).
 #pragma once
 
 #include <string>

@@ -1,4 +1,4 @@
-// The tangent of the minimal-coordinates dynamics, the symbolic
+// The tangent of the minimal-coordinates dynamics (mechanism format 7.4 and 7.5), the symbolic
 // half: the exact derivatives that linearizing M qdd + Phi_q^T lambda = Q^A, Phi = 0 about a
 // solved state needs, beyond Phi_q. With them the dynamics tangent kernel
 // (kernels/linearize.hpp) gives d(zdd)/dz, d(zdd)/dzd and d(zdd)/du through solves with Phi_q
