@@ -1,5 +1,5 @@
 // End-to-end tests of the kinegen binary against the outward contract
-// (shared spec, mechanism-format.md section 3): CSV layout of `analyze`, JSON of `eval`,
+// (docs/format.md, Commands): CSV layout of `analyze`, JSON of `eval`,
 // what `generate` writes, exit statuses 0/1/2, one `error:` line per failure, and no output
 // file left behind by bad input.
 #include <algorithm>
