@@ -1,7 +1,7 @@
-// The generated dynamics (format 7.5) in numbers: the exact dynamics_jacobians (after a
-// dynamics() at the point, and alone) against the central differences a user would write
-// (2 (2 nf + nu) calls of dynamics()), their times and
-// errors (the exact Jacobians' own error against the complex step of dynamics() in
+// The generated dynamics (docs/format.md: Generated code and the runtime) in numbers: the exact
+// dynamics_jacobians (after a dynamics() at the point, and alone) against the central
+// differences a user would write (2 (2 nf + nu) calls of dynamics()), their times and errors
+// (the exact Jacobians' own error against the complex step of dynamics() in
 // std::complex<double>, the differences' against the exact), and one dynamics() against one
 // Solver::step of the same header with every free item as a driver (the kinematics alone).
 // Prints numbers; not a test. Run: build/bench/bench_generated_dynamics

@@ -13,7 +13,7 @@ namespace kinegen::generic {
 
 // The description of `model`, or nullopt with `why` set when the generic joint library cannot
 // express it (`expression` constraints, drivers not linear in t). With skip_free, the free
-// items (format 7.1) are left out: the joints and prescribed drivers of a dynamics model.
+// items are left out: the joints and prescribed drivers of a dynamics model.
 inline std::optional<MechanismData> from_compiled_model(const codegen::CompiledModel& model,
                                                         std::string& why,
                                                         bool skip_free = false) {

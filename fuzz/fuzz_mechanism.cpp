@@ -56,7 +56,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     eval.jacobian(q.data(), 0.5, jac);
     Eigen::VectorXd qd = Eigen::VectorXd::Ones(model->nq());
     eval.gamma(q.data(), qd.data(), 0.5, out.data());
-    // The outputs (format 6.4): values, rates and accelerations.
+    // The outputs: values, rates and accelerations.
     std::vector<std::array<double, 3>> outputs;
     kc::OutputEvaluator(*model).evaluate(0.5, q, qd, qd, outputs);
     // Masses and loads, then Phi_p for every parameter (what --forces and --sensitivity build).

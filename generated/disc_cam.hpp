@@ -1574,7 +1574,7 @@ struct disc_cam {
     return report;
   }
 
-  // Parameter sensitivities (spec 6.6). num_params: the members of Params, in order
+  // Parameter sensitivities. num_params: the members of Params, in order
   // (parameter k is the k-th member).
   static constexpr int num_params = 7;
   static constexpr bool has_sensitivity = true;

@@ -1211,7 +1211,7 @@ struct n_four_bar_4 {
   // its mass m, inertia j about the centre of mass and the centre's offset A s = (ax, ay) in
   // global axes. The centre moves at (vx - w ay, vy + w ax), so the body's rows of M v are
   // m times that, and ax m (vy + w ax) - ay m (vx - w ay) + j w. Coordinates after the
-  // bodies' (extra coordinates, format 6.1) carry no mass: their rows are 0.
+  // bodies' (extra coordinates) carry no mass: their rows are 0.
   template <class T>
   static void _mass_times(int num_b, int num_q, const T* m, const T* j, const T* ax, const T* ay,
                           const T* v, T* out) noexcept {
@@ -3007,7 +3007,7 @@ struct n_four_bar_4 {
     return report;
   }
 
-  // Parameter sensitivities (spec 6.6). num_params: the members of Params, in order
+  // Parameter sensitivities. num_params: the members of Params, in order
   // (parameter k is the k-th member).
   static constexpr int num_params = 3;
   static constexpr bool has_sensitivity = true;
@@ -3158,7 +3158,7 @@ struct n_four_bar_4 {
     return solve_sensitivity(q, t, p, dq_dp, options, work);
   }
 
-  // ---- Kinetostatics (mechanism format 6.5): driver efforts and joint reactions
+  // ---- Kinetostatics: driver efforts and joint reactions
   // of the motion from M qdd + Phi_q^T lambda = Q^A, i.e. Phi_q^T lambda = Q with
   // Q = Q^A + the inertia forces, solved through the blocks in reverse order. Usable
   // straight after solve_step at the same t (feedforward efforts).
@@ -3495,7 +3495,7 @@ struct n_four_bar_4 {
     }
   }
 
-  // ---- Forward dynamics in minimal coordinates (mechanism format 7.2, 7.5): the free
+  // ---- Forward dynamics in minimal coordinates: the free
   // items are the coordinates z; q(z, t) by the block solver with z as drivers' values,
   // qd = B zd + b and qdd = B zdd + c with B = dq/dz, then (B^T M B) zdd = B^T (Q^A - M c)
   // by the dynamics kernel: what `kinegen simulate` computes.
@@ -3680,7 +3680,7 @@ struct n_four_bar_4 {
     return true;
   }
 
-  // ---- The exact Jacobians of zdd(z, zd, u) (format 7.5), for linear-quadratic and
+  // ---- The exact Jacobians of zdd(z, zd, u), for linear-quadratic and
   // model-predictive control: the run-time inputs u are the loads' (Params members).
   static constexpr bool has_dynamics_jacobians = true;
   static constexpr int num_inputs = 0;
@@ -3977,7 +3977,7 @@ struct n_four_bar_4 {
     return dynamics_jacobians(z, zd, t, p, zdd, d_z, d_zd, d_u, options, w, j);
   }
 
-  // ---- Fixed-step integrators for a control loop (format 7.5; kinegen::Simulator wraps them
+  // ---- Fixed-step integrators for a control loop (kinegen::Simulator wraps them
   // with more care): z, zd and t advance by h in place, or stay as they were when a dynamics()
   // fails (its report). step_rk4: classical Runge-Kutta (4 dynamics() a step, explicit);
   // step_implicit: the L-stable SDIRK2 for stiff springs, Newton on the exact Jacobians, each

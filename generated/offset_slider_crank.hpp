@@ -1364,7 +1364,7 @@ struct offset_slider_crank {
     return report;
   }
 
-  // Parameter sensitivities (spec 6.6). num_params: the members of Params, in order
+  // Parameter sensitivities. num_params: the members of Params, in order
   // (parameter k is the k-th member).
   static constexpr int num_params = 4;
   static constexpr bool has_sensitivity = true;

@@ -1484,7 +1484,7 @@ struct press {
     return report;
   }
 
-  // Parameter sensitivities (spec 6.6). num_params: the members of Params, in order
+  // Parameter sensitivities. num_params: the members of Params, in order
   // (parameter k is the k-th member).
   static constexpr int num_params = 7;
   static constexpr bool has_sensitivity = true;
@@ -1608,7 +1608,7 @@ struct press {
     return solve_sensitivity(q, t, p, dq_dp, options, work);
   }
 
-  // ---- Kinetostatics (mechanism format 6.5): driver efforts and joint reactions
+  // ---- Kinetostatics: driver efforts and joint reactions
   // of the motion from M qdd + Phi_q^T lambda = Q^A, i.e. Phi_q^T lambda = Q with
   // Q = Q^A + the inertia forces, solved through the blocks in reverse order. Usable
   // straight after solve_step at the same t (feedforward efforts).

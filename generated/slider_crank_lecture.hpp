@@ -1298,7 +1298,7 @@ struct slider_crank_lecture {
     return report;
   }
 
-  // Parameter sensitivities (spec 6.6). num_params: the members of Params, in order
+  // Parameter sensitivities. num_params: the members of Params, in order
   // (parameter k is the k-th member).
   static constexpr int num_params = 2;
   static constexpr bool has_sensitivity = true;

@@ -83,7 +83,7 @@ std::vector<std::string> DynamicsApi::input_names() const {
 kc::Linearizer& DynamicsApi::linearizer(double t0, const std::string& command) {
   if (model_.mechanism().num_free() == 0)
     throw kc::UsageError("Mechanism." + command +
-                         " needs free coordinates (format 7.1: `free:` lists the degrees of "
+                         " needs free coordinates (`free:` lists the degrees of "
                          "freedom that the forces move), and the file has none");
   if (!std::isfinite(t0)) throw kc::UsageError("t must be finite");
   if (!forces_) forces_ = std::make_unique<kc::ForceModel>(kc::derive_forces(model_));

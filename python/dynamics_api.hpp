@@ -1,5 +1,5 @@
-// The Python module's dynamics (format 7.3-7.5): Mechanism.simulate, .dynamics, .equilibrium,
-// .modes and .linearize, on the same library calls as `kinegen simulate`, `equilibrium`,
+// The Python module's dynamics: Mechanism.simulate, .dynamics, .equilibrium, .modes
+// and .linearize, on the same library calls as `kinegen simulate`, `equilibrium`,
 // `modes` and `linearize`, so their numbers are the command line's. The methods throw the
 // library's errors (InputError, UsageError, AnalysisError), which the module turns into its
 // exceptions.

@@ -248,7 +248,7 @@ class Mechanism {
       std::unique_ptr<kc::ForceModel> force_model;
       std::vector<std::string> force_names;
       if (!sensitivity.empty()) {
-        // Naming a derived parameter treats it as overridden (spec 6.6), as on the command line.
+        // Naming a derived parameter treats it as overridden, as on the command line.
         base = model_->with_base_parameters(sensitivity);
         if (base) m = base.get();
         sens = kc::build_sensitivity(*m, sensitivity);
@@ -315,7 +315,7 @@ class Mechanism {
       out["phi_q"] = j;
       out["nu"] = to_numpy(e.nu);
       out["gamma"] = to_numpy(e.gamma);
-      // Outputs' values (format 6.4), as `kinegen eval` adds them.
+      // Outputs' values, as `kinegen eval` adds them.
       if (e.outputs.size() > 0) out["outputs"] = to_numpy(e.outputs);
       return out;
     }
@@ -413,8 +413,8 @@ class Mechanism {
     return page;
   }
 
-  // Every coordinate, the bodies' x, y, phi and then the extra ones (format 6.1), as the
-  // CSV's position columns name them.
+  // Every coordinate, the bodies' x, y, phi and then the extra ones, as the CSV's
+  // position columns name them.
   const std::vector<std::string>& coordinates() const { return coordinates_; }
 
   py::dict parameters() const {
@@ -423,8 +423,8 @@ class Mechanism {
     return out;
   }
 
-  // Forward dynamics and its linearization (format 7.3-7.5, dynamics_api.hpp), their errors
-  // turned into the module's exceptions. Its methods take the library's lock themselves
+  // Forward dynamics and its linearization (dynamics_api.hpp), their errors turned
+  // into the module's exceptions. Its methods take the library's lock themselves
   // around their library work, and build their Python results after it.
   template <class F>
   auto with_dynamics(F&& f) {
@@ -609,7 +609,7 @@ message.
           "(defaults value0, v0, zeros), as a dict of numpy arrays with the names of x and u.")
       .def_property_readonly(
           "free", [](Mechanism& mech) { return mech.with_dynamics([](auto& d) { return d.free_names(); }); },
-          "Names of the free coordinates z (format 7.1), in order.")
+          "Names of the free coordinates z, in order.")
       .def_property_readonly(
           "inputs", [](Mechanism& mech) { return mech.with_dynamics([](auto& d) { return d.input_names(); }); },
           "Names of the run-time inputs u (f: input drivers' D, D_v, D_a; loads' inputs), in order.")

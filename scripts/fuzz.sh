@@ -4,9 +4,9 @@
 # UndefinedBehaviorSanitizer.
 #   scripts/fuzz.sh [SECONDS] [extra libFuzzer options...]   (default 600 s)
 # Builds with clang in build-fuzz/; the seed corpus is examples/*.yaml, examples/*/*.yaml,
-# tests/mechanisms/*.yaml, tests/stability/*.yaml and fuzz/seeds/*.yaml (format 6.3's driver
-# forms: pieces, period, table, input), with the format's words in fuzz/mechanism.dict; the growing corpus lives in build-fuzz/corpus, crashes in
-# build-fuzz/artifacts.
+# tests/mechanisms/*.yaml, tests/stability/*.yaml and fuzz/seeds/*.yaml (the driver
+# forms: pieces, period, table, input), with the format's words in fuzz/mechanism.dict; the
+# growing corpus lives in build-fuzz/corpus, crashes in build-fuzz/artifacts.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-600}"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Plots a `kinegen simulate` CSV of one of the dynamics examples (examples/dynamics/) with
 # gnuplot (Debian: gnuplot-nox): the quantities that tell each example's story, in panels,
-# with the energy columns (format 7.3) in the last one.
+# with the energy columns in the last one.
 #
 #   scripts/plot_dynamics.sh EXAMPLE FILE.csv [-o OUT.png]
 #

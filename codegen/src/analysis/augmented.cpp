@@ -210,7 +210,7 @@ AugmentedLagrangian::AugmentedLagrangian(const CompiledModel& model, const Force
       free_a0_(free_a0_program_),
       a_(model.nq(), j_),
       scale_(Vec::Map(model.symbolic().coordinate_scales.data(), model.nq())) {
-  // The start and format 7.1's checks at t0: the minimal method's (InputError on bad input).
+  // The start and the free items' checks at t0: the minimal method's (InputError on bad input).
   const MotionState s0 = ReducedDynamics(model, forces, t0).initial();
   // zdd of the free items: their gradient in q and the part of their acceleration without qdd.
   const SymbolTable& sym = model.symbols();

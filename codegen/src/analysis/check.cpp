@@ -89,8 +89,8 @@ std::vector<Sample> draw_samples(const CompiledModel& model, const CheckOptions&
       growth = std::max(growth, std::abs(x.q[k]) / size_of(k));
     }
     x.t = options.t + unit(rng);
-    // A table holds only its range (format 6.3): t inside it, clear of its ends for the
-    // central differences.
+    // A table holds only its range: t inside it, clear of its ends for the central
+    // differences.
     if (coverage.lo > -kInf || coverage.hi < kInf)
       x.t = coverage.lo + (coverage.hi - coverage.lo) * (0.5 + 0.4 * unit(rng));
     growth = std::max(growth, std::abs(x.t));

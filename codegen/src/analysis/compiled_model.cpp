@@ -72,7 +72,7 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
     symbolic_ = derive(mechanism_, *symbols_, overrides);
     stage.done("Phi_q: " + std::to_string(symbolic_.phi_q.size()) + " structural non-zeros");
   }
-  // Loads may read a free coordinate's value Z and rate Z_d (format 7.2).
+  // Loads may read a free coordinate's value Z and rate Z_d.
   const std::vector<int> free = mechanism_.free_drivers();
   for (std::size_t k = 0; k < free.size(); ++k) {
     const std::string& name = mechanism_.drivers[free[k]].name;

@@ -169,7 +169,7 @@ ReducedDynamics::ReducedDynamics(const CompiledModel& model, const ForceModel& f
   nf_ = static_cast<int>(free.size());
   if (nf_ == 0)
     throw UsageError(m.source +
-                     " has no free coordinates (format 7.1: `free:` lists the degrees of freedom "
+                     " has no free coordinates (`free:` lists the degrees of freedom "
                      "that the forces move); there is nothing to simulate");
   const int nj = static_cast<int>(m.joints.size());
   for (int d : free) {
@@ -226,7 +226,7 @@ Eigen::VectorXd ReducedDynamics::assemble_fixed(double t0, const std::vector<int
   return q;
 }
 
-// Counts and rank (7.1), at the assembled position q.
+// The free items' counts and rank (docs/format.md: `free`), at the assembled position q.
 void ReducedDynamics::check_counts_and_rank(double t0, const Eigen::VectorXd& q,
                                             const std::vector<int>& fixed_rows) {
   const Mechanism& m = model_.mechanism();
@@ -326,15 +326,15 @@ void ReducedDynamics::report_t0_failure(double t0) {
   const std::vector<int> free = m.free_drivers();
   Impl& w = *impl_;
   if (failure_ == MotionFailure::kReducedMass) {
-    // It assembled: the fault is a free item that moves no mass (7.1), the one whose
-    // diagonal of B^T M B is the smallest.
+    // It assembled: the fault is a free item that moves no mass, the one whose diagonal
+    // of B^T M B is the smallest.
     int worst = 0;
     for (int k = 1; k < nf_; ++k)
       if (b_.col(k).dot(w.mb.col(k)) < b_.col(worst).dot(w.mb.col(worst))) worst = k;
     const Constraint& c = m.drivers[free[worst]];
     throw InputError(m.source, c.item, c.loc,
                      "this free coordinate carries no inertia at " + format_time(t0) +
-                         " (format 7.1: it moves only massless bodies): " + reason_);
+                         " (it moves only massless bodies): " + reason_);
   }
   // Where the file's own value0 does not assemble, the file is at fault (exit 2). The item
   // blamed is the first whose value0 does not assemble when the free items take theirs one

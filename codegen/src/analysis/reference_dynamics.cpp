@@ -221,7 +221,7 @@ ReferenceDynamics::ReferenceDynamics(const CompiledModel& model, const ForceMode
   if (digits < kMinReferenceDigits)
     throw UsageError("reference digits must be at least " + std::to_string(kMinReferenceDigits) +
                      ", not " + std::to_string(digits));
-  // The checks of format 7.1 and the assembled position at t0, in double.
+  // The free items' checks and the assembled position at t0, in double.
   const ReducedDynamics checked(model, forces, t0);
   const Mechanism& m = model.mechanism();
   const std::vector<int> free = m.free_drivers();

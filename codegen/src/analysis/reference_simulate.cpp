@@ -295,8 +295,8 @@ bool has_unknown_derivative(const ex& e) {
   return false;
 }
 
-// stop_when (format 7.3) at a state in high precision: its tape, or, where it reads force
-// columns, the expression evaluated with them (ReferenceForces) substituted. Without force
+// stop_when at a state in high precision: its tape, or, where it reads force columns,
+// the expression evaluated with them (ReferenceForces) substituted. Without force
 // columns its exact rate too: g' = dg/dt + dg/dq qd (at qdd = 0, one output) + dg/dqd qdd.
 class StopFunction {
  public:

@@ -77,7 +77,7 @@ std::string csv_row(const StateRow& row, int num_bodies) {
     for (int c = 0; c < 3; ++c) s += "," + format_number(row.qd[3 * b + c]);
     for (int c = 0; c < 3; ++c) s += "," + format_number(row.qdd[3 * b + c]);
   }
-  for (int k = 3 * num_bodies; k < row.q.size(); ++k)  // extra coordinates (format 6.1)
+  for (int k = 3 * num_bodies; k < row.q.size(); ++k)  // extra coordinates
     s += "," + format_number(row.q[k]) + "," + format_number(row.qd[k]) + "," +
          format_number(row.qdd[k]);
   for (const auto& p : row.points)
@@ -87,7 +87,7 @@ std::string csv_row(const StateRow& row, int num_bodies) {
     for (double v : o) s += "," + format_number(v);
   for (double f : row.forces) s += "," + format_number(f);
   // Sensitivities: per parameter, every coordinate (the bodies' x, y, phi, the extra ones),
-  // the points' x, y, the outputs (6.6), as sensitivity_columns names them.
+  // the points' x, y, the outputs, as sensitivity_columns names them.
   for (int k = 0; k < row.dq_dp.cols(); ++k) {
     for (int i = 0; i < row.dq_dp.rows(); ++i) s += "," + format_number(row.dq_dp(i, k));
     for (int i = 0; i < row.dpoints_dp.rows(); ++i) s += "," + format_number(row.dpoints_dp(i, k));

@@ -43,7 +43,7 @@ int run_analyze(const Common& c, const Options& o) {
     if (o.reference_digits != 0)
       throw kc::UsageError("--sensitivity is not available with --reference-digits");
     const auto names = kc::split_parameter_list(o.sensitivity_list);
-    // Naming a derived parameter treats it as overridden (spec 6.6).
+    // Naming a derived parameter treats it as overridden.
     if (auto base = model->with_base_parameters(names)) model = std::move(base);
     sensitivity = kc::build_sensitivity(*model, names);
   }

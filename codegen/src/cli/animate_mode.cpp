@@ -1,5 +1,5 @@
 // `kinegen animate --mode K`: a vibration mode of `kinegen modes` drawn as a small oscillation
-// about the equilibrium (format 7.4).
+// about the equilibrium.
 #include <cmath>
 #include <limits>
 #include <string>

@@ -45,7 +45,7 @@ int run_eval(const Common& c, const Options& o) {
   const kc::EvalResult e = kc::evaluate(*model, q, qd, o.t);
   std::string rows;
   for (int r = 0; r < nc; ++r) rows += (r ? ", " : "") + json_array(e.phi_q.row(r).transpose());
-  // Outputs' values (format 6.4); a file without outputs keeps its v1 JSON.
+  // Outputs' values; a file without outputs keeps its v1 JSON.
   const std::string outputs =
       e.outputs.size() > 0 ? ", \"outputs\": " + json_array(e.outputs) : std::string();
   kc::OutputFile out("-");

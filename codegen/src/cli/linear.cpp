@@ -19,7 +19,7 @@ LinearSetup load_linear(const Common& c, const std::string& command, const std::
   const int nf = m.num_free();
   if (nf == 0)
     throw kc::UsageError("`kinegen " + command +
-                         "` needs free coordinates (format 7.1: `free:` lists the degrees of "
+                         "` needs free coordinates (`free:` lists the degrees of "
                          "freedom that the forces move), and the file has none");
   // --at read once with zeros, so that a bad name or count is reported before any solve.
   kc::OperatingPoint zero;

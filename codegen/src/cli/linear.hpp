@@ -1,5 +1,5 @@
-// What `kinegen equilibrium`, `modes` and `linearize` share (format 7.4, 7.5): the model with
-// the free coordinates as the state and the run-time inputs kept as inputs, the check that it
+// What `kinegen equilibrium`, `modes` and `linearize` share: the model with the
+// free coordinates as the state and the run-time inputs kept as inputs, the check that it
 // has free coordinates, the operating point of --at, the output's format, JSON pieces.
 #pragma once
 

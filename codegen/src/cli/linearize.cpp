@@ -1,5 +1,5 @@
 // `kinegen linearize`: the exact A and B of x' = f(x, u), x = (z, zd), u the run-time inputs,
-// at an operating point (format 7.5), as JSON or CSV.
+// at an operating point, as JSON or CSV.
 #include "kinegen/codegen/analysis/linearize.hpp"
 
 #include <memory>

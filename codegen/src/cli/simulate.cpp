@@ -1,5 +1,5 @@
-// `kinegen simulate`: forward dynamics (format 7.3) on SUNDIALS CVODE, rows on the --steps
-// grid, with the free coordinates and the energy columns.
+// `kinegen simulate`: forward dynamics on SUNDIALS CVODE, rows on the --steps grid,
+// with the free coordinates and the energy columns.
 #include "kinegen/codegen/analysis/simulate.hpp"
 
 #include <chrono>
@@ -101,7 +101,7 @@ int run_simulate(const Common& c, const Options& o) {
   }
   options.progress = progress_after_a_second(o.t0, o.t1);
   const int nb = static_cast<int>(model->mechanism().bodies.size());
-  // The checks at t0 (format 7.1) come first, so that bad input writes no file.
+  // The checks at t0 (docs/format.md: `free`) come first, so that bad input writes no file.
   kc::OutputFile file(o.output.empty() ? "-" : o.output);
   std::ostream& out = file.stream();
   int status = 0, rows = 0;

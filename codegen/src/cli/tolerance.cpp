@@ -29,7 +29,7 @@ int run_tolerance(const Common& c, const Options& o) {
   kc::require_driven(*model);
   options.tolerances = kc::parse_tolerances(o.tol);
   {
-    // A derived parameter with a tolerance varies on its own (spec 6.6).
+    // A derived parameter with a tolerance varies on its own.
     std::vector<std::string> names;
     for (const auto& t : options.tolerances) names.push_back(t.name);
     if (auto base = model->with_base_parameters(names)) model = std::move(base);

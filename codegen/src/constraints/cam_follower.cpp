@@ -1,4 +1,4 @@
-// cam_follower: two profiles in contact (format 6.2). curve_i(a) of body i and curve_j(b) of
+// cam_follower: two profiles in contact. curve_i(a) of body i and curve_j(b) of
 // body j, in the extra coordinates a and b, touch: the contact points coincide (2) and the
 // tangents are parallel, (A_i curve_i'(a))^perp . (A_j curve_j'(b)) = 0 (1). A roller is a
 // circle, a flat face a line. Of the two contacts (from either side) the solver keeps the one

@@ -1,5 +1,5 @@
 // point_follower: a pin in a curved slot. Point sj of body j lies on the curve [x(u), y(u)] of
-// body i at the value of the extra coordinate u (format 6.2):
+// body i at the value of the extra coordinate u:
 // r_j + A_j sj - r_i - A_i curve(u) = 0.
 #include "kinegen/codegen/constraints/registry.hpp"
 

@@ -173,7 +173,7 @@ void emit_structure_tables(std::ostringstream& os, const std::string& name, cons
 
 }  // namespace
 
-// The mechanism's outputs (format 6.4): values, rates, and accelerations as O_q qdd plus the
+// The mechanism's outputs: values, rates, and accelerations as O_q qdd plus the
 // rest, from the programs the analysis runs. Nothing for a file without outputs.
 void emit_outputs(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
                   const ModelPrograms& programs, int max_ops) {
@@ -249,7 +249,7 @@ void emit_banner(std::ostringstream& os, const Mechanism& m, const EmitOptions& 
 void emit_model_tables(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
                        const SymbolicModel& model, const ModelPrograms& programs) {
   os << "// Coordinates:";
-  // A line per body, then one for the extra coordinates (format 6.1).
+  // A line per body, then one for the extra coordinates.
   const int body_coordinates = 3 * static_cast<int>(m.bodies.size());
   for (int k = 0; k < programs.nq; ++k)
     os << ((k < body_coordinates ? k % 3 == 0 : k == body_coordinates) ? "\n//  " : ",") << " q["
@@ -314,7 +314,7 @@ void emit_params(std::ostringstream& os, const Mechanism& m, const SymbolTable& 
   }
   for (const Load::Input* in : m.load_inputs())
     if (in->table_id < 0)
-      os << "    double " << in->name << " = 0;  // a load's input (format 7.5), set at run time\n";
+      os << "    double " << in->name << " = 0;  // a load's input, set at run time\n";
   if (!m.free_drivers().empty())
     os << "    // Leave null: dynamics() points it at its z, zd and zdd (T[3 nf]) while it runs,\n"
        << "    // which the functions then read instead of the free items' members above.\n"

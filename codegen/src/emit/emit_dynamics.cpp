@@ -1,6 +1,6 @@
-// The header's forward dynamics (mechanism format 7.2, 7.5): dynamics(), the minimal
-// coordinates' accelerations by the block program and the dynamics kernel, as `kinegen
-// simulate` computes them (analysis/dynamics.cpp). Printed after the force functions it calls.
+// The header's forward dynamics: dynamics(), the minimal coordinates' accelerations by the
+// block program and the dynamics kernel, as `kinegen simulate` computes them
+// (analysis/dynamics.cpp). Printed after the force functions it calls.
 #include <algorithm>
 #include <set>
 #include <sstream>
@@ -38,7 +38,7 @@ void emit_dynamics_tables(std::ostringstream& os, const Mechanism& m,
   }
   for (int r : free_rows(m)) rows.push_back(idx(r));
   for (int a : mass_at) at.push_back(idx(a));
-  os << "\n  // ---- Forward dynamics in minimal coordinates (mechanism format 7.2, 7.5): the "
+  os << "\n  // ---- Forward dynamics in minimal coordinates: the "
         "free\n"
      << "  // items are the coordinates z; q(z, t) by the block solver with z as drivers' values,\n"
      << "  // qd = B zd + b and qdd = B zdd + c with B = dq/dz, then (B^T M B) zdd = B^T (Q^A - M "
@@ -237,9 +237,9 @@ void emit_solved_at(std::ostringstream& os) {
 )";
 }
 
-// ---- The exact Jacobians (format 7.5): the tangent's derivatives as one program, in the
-// order of the command line's Linearizer (analysis/tangent.cpp), so that both evaluate the same
-// operations, and the linearize kernel's _dynamics_tangent on the header's block solves.
+// ---- The exact Jacobians: the tangent's derivatives as one program, in the order of the
+// command line's Linearizer (analysis/tangent.cpp), so that both evaluate the same operations,
+// and the linearize kernel's _dynamics_tangent on the header's block solves.
 
 // The tangent's pieces in one list (Linearizer's order), and where each starts.
 std::vector<GiNaC::ex> tangent_outputs(const TangentModel& t, const std::vector<GiNaC::ex>& applied,
@@ -511,7 +511,7 @@ void emit_jacobians(std::ostringstream& os, const DynamicsSource& d) {
   std::vector<std::string> names;
   for (const RunInput& in : run_inputs(d.m)) names.push_back("\"" + in.name + "\"");
   const int nf = d.m.num_free(), ndir = static_cast<int>(slots.size());
-  os << "\n  // ---- The exact Jacobians of zdd(z, zd, u) (format 7.5), for linear-quadratic and\n"
+  os << "\n  // ---- The exact Jacobians of zdd(z, zd, u), for linear-quadratic and\n"
      << "  // model-predictive control: the run-time inputs u are the loads' (Params members).\n"
      << "  static constexpr bool has_dynamics_jacobians = true;\n"
      << "  static constexpr int num_inputs = " << names.size() << ";\n"
@@ -617,7 +617,7 @@ void emit_implicit_step(std::ostringstream& os) {
 // The integrators (the integrate kernel) on dynamics(): a fixed step of x = (z, zd).
 void emit_steps(std::ostringstream& os) {
   os << R"(
-  // ---- Fixed-step integrators for a control loop (format 7.5; kinegen::Simulator wraps them
+  // ---- Fixed-step integrators for a control loop (kinegen::Simulator wraps them
   // with more care): z, zd and t advance by h in place, or stay as they were when a dynamics()
   // fails (its report). step_rk4: classical Runge-Kutta (4 dynamics() a step, explicit);
   // step_implicit: the L-stable SDIRK2 for stiff springs, Newton on the exact Jacobians, each

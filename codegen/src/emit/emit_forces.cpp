@@ -16,8 +16,7 @@ namespace kinegen::codegen::emit_detail {
 
 namespace {
 
-// ---- Kinetostatics (mechanism format 6.5, symbolic/forces.hpp): Phi_q^T lambda = Q after a
-// step.
+// ---- Kinetostatics (symbolic/forces.hpp): Phi_q^T lambda = Q after a step.
 
 // Whether the mechanism carries anything for the force functions: a mass, an inertia or a
 // load (gravity alone acts on nothing).
@@ -68,7 +67,7 @@ class ForceCode {
     for (const auto& n : names_) quoted.push_back("\"" + n + "\"");
     const int max_ops = options_.max_function_ops;
 
-    os << "\n  // ---- Kinetostatics (mechanism format 6.5): driver efforts and joint reactions\n"
+    os << "\n  // ---- Kinetostatics: driver efforts and joint reactions\n"
        << "  // of the motion from M qdd + Phi_q^T lambda = Q^A, i.e. Phi_q^T lambda = Q with\n"
        << "  // Q = Q^A + the inertia forces, solved through the blocks in reverse order. Usable\n"
        << "  // straight after solve_step at the same t (feedforward efforts).\n"

@@ -12,7 +12,7 @@
 
 namespace kinegen::codegen::emit_detail {
 
-// ---- Parameter sensitivities (spec 6.6): Phi_p and dq/dp = -Phi_q^-1 Phi_p through the
+// ---- Parameter sensitivities: Phi_p and dq/dp = -Phi_q^-1 Phi_p through the
 // block structure, after a position solve.
 
 // Each row's constraint, numbered in order of first appearance: the groups roll_outputs rolls.
@@ -29,7 +29,7 @@ std::vector<int> constraint_groups(const SymbolicModel& model) {
 void emit_sensitivity(std::ostringstream& os, const SymbolTable& symbols,
                       const SymbolicModel& model, const EmitOptions& options) {
   const int np = symbols.num_params();
-  os << "\n  // Parameter sensitivities (spec 6.6). num_params: the members of Params, in order\n"
+  os << "\n  // Parameter sensitivities. num_params: the members of Params, in order\n"
      << "  // (parameter k is the k-th member).\n"
      << "  static constexpr int num_params = " << np << ";\n";
   if (options.folded_params) {

@@ -23,8 +23,8 @@ std::string safe_comment_text(const std::string& s) {
   return out;
 }
 
-// The Params members of input driver k (format 6.3, `f: input`): its value, rate and
-// acceleration, NAME, NAME_v and NAME_a.
+// The Params members of input driver k (`f: input`): its value, rate and acceleration,
+// NAME, NAME_v and NAME_a.
 std::string input_member(const Mechanism& m, int driver, int order) {
   static const char* const kSuffix[] = {"", "_v", "_a"};
   const int nd = static_cast<int>(m.drivers.size());
@@ -33,8 +33,8 @@ std::string input_member(const Mechanism& m, int driver, int order) {
   return m.drivers.at(static_cast<std::size_t>(driver)).name + kSuffix[order];
 }
 
-// The members FunctionPrinter wrote as `T(p.@inK.O@)`, named. A free item's (format 7.1) is
-// read through _free_in, which dynamics() points at its z, zd and zdd in the scalar type, so
+// The members FunctionPrinter wrote as `T(p.@inK.O@)`, named. A free item's is read
+// through _free_in, which dynamics() points at its z, zd and zdd in the scalar type, so
 // that a complex z reaches the solves (Params holds doubles).
 std::string with_input_members(std::string header, const Mechanism& m) {
   const std::vector<int> free = m.free_drivers();

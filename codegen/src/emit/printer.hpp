@@ -42,8 +42,8 @@ std::string str(const GiNaC::numeric& x);
 
 std::string safe_comment_text(const std::string& s);
 
-// The Params members of input driver k (format 6.3, `f: input`): its value, rate and
-// acceleration, NAME, NAME_v and NAME_a.
+// The Params members of input driver k (`f: input`): its value, rate and acceleration,
+// NAME, NAME_v and NAME_a.
 std::string input_member(const Mechanism& m, int driver, int order);
 
 // The members FunctionPrinter wrote as `p.@inK.O@`, named.

@@ -24,7 +24,7 @@ namespace {
 // that a model's struct would shadow. Keep in step with the emitter; the test above fails
 // when it declares a name missing here.
 const std::vector<std::string> kHeaderMembers = {
-    // section 4
+    // every header (docs/format.md, Generated code and the runtime)
     "nq", "nc", "jac_nnz", "jac_rows", "jac_cols", "q0", "Params", "phi", "phi_q", "nu", "gamma",
     "length_scale", "has_velocity", "has_acceleration", "coordinate_kinds", "coordinate_scales",
     // the block solver

@@ -38,8 +38,8 @@ struct DynamicsSource {
   const std::vector<int>& trig_slot;  // as emit_forces'
 };
 
-// dynamics(), its work space and its exact Jacobians (format 7.2, 7.5; emit_dynamics.cpp),
-// after the force functions they call.
+// dynamics(), its work space and its exact Jacobians (emit_dynamics.cpp), after
+// the force functions they call.
 void emit_dynamics(std::ostringstream& os, const DynamicsSource& d);
 
 }  // namespace kinegen::codegen::emit_detail

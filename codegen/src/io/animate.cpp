@@ -182,8 +182,8 @@ void Picture::collect_loads() {
   }
 }
 
-// A curve key of `c` at u (format 6.2): the curve reads only its own coordinate (checked
-// when it was derived), so every extra coordinate is set to u.
+// A curve key of `c` at u: the curve reads only its own coordinate (checked when
+// it was derived), so every extra coordinate is set to u.
 Vector2d Picture::curve_point(const Constraint& c, const std::string& key, double u) const {
   const SymbolTable& s = model_.symbols();
   const Mechanism& m = model_.mechanism();

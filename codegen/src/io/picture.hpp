@@ -129,8 +129,8 @@ class Picture {
   // their column in the force columns: after the drivers' efforts, three per joint.
   void collect_reactions();
   void collect();
-  // A curve key of `c` at u (format 6.2): the curve reads only its own coordinate (checked
-  // when it was derived), so every extra coordinate is set to u.
+  // A curve key of `c` at u: the curve reads only its own coordinate (checked when
+  // it was derived), so every extra coordinate is set to u.
   Vector2d curve_point(const Constraint& c, const std::string& key, double u) const;
   // Where to draw a curve in extra coordinate k: over its travel in the analysis with a
   // quarter of it as margin on either side; an angle (a cam's profile, a roller) a whole turn.

@@ -184,7 +184,7 @@ void Loader::read_bodies(const YAML::Node& node, Mechanism& m) {
   }
 }
 
-// `coordinates:` (format 6.1): name, q0, kind (length, angle or scalar; default scalar).
+// The `coordinates:` list: name, q0, kind (length, angle or scalar; default scalar).
 void Loader::read_coordinates(const YAML::Node& node, Mechanism& m) {
   if (node.IsNull()) return;
   if (!node.IsSequence())
@@ -253,7 +253,7 @@ void Loader::check_unique_names(const Mechanism& m) {
   std::set<std::string> taken;
   for (const auto& b : m.bodies)
     for (const char* prefix : {"x_", "y_", "phi_"}) taken.insert(prefix + b.name);
-  // Coordinates share the one namespace (format 6.1) with everything named below.
+  // Coordinates share the one namespace with everything named below.
   for (const auto& q : m.coordinates) {
     const auto named = [&](const auto& list) {
       return std::any_of(list.begin(), list.end(), [&](const auto& x) { return x.name == q.name; });

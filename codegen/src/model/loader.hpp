@@ -62,7 +62,7 @@ class Loader {
   }
   void read_outputs(const YAML::Node& node, Mechanism& m);
   void read_bodies(const YAML::Node& node, Mechanism& m);
-  // `coordinates:` (format 6.1): name, q0, kind (length, angle or scalar; default scalar).
+  // The `coordinates:` list: name, q0, kind (length, angle or scalar; default scalar).
   void read_coordinates(const YAML::Node& node, Mechanism& m);
   int body_ref(const YAML::Node& node, const Mechanism& m, const std::string& item,
                bool allow_ground);
@@ -76,13 +76,13 @@ class Loader {
   // kind's order; omitted optional keys take their defaults.
   void read_keys(const YAML::Node& c, const ConstraintKind& kind, const std::string& item,
                  const Mechanism& m, Constraint& con);
-  // A driver's law (format 6.3): f as one expression, as pieces or as `input`; or a table;
-  // and an optional period. The pieces' order and the period's sign need the parameters'
+  // A driver's law: f as one expression, as pieces or as `input`; or a table; and
+  // an optional period. The pieces' order and the period's sign need the parameters'
   // values, so the symbolic stage checks them.
   void read_key(const YAML::Node& c, const KeySpec& k, const std::string& item, const Mechanism& m,
                 Constraint& con);
   void read_law(const YAML::Node& c, const std::string& item, Constraint& con);
-  // Applied loads (format 6.5). Defaults beyond the spec's: s, si, sj [0, 0]; damping 0;
+  // Applied loads (docs/format.md: Loads), with their defaults: s, si, sj [0, 0]; damping 0;
   // rotational angle0 0.
   void read_forces(const YAML::Node& node, Mechanism& m);
   void read_load_inputs(Load& load, const Mechanism& m);

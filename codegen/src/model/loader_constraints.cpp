@@ -1,5 +1,5 @@
 // Loader (loader.hpp): joints and drivers: the type, the keys it declares (constraints/
-// registry.hpp) and a driver's law (format 6.3).
+// registry.hpp) and a driver's law.
 #include <algorithm>
 #include <cctype>
 #include <set>
@@ -77,7 +77,7 @@ void Loader::read_keys(const YAML::Node& c, const ConstraintKind& kind, const st
         .push_back(key_name(k, driver));
   }
   if (con.free) {
-    // Written like a driver without f (format 7.1): value0 and v0 instead.
+    // Written like a driver without f: value0 and v0 instead.
     std::erase(optional, std::string("f"));
     optional.push_back("value0");
     optional.push_back("v0");
@@ -169,8 +169,8 @@ void Loader::read_key(const YAML::Node& c, const KeySpec& k, const std::string& 
   }
 }
 
-// A driver's law (format 6.3): f as one expression, as pieces or as `input`; or a table;
-// and an optional period. The pieces' order and the period's sign need the parameters'
+// A driver's law: f as one expression, as pieces or as `input`; or a table; and
+// an optional period. The pieces' order and the period's sign need the parameters'
 // values, so the symbolic stage checks them.
 void Loader::read_law(const YAML::Node& c, const std::string& item, Constraint& con) {
   DriverLaw& law = con.law;

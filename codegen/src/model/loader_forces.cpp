@@ -1,4 +1,4 @@
-// Loader (loader.hpp): the forces: section (format 6.5): gravity, masses and loads.
+// Loader (loader.hpp): the forces: section (docs/format.md: Masses, gravity and loads).
 #include <algorithm>
 #include <cctype>
 #include <set>
@@ -12,7 +12,7 @@
 
 namespace kinegen::codegen::model_detail {
 
-// Applied loads (format 6.5). Defaults beyond the spec's: s, si, sj [0, 0]; damping 0;
+// Applied loads (docs/format.md: Loads), with their defaults: s, si, sj [0, 0]; damping 0;
 // rotational angle0 0.
 void Loader::read_forces(const YAML::Node& node, Mechanism& m) {
   if (node.IsNull()) return;
@@ -82,8 +82,8 @@ void Loader::read_forces(const YAML::Node& node, Mechanism& m) {
   }
 }
 
-// A force's component or a torque's value written `input` (format 7.5) is a run-time input,
-// named after the load: the torque's name, or name_x / name_y for a force's components.
+// A force's component or a torque's value written `input` is a run-time input, named
+// after the load: the torque's name, or name_x / name_y for a force's components.
 void Loader::read_load_inputs(Load& load, const Mechanism& m) {
   const std::pair<const Expr*, int> components[] = {
       {&load.f.x, 0}, {&load.f.y, 1}, {&load.value, 2}};

@@ -228,7 +228,7 @@ std::string table_outside(const Mechanism& m, double t) {
 
 namespace {
 
-// A load's input (format 7.5) named `name` given its table: true, or false when there is none.
+// A load's input named `name` given its table: true, or false when there is none.
 bool apply_load_input(Mechanism& m, const std::string& name, const std::string& path) {
   for (Load& l : m.forces.loads)
     for (Load::Input& in : l.inputs) {
@@ -272,7 +272,7 @@ void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::st
     if (d.free && free_as_state) continue;
     if (d.free)
       throw UsageError(d.item +
-                       " is a free coordinate (format 7.1), moved by the forces: `kinegen "
+                       " is a free coordinate, moved by the forces: `kinegen "
                        "simulate` finds its motion; to prescribe it here, give its values with "
                        "--input " +
                        d.name + "=FILE.csv (columns t,value)");

@@ -314,7 +314,7 @@ TreeSize tree_size(const ex& e, const ex& x) {
   }
   if (!r.depends) return r;
   if (is_select(e)) {
-    // A driver's pieces (format 6.3): select(c, lo', hi'), each piece differentiated alone.
+    // A driver's pieces: select(c, lo', hi'), each piece differentiated alone.
     r.derivative = 1 + ops[0].size + ops[1].derivative + ops[2].derivative;
   } else if (is_floor(e)) {
     r.derivative = 1;  // whole periods: 0

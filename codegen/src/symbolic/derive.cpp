@@ -135,8 +135,8 @@ std::vector<int> coordinates_in(const ex& e, const SymbolTable& s) {
 }
 
 // The size a coordinate's tolerance scales with. `length`: the scale of its body, or for an
-// extra coordinate of kind length (spec 6.1), the mechanism's. Angles are in radians and
-// scalars (curve parameters and the like) are taken as they are.
+// extra coordinate of kind length, the mechanism's. Angles are in radians and scalars
+// (curve parameters and the like) are taken as they are.
 double scale_of(CoordinateKind kind, double length) {
   return kind == CoordinateKind::kLength ? length : 1.0;
 }
@@ -243,7 +243,7 @@ void derive_geometry(const Mechanism& m, const SymbolTable& s, const Builder& bu
     model.point_s.push_back(builder.vec(p.s, "point '" + p.name + "' s"));
 }
 
-// The outputs (format 6.4): values, rates, accelerations at qdd = 0 and O_q.
+// The outputs: values, rates, accelerations at qdd = 0 and O_q.
 void derive_outputs(const Mechanism& m, const SymbolTable& s, SymbolicModel& model) {
   for (const auto& o : m.outputs) {
     const ex value = s.parse(o.value, Scope::kDriver, "outputs." + o.name);
@@ -326,8 +326,8 @@ void derive_scales(const Mechanism& m, const std::vector<double>& body_scale,
   }
 }
 
-// The quantity each free coordinate measures (format 7.1): its row of Phi with the input at
-// 0, g(q) - z for the angle and position types, |d|^2 - z^2 for distance; and its rate.
+// The quantity each free coordinate measures: its row of Phi with the input at 0,
+// g(q) - z for the angle and position types, |d|^2 - z^2 for distance; and its rate.
 void derive_free_values(const Mechanism& m, const SymbolTable& s, SymbolicModel& model) {
   for (int d : m.free_drivers()) {
     const Constraint& c = m.drivers[d];

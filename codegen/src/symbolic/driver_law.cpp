@@ -1,5 +1,5 @@
-// A driver's law in pieces, with a period, from a table or a run-time input (format 6.3):
-// DriverLawBuilder, which also checks its boundaries and seams.
+// A driver's law in pieces, with a period, from a table or a run-time input: DriverLawBuilder,
+// which also checks its boundaries and seams.
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -24,7 +24,7 @@ using namespace symbolic_detail;
 
 namespace {
 
-// A driver's law in pieces, with a period, from a table or a run-time input (format 6.3), as
+// A driver's law in pieces, with a period, from a table or a run-time input, as
 // one expression in t. Checks the pieces' order, the period and, with `warnings`, at every
 // boundary and seam, f, f' and f'' from either side: a jump in f throws, one in f' or f'' is
 // added to `warnings`.
@@ -108,7 +108,7 @@ class DriverLawBuilder {
 
   // f, f', f'' across each joint; a difference above 1e-9 of the local scale counts: the
   // larger of the two sides' magnitudes of that derivative there and the driven quantity's
-  // unit (format 6.3 as amended in version 3: the law's largest magnitude anywhere, which a
+  // unit (before version 3 the scale was the law's largest magnitude anywhere, which a
   // later piece's growth far from the boundary raises, could hide a real jump). At 40 digits,
   // so rounding never counts.
   void check_joints(const std::vector<Joint>& joints, std::vector<std::string>& warnings) const {

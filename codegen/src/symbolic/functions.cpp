@@ -42,7 +42,7 @@ int cos_derivative_at_zero(int n) {
   return kValues[n % 4];
 }
 
-// A law's d^order/dx^order at exactly 0, its formula's value (format 6.3: a law is its formula
+// A law's d^order/dx^order at exactly 0, its formula's value (a law is its formula
 // on [0, 1)), exact: pi stays GiNaC's Pi, so that harmonic''(0) is Pi^2/2, not a float.
 ex law_at_zero(int law, int order) {
   switch (law) {
@@ -253,7 +253,7 @@ bool is_motion_law(const ex& e, int& law, int& order) {
 }
 
 numeric motion_law_high_precision(int law, int order, const numeric& x) {
-  // The formula on [0, 1), clamped outside it (format 6.3); the branch on the real part.
+  // The formula on [0, 1), clamped outside it; the branch on the real part.
   const numeric re = x.real();
   if (re.is_negative()) return 0;
   if (re >= 1) return order == 0 ? 1 : 0;

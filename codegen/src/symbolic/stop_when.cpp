@@ -1,4 +1,4 @@
-// `stop_when:` (format 7.3): the expression whose crossing of 0 from below ends a simulation.
+// The `stop_when:` expression, whose crossing of 0 from below ends a simulation.
 // It may name the CSV's columns (B.x, P.vy, J.fn), which the expression language has no
 // syntax for: each such column is rewritten to a name of its own (`B__x`; "__" is never a
 // user's name) and defined for this one parse.

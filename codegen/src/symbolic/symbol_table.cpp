@@ -243,7 +243,7 @@ SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& ove
   // Velocities are known by name only to be refused with a message of their own (scope_allows
   // admits them nowhere), not as an unknown symbol.
   for (int k = 0; k < nq(); ++k) names_[coord_names_[k] + "_dot"] = qd_[k];
-  // The names loads use (format 7.2): xd_<body>, yd_<body>, phid_<body>, <coordinate>_d.
+  // The names loads use: xd_<body>, yd_<body>, phid_<body>, <coordinate>_d.
   for (std::size_t b = 0; b < m.bodies.size(); ++b) {
     const char* const kRates[] = {"xd_", "yd_", "phid_"};
     for (int c = 0; c < 3; ++c) names_[kRates[c] + m.bodies[b].name] = qd_[3 * b + c];

@@ -102,14 +102,14 @@ void check_defined_value(const Mechanism& m, const SymbolTable& s,
                          const std::vector<GiNaC::numeric>& values, const GiNaC::ex& value,
                          const Expr& e, const std::string& item);
 
-// A driver's law in pieces, with a period, from a table or an input (format 6.3), as one
-// expression in t (driver_law.cpp). Its boundaries are checked by driver_law_warnings, which
+// A driver's law in pieces, with a period, from a table or an input, as one expression
+// in t (driver_law.cpp). Its boundaries are checked by driver_law_warnings, which
 // derive() runs first.
 GiNaC::ex driver_law(const Constraint& c, const Mechanism& m, const SymbolTable& s,
                      const std::vector<GiNaC::numeric>& values);
-// Checks every driver's boundaries and seams at the local scale (format 6.3): a jump in f
-// throws InputError; those in f' or f'' are returned as warnings. `length_scale`: the
-// mechanism's (the unit of a driven length; an angle's is 1 rad).
+// Checks every driver's boundaries and seams at the local scale: a jump in f throws
+// InputError; those in f' or f'' are returned as warnings. `length_scale`: the mechanism's
+// (the unit of a driven length; an angle's is 1 rad).
 std::vector<std::string> driver_law_warnings(const Mechanism& m, const SymbolTable& s,
                                              const std::vector<GiNaC::numeric>& values,
                                              double length_scale);

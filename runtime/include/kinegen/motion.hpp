@@ -112,8 +112,8 @@ struct MotionCheck {
 
 // Whether a solved step from (q0, qd0, qdd0) to (q1, qd1, qdd1) over h followed the motion.
 // On a smooth motion q1 - q0 = h (qd0 + qd1) / 2 + h^2 (qdd0 - qdd1) / 12 + O(h^5)
-// (Euler-Maclaurin). A motion law's warned boundary (spec 6.3) makes qd or qdd jump at a grid
-// time, where the one-sided Taylor estimate from the other end still holds
+// (Euler-Maclaurin). A motion law's warned boundary makes qd or qdd jump at a grid time,
+// where the one-sided Taylor estimate from the other end still holds
 // (q0 + h qd0 + h^2 qdd0 / 2, or q1 - h qd1 + h^2 qdd1 / 2): the nearest of the three counts.
 // A solution that misses all three by more than `fraction` of the motion the velocities give
 // over the step, h max |qd| (plus a rounding floor in the scalar's epsilon), was not reached

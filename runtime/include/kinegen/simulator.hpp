@@ -1,4 +1,4 @@
-// kinegen runtime: forward dynamics of a generated model (format 7.5) at a fixed step, for a
+// kinegen runtime: forward dynamics of a generated model at a fixed step, for a
 // control loop. Simulator<Model, T> steps the header's dynamics() (the minimal coordinates'
 // zdd, what `kinegen simulate` computes) with the integrator kernel (kernels/integrate.hpp):
 // the classical Runge-Kutta step, or the L-stable SDIRK2 for stiff springs, its Newton on the

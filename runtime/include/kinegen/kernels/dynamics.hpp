@@ -1,5 +1,5 @@
-// Dynamics kernel: the pieces of the minimal-coordinates equations of motion (format 7.2)
-// that do not depend on the model's structure. The generalized mass matrix as a product
+// Dynamics kernel: the pieces of the minimal-coordinates equations of motion that do not
+// depend on the model's structure. The generalized mass matrix as a product
 // (M v, from each body's mass, inertia and rotated centre of mass), a pivot-free LDL^T of the
 // small, symmetric reduced mass M_z = B^T M B, and the reduction itself:
 // M_z zdd = B^T (Q^A + the inertia forces at qdd = c), qdd = c + B zdd.
@@ -18,7 +18,7 @@ struct DynamicsKernel : ReportKernel {
   // its mass m, inertia j about the centre of mass and the centre's offset A s = (ax, ay) in
   // global axes. The centre moves at (vx - w ay, vy + w ax), so the body's rows of M v are
   // m times that, and ax m (vy + w ax) - ay m (vx - w ay) + j w. Coordinates after the
-  // bodies' (extra coordinates, format 6.1) carry no mass: their rows are 0.
+  // bodies' (extra coordinates) carry no mass: their rows are 0.
   template <class T>
   static void _mass_times(int num_b, int num_q, const T* m, const T* j, const T* ax, const T* ay,
                           const T* v, T* out) noexcept {

@@ -1,9 +1,10 @@
 // Integrator kernel: allocation-free fixed-step integrators of x' = f(t, x) for a control loop
-// (format 7.5): the classical Runge-Kutta step (order 4, explicit) and a two-stage, L-stable
-// SDIRK of order 2 for stiff springs, whose stages Newton solves with a Jacobian df/dx that the
-// caller gives (a generated header's exact dynamics_jacobians) or, the documented fallback,
-// forward differences of f. kinegen::Simulator (simulator.hpp) steps a generated model's
-// dynamics() with them. See report.hpp for how kernel files are used.
+// (docs/format.md: Generated code and the runtime): the classical Runge-Kutta step (order 4,
+// explicit) and a two-stage, L-stable SDIRK of order 2 for stiff springs, whose stages Newton
+// solves with a Jacobian df/dx that the caller gives (a generated header's exact
+// dynamics_jacobians) or, the documented fallback, forward differences of f. kinegen::Simulator
+// (simulator.hpp) steps a generated model's dynamics() with them. See report.hpp for how kernel
+// files are used.
 #pragma once
 
 #include <cmath>

@@ -1,8 +1,8 @@
 // Dynamics tangent kernel: the exact derivatives of the minimal-coordinates accelerations
-// zdd(z, zd, u) (format 7.2) with respect to the state and the run-time inputs, for
-// equilibrium, modes and linear models (format 7.4, 7.5). One implementation: `kinegen
-// equilibrium / modes / linearize` (analysis/tangent.cpp) call it with solves on their
-// factorization of Phi_q, a generated header with its block solves.
+// zdd(z, zd, u) with respect to the state and the run-time inputs, for equilibrium,
+// modes and linear models. One implementation: `kinegen equilibrium / modes / linearize`
+// (analysis/tangent.cpp) call it with solves on their factorization of Phi_q, a
+// generated header with its block solves.
 //
 // The equations at a solved state: Phi(q, t, w) = 0, Phi_q qd = nu(q, t, w),
 // Phi_q qdd = gamma(q, qd, t, w), M(q) qdd + h(q, qd) + Phi_q^T lambda = Q^A(q, qd, t, w), with

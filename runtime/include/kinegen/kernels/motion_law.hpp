@@ -1,10 +1,11 @@
-// Motion laws (mechanism format 6.3): cycloidal, harmonic, 3-4-5 and 4-5-6-7 polynomial rises
-// from 0 to 1, each its formula on [0, 1) and clamped outside it (0 for x < 0 and 1 for x >= 1,
-// every derivative 0 there): a value exactly at 0 or 1 is the limit from the right, as a
-// driver's pieces take the later piece at a boundary, so that laws that join smoothly (a
-// harmonic rise and its return) give the true f' and f'' at the joint. See report.hpp for how kernel files are used: the generator pastes this text into
-// headers whose model calls a law, and the in-process evaluator calls it directly. It stands
-// alone (no other kernel), since a header without a block solver may need it too.
+// Motion laws: cycloidal, harmonic, 3-4-5 and 4-5-6-7 polynomial rises from 0 to 1, each its
+// formula on [0, 1) and clamped outside it (0 for x < 0 and 1 for x >= 1, every derivative 0
+// there): a value exactly at 0 or 1 is the limit from the right, as a driver's pieces take the
+// later piece at a boundary, so that laws that join smoothly (a harmonic rise and its return)
+// give the true f' and f'' at the joint. See report.hpp for how kernel files are used: the
+// generator pastes this text into headers whose model calls a law, and the in-process
+// evaluator calls it directly. It stands alone (no other kernel), since a header without a
+// block solver may need it too.
 #pragma once
 
 #include <cmath>

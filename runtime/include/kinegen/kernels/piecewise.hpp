@@ -1,5 +1,5 @@
-// Drivers in pieces and periodic laws (mechanism format 6.3): the choice of a piece by t and
-// the whole periods in t. Both decide on the real part of their argument, so that the complex
+// Drivers in pieces and periodic laws: the choice of a piece by t and the whole
+// periods in t. Both decide on the real part of their argument, so that the complex
 // step still works. See report.hpp for how kernel files are used: the generator pastes this
 // text into headers whose expressions select a piece or wrap a period, and the in-process
 // evaluator calls it directly. It stands alone, like motion_law.hpp.

@@ -1,6 +1,6 @@
-// Cubic spline evaluation (mechanism format 6.3, `table:` drivers): value and first two
-// derivatives of the interpolating cubic, from the knots t, values y and second derivatives m
-// that the generator fitted (not-a-knot, or periodic). A kernel (see report.hpp): plain C++17,
+// Cubic spline evaluation (`table:` drivers): value and first two derivatives of
+// the interpolating cubic, from the knots t, values y and second derivatives m that
+// the generator fitted (not-a-knot, or periodic). A kernel (see report.hpp): plain C++17,
 // std only, templated on the scalar, allocation-free; the generator pastes this text into
 // headers whose model has a table, with the knots as constant arrays, and the analysis calls
 // it directly. It stands alone, like motion_law.hpp.

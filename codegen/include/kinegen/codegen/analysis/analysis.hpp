@@ -30,7 +30,7 @@ struct StateRow {
   double t = 0;
   Eigen::VectorXd q, qd, qdd;
   std::vector<PointState> points;
-  // The outputs (format 6.4): value, velocity, acceleration, in file order.
+  // The outputs: value, velocity, acceleration, in file order.
   std::vector<std::array<double, 3>> outputs;
   // With AnalysisOptions::sensitivity: dq/dp (nq x np) and the points' dC/dp (2 per point,
   // x then y, x np); empty otherwise.
@@ -140,7 +140,7 @@ class OutputEvaluator {
 };
 
 std::string csv_header(const Mechanism& mechanism);
-// With the sensitivity columns of these parameters after all others (spec 6.6).
+// With the sensitivity columns of these parameters after all others.
 std::string csv_header(const Mechanism& mechanism, const std::vector<std::string>& sensitivity);
 // With the force columns (forces.hpp) before the sensitivity columns.
 std::string csv_header(const Mechanism& mechanism, const std::vector<std::string>& forces,

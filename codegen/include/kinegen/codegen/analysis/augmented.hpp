@@ -1,5 +1,5 @@
-// Forward dynamics through singular positions (mechanism format 7.2, `simulate --method
-// augmented`): the index-1 augmented Lagrangian formulation (ALF) of
+// Forward dynamics through singular positions (`simulate --method augmented`): the
+// index-1 augmented Lagrangian formulation (ALF) of
 //   E. Bayo, J. Garcia de Jalon, M. A. Serna, "A modified Lagrangian formulation for the dynamic
 //   analysis of constrained mechanical systems", Computer Methods in Applied Mechanics and
 //   Engineering 71 (1988) 183-195, and J. Garcia de Jalon, E. Bayo, "Kinematic and Dynamic
@@ -9,7 +9,7 @@
 //   constrained multibody dynamics", Nonlinear Dynamics 9 (1996) 113-130.
 //
 // The state is y = [q, qd] in all coordinates. The constraints are the joints and the
-// prescribed drivers only: the free items (7.1) are not constraints here, they only name the
+// prescribed drivers only: the free items are not constraints here, they only name the
 // columns Z, Z.v, Z.a, read off q, qd and qdd. At each evaluation
 //   (M + Phi_q^T alpha Phi_q) qdd = Q - Phi_q^T alpha (Phi_q_dot qd + Phi_t_dot + 2 xi omega
 //                                   Phi_dot + omega^2 Phi) - Phi_q^T lambda*,
@@ -28,7 +28,7 @@
 //
 // Takes: a CompiledModel with free items, its ForceModel, t0. Gives: a MotionFormulation for
 // run_simulation (analysis/simulate.hpp). The start (q, qd at t0) is the minimal method's, so
-// format 7.1's checks at t0 hold for both methods alike.
+// the free items' checks at t0 (docs/format.md: `free`) hold for both methods alike.
 #pragma once
 
 #include <memory>

@@ -23,13 +23,13 @@ struct BuildOptions {
   bool fold_params = false;
   // Where the stages (reading, deriving, folding, lowering) report their progress.
   Progress progress;
-  // Input drivers' tables (format 6.3, `analyze --input NAME=FILE.csv`): driver name, CSV
-  // path (relative to the working directory). With inputs_required, an input driver without
+  // Input drivers' tables (`analyze --input NAME=FILE.csv`): driver name, CSV path
+  // (relative to the working directory). With inputs_required, an input driver without
   // one is a UsageError (every command but generate, whose code reads them from Params).
   std::vector<std::pair<std::string, std::string>> inputs;
   bool inputs_required = false;
-  // The free coordinates (format 7.1) are the state of a simulation, not inputs needing a
-  // table (simulate, equilibrium, modes, linearize).
+  // The free coordinates are the state of a simulation, not inputs needing a table
+  // (simulate, equilibrium, modes, linearize).
   bool free_as_state = false;
 };
 
@@ -58,8 +58,8 @@ class CompiledModel {
   // Every parameter, derived ones included, in file order, with its value.
   std::vector<std::pair<std::string, double>> parameter_table() const;
   // The same model with the named parameters' derived formulas dropped (each keeps its
-  // present value; spec 6.6: naming a derived parameter for a sensitivity treats it as
-  // overridden), or nullptr when none of them is derived.
+  // present value: naming a derived parameter for a sensitivity treats it as overridden),
+  // or nullptr when none of them is derived.
   std::unique_ptr<CompiledModel> with_base_parameters(const std::vector<std::string>& names) const;
   const std::vector<ParamOverride>& overrides() const { return overrides_; }
   Eigen::VectorXd q0() const;
@@ -132,7 +132,7 @@ class ModelEvaluator {
 };
 
 // What `kinegen eval` prints (and the Python module's eval returns): Phi, the dense Phi_q, nu
-// and gamma at (q, qd, t), and the outputs' values (format 6.4; empty without outputs).
+// and gamma at (q, qd, t), and the outputs' values (empty without outputs).
 struct EvalResult {
   Eigen::VectorXd phi, nu, gamma, outputs;
   Eigen::MatrixXd phi_q;

@@ -1,13 +1,13 @@
-// Forward dynamics in minimal coordinates (mechanism format 7.2), in-process: the free items
-// (7.1) are input drivers whose values are the state z. At (t, z, zd) the block program
-// solves q(z, t), qd = B zd + b and c, the acceleration at zdd = 0; B = dq/dz comes from
-// Phi_q B = E (E: the free rows' unit vectors) with one factorization of Phi_q; then the
+// Forward dynamics in minimal coordinates (docs/format.md: Equations of motion), in-process:
+// the free items are input drivers whose values are the state z. At (t, z, zd) the block
+// program solves q(z, t), qd = B zd + b and c, the acceleration at zdd = 0; B = dq/dz comes
+// from Phi_q B = E (E: the free rows' unit vectors) with one factorization of Phi_q; then the
 // dynamics kernel (kernels/dynamics.hpp) solves (B^T M B) zdd = B^T (Q^A - M c - ...) and
 // qdd = c + B zdd. Nothing drifts: q is solved from z at every evaluation.
 //
 // Takes: a CompiledModel with free items and the ForceModel of symbolic/forces.hpp. Gives:
-// the state at t0 (checked as 7.1 requires), zdd and the full q, qd, qdd at any (t, z, zd),
-// the energy terms of 7.3, and failures with their reason.
+// the state at t0 (checked as docs/format.md's `free` requires), zdd and the full q, qd, qdd
+// at any (t, z, zd), the energy terms of `simulate`, and failures with their reason.
 #pragma once
 
 #include <Eigen/Dense>
@@ -38,7 +38,7 @@ struct MotionState {
   Eigen::VectorXd q, qd, qdd;  // nq
 };
 
-// The energy terms of format 7.3 at one state.
+// The energy terms of `simulate` at one state.
 struct Energy {
   double kinetic = 0;    // 1/2 qd^T M qd
   double potential = 0;  // gravity and springs (preloads included)
@@ -47,10 +47,10 @@ struct Energy {
 
 class ReducedDynamics {
  public:
-  // Checks what 7.1 asks at t0 and assembles there: the counts (naming the degrees of
-  // freedom), the rank with the free items (naming the item that adds nothing), value0
-  // (InputError when the mechanism does not assemble there), the reduced mass (naming a free
-  // item that moves no mass). The model and forces must outlive this object.
+  // Checks at t0 what docs/format.md asks of free items (`free`) and assembles there: the
+  // counts (naming the degrees of freedom), the rank with the free items (naming the item that
+  // adds nothing), value0 (InputError when the mechanism does not assemble there), the reduced
+  // mass (naming a free item that moves no mass). The model and forces must outlive it.
   ReducedDynamics(const CompiledModel& model, const ForceModel& forces, double t0);
   ~ReducedDynamics();
   ReducedDynamics(const ReducedDynamics&) = delete;

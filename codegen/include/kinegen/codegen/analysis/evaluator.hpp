@@ -35,8 +35,8 @@ class ProgramEvaluator {
     }
   }
 
-  // The input drivers' values (format 6.3 `f: input`, and the free coordinates of 7.1, which
-  // are inputs too): 3 per driver of Mechanism::drivers, its value, rate and acceleration, as
+  // The input drivers' values (`f: input`, and the free coordinates, which are inputs
+  // too): 3 per driver of Mechanism::drivers, its value, rate and acceleration, as
   // the generated Params members NAME, NAME_v and NAME_a. Not owned; null reads 0.
   void set_inputs(const T* inputs) { inputs_ = inputs; }
 

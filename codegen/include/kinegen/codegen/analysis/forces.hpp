@@ -1,7 +1,7 @@
-// Kinetostatics (mechanism format 6.5), the numeric half: driver efforts and joint reactions of
-// a kinematically driven motion, from M qdd + Phi_q^T lambda = Q^A with the centre-of-mass
-// kinematics written out, i.e. Phi_q^T lambda = Q with Q = Q^A + the inertia forces of the
-// motion.
+// Kinetostatics, the numeric half (docs/format.md: Force columns): driver efforts and joint
+// reactions of a kinematically driven motion, from M qdd + Phi_q^T lambda = Q^A with the
+// centre-of-mass kinematics written out, i.e. Phi_q^T lambda = Q with Q = Q^A + the inertia
+// forces of the motion.
 //
 // Takes: a CompiledModel and the ForceModel of symbolic/forces.hpp (Q^A as expressions, the
 // bodies' mass data evaluated). Gives: per solved row (q, qd, qdd at t), lambda, the efforts
@@ -42,7 +42,7 @@ void add_inertia_forces(const ForceData<T>& d, int bodies, const T* q, const T* 
   }
 }
 
-// A cam contact's J.fn (format 6.5): the force on body j along the unit normal of curve_i at
+// A cam contact's J.fn: the force on body j along the unit normal of curve_i at
 // the contact, the tangent t = A_i curve_i'(a) turned by -90 degrees (outward for a profile
 // that runs counterclockwise), so positive in compression. t is -d(contact rows)/da, read off
 // Phi_q. (fx, fy): the joint's reported force, on j, or on i when `on_j` is false.

@@ -1,4 +1,4 @@
-// Linear models for control (format 7.5): A and B of x' = f(x, u) with x = (z, zd) and u the
+// Linear models for control: A and B of x' = f(x, u) with x = (z, zd) and u the
 // run-time inputs, exact (analysis/tangent.hpp), at an operating point given as `--at`.
 //
 // Takes: a Linearizer. Gives: LinearModel; the operating point's --at syntax and the names of

@@ -1,8 +1,8 @@
-// The high-precision reference of forward dynamics (mechanism format 7.3, `kinegen simulate
-// --reference D`): the minimal-coordinates equations of motion of analysis/dynamics.hpp in CLN
-// arithmetic with D significant digits, on the symbolic expressions themselves (the
-// HighPrecisionEvaluator of analysis/reference.hpp), integrated by Gragg-Bulirsch-Stoer
-// extrapolation. What the double simulation (CVODE on the block program) is measured against.
+// The high-precision reference of forward dynamics (`kinegen simulate --reference D`): the
+// minimal-coordinates equations of motion of analysis/dynamics.hpp in CLN arithmetic with D
+// significant digits, on the symbolic expressions themselves (the HighPrecisionEvaluator of
+// analysis/reference.hpp), integrated by Gragg-Bulirsch-Stoer extrapolation. What the double
+// simulation (CVODE on the block program) is measured against.
 //
 // ReferenceDynamics: at (t, z, zd), Newton for q on [Phi of the joints and prescribed drivers;
 // g_k(q) - z_k for the free items] (g: SymbolicModel::free_values), qd from Phi_q qd = nu (the
@@ -52,7 +52,7 @@ struct ReferenceMotionState {
 class ReferenceDynamics {
  public:
   using Vector = std::vector<GiNaC::numeric>;
-  // Runs the double ReducedDynamics' checks of format 7.1 at t0 (InputError), then solves
+  // Runs the double ReducedDynamics' checks of the free items at t0 (InputError), then solves
   // the state at t0 in high precision from its position (value0 and v0 evaluated at D
   // digits). UsageError when digits is outside [kMinReferenceDigits, kMaxReferenceDigits].
   ReferenceDynamics(const CompiledModel& model, const ForceModel& forces, int digits, double t0);
@@ -77,7 +77,7 @@ class ReferenceDynamics {
                 ReferenceMotionState& out);
   void start_from(const ReferenceMotionState& s);
 
-  // Kinetic and potential energy at a state (format 7.3's energy columns).
+  // Kinetic and potential energy at a state (the energy columns).
   std::array<GiNaC::numeric, 2> energy(const ReferenceMotionState& s);
 
   HighPrecisionEvaluator& evaluator();

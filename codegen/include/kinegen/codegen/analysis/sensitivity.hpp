@@ -1,4 +1,4 @@
-// Parameter sensitivities of the solved position (spec 6.6), the numeric half: Phi_p and the
+// Parameter sensitivities of the solved position, the numeric half: Phi_p and the
 // outputs' dO/dp (symbolic/sensitivity.hpp) lowered, dq/dp = -Phi_q^-1 Phi_p with the
 // factorization of Phi_q at the converged q (run_analysis does the solve), and for the named
 // points dC/dp = C_q dq/dp + dC/dp|explicit.

@@ -1,5 +1,5 @@
-// Forward dynamics over a time grid (mechanism format 7.3): a formulation of the equations of
-// motion as an ODE, integrated by SUNDIALS CVODE (BDF or Adams, its error control, its dense
+// Forward dynamics over a time grid: a formulation of the equations of motion as
+// an ODE, integrated by SUNDIALS CVODE (BDF or Adams, its error control, its dense
 // output on the grid, its root finding for stop_when), with the energy columns.
 //
 // Takes: a CompiledModel with free items, its ForceModel, the grid and options. Gives: rows
@@ -128,7 +128,7 @@ std::unique_ptr<MotionFormulation> make_formulation(Method method, const Compile
 
 // Integrates over the grid (rows at its times, and one at a stop_when root, where the run
 // ends). Throws AnalysisError on failure, after the rows so far; InputError for the checks of
-// format 7.1 at t0.
+// the free items at t0.
 SimulateSummary run_simulation(const CompiledModel& model, const ForceModel& forces,
                                const TimeGrid& grid,
                                const std::function<void(const SimulatedRow&)>& sink,

@@ -1,6 +1,6 @@
-// The tangent of the minimal-coordinates dynamics, in-process (format 7.4, 7.5): at a state
-// ReducedDynamics solved, the exact d(zdd)/dz, d(zdd)/dzd and d(zdd)/du. The symbolic stage's
-// derivatives (symbolic/tangent.hpp) are lowered to one program; the dynamics tangent kernel
+// The tangent of the minimal-coordinates dynamics, in-process: at a state ReducedDynamics
+// solved, the exact d(zdd)/dz, d(zdd)/dzd and d(zdd)/du. The symbolic stage's derivatives
+// (symbolic/tangent.hpp) are lowered to one program; the dynamics tangent kernel
 // (kernels/linearize.hpp), which generated headers carry too, combines them with solves on
 // Phi_q through its blocks by the block_linear kernel, as generated code solves (or, where the
 // blocks do not serve, on one LU of Phi_q).
@@ -27,9 +27,9 @@ struct OperatingPoint {
 
 class Linearizer {
  public:
-  // ReducedDynamics' checks at t0 (format 7.1) apply. model and forces must outlive it.
-  // blocks: solve through Phi_q's blocks where they serve (false: always on one LU of all of
-  // Phi_q, a cross-check as `analyze --solver dense` is).
+  // ReducedDynamics' checks at t0 (docs/format.md: `free`) apply. model and forces must
+  // outlive it. blocks: solve through Phi_q's blocks where they serve (false: always on one LU
+  // of all of Phi_q, a cross-check as `analyze --solver dense` is).
   Linearizer(const CompiledModel& model, const ForceModel& forces, double t0, bool blocks = true);
   ~Linearizer();
   Linearizer(const Linearizer&) = delete;

@@ -41,8 +41,8 @@ struct ToleranceOptions {
   std::function<void(const std::string&)> warn;
 };
 
-// The quantities are every body's x, y, phi, every extra coordinate (format 6.1) and every
-// point's x, y, in CSV order.
+// The quantities are every body's x, y, phi, every extra coordinate and every point's x, y,
+// in CSV order.
 struct ToleranceResult {
   std::vector<std::string> quantities;
   std::vector<double> t;                        // rows

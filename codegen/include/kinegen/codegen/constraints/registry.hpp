@@ -31,7 +31,7 @@ enum class KeyKind {
   kScalar,        // another constant expression: Constraint::scalars
   kEquations,     // one expression string or a list of them, each = 0: Constraint::equations
   kFlag,          // true or false (default_value "false" or "true"): Constraint::flags
-  kCoordinate,    // the name of an extra coordinate (format 6.1): Constraint::coordinates
+  kCoordinate,    // the name of an extra coordinate: Constraint::coordinates
   kCurve,         // [x(u), y(u)], a curve local to a body in one extra coordinate u (the kind's
                   // kCoordinate key that EquationContext::curve is given): Constraint::curves
 };

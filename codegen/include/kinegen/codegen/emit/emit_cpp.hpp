@@ -1,4 +1,4 @@
-// The C++ back end: one self-contained header per mechanism (spec section 4).
+// The C++ back end: one self-contained header per mechanism.
 #pragma once
 
 #include <string>

@@ -1,6 +1,6 @@
-// Names a generated header cannot carry (spec 6.1): the model's name is a struct in
-// kinegen::models, and each parameter a member of its Params. Such names stay valid in the
-// file (analyze, eval and check accept them); only `generate` refuses them, with the reason.
+// Names a generated header cannot carry: the model's name is a struct in kinegen::models,
+// and each parameter a member of its Params. Such names stay valid in the file (analyze,
+// eval and check accept them); only `generate` refuses them, with the reason.
 #pragma once
 
 #include <string>

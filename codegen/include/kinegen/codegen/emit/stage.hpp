@@ -5,9 +5,9 @@
 // and EmitOptions; from them the SolverPlan and BlockProgram (structure stage), the force and
 // sensitivity expressions (symbolic stage: symbolic/forces.hpp, symbolic/sensitivity.hpp;
 // nothing from the analysis stage). Gives: one self-contained C++ header per mechanism as a
-// std::string (emit_header, spec section 4), carrying the block-solver kernels it calls
+// std::string (emit_header), carrying the block-solver kernels it calls
 // (runtime/include/kinegen/kernels/, embedded at build time). reserved_names.hpp: the names a
-// header cannot carry (spec 6.1), checked before emitting.
+// header cannot carry, checked before emitting.
 #pragma once
 
 #include "kinegen/codegen/emit/emit_cpp.hpp"

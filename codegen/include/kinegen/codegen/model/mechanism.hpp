@@ -31,14 +31,14 @@ struct Parameter {
   SourceLoc loc;
 };
 
-// A named subexpression (format 6.1): coordinates, parameters, t and earlier definitions.
+// A named subexpression: coordinates, parameters, t and earlier definitions.
 struct Definition {
   std::string name;
   Expr value;
   SourceLoc loc;
 };
 
-// A reported scalar (format 6.4): coordinates, t, parameters and definitions; its CSV columns
+// A reported scalar: coordinates, t, parameters and definitions; its CSV columns
 // are NAME, NAME.v and NAME.a.
 struct Output {
   std::string name;
@@ -52,7 +52,7 @@ struct Body {
   SourceLoc loc;
 };
 
-// An extra scalar unknown (format 6.1): a curve parameter, a contact angle. Follows the bodies'
+// An extra scalar unknown: a curve parameter, a contact angle. Follows the bodies'
 // coordinates in q, in file order; expressions use it by its name.
 struct Coordinate {
   std::string name;
@@ -67,7 +67,7 @@ struct ConstraintKind;
 // A body reference: an index into Mechanism::bodies, or kGround.
 inline constexpr int kGround = -1;
 
-// A driver's law beyond one expression (format 6.3): pieces, a period, a table or a run-time
+// A driver's law beyond one expression: pieces, a period, a table or a run-time
 // input. With none of them the law is Constraint::value.
 struct DriverPiece {
   Expr until;  // empty text for the last piece
@@ -99,12 +99,12 @@ struct Constraint {
   std::map<std::string, Expr> scalars;  // other constants by key
   std::map<std::string, bool> flags;    // true/false keys (a gear's `internal`)
   Expr value;        // value / length / angle of a joint, or f(t) of a driver
-  DriverLaw law;     // a driver's pieces, period, table or input (format 6.3)
+  DriverLaw law;     // a driver's pieces, period, table or input
   std::vector<Expr> equations;  // expression constraints: each string = 0
   std::map<std::string, Vec2> curves;      // kCurve keys: [x(u), y(u)] local to a body
   std::map<std::string, int> coordinates;  // kCoordinate keys: index into Mechanism::coordinates
-  // A free coordinate (format 7.1): listed under `free:`, kept among the drivers (after the
-  // file's own) as an input driver whose value, rate and acceleration are the dynamics' state
+  // A free coordinate: listed under `free:`, kept among the drivers (after the file's
+  // own) as an input driver whose value, rate and acceleration are the dynamics' state
   // z, zd and zdd. value0 and v0 are its state at t0 (value0 absent: its value at the
   // assembled q0).
   struct Free {
@@ -127,7 +127,8 @@ struct Point {
   SourceLoc loc;
 };
 
-// Kinetostatics (format 6.5). Mass data of one body: all default to 0; mass and inertia (about the centre of mass) >= 0.
+// Mass data of one body (docs/format.md: Masses and `gravity`): all default to 0; mass and
+// inertia (about the centre of mass) >= 0.
 struct BodyMass {
   Expr mass{"0", {}}, inertia{"0", {}};
   Vec2 com{{"0", {}}, {"0", {}}};  // in the body's frame
@@ -146,11 +147,11 @@ struct Load {
   Vec2 f;                 // force: global components
   Expr value;             // torque
   Expr stiffness, damping, length0, preload, angle0;
-  // Components written `input` (format 7.5): run-time inputs, like an input driver's value.
-  // component: 0 and 1 a force's x and y, 2 a torque's value; name: the load's name (a
-  // torque) or name_x / name_y (a force); index: its place among the mechanism's load inputs
-  // (file order); table_id: the table `--input NAME=FILE.csv` gave it, -1 while it is a
-  // run-time input.
+  // Components written `input` (docs/format.md: Load inputs): run-time inputs, like an input
+  // driver's value. component: 0 and 1 a force's x and y, 2 a torque's value; name: the
+  // load's name (a torque) or name_x / name_y (a force); index: its place among the
+  // mechanism's load inputs (file order); table_id: the table `--input NAME=FILE.csv` gave it,
+  // -1 while it is a run-time input.
   struct Input {
     int component = 0;
     std::string name;
@@ -180,7 +181,7 @@ struct Mechanism {
   std::vector<Point> points;
   std::vector<Output> outputs;
   ForceSpec forces;  // masses, gravity and loads (`analyze --forces`)
-  // `stop_when:` (format 7.3): `simulate` ends where this crosses 0 from below.
+  // docs/format.md, `stop_when`: `simulate` ends where this crosses 0 from below.
   std::optional<Expr> stop_when;
 
   int nq() const {
@@ -192,8 +193,8 @@ struct Mechanism {
   // Joints then drivers, in file order: the order of the rows of Phi.
   std::vector<const Constraint*> constraints() const;
   std::optional<int> find_body(const std::string& name) const;
-  // The free coordinates (format 7.1) as indices into `drivers`, in `free:` order; they
-  // follow the file's drivers there.
+  // The free coordinates as indices into `drivers`, in `free:` order; they follow
+  // the file's drivers there.
   std::vector<int> free_drivers() const;
   int num_free() const { return static_cast<int>(free_drivers().size()); }
   // The loads' inputs (Load::inputs), in file order.
@@ -205,7 +206,7 @@ struct Mechanism {
   }
 };
 
-// The run-time inputs u of the dynamics (format 7.5), in order: each input driver that is not
+// The run-time inputs u of the dynamics, in order: each input driver that is not
 // free (f: input) as its value, rate and acceleration (named D, D_v, D_a, as a generated
 // header's Params members), then each load input still without a table (Load::Input::name),
 // with its slot in the inputs array.
@@ -221,7 +222,7 @@ Mechanism load_mechanism(const std::string& path);
 Mechanism parse_mechanism(const std::string& yaml_text, const std::string& source);
 
 // Every coordinate's name as the CSV's position columns give it, in q's order: each body's
-// `B.x, B.y, B.phi`, then the extra coordinates (format 6.1) by name.
+// `B.x, B.y, B.phi`, then the extra coordinates by name.
 std::vector<std::string> coordinate_labels(const Mechanism& mechanism);
 
 // Whether `name` may become a C++ identifier in generated code: a C identifier, not a C++

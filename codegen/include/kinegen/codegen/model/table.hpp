@@ -1,5 +1,5 @@
-// Measured tables for `table:` drivers and `--input` files (mechanism format 6.3): reading a
-// two-column CSV safely, and fitting the cubic spline that kernels/spline.hpp evaluates.
+// Measured tables for `table:` drivers and `--input` files: reading a two-column
+// CSV safely, and fitting the cubic spline that kernels/spline.hpp evaluates.
 //
 // Takes: a path relative to the mechanism file (or a command-line path), the item that names
 // it (for messages) and whether the law is periodic. Gives: a Spline (knots, values, second
@@ -40,7 +40,7 @@ GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::nu
 struct Mechanism;
 // The times every table of `m`'s drivers covers (those without a period): [lo, hi], and the
 // first driver whose table does not hold t (nullptr when all do, or there is none). Tables are
-// never extrapolated (format 6.3); the analysis stops at such a t.
+// never extrapolated; the analysis stops at such a t.
 struct TableCoverage {
   double lo = -std::numeric_limits<double>::infinity();
   double hi = std::numeric_limits<double>::infinity();
@@ -53,8 +53,8 @@ std::string table_outside(const Mechanism& m, double t);
 // (`analyze --input NAME=FILE.csv`; the path is the user's, relative to the working
 // directory, not confined). Throws UsageError for a name that is not an input driver, one
 // given twice, or (when `required`) an input driver left without a table. A free coordinate
-// (format 7.1) given a table becomes a prescribed driver; with free_as_state (simulate and the
-// other commands of section 7) the free coordinates are the state and take no table.
+// given a table becomes a prescribed driver; with free_as_state (simulate and the
+// other dynamics commands) the free coordinates are the state and take no table.
 void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::string>>& inputs,
                   bool required, bool free_as_state = false);
 

@@ -32,7 +32,7 @@ enum class OpKind {
   kMotionLaw,    // d^order/dx^order of motion law `law` at args[0] (kernels/motion_law.hpp)
   kSelect,       // re(args[0]) < 0 ? args[1] : args[2] (a driver's pieces, kernels/piecewise.hpp)
   kFloor,        // floor(re(args[0])) (whole periods, kernels/piecewise.hpp)
-  kDriverInput,  // d^order/dt^order of input driver `table` (Params members, format 6.3)
+  kDriverInput,  // d^order/dt^order of input driver `table` (Params members)
   kTable,  // d^order/dx^order of table `table` (registered_table) at args[0] (kernels/spline.hpp)
 };
 
@@ -80,8 +80,8 @@ struct ModelPrograms {
   int nq = 0, nc = 0;
   std::vector<int> jac_rows, jac_cols;
   Program phi, phi_q, nu, gamma;
-  // Outputs (format 6.4): their values (q, t); output_rates: the rates, then the
-  // accelerations at qdd = 0, then O_q (outputs x nq, row-major), all in q, qd, t.
+  // Outputs: their values (q, t); output_rates: the rates, then the accelerations
+  // at qdd = 0, then O_q (outputs x nq, row-major), all in q, qd, t.
   int num_outputs = 0;
   Program outputs, output_rates;
 };

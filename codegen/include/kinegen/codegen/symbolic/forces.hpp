@@ -1,5 +1,5 @@
-// Kinetostatics, the symbolic half (mechanism format 6.5): the applied generalized force Q^A and
-// the mass data and reaction points as expressions, and the force columns' names. Beside
+// Kinetostatics, the symbolic half: the applied generalized force Q^A and the mass
+// data and reaction points as expressions, and the force columns' names. Beside
 // derive(): the emitter prints these and the analysis (analysis/forces.hpp) evaluates them, so
 // both take them from here.
 //
@@ -35,8 +35,8 @@ struct ForceData {
 // Q^A as expressions; whoever runs it lowers it (the emitter after folding, ForceSolver as is).
 struct ForceModel {
   std::vector<GiNaC::ex> applied;  // Q^A(q, qd, t), nq: gravity and the loads
-  // The energy columns of `simulate` (format 7.3): the potential of gravity and the springs
-  // (preloads included), V(q), and the generalized force of everything else that does work:
+  // The energy columns of `simulate`: the potential of gravity and the springs (preloads
+  // included), V(q), and the generalized force of everything else that does work:
   // `force` and `torque` loads and the dampers, Q^nc(q, qd, t), so that Q^A = -V_q + Q^nc.
   GiNaC::ex potential;
   std::vector<GiNaC::ex> nonconservative;  // nq

@@ -53,8 +53,8 @@ inline const MathFunction* math_function(OpKind op) {
   return nullptr;
 }
 
-// The built-in motion laws (mechanism format 6.3): `name(x)` in an expression is
-// kinegen_law(law, 0, x), law the kernel's number (kernels/motion_law.hpp).
+// The built-in motion laws: `name(x)` in an expression is kinegen_law(law, 0, x),
+// law the kernel's number (kernels/motion_law.hpp).
 struct MotionLawName {
   const char* name;
   int law;
@@ -90,7 +90,7 @@ GiNaC::numeric motion_law_high_precision(int law, int order, const GiNaC::numeri
 // The parser's readers of the laws' names, one argument each (symbol_table.cpp).
 void add_motion_law_readers(GiNaC::prototype_table& table);
 
-// Drivers in pieces (format 6.3): kinegen_select(c, lo, hi) is lo while the real part of c is
+// Drivers in pieces: kinegen_select(c, lo, hi) is lo while the real part of c is
 // below 0, else hi (c = t - until: a time at a boundary takes the later piece). Its derivative
 // in any symbol is kinegen_select(c, lo', hi'): each piece is differentiated on its own, and
 // the boundary's own jump is not (the continuity check warns of it). Prints as
@@ -103,8 +103,8 @@ DECLARE_FUNCTION_1P(kinegen_floor)
 // 0..2), its derivative in x raising the order; the value at a real number is the spline's.
 DECLARE_FUNCTION_3P(kinegen_table)
 
-// A run-time input driver (format 6.3, `f: input`): d^order/dt^order of driver `driver`'s
-// commanded value at t; its derivative in t raises the order. Never evaluated here: generated
+// A run-time input driver (`f: input`): d^order/dt^order of driver `driver`'s commanded
+// value at t; its derivative in t raises the order. Never evaluated here: generated
 // code reads it from Params, and `analyze --input` replaces the driver by a table.
 DECLARE_FUNCTION_3P(kinegen_input)
 

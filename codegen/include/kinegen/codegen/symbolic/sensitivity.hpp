@@ -1,4 +1,4 @@
-// Parameter sensitivities (spec 6.6), the symbolic half: the derivatives by parameter symbols of
+// Parameter sensitivities, the symbolic half: the derivatives by parameter symbols of
 // the same Phi and outputs that derive() differentiates by coordinates. The emitter prints
 // Phi_p and the analysis (analysis/sensitivity.hpp) lowers and evaluates both, so both take
 // them from here.

@@ -29,10 +29,10 @@ enum class Scope {
   kJoint,       // parameters and coordinates: expression joints
   kDriverTime,  // parameters and t: f(t) of a driver
   kDriver,      // parameters, coordinates and t: expression drivers
-  kLoad,        // parameters, coordinates, velocities and t: force and torque loads (7.2)
+  kLoad,        // parameters, coordinates, velocities and t: force and torque loads
 };
 
-// A parameter whose value is an expression of earlier ones (format 6.1): not a symbol of its
+// A parameter whose value is an expression of earlier ones: not a symbol of its
 // own, but that expression in the base parameters wherever its name is used, so that it moves
 // with them (in generated code too, where it is not a member of Params).
 struct DerivedParameter {
@@ -73,12 +73,12 @@ class SymbolTable {
   Input classify(const GiNaC::ex& symbol) const;
 
   // Names a derived quantity for the expressions parsed after: a free coordinate's value Z
-  // and rate Z_d (format 7.2), which exist only once derive() has its equation. A name the
-  // file already uses keeps its meaning (user names take precedence).
+  // and rate Z_d, which exist only once derive() has its equation. A name the file
+  // already uses keeps its meaning (user names take precedence).
   void define(const std::string& name, const GiNaC::ex& value);
   // A name for a value supplied beside the parameters when an expression is evaluated in
-  // process, not a model input (stop_when's force columns, format 7.3): it reads as
-  // parameter num_params() + k, k counting these from 0. Returns k.
+  // process, not a model input (stop_when's force columns): it reads as parameter
+  // num_params() + k, k counting these from 0. Returns k.
   int define_extra(const std::string& name);
 
  private:
@@ -119,32 +119,32 @@ struct SymbolicModel {
   std::vector<GiNaC::ex> gamma;          // nc
   std::vector<GiNaC::ex> q0;             // nq, in the parameters
   std::vector<std::pair<GiNaC::ex, GiNaC::ex>> point_s;  // local offsets, in the parameters
-  // Outputs (format 6.4), one entry each: the value O(q, t), its rate O_q qd + O_t, the part
+  // Outputs, one entry each: the value O(q, t), its rate O_q qd + O_t, the part
   // of its acceleration without qdd (d/dt of the rate at qdd = 0), and O_q (dense, row-major
   // outputs x nq), so that the acceleration is output_q qdd + output_a0.
   std::vector<GiNaC::ex> output_values, output_rates, output_a0, output_q;
   std::vector<GiNaC::numeric> param_values;  // defaults (after overrides), exact
-  // One line each (without "warning: "): a driver's boundary where f' or f'' jumps (6.3).
+  // One line each (without "warning: "): a driver's boundary where f' or f'' jumps.
   std::vector<std::string> warnings;
   // What each coordinate measures (nq; bodies give length, length, angle; the extra
-  // coordinates of spec 6.1 give their own kind) and the size its tolerances scale with: a
-  // body's x and y scale with the geometry of its own joints and drivers, angles with 1.
+  // coordinates give their own kind) and the size its tolerances scale with: a body's
+  // x and y scale with the geometry of its own joints and drivers, angles with 1.
   // Reported points and outputs never enter.
   std::vector<CoordinateKind> coordinate_kinds;
   std::vector<double> coordinate_scales;
-  // The free coordinates (format 7.1), in Mechanism::free_drivers() order: the quantity each
+  // The free coordinates, in Mechanism::free_drivers() order: the quantity each
   // measures as an expression in q (its value z) and its rate in q and qd.
   std::vector<GiNaC::ex> free_values, free_rates;
   // The largest length scale (the v1 header member; the solvers use coordinate_scales).
   double length_scale = 1.0;
-  // `stop_when:` (format 7.3), in q, qd, t, the parameters and, as extra parameters
+  // `stop_when:`, in q, qd, t, the parameters and, as extra parameters
   // (SymbolTable::define_extra), the force columns it reads: stop_force_columns[k] is the
   // force_columns index extra parameter k stands for. Empty when the file has none.
   GiNaC::ex stop_when;
   std::vector<int> stop_force_columns;
 };
 
-// Parses `stop_when` (format 7.3) into model.stop_when: an expression in the coordinates and
+// Parses `stop_when` into model.stop_when: an expression in the coordinates and
 // velocities by name (x_B, xd_B, ...), t, the parameters, the free coordinates (Z, Z_d), the
 // outputs, and the CSV's columns by name (B.x, B.y, B.phi, B.vx, B.vy, B.omega, P.x, P.y,
 // P.vx, P.vy, Z.v, O.v, and force columns such as J.fn or D.effort). Defines those names in

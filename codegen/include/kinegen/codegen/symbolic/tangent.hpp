@@ -1,8 +1,8 @@
-// The tangent of the minimal-coordinates dynamics (mechanism format 7.4 and 7.5), the symbolic
-// half: the exact derivatives that linearizing M qdd + Phi_q^T lambda = Q^A, Phi = 0 about a
-// solved state needs, beyond Phi_q. With them the dynamics tangent kernel
-// (kernels/linearize.hpp) gives d(zdd)/dz, d(zdd)/dzd and d(zdd)/du through solves with Phi_q
-// alone: the velocity residual's q-derivative (Phi_q qd)_q - nu_q is phi_qq contracted with qd,
+// The tangent of the minimal-coordinates dynamics, the symbolic half: the exact
+// derivatives that linearizing M qdd + Phi_q^T lambda = Q^A, Phi = 0 about a solved
+// state needs, beyond Phi_q. With them the dynamics tangent kernel (kernels/linearize.hpp)
+// gives d(zdd)/dz, d(zdd)/dzd and d(zdd)/du through solves with Phi_q alone: the
+// velocity residual's q-derivative (Phi_q qd)_q - nu_q is phi_qq contracted with qd,
 // the acceleration residual's (Phi_q qdd)_q - gamma_q and -gamma_qd likewise, and
 // (Phi_q^T lambda)_q is phi_qq contracted with lambda. The run-time inputs (the free items'
 // z, zd, zdd, an input driver's value, rate and acceleration, a load's input) enter through
