@@ -1,6 +1,6 @@
-// Forward dynamics through singular positions (mechanism format 7.2): `kinegen simulate
-// --method augmented` (analysis/augmented.hpp: Bayo, Garcia de Jalon and Serna's augmented
-// Lagrangian with Bayo and Ledesma's mass-orthogonal projections) against independent truths:
+// Forward dynamics through singular positions: `kinegen simulate --method augmented`
+// (analysis/augmented.hpp: Bayo, Garcia de Jalon and Serna's augmented Lagrangian
+// with Bayo and Ledesma's mass-orthogonal projections) against independent truths:
 // the N-four-bar of the IFToMM benchmark A02 against the exact one-degree-of-freedom model of
 // its parallelogram branch, the energy balance, and the minimal-coordinates method where both
 // apply; and the minimal method's safe failure at a singular position (exit 1, the rows so
@@ -326,7 +326,7 @@ TEST_CASE("minimal and augmented methods agree where both apply", "[augmented]")
       compare([](const kc::SimulatedRow& r) { return r.kinetic; });
       compare([](const kc::SimulatedRow& r) { return r.potential; });
       compare([](const kc::SimulatedRow& r) { return r.work; });
-      // The augmented method's energy balance (format 7.3's 1e-8 of the energy scale).
+      // The augmented method's energy balance (1e-8 of the energy scale).
       double scale = 0, balance = 0;
       for (const auto& r : b) {
         scale = std::max(scale, std::abs(r.kinetic) + std::abs(r.potential));

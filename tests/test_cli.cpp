@@ -661,7 +661,7 @@ TEST_CASE("eval rejects a --q or --qd of the wrong length", "[cli]") {
 }
 
 TEST_CASE("eval names the mechanism file when --q has the wrong length", "[cli]") {
-  // Spec section 3: every error names the file. Known to fail: the message names only --q.
+  // Every error names the file. Known to fail: the message names only --q.
   const auto r = kinegen({"eval", example("slider_crank").string(), "--q", "1,2"});
   CHECK(r.exit_code == 2);
   CHECK(r.err.find(example("slider_crank").string()) != std::string::npos);

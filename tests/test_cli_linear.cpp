@@ -1,8 +1,8 @@
-// `kinegen equilibrium`, `modes`, `linearize` and `animate --mode` end to end (format 7.4,
-// 7.5): a neutral direction (a free wheel) reported as such, no equilibrium (a torque no
-// position balances) an exit 1 with its message, bad input one error line each (modes without
-// free coordinates, --at with an unknown name or a wrong count), linearize without inputs an
-// empty B, the modes' JSON read back by `kinegen view`'s reader, a mode drawn by animate.
+// `kinegen equilibrium`, `modes`, `linearize` and `animate --mode` end to end: a neutral
+// direction (a free wheel) reported as such, no equilibrium (a torque no position balances) an
+// exit 1 with its message, bad input one error line each (modes without free coordinates, --at
+// with an unknown name or a wrong count), linearize without inputs an empty B, the modes' JSON
+// read back by `kinegen view`'s reader, a mode drawn by animate.
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <filesystem>

@@ -1,5 +1,5 @@
-// Forward dynamics in minimal coordinates (format 7.1-7.3) against independent truths: a
-// pendulum's half period against the elliptic-integral closed form, its acceleration against
+// Forward dynamics in minimal coordinates against independent truths: a pendulum's
+// half period against the elliptic-integral closed form, its acceleration against
 // I theta'' = -m g a cos(theta), B = dq/dz against differences of solved positions, the
 // reduced mass of a four-bar against its kinetic energy, and the energy balance.
 #include <catch2/catch.hpp>

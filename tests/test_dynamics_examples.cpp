@@ -1,5 +1,5 @@
-// End-to-end tests of the dynamics examples (examples/dynamics/, mechanism format 7) through
-// the kinegen binary, each against a truth the simulation does not compute itself:
+// End-to-end tests of the dynamics examples (examples/dynamics/) through the kinegen
+// binary, each against a truth the simulation does not compute itself:
 // - energy: energy.balance at tight tolerances on the conservative examples; with dampers and
 //   motors, energy.work against the power integrated from the CSV's own columns (Simpson), or
 //   in closed form (a constant torque's work is torque times angle);
@@ -9,8 +9,8 @@
 // - the cam's contact force against the follower's own equation of motion, and the run's stop
 //   where it crosses 0; the four-bar's rest position as a static equilibrium and a minimum of
 //   the potential; Andrews' squeezer's published initial angles and accelerations;
-// - bad input (format 7.1, 7.3): one `error:` line with the YAML line, exit 2, no file; a run
-//   that fails in the middle keeps its rows and exits 1.
+// - bad input: one `error:` line with the YAML line, exit 2, no file; a run that
+//   fails in the middle keeps its rows and exits 1.
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
@@ -131,7 +131,7 @@ double simpson(const std::vector<double>& t, const std::vector<double>& f, std::
   return h / 3 * sum;
 }
 
-// The 3-4-5 law of format 6.3, clamped.
+// The 3-4-5 law, clamped.
 double poly345(double x) {
   if (x <= 0) return 0;
   if (x >= 1) return 1;
@@ -275,7 +275,7 @@ TEST_CASE("dynamics examples: the simulated motion fed back into analyze --force
                                with({"--t1", c.t1, "--steps", n}, {"--rtol", "1e-13", "--atol",
                                                                    "1e-15"}));
       REQUIRE(s.rows() == static_cast<std::size_t>(steps + 1));
-      // The free coordinate as a table (format 6.3: t,value), then prescribed by analyze.
+      // The free coordinate as a table (t,value), then prescribed by analyze.
       std::ostringstream table;
       table.precision(17);
       table << "t,value\n";

@@ -1,12 +1,12 @@
-// Extra coordinates and curve joints (mechanism format 6.1 `coordinates:`, 6.2 point_follower
-// and cam_follower) against closed forms:
+// Extra coordinates and curve joints (`coordinates:`, point_follower and cam_follower)
+// against closed forms:
 // - an eccentric circular cam (e, R, omega) under a flat-faced translating follower:
 //   y = R + e sin(theta), the contact at a = pi/2 - theta on the cam, b = e cos(theta) on the face;
 // - the same cam under a roller follower: y = e sin(theta) + sqrt((R + r)^2 - e^2 cos^2(theta));
 // - a pin in a parabolic slot y = k u^2 on a plate turned by alpha, carried by a crosshead along
 //   x = X(t): u is the root of k sin(alpha) u^2 - cos(alpha) u + X = 0;
 // velocities and accelerations against the closed forms' derivatives; `kinegen check` with its
-// three methods; the generated headers against analyze; the cam's normal force J.fn (6.5)
+// three methods; the generated headers against analyze; the cam's normal force J.fn
 // against the spring and the follower's inertia, positive, and negative where the spring is too
 // weak; hostile input for the new keys.
 #include <algorithm>

@@ -1,7 +1,6 @@
-// Kinetostatics (mechanism format 6.5) against independent truths: virtual power on a
-// slider-crank, the closed form of an accelerating crank under gravity, Newton's and Euler's
-// laws for every body from the reported reactions, and the power balance with a
-// spring-damper.
+// Kinetostatics against independent truths: virtual power on a slider-crank, the
+// closed form of an accelerating crank under gravity, Newton's and Euler's laws
+// for every body from the reported reactions, and the power balance with a spring-damper.
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -317,8 +316,7 @@ drivers:
              Catch::Contains("body 'crank' mass line 3") && Catch::Contains("must not be negative"));
   CHECK_THAT(load_error(kBase + "forces:\n  - {type: force, body: rod, f: [1, 0]}\n"),
              Catch::Contains("forces[0] (force) line 9") && Catch::Contains("unknown body 'rod'"));
-  // Format 7.2: a force's f and a torque's value may use velocities; a spring's constants may
-  // not.
+  // A force's f and a torque's value may use velocities; a spring's constants may not.
   CHECK(load_error(kBase + "forces:\n  - {type: force, body: crank, f: [\"-0.5*xd_crank\", 0]}\n") ==
         "no error");
   CHECK(load_error(kBase + "forces:\n  - {type: torque, body: crank, value: \"-phid_crank\"}\n") ==

@@ -1,4 +1,4 @@
-// Joint types fixed, gear and rack_pinion (mechanism format 6.2) against closed forms:
+// Joint types fixed, gear and rack_pinion against closed forms:
 // - an external pair on fixed centres over many turns: phi_j = -(ri/rj) phi_i;
 // - a planetary carrier turning many revolutions (sun fixed): Willis' equation, with the line
 //   of centres through +-pi every turn;

@@ -1,9 +1,10 @@
-// The generated dynamics() (format 7.5) against the command line's ReducedDynamics (`kinegen
-// simulate`, analysis/dynamics.cpp) on the dynamics examples: the same block program from the
-// same start gives the same q bit for bit, and zdd too or within an ulp (the command line solves
-// B = dq/dz on one dense LU of Phi_q, the header through its blocks: docs/embedding.md);
-// B against the complex step of the header's own position solve (z complex); a free distance
-// item's B is dq/dz of the distance, not of its square; float against double.
+// The generated dynamics() (docs/format.md: Generated code and the runtime) against the command
+// line's ReducedDynamics (`kinegen simulate`, analysis/dynamics.cpp) on the dynamics examples:
+// the same block program from the same start gives the same q bit for bit, and zdd too or
+// within an ulp (the command line solves B = dq/dz on one dense LU of Phi_q, the header through
+// its blocks: docs/embedding.md); B against the complex step of the header's own position solve
+// (z complex); a free distance item's B is dq/dz of the distance, not of its square; float
+// against double.
 #include <algorithm>
 #include <array>
 #include <catch2/catch.hpp>

@@ -1,6 +1,6 @@
-// The generated kinetostatics (solve_forces, force_columns; mechanism format 6.5) against
-// independent truths: virtual power on a slider-crank whose only mass is the slider, the
-// closed form of an accelerating crank under gravity (also with Params changed at run time),
+// The generated kinetostatics (solve_forces, force_columns) against independent
+// truths: virtual power on a slider-crank whose only mass is the slider, the closed
+// form of an accelerating crank under gravity (also with Params changed at run time),
 // the in-process ForceSolver of `analyze --forces` over a turn of the balanced four-bar, float
 // with default options, std::complex<double>, --fold-params against Params, and a toggle
 // position reported as a failure.

@@ -1,4 +1,4 @@
-// The generated headers' phi_p and solve_sensitivity (spec 6.6) against independent truths:
+// The generated headers' phi_p and solve_sensitivity against independent truths:
 //  1. slider-cranks' closed forms for d(slider.x)/d(l), d(slider.x)/d(r), d(slider.x)/d(e);
 //  2. central differences (Richardson-extrapolated) of the generated solve_position with the
 //     parameter moved, on every example header;

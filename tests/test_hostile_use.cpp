@@ -387,7 +387,7 @@ TEST_CASE("item 6: rss and the Monte Carlo spread stay finite near 1e160", "[hos
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 7: the jump test at the local scale (format 6.3 as amended in version 3).
+// Item 7: the jump test at the local scale (docs/format.md: Pieces and `period`).
 
 TEST_CASE("item 7: a jump next to a fast-growing piece is refused", "[hostile-use]") {
   const fs::path dir = scratch_dir("jump");

@@ -1,5 +1,5 @@
-// Motion laws exactly at their boundaries (format 6.3, amended in version 3): a law is its
-// formula on [0, 1), so a value at 0 or 1 is the limit from the right, as for a driver's pieces.
+// Motion laws exactly at their boundaries (amended in version 3): a law is its formula
+// on [0, 1), so a value at 0 or 1 is the limit from the right, as for a driver's pieces.
 // tests/mechanisms/harmonic_return.yaml repeats a harmonic rise and its return every 2 s, a
 // motion smooth everywhere, h (1 - cos(pi t)) / 2; on a grid that lands on every boundary the
 // analysis, the generated header and the 40-digit reference must give its closed form there

@@ -1,4 +1,4 @@
-// The built-in motion laws as functions of the expression language (format 6.3), on
+// The built-in motion laws as functions of the expression language, on
 // tests/mechanisms/dwell_slider_crank.yaml (a law in a driver, in an expression joint's
 // coordinate and in a torque): the analysis against the laws' formulas written out here, on a
 // grid that lands exactly on every kink; the 40-digit reference against the double analysis;

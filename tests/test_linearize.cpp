@@ -1,10 +1,11 @@
-// Equilibrium, modes and linear models (format 7.4, 7.5) against independent truths: a
-// pendulum's small-oscillation frequency sqrt(m g a / I) / (2 pi) and its upright equilibrium's
-// negative stiffness; a mass between two springs (equilibrium, frequency, damping ratio); a
-// four-bar held by a diagonal spring against a hand-written solve of its potential and kinetic
-// energy; the cart-pole's A and B against the textbook linearization; the exact Jacobians
-// against central differences of the dynamics and against the complex step through an
-// independent dense complex evaluation of 7.2's reduction.
+// Equilibrium, modes and linear models (docs/format.md: `equilibrium`, `modes`, `linearize`)
+// against independent truths: a pendulum's small-oscillation frequency sqrt(m g a / I) / (2 pi)
+// and its upright equilibrium's negative stiffness; a mass between two springs (equilibrium,
+// frequency, damping ratio); a four-bar held by a diagonal spring against a hand-written solve
+// of its potential and kinetic energy; the cart-pole's A and B against the textbook
+// linearization; the exact Jacobians against central differences of the dynamics and against
+// the complex step through an independent dense complex evaluation of the reduction
+// (docs/format.md: Equations of motion).
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <complex>
@@ -400,8 +401,8 @@ using C = std::complex<double>;
 using CL = std::complex<long double>;
 
 // zdd at (t, z, zd, u) in complex arithmetic (C, or CL for a reference beyond double's
-// rounding), by an independent dense implementation of
-// format 7.2's reduction on the model's first-order programs: Newton on all of Phi from the
+// rounding), by an independent dense implementation of the reduction of docs/format.md's
+// "Equations of motion" on the model's first-order programs: Newton on all of Phi from the
 // real solution, qd and c = qdd(zdd = 0) from Phi_q, B from Phi_q B = E (the free rows, whose
 // equations are quantity - z), M B as the inertia forces of accelerations B, and
 // (B^T M B) zdd = B^T (Q^A + inertia forces at c).

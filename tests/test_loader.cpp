@@ -1,6 +1,6 @@
 // In-process validation of mechanism files: every hostile input must become one InputError
-// that names the file, the offending item and its 1-based YAML line (spec section 3), and
-// valid input must mean what the format says (exact decimals, expressions, defaults).
+// that names the file, the offending item and its 1-based YAML line, and valid input
+// must mean what the format says (exact decimals, expressions, defaults).
 #include <ginac/ginac.h>
 
 #include <atomic>

@@ -1,6 +1,6 @@
-// Motion laws and table splines (mechanism format 6.3), the kernels on their own: the laws
-// against their formulas, each derivative against the complex step of the one below it, the
-// not-a-knot spline against a cubic it must reproduce, the periodic spline against a smooth
+// Motion laws and table splines, the kernels on their own: the laws against their
+// formulas, each derivative against the complex step of the one below it, the not-a-knot
+// spline against a cubic it must reproduce, the periodic spline against a smooth
 // periodic law, and the table reader against hostile files.
 #include <catch2/catch.hpp>
 
@@ -43,7 +43,7 @@ TEST_CASE("motion laws match their formulas on [0, 1) and clamp outside it", "[l
     for (double x : {-1e9, -1.0, -1e-300}) {
       for (int order = 0; order <= 4; ++order) CHECK(motion_law(law, order, x) == 0.0);
     }
-    // At 0 the formula (format 6.3 as amended: the limit from the right), whose value and
+    // At 0 the formula (as amended in version 3: the limit from the right), whose value and
     // first derivative are 0 for every law (tests/test_law_boundaries.cpp: the higher ones).
     CHECK(motion_law(law, 0, 0.0) == 0.0);
     CHECK(motion_law(law, 1, 0.0) == 0.0);

@@ -1,4 +1,4 @@
-// Outputs (format 6.4): values with exact first and second time derivatives, in the analysis
+// Outputs: values with exact first and second time derivatives, in the analysis
 // rows (CSV), the 40-digit reference, `eval`'s JSON, sensitivities and the generated header's
 // outputs function, against hand-derived closed forms of tests/support/closed_form.hpp and the
 // complex step; and hostile outputs refused with one error line.

@@ -1,6 +1,6 @@
-// Derived parameters and definitions (mechanism format 6.1) against independent truths: a
-// four-bar whose links are derived from a scale parameter follows the closed form of the
-// scaled linkage, an override of the scale moves every derived length, an override of a
+// Derived parameters and definitions against independent truths: a four-bar whose
+// links are derived from a scale parameter follows the closed form of the scaled
+// linkage, an override of the scale moves every derived length, an override of a
 // derived one drops its formula, the sensitivities see through the formulas (central
 // differences of the analysis), generated headers keep only the base parameters, and the
 // errors name the item and its line.

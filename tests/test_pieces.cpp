@@ -1,4 +1,4 @@
-// Drivers in pieces, with a period, from tables and as run-time inputs (format 6.3), against
+// Drivers in pieces, with a period, from tables and as run-time inputs, against
 // independent truths: the motion laws' formulas on grids that land exactly on the pieces'
 // boundaries, a cubic that a table sampled from it must reproduce to rounding, a periodic
 // law's repetition with its rise, the generated header fed the exact inputs against

@@ -236,7 +236,7 @@ TEST_CASE("the same bits on torn, guarded and larger blocks", "[same_answers]") 
   // Laws exactly at their boundaries: a harmonic rise-return repeated.
   check_same<kinegen::models::harmonic_return>("tests/mechanisms/harmonic_return.yaml",
                                                {0, 6, 24});
-  // Extra coordinates (format 6.1) and curve joints.
+  // Extra coordinates and curve joints.
   check_same<kinegen::models::cam_flat>("tests/mechanisms/cam_flat.yaml", turn);
   check_same<kinegen::models::cam_roller>("tests/mechanisms/cam_roller.yaml", turn);
   check_same<kinegen::models::parabolic_slot>("tests/mechanisms/parabolic_slot.yaml", {0, 1, 100});

@@ -1,4 +1,4 @@
-// Parameter sensitivities (analyze --sensitivity, spec 6.6) against independent truths:
+// Parameter sensitivities (analyze --sensitivity) against independent truths:
 //  1. a slider-crank's closed forms for d(slider.x)/d(l) and d(slider.x)/d(r);
 //  2. the complex step of the whole position solve (Newton in complex arithmetic with the
 //     parameter perturbed by i h) on every example and test mechanism;

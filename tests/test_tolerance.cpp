@@ -74,7 +74,7 @@ TEST_CASE("tolerance without Monte Carlo: the figures follow from the sensitivit
   CHECK(csv.rfind("t,crank.x.worst,crank.x.rss,crank.y.worst", 0) == 0);
 }
 
-TEST_CASE("tolerance covers the extra coordinates (format 6.1)", "[tolerance]") {
+TEST_CASE("tolerance covers the extra coordinates", "[tolerance]") {
   // The disc cam's roller centre stays on the y axis, so its pitch angle u equals the cam
   // angle t whatever the base radius: du/dRb = 0; the follower rides at y = Rb + r + s(t):
   // d(follower.y)/dRb = 1, and so does a point R on the follower. Before u was listed, the

@@ -18,8 +18,8 @@ def source():
 
 
 def has_free_coordinates(path):
-    # Format 7.1: a top-level `free:` list; such mechanisms move under their forces
-    # (simulate), and `analyze` refuses them without --input for each free item.
+    # A top-level `free:` list; such mechanisms move under their forces (simulate),
+    # and `analyze` refuses them without --input for each free item.
     return any(line.startswith("free:") for line in open(path))
 
 

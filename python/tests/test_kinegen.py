@@ -72,7 +72,7 @@ def test_eval_equals_command_line(path):
     assert r.returncode == 0, r.stderr
     want = json.loads(r.stdout)
     got = m.eval(q, qd, 0.25)
-    # Outputs (format 6.4) only where the file has them, as on the command line.
+    # Outputs only where the file has them, as on the command line.
     assert list(got) == list(want)
     assert list(got)[:4] == ["phi", "phi_q", "nu", "gamma"]
     for key in want:
@@ -218,7 +218,7 @@ def test_eval_outputs_equal_command_line(source):
 
 
 def test_extra_coordinates_are_named_like_the_csv(source):
-    """coordinates lists every coordinate, the extra ones (format 6.1) after the bodies', with
+    """coordinates lists every coordinate, the extra ones after the bodies', with
     the names of the CSV's position columns."""
     path = str(source / "tests" / "mechanisms" / "parabolic_slot.yaml")
     m = kinegen.Mechanism(path)

@@ -63,7 +63,7 @@ TEMPLATE_TEST_CASE("Solver allocates nothing after construction", "[runtime][all
   delete probe;
 }
 
-// The generated dynamics, its Jacobians and the Simulator's steps (format 7.5) in a loop.
+// The generated dynamics, its Jacobians and the Simulator's steps in a loop.
 TEST_CASE("Simulator and dynamics_jacobians allocate nothing", "[runtime][alloc]") {
   using M = kinegen::models::cart_pole;
   kinegen::SimulatorOptions o;
