@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <limits>
@@ -247,12 +248,20 @@ TEST_CASE("a guarded block whose coefficient vanishes beside its couplings fails
   // guarded_slider.yaml: k x_slider - cos(phi_crank) = 0. With k = 1e-14 the coefficient is
   // 1e-14 beside the row's coupling sin(phi_crank): Phi_q is singular in all but name, and
   // x_slider = cos / k (1e14) is no answer. Not zero, so only the condition check sees it.
+  // At t = 0 (sin = 0, no coupling) x_slider = 1 / k assembles; every later step must fail.
   using Model = kinegen::models::guarded_slider;
   Model::Params p;
   p.k = 1e-14;
   kinegen::Solver<Model> solver(p);
   auto q = solver.initial_estimate();
   decltype(q) qd = decltype(q)::Zero(), qdd = decltype(q)::Zero();
+  // From the file's q0 (x_slider = 0.5) the first solve would have to move the row's value
+  // by 1 through a coefficient of 1e-14: refused with a status, never a wrong answer.
+  CHECK(solver.step(0.25, q, qd, qdd).status == kinegen::Status::kTooFar);
+  solver.reset();
+  q = solver.initial_estimate();
+  q[3] = 1e14;  // x_slider where it fits at t = 0
+  REQUIRE(solver.step(0, q, qd, qdd));
   const auto r = solver.step(0.25, q, qd, qdd);
   CHECK(r.status == kinegen::Status::kSingular);
   CHECK(r.block >= 0);
@@ -261,9 +270,18 @@ TEST_CASE("a guarded block whose coefficient vanishes beside its couplings fails
   q = fine.initial_estimate();
   CHECK(fine.step(0.25, q, qd, qdd));
 
-  const auto model = CompiledModel::from_file(std::string(KINEGEN_SOURCE_DIR) +
-                                              "/tests/mechanisms/guarded_slider.yaml",
-                                              {{"k", "1e-14"}});
+  // analyze from a file whose q0 assembles at t = 0 with k = 1e-14.
+  std::ifstream in(std::string(KINEGEN_SOURCE_DIR) + "/tests/mechanisms/guarded_slider.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string yaml = text.str();
+  const std::string slider_q0 = "q0: [0.5, 0.5, 0]";
+  REQUIRE(yaml.find(slider_q0) != std::string::npos);
+  yaml.replace(yaml.find(slider_q0), slider_q0.size(), "q0: [1e14, 0.5, 0]");
+  std::filesystem::create_directories(KINEGEN_TEST_TMP);
+  const std::string file = std::string(KINEGEN_TEST_TMP) + "/guarded_slider_assembled.yaml";
+  std::ofstream(file) << yaml;
+  const auto model = CompiledModel::from_file(file, {{"k", "1e-14"}});
   // Singular for every t > 0: the step to 0.25 is refused, and so are its sub-steps.
   CHECK_THROWS_WITH(
       kinegen::codegen::run_analysis(*model, {0, 1, 4}, [](const StateRow&) {}),

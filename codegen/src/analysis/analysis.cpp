@@ -153,12 +153,16 @@ class TimeLoop {
 
   // The first row: from the file's q0 estimates, by the drivers' continuation where the
   // solver has it (the dense path, as a generated Solver's first solve: docs/embedding.md),
-  // then the checks of the assembly.
+  // then the checks of the assembly. Where q0 fits (after whole turns of the angle drivers)
+  // no continuation runs, and the block path's first solve starts from q0 as a generated
+  // Solver's does, to the same bits.
   void solve_first(double t) {
     if constexpr (std::is_same_v<S, analysis_detail::Solver>) {
-      int steps = 1;
-      if (const Result r = solver_.first_position(row_.q, t, &steps); !r) fail("position", t, r);
-      continued_ = steps > 1;
+      const double steps = solver_.first_steps(row_.q, t);
+      if (!(steps <= 1)) {
+        if (const Result r = solver_.first_position(row_.q, t); !r) fail("position", t, r);
+        continued_ = true;
+      }
     }
     Refusal refused;
     const auto solve = [&] {

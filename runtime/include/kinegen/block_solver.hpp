@@ -508,12 +508,6 @@ class Solver {
         r.status = Status::kNonFinite;
         return r;
       }
-      if (steps.count() <= 1) return r;
-      if (steps.count() > detail::kMaxContinuationSteps) {
-        r.status = Status::kTooFar;
-        return r;
-      }
-      const int n = static_cast<int>(steps.count());
       const auto o = Model::template _options_as<R>(block_options());
       // Factors every block at q (jac evaluated there) and takes their determinant signs.
       const auto factor = [&](signed char* out) {
@@ -529,6 +523,14 @@ class Solver {
         }
         return Result{};
       };
+      if (steps.count() <= 1) return r;
+      if (steps.count() > detail::kMaxContinuationSteps) {
+        // A row whose entries vanish needs endless steps: that is a singular Phi_q, so named.
+        if (r = factor(signs); !r) return r;
+        r.status = Status::kTooFar;
+        return r;
+      }
+      const int n = static_cast<int>(steps.count());
       const R eps = std::numeric_limits<R>::epsilon();
       const R tolerance = R(dense_.options().tolerance);
       for (int i = 1; i <= n; ++i) {

@@ -477,6 +477,35 @@ class OffsetSystem {
   Scalar weight_;
 };
 
+// The continuation's plan at the start pose q (first_position): Phi(q, t) into offset and
+// Phi_q into ws.jac, and the steps it needs (count() 1: q fits; not finite() when Phi or Phi_q
+// is not finite there).
+template <class System, class WS, class VQ, class VC>
+ContinuationSteps continuation_plan(const System& sys, WS& ws, const VQ& q,
+                                    typename System::Scalar t, VC& offset) {
+  using std::abs;
+  ContinuationSteps steps(sys.length_scale());
+  sys.phi(q.data(), t, offset.data());
+  sys.jacobian(q.data(), t, ws.jac);
+  ws.factored = false;
+  if (!all_finite(offset) || !all_finite(ws.jac) || !all_finite(q)) {
+    steps.add_row(std::numeric_limits<double>::quiet_NaN(), 1, CoordinateKind::kLength);
+    return steps;
+  }
+  for (int r = 0; r < offset.size(); ++r) {
+    int best = -1;
+    double size = 0;
+    for (int k = 0; k < ws.jac.cols(); ++k) {
+      const double v = static_cast<double>(abs(ws.jac(r, k))) * coordinate_scale(sys, k);
+      if (v > size) size = v, best = k;
+    }
+    if (best >= 0)
+      steps.add_row(static_cast<double>(abs(offset[r])), static_cast<double>(abs(ws.jac(r, best))),
+                    coordinate_kind(sys, best));
+  }
+  return steps;
+}
+
 // The dense path's first solve: the continuation above, each step by position(), its
 // determinant sign checked against the first step's (a rough q0 is no assembly: the first
 // step's solution is) and its angles against the step before (a sign change, or an angle that
@@ -490,25 +519,7 @@ Result first_position(const System& sys, WS& ws, VQ& q, typename System::Scalar 
   using std::abs;
   Result result;
   typename WS::VectorC offset(ws.rhs.size());
-  sys.phi(q.data(), t, offset.data());
-  sys.jacobian(q.data(), t, ws.jac);
-  ws.factored = false;
-  if (!all_finite(offset) || !all_finite(ws.jac) || !all_finite(q)) {
-    result.status = Status::kNonFinite;
-    return result;
-  }
-  ContinuationSteps steps(sys.length_scale());
-  for (int r = 0; r < offset.size(); ++r) {
-    int best = -1;
-    double size = 0;
-    for (int k = 0; k < ws.jac.cols(); ++k) {
-      const double v = static_cast<double>(abs(ws.jac(r, k))) * coordinate_scale(sys, k);
-      if (v > size) size = v, best = k;
-    }
-    if (best >= 0)
-      steps.add_row(static_cast<double>(abs(offset[r])), static_cast<double>(abs(ws.jac(r, best))),
-                    coordinate_kind(sys, best));
-  }
+  const ContinuationSteps steps = continuation_plan(sys, ws, q, t, offset);
   if (!steps.finite()) {
     result.status = Status::kNonFinite;
     return result;
@@ -517,6 +528,9 @@ Result first_position(const System& sys, WS& ws, VQ& q, typename System::Scalar 
     *steps_taken = static_cast<int>(std::min(steps.count(), 2.0 * kMaxContinuationSteps));
   if (steps.count() <= 1) return position(sys, ws, q, t, options);
   if (steps.count() > kMaxContinuationSteps) {
+    // A row whose entries vanish needs endless steps: that is a singular Phi_q, so named.
+    if (!factor(sys, ws, q, t, options, result)) return result;
+    ws.factored = false;
     result.status = Status::kTooFar;
     return result;
   }
@@ -627,6 +641,13 @@ class BasicSolver {
   // steps, when given, receives the number of continuation steps (1: an ordinary solve).
   Result first_position(Vector& q, Scalar t, int* steps = nullptr) {
     return detail::first_position(system_, ws_, q, t, options_, steps);
+  }
+  // The continuation steps first_position would take from q at t (1: q fits, an ordinary
+  // solve; NaN: Phi or Phi_q is not finite there).
+  double first_steps(const Vector& q, Scalar t) {
+    typename detail::Workspace<Scalar, NQ, NC>::VectorC offset(ws_.rhs.size());
+    const detail::ContinuationSteps steps = detail::continuation_plan(system_, ws_, q, t, offset);
+    return steps.finite() ? steps.count() : std::numeric_limits<double>::quiet_NaN();
   }
   // Solves Phi_q qd = nu at a solved q.
   Result velocity(const Vector& q, Scalar t, Vector& qd) {
