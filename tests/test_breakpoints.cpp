@@ -91,6 +91,18 @@ TEST_CASE("breakpoints: laws of a load, with linear and nonlinear arguments", "[
               {pi / 6, std::sqrt(2.0), 5 * pi / 6, 3, pi, 6, 2 * pi, 13 * pi / 6});
 }
 
+TEST_CASE("breakpoints: a linear argument with pi in it is located exactly, not skipped",
+          "[breakpoints]") {
+  // poly345(t/pi - 1) starts at t = pi and ends at 2 pi; harmonic((t - pi/2)*2) spans
+  // pi/2 .. pi/2 + 1/2. A coefficient holding pi is a number, not a reason to skip the law.
+  const double pi = std::acos(-1.0);
+  const auto model = kc::CompiledModel::from_file(crank(
+      "pi_laws", "f: \"t\"",
+      "  - {type: torque, name: a, body: crank, value: \"poly345(t/pi - 1)\"}\n"
+      "  - {type: torque, name: b, body: crank, value: \"harmonic((t - pi/2)*2)\"}\n"));
+  check_times(kc::breakpoints(*model, 0, 7), {pi / 2, pi / 2 + 0.5, pi, 2 * pi});
+}
+
 TEST_CASE("breakpoints: the knots of driver tables, plain and periodic", "[breakpoints]") {
   write("plain.csv", "t,value\n0,0\n0.3,0.1\n0.7,0.2\n1.2,0.5\n2,0.6\n");
   const auto plain = kc::CompiledModel::from_file(crank("plain_table", "table: plain.csv"));

@@ -164,7 +164,9 @@ TEST_CASE("dynamics examples: conservative runs keep energy.balance below 1e-8 o
     const Table s = simulate(dynamics_example(c.example), dir / (c.example + ".csv"),
                              with(with({"--t1", c.t1, "--steps", "500"}, kTight), c.params));
     const double scale = energy_scale(s);
-    REQUIRE(max_abs(s["energy.work"]) == 0);
+    // No load does work; what is left is rounding that the integrator's linear algebra
+    // carries into the work's state from the others (5.5e-27 J on the four-bar).
+    REQUIRE(max_abs(s["energy.work"]) <= 1e-15 * scale);
     // A real exchange between kinetic and potential energy, not a mechanism at rest.
     REQUIRE(max_abs(s["energy.kinetic"]) > 0.5 * spread(s["energy.potential"]));
     REQUIRE(scale > 0);
@@ -259,7 +261,9 @@ TEST_CASE("dynamics examples: the simulated motion fed back into analyze --force
   };
   // The press's forming law is C2 only (3-4-5 pieces), so the table spline's error has a
   // jumping h^4 term there and extrapolates less far.
-  const std::vector<Case> cases = {{"pendulum", "theta", "2", 2000, 1e-7},
+  // The pendulum at 3e-7: its rows carry CVODE's error at rtol 1e-13 (theta to 4.6e-12 of the
+  // 20-digit reference), which the spline's second derivative amplifies by 1/h^2.
+  const std::vector<Case> cases = {{"pendulum", "theta", "2", 2000, 3e-7},
                                    {"four_bar_damped", "theta", "5", 5000, 1e-6},
                                    {"press_flywheel", "theta", "3", 6000, 2e-4},
                                    {"cam_liftoff", "theta", "0.6", 600, 1e-6},

@@ -191,3 +191,16 @@ def test_augmented_n_four_bar_40_over_the_benchmarks_20_s(tmp_path):
     for k in range(n):
         assert np.abs(col[f"coupler_{k}.phi"]).max() < 1e-6
     assert np.abs(col["energy.balance"]).max() < 1e-6
+
+
+def test_simulate_refuses_an_input_table_short_of_the_run(tmp_path):
+    """As the command line: an input table that does not cover [t0, t1] is a UsageError
+    before the run, naming the table, its range and the run's (a table is never
+    extrapolated)."""
+    table = tmp_path / "push_late.csv"
+    table.write_text("t,value\n0.1,0\n0.5,0\n0.8,0\n1.2,0\n")
+    m = kinegen.Mechanism(str(DYN / "cart_pole.yaml"), inputs={"push_x": str(table)})
+    with pytest.raises(kinegen.UsageError) as e:
+        m.simulate(1, 10)
+    assert "the table covers t = 0.1 to 1.2, the run t = 0 to 1" in str(e.value)
+    assert m.simulate(1, 10, t0=0.2)["t"].shape == (11,)

@@ -156,21 +156,35 @@ class Finder {
     const GiNaC::symbol& t = GiNaC::ex_to<GiNaC::symbol>(t_);
     const ex expanded = g.expand();
     if (expanded.is_polynomial(t) && expanded.degree(t) <= 1) {
-      const ex slope = expanded.coeff(t, 1), offset = expanded.coeff(t, 0);
-      if (!GiNaC::is_a<numeric>(slope) || !GiNaC::is_a<numeric>(offset)) return;
-      const numeric s = GiNaC::ex_to<numeric>(slope), c = GiNaC::ex_to<numeric>(offset);
-      if (s.is_zero() || !s.is_real() || !c.is_real()) return;
-      const double ga = (s * exact_numeric(a) + c).to_double();
-      const double gb = (s * exact_numeric(b) + c).to_double();
-      std::vector<double> hit;
-      levels.within(std::min(ga, gb), std::max(ga, gb), hit);
-      for (double level : hit) {
-        const double time = ((exact_numeric(level) - c) / s).to_double();
-        if (time >= a && time <= b) out.push_back(time);
-      }
-      return;
+      // evalf: a constant such as Pi in a coefficient is a number too; a coefficient that is
+      // still no number (or not real) is found by sampling below, never skipped.
+      const ex slope = expanded.coeff(t, 1).evalf(), offset = expanded.coeff(t, 0).evalf();
+      const bool exact = GiNaC::is_a<numeric>(slope) && GiNaC::is_a<numeric>(offset) &&
+                         GiNaC::ex_to<numeric>(slope).is_real() &&
+                         GiNaC::ex_to<numeric>(offset).is_real();
+      if (exact) return linear_crossings(GiNaC::ex_to<numeric>(slope),
+                                         GiNaC::ex_to<numeric>(offset), levels, a, b, out);
     }
-    // Sampled: each sign change of g - level between two samples, bisected.
+    sampled_crossings(g, levels, a, b, out);
+  }
+
+  // A linear g = s t + c: its crossings of each level, exactly.
+  void linear_crossings(const numeric& s, const numeric& c, const Levels& levels, double a,
+                        double b, std::vector<double>& out) {
+    if (s.is_zero()) return;
+    const double ga = (s * exact_numeric(a) + c).to_double();
+    const double gb = (s * exact_numeric(b) + c).to_double();
+    std::vector<double> hit;
+    levels.within(std::min(ga, gb), std::max(ga, gb), hit);
+    for (double level : hit) {
+      const double time = ((exact_numeric(level) - c) / s).to_double();
+      if (time >= a && time <= b) out.push_back(time);
+    }
+  }
+
+  // Each sign change of g - level between two of kBreakpointSamples samples, bisected.
+  void sampled_crossings(const ex& g, const Levels& levels, double a, double b,
+                         std::vector<double>& out) {
     double previous_t = a, previous = value(g, a);
     for (int i = 1; i <= kBreakpointSamples; ++i) {
       const double ti = i == kBreakpointSamples ? b : a + (b - a) * i / kBreakpointSamples;
@@ -324,11 +338,8 @@ void check_input_coverage(const CompiledModel& model, const std::string& name,
       if (in.name == name && in.table_id >= 0) id = in.table_id;
   if (id < 0) return;
   const Spline& s = registered_table(id);
-  if (s.periodic || s.t.empty()) return;
+  if (table_covers(s, t0) && table_covers(s, t1)) return;
   const double lo = s.t.front(), hi = s.t.back();
-  const double slack =
-      8 * std::numeric_limits<double>::epsilon() * std::max(std::abs(lo), std::abs(hi));
-  if (std::min(t0, t1) >= lo - slack && std::max(t0, t1) <= hi + slack) return;
   // 15 digits: a table's 0.1 reads 0.1, not its double's 0.10000000000000001.
   const auto shown = [](double v) {
     char text[32];
@@ -338,6 +349,11 @@ void check_input_coverage(const CompiledModel& model, const std::string& name,
   throw UsageError("--input " + name + "=" + path + ": the table covers t = " + shown(lo) + " to " +
                    shown(hi) + ", the run t = " + shown(t0) + " to " + shown(t1) +
                    ": an input table must cover the whole run (it is never extrapolated)");
+}
+
+void check_input_coverage(const CompiledModel& model, double t0, double t1) {
+  for (const auto& [name, path] : model.build_options().inputs)
+    check_input_coverage(model, name, path, t0, t1);
 }
 
 }  // namespace kinegen::codegen

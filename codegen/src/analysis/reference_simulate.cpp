@@ -583,13 +583,18 @@ SimulatedRow to_simulated_row(const ReferenceSimulatedRow& r) {
   return s;
 }
 
-ReferenceSimulationStats run_reference_simulation_exact(
-    const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid, int digits,
-    const std::function<void(const ReferenceSimulatedRow&)>& sink, const SimulateOptions& options) {
+void check_reference_digits(int digits) {
   if (digits < kMinSimulateReferenceDigits || digits > kMaxSimulateReferenceDigits)
     throw UsageError("--reference must be between " + std::to_string(kMinSimulateReferenceDigits) +
                      " and " + std::to_string(kMaxSimulateReferenceDigits) + " digits, not " +
                      std::to_string(digits));
+}
+
+ReferenceSimulationStats run_reference_simulation_exact(
+    const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid, int digits,
+    const std::function<void(const ReferenceSimulatedRow&)>& sink, const SimulateOptions& options) {
+  check_reference_digits(digits);
+  check_input_coverage(model, grid.t0, grid.t1);
   const int columns = extrapolation_columns(digits);
   ReferenceDynamics dyn(model, forces, digits + guard_digits(columns), grid.t0);
   const DigitsGuard guard(dyn.digits());

@@ -232,15 +232,7 @@ class Integration {
     }
     set_step_limits(t0);
   }
-  ~Integration() {
-    if (cvode_) CVodeFree(&cvode_);
-    if (ls_) SUNLinSolFree(ls_);
-    if (a_) SUNMatDestroy(a_);
-    if (nls_) SUNNonlinSolFree(nls_);
-    N_VDestroy(y_);
-    N_VDestroy(atol_);
-    SUNContext_Free(&ctx_);
-  }
+  ~Integration() = default;  // release_ frees the SUNDIALS objects
   Integration(const Integration&) = delete;
   Integration& operator=(const Integration&) = delete;
 
@@ -658,6 +650,21 @@ class Integration {
   SUNMatrix a_ = nullptr;
   SUNLinearSolver ls_ = nullptr;
   SUNNonlinearSolver nls_ = nullptr;
+  // Frees the SUNDIALS objects above, also when the constructor throws half-way (then the
+  // members are destroyed but no destructor body runs): declared after them.
+  struct Release {
+    Integration* self;
+    ~Release() {
+      Integration& i = *self;
+      if (i.cvode_) CVodeFree(&i.cvode_);
+      if (i.ls_) SUNLinSolFree(i.ls_);
+      if (i.a_) SUNMatDestroy(i.a_);
+      if (i.nls_) SUNNonlinSolFree(i.nls_);
+      if (i.y_) N_VDestroy(i.y_);
+      if (i.atol_) N_VDestroy(i.atol_);
+      if (i.ctx_) SUNContext_Free(&i.ctx_);
+    }
+  } release_{this};
   std::string integrator_;
   long steps_ = 0, evaluations_ = 0;
   // The energy balance.
@@ -694,6 +701,7 @@ SimulateSummary run_simulation(const CompiledModel& model, const ForceModel& for
                                const TimeGrid& grid,
                                const std::function<void(const SimulatedRow&)>& sink,
                                const SimulateOptions& options) {
+  check_input_coverage(model, grid.t0, grid.t1);
   std::unique_ptr<MotionFormulation> f = make_formulation(options.method, model, forces, grid.t0);
   Integration integration(model, forces, *f, options, grid.t0, grid.t1,
                           breakpoints(model, forces, grid.t0, grid.t1));

@@ -41,12 +41,7 @@ kc::SimulateOptions check_options(const Options& o) {
     throw kc::UsageError("--t1 (" + kc::format_number(o.t1) + ") must come after --t0 (" +
                          kc::format_number(o.t0) + "): a simulation runs forward in time");
   if (o.steps < 1) throw kc::UsageError("--steps must be at least 1");
-  if (o.reference_digits != 0 && (o.reference_digits < kc::kMinSimulateReferenceDigits ||
-                                  o.reference_digits > kc::kMaxSimulateReferenceDigits))
-    throw kc::UsageError("--reference must be between " +
-                         std::to_string(kc::kMinSimulateReferenceDigits) + " and " +
-                         std::to_string(kc::kMaxSimulateReferenceDigits) + " digits, not " +
-                         std::to_string(o.reference_digits));
+  if (o.reference_digits != 0) kc::check_reference_digits(o.reference_digits);
   kc::SimulateOptions options = kc::simulate_options(o.rtol, o.atol, o.method, o.integrator, "--");
   if (!(o.max_step >= 0) || !std::isfinite(o.max_step))
     throw kc::UsageError("--max-step must be a finite number above 0, not " +
@@ -67,13 +62,17 @@ std::function<void(double)> progress_after_a_second(double t0, double t1) {
   };
 }
 
+// The line that says stop_when ended the run (CVODE's and the reference's alike).
+void report_stop(const kc::Mechanism& m, double t) {
+  std::cerr << "stopped at " << kc::format_time(t) << ": " << one_line(m.stop_when->text)
+            << " crossed 0\n";
+}
+
 // What the run did: the stop_when line, the drift warning, and with -v the integrator's
 // figures.
 void report(const kc::Mechanism& m, const kc::SimulateSummary& s) {
   kc::Log& log = kc::Log::global();
-  if (s.stopped)  // as the reference run says it
-    std::cerr << "stopped at " << kc::format_time(s.stop_time) << ": "
-              << one_line(m.stop_when->text) << " crossed 0\n";
+  if (s.stopped) report_stop(m, s.stop_time);
   if (s.drifted) log.warning(m.source + ": " + s.drift);
   log.detail("integrator " + s.integrator + ": " + std::to_string(s.steps) + " steps, " +
              std::to_string(s.evaluations) + " evaluations, " +
@@ -90,9 +89,7 @@ int run_simulate(const Common& c, const Options& o) {
   kc::BuildOptions build;
   build.free_as_state = true;
   auto model = load(c, build);
-  for (const std::string& in : c.inputs)  // load() checked the NAME=FILE form
-    kc::check_input_coverage(*model, in.substr(0, in.find('=')), in.substr(in.find('=') + 1), o.t0,
-                             o.t1);
+  kc::check_input_coverage(*model, o.t0, o.t1);  // before the output file is opened
   const kc::ForceModel forces = kc::derive_forces(*model);
   std::vector<std::string> force_names;
   if (o.with_forces) {
@@ -119,9 +116,7 @@ int run_simulate(const Common& c, const Options& o) {
     if (o.reference_digits != 0) {
       const auto stats = kc::run_reference_simulation(*model, forces, {o.t0, o.t1, o.steps},
                                                       o.reference_digits, sink, options);
-      if (stats.stopped)  // the wording of the double run's
-        std::cerr << "stopped at " << kc::format_time(stats.stop_time) << ": "
-                  << one_line(model->mechanism().stop_when->text) << " crossed 0\n";
+      if (stats.stopped) report_stop(model->mechanism(), stats.stop_time);
     } else {
       const kc::SimulateSummary s =
           kc::run_simulation(*model, forces, {o.t0, o.t1, o.steps}, sink, options);

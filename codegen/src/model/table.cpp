@@ -79,7 +79,6 @@ std::vector<double> solve(const std::vector<Eigen::Triplet<double>>& entries,
 // once made, is never moved or freed, and a slot's spline is published (release) before its
 // number is handed out.
 constexpr int kChunkSize = 1024;
-constexpr int kMaxTables = 1 << 20;
 constexpr int kChunks = kMaxTables / kChunkSize;
 
 struct Registry {
@@ -194,13 +193,13 @@ GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::nu
   return v;
 }
 
-namespace {
-bool covers(const Spline& s, double t) {
+bool table_covers(const Spline& s, double t) {
+  if (s.periodic) return true;
+  if (s.t.empty()) return false;
   const double slack = 8 * std::numeric_limits<double>::epsilon() *
                        std::max(std::abs(s.t.front()), std::abs(s.t.back()));
-  return s.periodic || (t >= s.t.front() - slack && t <= s.t.back() + slack);
+  return t >= s.t.front() - slack && t <= s.t.back() + slack;
 }
-}  // namespace
 
 TableCoverage table_coverage(const Mechanism& m) {
   TableCoverage c;
@@ -218,7 +217,7 @@ std::string table_outside(const Mechanism& m, double t) {
   for (const Constraint& d : m.drivers) {
     if (d.law.table_id < 0) continue;
     const Spline& s = registered_table(d.law.table_id);
-    if (covers(s, t)) continue;
+    if (table_covers(s, t)) continue;
     return d.item + " table '" + d.law.table + "' (its t runs from " + format_number(s.t.front()) +
            " to " + format_number(s.t.back()) +
            "; a table is never extrapolated: give it a period or more rows)";

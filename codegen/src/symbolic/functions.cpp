@@ -16,8 +16,8 @@ using GiNaC::numeric;
 
 namespace {
 
-// The largest table number (table.cpp's registry holds 2^20 tables).
-constexpr long kMaxTableNumber = (1L << 20) - 1;
+// The largest table number.
+constexpr long kMaxTableNumber = kMaxTables - 1;
 
 // A law's number, a derivative's order, a driver's index or a table's number (up to
 // `largest`: the table registry holds up to 2^20 of them, table.cpp).

@@ -71,5 +71,8 @@ std::vector<StateSwitch> state_switches(const CompiledModel& model, const ForceM
 // somewhere later, blaming the first thing the table's end breaks). Nothing for another name.
 void check_input_coverage(const CompiledModel& model, const std::string& name,
                           const std::string& path, double t0, double t1);
+// The same for every input table the model was built with (BuildOptions::inputs): what
+// run_simulation and the reference check before they start, for every caller.
+void check_input_coverage(const CompiledModel& model, double t0, double t1);
 
 }  // namespace kinegen::codegen

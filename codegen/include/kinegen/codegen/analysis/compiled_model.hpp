@@ -47,6 +47,8 @@ class CompiledModel {
   CompiledModel& operator=(const CompiledModel&) = delete;
 
   const Mechanism& mechanism() const { return mechanism_; }
+  // What it was built with (its --input tables among them).
+  const BuildOptions& build_options() const { return options_; }
   const SymbolTable& symbols() const { return *symbols_; }
   const SymbolicModel& symbolic() const { return symbolic_; }
   const ModelPrograms& programs() const { return programs_; }

@@ -39,6 +39,10 @@ namespace kinegen::codegen {
 // a run's cost grows beyond any test's use (the cost per step grows like D^2 to D^3).
 inline constexpr int kMinSimulateReferenceDigits = 16;
 inline constexpr int kMaxSimulateReferenceDigits = 60;
+// UsageError naming the range unless kMinSimulateReferenceDigits <= digits <=
+// kMaxSimulateReferenceDigits: the command line checks before it writes anything, and
+// run_reference_simulation_exact again for its other callers.
+void check_reference_digits(int digits);
 
 // A state of the equations of motion in high precision.
 struct ReferenceMotionState {

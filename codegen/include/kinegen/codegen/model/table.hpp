@@ -29,6 +29,8 @@ struct Spline {
 // The tables of every mechanism loaded in this process, by number (kinegen_table's id in
 // functions.hpp): registering the same spline twice gives the same number. Entries are never
 // removed or moved, so a reference stays valid. Thread-safe.
+// The most tables a process registers (numbers 0 .. kMaxTables - 1).
+inline constexpr int kMaxTables = 1 << 20;
 int register_table(const Spline& spline);
 const Spline& registered_table(int id);
 
@@ -46,6 +48,8 @@ struct TableCoverage {
   double hi = std::numeric_limits<double>::infinity();
 };
 TableCoverage table_coverage(const Mechanism& m);
+// Whether a table holds t: periodic, or t within its knots up to a few ulps of its ends.
+bool table_covers(const Spline& s, double t);
 // The driver (its item) whose table does not cover t, with the table's range, or "".
 std::string table_outside(const Mechanism& m, double t);
 
