@@ -45,6 +45,14 @@ SensitivityModel build_sensitivity(const CompiledModel& model,
     s.params.push_back(find_parameter(model, name, "--sensitivity"));
     s.names.push_back(name);
   }
+  // d(O)/d(p) of an output that reads velocities would need dqd/dp, which is not computed:
+  // refused rather than written as the partial derivative at fixed qd.
+  const auto& outputs = model.mechanism().outputs;
+  for (std::size_t o = 0; o < outputs.size(); ++o)
+    if (model.symbolic().output_reads_velocity[o])
+      throw InputError(model.mechanism().source, "outputs." + outputs[o].name, outputs[o].loc,
+                       "--sensitivity: the output reads velocities, and only positions' "
+                       "sensitivities are computed (remove the output or --sensitivity)");
   s.phi_p = lower(derive_phi_p(model.symbolic(), symbols, s.params), symbols);
   const auto& values = model.symbolic().param_values;
   for (int p : s.params) {
