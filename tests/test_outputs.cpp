@@ -714,13 +714,19 @@ TEST_CASE("simulate: a damper's power as an output, its v the derivative of its 
 }
 
 TEST_CASE("velocity outputs are refused, one line, where they cannot be exact", "[outputs]") {
-  // --sensitivity would need dqd/dp; stop_when cannot read an output's rate that needs qdd.
+  // --sensitivity would need dqd/dp (tolerance, which needs no outputs, runs); stop_when
+  // cannot read an output's rate that needs qdd.
   const auto r = run_kinegen({"analyze", kVelocityOutputs, "--t0", "0", "--t1", "1", "--steps", "2",
                               "--sensitivity", "l"});
   CHECK(r.exit_code == 2);
   CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
   CHECK(r.err.rfind("error: " + kVelocityOutputs + ":34: outputs.slide: --sensitivity:", 0) == 0);
   CHECK(r.out.empty());
+  // tolerance needs the positions' sensitivities only: it runs.
+  const auto tol = run_kinegen(
+      {"tolerance", kVelocityOutputs, "--tol", "l=0.01", "--t0", "0", "--t1", "1", "--steps", "2"});
+  INFO(tol.err);
+  CHECK(tol.exit_code == 0);
 
   std::ifstream in(std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/pendulum.yaml");
   std::stringstream text;
