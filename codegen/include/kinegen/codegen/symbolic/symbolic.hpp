@@ -127,7 +127,7 @@ struct SymbolicModel {
   // jerk; output_a0 is 0). output_qd is O_qd (dense, row-major outputs x nq), empty when no
   // output reads a velocity, so that files without such outputs keep their programs.
   std::vector<GiNaC::ex> output_values, output_rates, output_a0, output_q, output_qd;
-  std::vector<bool> output_reads_velocity;  // one per output
+  std::vector<bool> output_reads_velocity;   // one per output
   std::vector<GiNaC::numeric> param_values;  // defaults (after overrides), exact
   // One line each (without "warning: "): a driver's boundary where f' or f'' jumps.
   std::vector<std::string> warnings;
