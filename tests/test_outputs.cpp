@@ -1,11 +1,16 @@
 // Outputs: values with exact first and second time derivatives, in the analysis
 // rows (CSV), the 40-digit reference, `eval`'s JSON, sensitivities and the generated header's
 // outputs function, against hand-derived closed forms of tests/support/closed_form.hpp and the
-// complex step; and hostile outputs refused with one error line.
+// complex step; and hostile outputs refused with one error line. Outputs that read velocities
+// (as loads may): exact values and .v, .a nan, in analyze, the reference, eval, the generated
+// header and simulate; refused where they cannot be exact (--sensitivity, stop_when's O.v).
 //
 // Mechanisms: tests/mechanisms/four_bar_outputs.yaml (transmission angle mu, cos mu, mu in
-// degrees, |O2 B|) and tests/mechanisms/slider_crank_outputs.yaml (stroke, a cylinder's length
-// through definitions, an output with explicit t terms).
+// degrees, |O2 B|), tests/mechanisms/slider_crank_outputs.yaml (stroke, a cylinder's length
+// through definitions, an output with explicit t terms) and
+// tests/mechanisms/slider_crank_velocity_outputs.yaml (the slider's speed, phid_rod*x_rod, a
+// kinetic-energy-like sum with a t term, and the stroke beside them); and
+// examples/dynamics/four_bar_damped.yaml with a damper's power and a free coordinate's rate.
 #include <algorithm>
 #include <array>
 #include <catch2/catch.hpp>
@@ -13,6 +18,7 @@
 #include <complex>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -22,6 +28,7 @@
 #include "kinegen/codegen/analysis/reference.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "slider_crank_outputs.hpp"
+#include "slider_crank_velocity_outputs.hpp"
 #include "support/closed_form.hpp"
 #include "support/run_command.hpp"
 
@@ -360,11 +367,12 @@ outputs:
     const char* message;
   };
   const std::vector<Case> cases = {
-      // A velocity and an unknown name each get their own message.
-      {"velocity", "  ok: \"x_crank\"\n  w: \"phi_crank_dot\"\n", "outputs.w", 21,
-       "uses the velocity 'phi_crank_dot': outputs are functions of positions and time"},
-      {"velocity_in_sum", "  w: \"1 + 2*x_crank_dot\"\n", "outputs.w", 20,
-       "uses the velocity 'x_crank_dot'"},
+      // Velocities are allowed (as in loads), but not a velocity of nothing, and a rate
+      // spelt otherwise is pointed to the format's name.
+      {"velocity_of_nothing", "  ok: \"xd_crank\"\n  w: \"phid_nothing\"\n", "outputs.w", 21,
+       "unknown symbol 'phid_nothing'"},
+      {"rate_spelling", "  w: \"1 + 2*omega_crank\"\n", "outputs.w", 20,
+       "it reads as a rate of 'phi_crank', whose velocity is 'phid_crank'"},
       {"unknown", "  u: \"2*nothing\"\n", "outputs.u", 20, "unknown symbol 'nothing'"},
       {"clash_body", "  crank: \"phi_crank\"\n", "outputs.crank", 20, "clashes"},
       {"clash_point", "  tip: \"phi_crank\"\n", "outputs.tip", 20, "clashes"},
@@ -408,4 +416,338 @@ TEST_CASE("headers of files without outputs have no outputs function", "[outputs
   text << in.rdbuf();
   CHECK(text.str().find("struct four_bar") != std::string::npos);
   CHECK(text.str().find("num_outputs") == std::string::npos);
+}
+
+namespace {
+
+const std::string kVelocityOutputs =
+    std::string(KINEGEN_SOURCE_DIR) + "/tests/mechanisms/slider_crank_velocity_outputs.yaml";
+const double kNan = std::numeric_limits<double>::quiet_NaN();
+
+// slide = xd_rod, spin = phid_rod x_rod, energy = (xd_rod^2 + yd_rod^2)/2 + t phid_crank,
+// stroke = x_rod - (l - 1), from the closed-form slider-crank (l = 2, omega = 1): v by the chain
+// rule with the closed-form accelerations; a nan but for the position output.
+std::vector<Triple> velocity_outputs_truth(double t) {
+  const cf::SliderCrankParams p;
+  const auto st = cf::slider_crank_state(t, p);
+  const double x2 = st.q[3], v2 = st.qd[3], a2 = st.qdd[3], w2 = st.qd[5], al2 = st.qdd[5];
+  return {{v2, a2, kNan},
+          {w2 * x2, al2 * x2 + w2 * v2, kNan},
+          {v2 * v2 / 2 + t * p.omega, v2 * a2 + p.omega, kNan},
+          {x2 - (p.l - 1), v2, a2}};
+}
+
+// The largest difference of value and v relative to 1 + |truth|; a is nan exactly where the
+// truth's is, else compared too.
+Worst compare_velocity_outputs(const std::vector<Triple>& got, const std::vector<Triple>& want) {
+  Worst w;
+  REQUIRE(got.size() == want.size());
+  for (std::size_t o = 0; o < want.size(); ++o) {
+    INFO("output " << o);
+    CHECK(std::isnan(got[o][2]) == std::isnan(want[o][2]));
+    Triple g = got[o], t = want[o];
+    if (std::isnan(t[2])) g[2] = t[2] = 0;
+    w.add(g, t);
+  }
+  return w;
+}
+
+}  // namespace
+
+TEST_CASE("outputs that read velocities: exact value and v, nan a, in analyze and the reference",
+          "[outputs]") {
+  const auto model = kc::CompiledModel::from_file(kVelocityOutputs);
+  for (const bool reference : {false, true}) {
+    Worst worst;
+    int rows = 0;
+    const auto sink = [&](const kc::StateRow& row) {
+      const Worst w = compare_velocity_outputs(row.outputs, velocity_outputs_truth(row.t));
+      worst.value = std::max(worst.value, w.value);
+      worst.rate = std::max(worst.rate, w.rate);
+      worst.accel = std::max(worst.accel, w.accel);
+      ++rows;
+    };
+    if (reference)
+      kc::run_reference_analysis(*model, kTurn, 40, sink);
+    else
+      kc::run_analysis(*model, kTurn, sink);
+    CHECK(rows == kTurn.steps + 1);
+    std::printf("velocity outputs vs closed form (%s): value %.2e, v %.2e, stroke's a %.2e\n",
+                reference ? "reference" : "double", worst.value, worst.rate, worst.accel);
+    CHECK(worst.value < (reference ? 1e-14 : 1e-13));
+    CHECK(worst.rate < (reference ? 5e-14 : 1e-12));
+    CHECK(worst.accel < (reference ? 1e-14 : 1e-11));
+  }
+}
+
+TEST_CASE("a velocity output's v is the derivative of its value column (central differences)",
+          "[outputs]") {
+  // Three rows t0 - h, t0, t0 + h of an analysis: (O(t0 + h) - O(t0 - h)) / 2h = O' + O h^2/6.
+  const auto model = kc::CompiledModel::from_file(kVelocityOutputs);
+  const double h = 1e-5;
+  double worst = 0;
+  for (double t0 : {0.3, 1.1, 2.0, 2.9, 4.4, 5.7}) {
+    std::vector<kc::StateRow> rows;
+    kc::run_analysis(*model, {t0 - h, t0 + h, 2},
+                     [&](const kc::StateRow& row) { rows.push_back(row); });
+    REQUIRE(rows.size() == 3);
+    for (int o = 0; o < 4; ++o) {
+      const double diff = (rows[2].outputs[o][0] - rows[0].outputs[o][0]) / (2 * h);
+      const double v = rows[1].outputs[o][1];
+      worst = std::max(worst, std::abs(diff - v) / (1 + std::abs(v)));
+    }
+  }
+  std::printf("velocity outputs' v vs central differences (h = 1e-5): %.2e\n", worst);
+  CHECK(worst < 1e-7);
+}
+
+TEST_CASE("analyze's CSV writes nan as a velocity output's .a, also with --reference-digits",
+          "[outputs]") {
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "outputs_velocity_cli";
+  fs::create_directories(dir);
+  const std::string csv = (dir / "plain.csv").string(), ref = (dir / "ref.csv").string();
+  const std::vector<std::string> grid = {"--t0", "0", "--t1", "3", "--steps", "6"};
+  for (const auto& [file, extra] : {std::pair{csv, std::string()}, {ref, std::string("40")}}) {
+    auto args = std::vector<std::string>{"analyze", kVelocityOutputs, "-o", file};
+    args.insert(args.end(), grid.begin(), grid.end());
+    if (!extra.empty()) args.insert(args.end(), {"--reference-digits", extra});
+    const auto r = run_kinegen(args);
+    INFO(r.err);
+    REQUIRE(r.exit_code == 0);
+    std::ifstream in(file);
+    std::string header;
+    std::getline(in, header);
+    const std::string tail =
+        "rod.alpha,slide,slide.v,slide.a,spin,spin.v,spin.a,energy,energy.v,energy.a,stroke,"
+        "stroke.v,stroke.a";
+    REQUIRE(header.size() >= tail.size());
+    CHECK(header.compare(header.size() - tail.size(), tail.size(), tail) == 0);
+    int rows = 0;
+    for (std::string line; std::getline(in, line); ++rows) {
+      const auto v = split(line, ',');
+      const double t = std::stod(v[0]);
+      const auto truth = velocity_outputs_truth(t);
+      for (std::size_t o = 0; o < truth.size(); ++o)
+        for (int d = 0; d < 3; ++d) {
+          const std::string& text = v[v.size() - 12 + 3 * o + d];
+          INFO("output " << o << " column " << d << " at t = " << t);
+          if (std::isnan(truth[o][d])) {
+            CHECK(text == "nan");
+          } else {
+            CHECK(std::abs(std::stod(text) - truth[o][d]) <= 1e-12 * (1 + std::abs(truth[o][d])));
+          }
+        }
+    }
+    CHECK(rows == 7);
+  }
+}
+
+TEST_CASE("eval's outputs read the --qd given", "[outputs]") {
+  const double t = 0.8;
+  const auto st = cf::slider_crank_state(t);
+  const auto list = [](const auto& values) {
+    std::string s;
+    for (double v : values) {
+      char text[40];
+      std::snprintf(text, sizeof text, "%.17g", v);
+      s += (s.empty() ? "" : ",") + std::string(text);
+    }
+    return s;
+  };
+  const auto r =
+      run_kinegen({"eval", kVelocityOutputs, "--t", "0.8", "--q", list(st.q), "--qd", list(st.qd)});
+  INFO(r.err);
+  REQUIRE(r.exit_code == 0);
+  const auto at = r.out.find("\"outputs\": [");
+  REQUIRE(at != std::string::npos);
+  const auto values = split(r.out.substr(at + 12, r.out.find(']', at) - at - 12), ',');
+  const auto truth = velocity_outputs_truth(t);
+  REQUIRE(values.size() == truth.size());
+  for (std::size_t o = 0; o < truth.size(); ++o)
+    CHECK(std::abs(std::stod(values[o]) - truth[o][0]) <= 1e-14 * (1 + std::abs(truth[o][0])));
+}
+
+TEST_CASE("the generated header's velocity outputs agree with analyze and the complex step",
+          "[outputs]") {
+  using Model = kinegen::models::slider_crank_velocity_outputs;
+  static_assert(Model::num_outputs == 4);
+  const auto model = kc::CompiledModel::from_file(kVelocityOutputs);
+  const Model::Params p;
+  double worst_analyze = 0, worst_v = 0;
+  kc::run_analysis(*model, kTurn, [&](const kc::StateRow& row) {
+    std::array<double, 4> value, velocity, acceleration;
+    Model::outputs(row.q.data(), row.qd.data(), row.qdd.data(), row.t, p, value.data(),
+                   velocity.data(), acceleration.data());
+    for (int o = 0; o < 4; ++o) {
+      const Triple got{value[o], velocity[o], acceleration[o]};
+      CHECK(std::isnan(got[2]) == (o < 3));
+      for (int d = 0; d < (o < 3 ? 2 : 3); ++d)
+        worst_analyze = std::max(worst_analyze, std::abs(got[d] - row.outputs[o][d]) /
+                                                    (1 + std::abs(row.outputs[o][d])));
+    }
+    // Complex step along the exact motion: Im O(q(t + ih), qd(t + ih), t + ih) / h = dO/dt,
+    // independent of the header's O_q qd + O_qd qdd path.
+    using C = std::complex<double>;
+    const double h = 1e-30;
+    const C tc(row.t, h);
+    C q[6], qd[6], v[4];
+    slider_crank_q(tc, q, qd);
+    Model::output_values(q, qd, tc, p, v);
+    for (int o = 0; o < 4; ++o)
+      worst_v = std::max(worst_v, std::abs(v[o].imag() / h - row.outputs[o][1]) /
+                                      (1 + std::abs(row.outputs[o][1])));
+  });
+  std::printf("generated velocity outputs vs analyze %.2e; analyze's v vs complex step %.2e\n",
+              worst_analyze, worst_v);
+  CHECK(worst_analyze <= 1e-15);
+  CHECK(worst_v < 1e-12);
+}
+
+TEST_CASE("simulate: a damper's power as an output, its v the derivative of its column",
+          "[outputs]") {
+  // four_bar_damped with the damper's power c phid_rocker^2, the free item's rate theta_d and
+  // a position output; the power's integral is minus the damper's work (energy.work).
+  std::ifstream in(std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/four_bar_damped.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "outputs_velocity_simulate";
+  fs::create_directories(dir);
+  const fs::path mech = dir / "damped.yaml";
+  std::ofstream(mech) << text.str()
+                      << "outputs:\n  power: \"damping*phid_rocker^2\"\n  rate: \"theta_d\"\n"
+                         "  angle: \"phi_rocker\"\n";
+  // The CSV's rows, and the index of a column by name.
+  struct Table {
+    std::vector<std::string> names;
+    std::vector<std::vector<double>> rows;
+    std::size_t operator()(const std::string& name) const {
+      const auto it = std::find(names.begin(), names.end(), name);
+      REQUIRE(it != names.end());
+      return static_cast<std::size_t>(it - names.begin());
+    }
+  };
+  const auto simulate = [&](const std::string& t1, int steps, const std::string& digits) {
+    const std::string csv = (dir / ("damped" + digits + ".csv")).string();
+    std::vector<std::string> args = {
+        "simulate", mech.string(), "--t1", t1, "--steps", std::to_string(steps), "-q", "-o", csv};
+    if (digits.empty())
+      args.insert(args.end(), {"--rtol", "1e-12"});
+    else
+      args.insert(args.end(), {"--reference", digits});
+    const auto r = run_kinegen(args);
+    INFO(r.err);
+    REQUIRE(r.exit_code == 0);
+    std::ifstream rows(csv);
+    std::string line;
+    std::getline(rows, line);
+    Table table{split(line, ','), {}};
+    while (std::getline(rows, line)) {
+      std::vector<double> v;
+      for (const auto& x : split(line, ',')) v.push_back(std::stod(x));  // "nan" reads as NaN
+      table.rows.push_back(std::move(v));
+    }
+    REQUIRE(table.rows.size() == steps + 1u);
+    return table;
+  };
+  const int steps = 4000;
+  const double h = 2.0 / steps;
+  const Table table = simulate("2", steps, "");
+  const std::size_t power = table("power"), omega = table("rocker.omega"),
+                    alpha = table("rocker.alpha"), rate = table("rate"),
+                    crank_omega = table("crank.omega"), crank_alpha = table("crank.alpha"),
+                    work = table("energy.work"), angle = table("angle");
+  const double c = 0.5;  // the file's damping
+  double worst_exact = 0, worst_central = 0, worst_simpson = 0, largest = 0, largest_v = 0;
+  double integral = 0;
+  const auto& rows = table.rows;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const auto& row = rows[k];
+    // Exact: power = c w^2, its v = 2 c w alpha; rate = crank.omega, its v = crank.alpha.
+    const double w = row[omega];
+    for (const auto& [got, want] : {std::pair{row[power], c * w * w},
+                                    {row[power + 1], 2 * c * w * row[alpha]},
+                                    {row[rate], row[crank_omega]},
+                                    {row[rate + 1], row[crank_alpha]}})
+      worst_exact = std::max(worst_exact, std::abs(got - want) / (1 + std::abs(want)));
+    CHECK(std::isnan(row[power + 2]));
+    CHECK(std::isnan(row[rate + 2]));
+    CHECK(std::isfinite(row[angle + 2]));
+    largest = std::max(largest, std::abs(row[power]));
+    largest_v = std::max(largest_v, std::abs(row[power + 1]));
+    if (k > 0 && k + 1 < rows.size()) {
+      // The central difference (error h^2/6 times O''') and Simpson's rule over [t - h, t + h]:
+      // O(t + h) - O(t - h) = h/3 (v(t - h) + 4 v(t) + v(t + h)), error h^5/90 times O^(5).
+      const double rise = rows[k + 1][power] - rows[k - 1][power];
+      worst_central = std::max(worst_central, std::abs(rise / (2 * h) - row[power + 1]));
+      const double simpson =
+          h / 3 * (rows[k - 1][power + 1] + 4 * row[power + 1] + rows[k + 1][power + 1]);
+      worst_simpson = std::max(worst_simpson, std::abs(rise - simpson));
+    }
+    if (k > 0) integral += h * (row[power] + rows[k - 1][power]) / 2;
+  }
+  const double work_error = std::abs(integral + rows.back()[work]);
+  std::printf(
+      "simulate: damper power vs c w^2 and its v vs 2 c w alpha %.2e; v vs central differences "
+      "(h = %g) %.2e of max |v| %.2e; Simpson over 2h vs the rise %.2e of max |power| %.2e; "
+      "trapezoid integral of the power + energy.work %.2e\n",
+      worst_exact, h, worst_central, largest_v, worst_simpson, largest, work_error);
+  CHECK(worst_exact < 1e-13);
+  CHECK(worst_central < 2e-4 * largest_v);
+  CHECK(worst_simpson < 1e-9 * largest);
+  CHECK(work_error < 1e-5 * std::abs(rows.back()[work]));
+
+  // The 20-digit reference integration gives the same columns, .a nan.
+  const Table ref = simulate("0.2", 2, "20");
+  CHECK(ref.names == table.names);
+  double worst_reference = 0;
+  for (std::size_t k = 0; k < ref.rows.size(); ++k) {
+    CHECK(std::isnan(ref.rows[k][power + 2]));
+    CHECK(std::isnan(ref.rows[k][rate + 2]));
+    for (const std::size_t col : {power, power + 1, rate, rate + 1}) {
+      const double want = ref.rows[k][col], got = rows[k * 200][col];
+      worst_reference = std::max(worst_reference, std::abs(got - want) / (1 + std::abs(want)));
+    }
+  }
+  std::printf("simulate --reference 20 vs the double run (power, rate and their v): %.2e\n",
+              worst_reference);
+  CHECK(worst_reference < 1e-9);
+}
+
+TEST_CASE("velocity outputs are refused, one line, where they cannot be exact", "[outputs]") {
+  // --sensitivity would need dqd/dp (tolerance, which needs no outputs, runs); stop_when
+  // cannot read an output's rate that needs qdd.
+  const auto r = run_kinegen({"analyze", kVelocityOutputs, "--t0", "0", "--t1", "1", "--steps", "2",
+                              "--sensitivity", "l"});
+  CHECK(r.exit_code == 2);
+  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  CHECK(r.err.rfind("error: " + kVelocityOutputs + ":34: outputs.slide: --sensitivity:", 0) == 0);
+  CHECK(r.out.empty());
+  // tolerance needs the positions' sensitivities only: it runs.
+  const auto tol = run_kinegen(
+      {"tolerance", kVelocityOutputs, "--tol", "l=0.01", "--t0", "0", "--t1", "1", "--steps", "2"});
+  INFO(tol.err);
+  CHECK(tol.exit_code == 0);
+
+  std::ifstream in(std::string(KINEGEN_SOURCE_DIR) + "/examples/dynamics/pendulum.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "outputs_velocity_stop";
+  fs::create_directories(dir);
+  for (const auto& [stop, ok] : {std::pair{"spin.v - 1", false}, {"spin - 1", true}}) {
+    const fs::path mech = dir / (ok ? "ok.yaml" : "bad.yaml");
+    std::ofstream(mech) << text.str() << "outputs:\n  spin: \"phid_rod^2\"\nstop_when: \"" << stop
+                        << "\"\n";
+    const auto s = run_kinegen({"simulate", mech.string(), "--t1", "2", "--steps", "4", "-q"});
+    INFO(stop << ": " << s.err);
+    if (ok) {
+      // The rod swings down from horizontal: phid^2 reaches 1 before the bottom.
+      CHECK(s.exit_code == 0);
+      CHECK(s.err.find("stopped at t = ") != std::string::npos);
+    } else {
+      CHECK(s.exit_code == 2);
+      CHECK(std::count(s.err.begin(), s.err.end(), '\n') == 1);
+      CHECK(s.err.find(": stop_when: 'spin.v' is the rate of an output that reads velocities") !=
+            std::string::npos);
+    }
+  }
 }

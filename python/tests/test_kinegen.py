@@ -217,6 +217,34 @@ def test_eval_outputs_equal_command_line(source):
     assert got["outputs"].shape == (4,)
 
 
+def test_velocity_outputs_equal_command_line(source, tmp_path):
+    """An output that reads velocities: the same columns as the command line, its .a nan; its
+    eval value at the qd given; --sensitivity refused with the command line's message."""
+    path = str(source / "tests" / "mechanisms" / "slider_crank_velocity_outputs.yaml")
+    out = tmp_path / "out.csv"
+    r = run("analyze", path, "--t0", "0", "--t1", "1", "--steps", "4", "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    header, values = read_csv(out)
+    got = kinegen.Mechanism(path).analyze(0, 1, 4)
+    assert list(got) == header
+    for k, name in enumerate(header):
+        assert np.array_equal(got[name], values[:, k], equal_nan=True), name
+    assert np.isnan(got["slide.a"]).all() and np.isfinite(got["slide.v"]).all()
+    assert np.isfinite(got["stroke.a"]).all()
+    qd = [0, 0, 1, 0.3, 0, 2]
+    r = run("eval", path, "--qd", ",".join(map(str, qd)))
+    assert r.returncode == 0, r.stderr
+    want = json.loads(r.stdout)["outputs"]
+    assert np.array_equal(kinegen.Mechanism(path).eval(qd=qd)["outputs"], np.array(want))
+    assert want[0] == 0.3  # slide = xd_rod
+    r = run("analyze", path, "--t0", "0", "--t1", "1", "--steps", "2", "--sensitivity", "l")
+    assert r.returncode == 2
+    with pytest.raises(kinegen.InputError) as e:
+        kinegen.Mechanism(path).analyze(0, 1, 2, sensitivity=["l"])
+    # The same message, naming the call's argument where the command line names its flag.
+    assert str(e.value) == cli_error(r).replace("--sensitivity", "sensitivity")
+
+
 def test_extra_coordinates_are_named_like_the_csv(source):
     """coordinates lists every coordinate, the extra ones after the bodies', with
     the names of the CSV's position columns."""

@@ -72,13 +72,6 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
     symbolic_ = derive(mechanism_, *symbols_, overrides);
     stage.done("Phi_q: " + std::to_string(symbolic_.phi_q.size()) + " structural non-zeros");
   }
-  // Loads may read a free coordinate's value Z and rate Z_d.
-  const std::vector<int> free = mechanism_.free_drivers();
-  for (std::size_t k = 0; k < free.size(); ++k) {
-    const std::string& name = mechanism_.drivers[free[k]].name;
-    symbols_->define(name, symbolic_.free_values[k]);
-    symbols_->define(name + "_d", symbolic_.free_rates[k]);
-  }
   derive_stop_when(mechanism_, *symbols_, symbolic_, force_columns(mechanism_));
   // The masses, gravity and loads are input like the rest: checked whenever the model is
   // compiled, so a bad load is an error for every command, not only with --forces.
@@ -97,7 +90,7 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
     for (auto& e : symbolic_.nu) fold(e);
     for (auto& e : symbolic_.gamma) fold(e);
     for (auto* list : {&symbolic_.output_values, &symbolic_.output_rates, &symbolic_.output_a0,
-                       &symbolic_.output_q})
+                       &symbolic_.output_q, &symbolic_.output_qd})
       for (auto& e : *list) fold(e);
     stage.done("");
   }
@@ -135,7 +128,7 @@ EvalResult evaluate(const CompiledModel& model, const Eigen::VectorXd& q, const 
   r.outputs.resize(model.programs().num_outputs);
   if (r.outputs.size() > 0) {
     ProgramEvaluator<double> program(model.programs().outputs);
-    program.run(q.data(), nullptr, t, model.params().data(), r.outputs.data());
+    program.run(q.data(), qd.data(), t, model.params().data(), r.outputs.data());
   }
   return r;
 }

@@ -5,6 +5,7 @@
 #include <cln/cln.h>
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -163,8 +164,13 @@ StateRow to_state_row(const ReferenceRow& row) {
     ps.a = {p[4].to_double(), p[5].to_double()};
     s.points.push_back(ps);
   }
-  for (const auto& o : row.outputs)
-    s.outputs.push_back({o[0].to_double(), o[1].to_double(), o[2].to_double()});
+  for (std::size_t o = 0; o < row.outputs.size(); ++o) {
+    const auto& r = row.outputs[o];
+    // An output that reads velocities has no acceleration (format: nan).
+    const bool none = o < row.velocity_outputs.size() && row.velocity_outputs[o];
+    s.outputs.push_back({r[0].to_double(), r[1].to_double(),
+                         none ? std::numeric_limits<double>::quiet_NaN() : r[2].to_double()});
+  }
   return s;
 }
 
@@ -332,11 +338,9 @@ class ReferenceRun {
     row_.outputs.clear();
     if (output_tape_ >= 0) {
       const Vector v = eval_.evaluate(output_tape_, row_.q, row_.qd, t);
-      for (int o = 0; o < num_outputs_; ++o) {
-        numeric a = v[2 * num_outputs_ + o];
-        for (int k = 0; k < nq_; ++k) a = a + v[3 * num_outputs_ + o * nq_ + k] * row_.qdd[k];
-        row_.outputs.push_back({v[o], v[num_outputs_ + o], a});
-      }
+      assemble_outputs(sym_.output_reads_velocity, nq_, v.data(), v.data() + num_outputs_,
+                       row_.qdd.data(), numeric(0), row_.outputs);
+      row_.velocity_outputs = sym_.output_reads_velocity;
     }
   }
 

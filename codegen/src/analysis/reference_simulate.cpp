@@ -447,11 +447,10 @@ class RowBuilder {
     }
     if (handle_ >= 0) {
       const Vector v = dyn_.evaluator().evaluate(handle_, s.q, s.qd, p.t);
-      for (int o = 0; o < outputs_; ++o) {
-        numeric a = v[2 * outputs_ + o];
-        for (int k = 0; k < nq; ++k) a = a + v[3 * outputs_ + o * nq + k] * s.qdd[k];
-        r.row.outputs.push_back({v[o], v[outputs_ + o], a});
-      }
+      const auto& reads_velocity = model_.symbolic().output_reads_velocity;
+      assemble_outputs(reads_velocity, nq, v.data(), v.data() + outputs_, s.qdd.data(), numeric(0),
+                       r.row.outputs);
+      r.row.velocity_outputs = reads_velocity;
     }
     r.z = s.z;
     r.zd = s.zd;

@@ -35,7 +35,7 @@ int find_parameter(const CompiledModel& model, const std::string& name, const st
 }
 
 SensitivityModel build_sensitivity(const CompiledModel& model,
-                                   const std::vector<std::string>& names) {
+                                   const std::vector<std::string>& names, bool outputs) {
   const SymbolTable& symbols = model.symbols();
   SensitivityModel s;
   for (const auto& name : names) {
@@ -45,6 +45,15 @@ SensitivityModel build_sensitivity(const CompiledModel& model,
     s.params.push_back(find_parameter(model, name, "--sensitivity"));
     s.names.push_back(name);
   }
+  // d(O)/d(p) of an output that reads velocities would need dqd/dp, which is not computed:
+  // refused rather than written as the partial derivative at fixed qd.
+  const auto& items = model.mechanism().outputs;
+  for (std::size_t o = 0; outputs && o < items.size(); ++o)
+    if (model.symbolic().output_reads_velocity[o])
+      throw InputError(model.mechanism().source, "outputs." + items[o].name, items[o].loc,
+                       "--sensitivity: the output reads velocities, and only positions' "
+                       "sensitivities are computed (remove the output or --sensitivity)");
+  s.outputs = outputs;
   s.phi_p = lower(derive_phi_p(model.symbolic(), symbols, s.params), symbols);
   const auto& values = model.symbolic().param_values;
   for (int p : s.params) {
@@ -54,7 +63,7 @@ SensitivityModel build_sensitivity(const CompiledModel& model,
                       to_double(substitute_params(y.diff(symbols.param(p)), symbols, values)));
     s.point_ds.push_back(std::move(ds));
   }
-  s.output_p = lower(derive_output_p(model.symbolic(), symbols, s.params), symbols);
+  if (outputs) s.output_p = lower(derive_output_p(model.symbolic(), symbols, s.params), symbols);
   return s;
 }
 
@@ -80,7 +89,7 @@ void point_sensitivities(const CompiledModel& model, const SensitivityModel& sen
 void output_sensitivities(const CompiledModel& model, const SensitivityModel& sensitivity, double t,
                           const Eigen::VectorXd& q, const Eigen::MatrixXd& dq_dp,
                           Eigen::MatrixXd& doutputs) {
-  const int n = model.programs().num_outputs, nq = model.nq();
+  const int n = sensitivity.outputs ? model.programs().num_outputs : 0, nq = model.nq();
   const int np = static_cast<int>(sensitivity.params.size());
   doutputs.resize(n, np);
   if (n == 0) return;

@@ -1,6 +1,7 @@
 // What a row of the analysis holds beside q, qd and qdd: points, outputs; and the CSV text of
 // rows.
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -26,7 +27,8 @@ OutputEvaluator::OutputEvaluator(const CompiledModel& model)
       n_(model.programs().num_outputs),
       params_(model.params()),
       values_(n_),
-      rates_(static_cast<std::size_t>(n_) * (2 + nq_)),
+      rates_(model.programs().output_rates.outputs.size()),
+      reads_velocity_(model.programs().output_reads_velocity),
       value_program_(model.programs().outputs),
       rate_program_(model.programs().output_rates) {}
 
@@ -35,14 +37,10 @@ void OutputEvaluator::evaluate(double t, const Eigen::VectorXd& q, const Eigen::
                                std::vector<std::array<double, 3>>& out) {
   out.resize(n_);
   if (n_ == 0) return;
-  value_program_.run(q.data(), nullptr, t, params_.data(), values_.data());
+  value_program_.run(q.data(), qd.data(), t, params_.data(), values_.data());
   rate_program_.run(q.data(), qd.data(), t, params_.data(), rates_.data());
-  for (int o = 0; o < n_; ++o) {
-    double a = rates_[n_ + o];
-    const double* grad = &rates_[2 * n_ + static_cast<std::size_t>(o) * nq_];
-    for (int k = 0; k < nq_; ++k) a += grad[k] * qdd[k];
-    out[o] = {values_[o], rates_[o], a};
-  }
+  assemble_outputs(reads_velocity_, nq_, values_.data(), rates_.data(), qdd.data(),
+                   std::numeric_limits<double>::quiet_NaN(), out);
 }
 
 std::string csv_header(const Mechanism& m) {

@@ -161,7 +161,8 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
     index.push_back(find_parameter(model, names.back(), "--tol"));
     delta[k] = options.tolerances[k].delta;
   }
-  const SensitivityModel sensitivity = build_sensitivity(model, names);
+  // The positions' sensitivities only: an output that reads velocities has none.
+  const SensitivityModel sensitivity = build_sensitivity(model, names, /*outputs=*/false);
 
   ToleranceResult result;
   const Mechanism& m = model.mechanism();

@@ -174,29 +174,57 @@ void emit_structure_tables(std::ostringstream& os, const std::string& name, cons
 }  // namespace
 
 // The mechanism's outputs: values, rates, and accelerations as O_q qdd plus the
-// rest, from the programs the analysis runs. Nothing for a file without outputs.
+// rest, from the programs the analysis runs. Nothing for a file without outputs. Where an
+// output reads velocities, output_values also takes qd, output_rates adds O_qd, and that
+// output's velocity is the rate plus O_qd qdd and its acceleration nan (it would need the
+// jerk); a file without such outputs keeps the header it had.
 void emit_outputs(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
                   const ModelPrograms& programs, int max_ops) {
   const int n = programs.num_outputs;
+  const auto& reads = programs.output_reads_velocity;
+  const bool velocities = std::find(reads.begin(), reads.end(), true) != reads.end();
   os << "\n  // Outputs (in this order):";
   for (int o = 0; o < n; ++o) os << (o ? "," : "") << " " << m.outputs[o].name;
   os << ".\n  static constexpr int num_outputs = " << n << ";\n";
-  os << "  // Output values O(q, t)\n";
-  emit_function(os, "output_values", "num_outputs", programs.outputs, symbols, false, max_ops);
-  os << "\n  // Rates O_q qd + O_t, then accelerations at qdd = 0, then O_q (row-major)\n";
-  emit_function(os, "output_rates", "num_outputs * (2 + nq)", programs.output_rates, symbols, true,
-                max_ops);
+  if (velocities) {
+    os << "  // Outputs that read velocities (their acceleration is nan):";
+    for (int o = 0; o < n; ++o)
+      if (reads[o]) os << " " << m.outputs[o].name;
+    os << ".\n  // Output values O(q, qd, t)\n";
+  } else {
+    os << "  // Output values O(q, t)\n";
+  }
+  emit_function(os, "output_values", "num_outputs", programs.outputs, symbols, velocities, max_ops);
+  const char* rates_size = velocities ? "num_outputs * (2 + 2 * nq)" : "num_outputs * (2 + nq)";
+  os << "\n  // Rates O_q qd + O_t, then accelerations at qdd = 0, then O_q (row-major)"
+     << (velocities ? ", then O_qd (row-major)" : "") << "\n";
+  emit_function(os, "output_rates", rates_size, programs.output_rates, symbols, true, max_ops);
   os << "\n  // Value, velocity and acceleration of each output at a solved q, qd, qdd\n"
      << "  // (exact time derivatives along the motion).\n"
      << "  template <class T>\n"
      << "  static void outputs(const T* q, const T* qd, const T* qdd, T t, const Params& p, "
         "T* value,\n"
      << "                      T* velocity, T* acceleration) noexcept {\n"
-     << "    std::array<T, num_outputs * (2 + nq)> r;\n"
-     << "    output_values(q, t, p, value);\n"
-     << "    output_rates(q, qd, t, p, r.data());\n"
-     << "    for (int o = 0; o < num_outputs; ++o) {\n"
-     << "      velocity[o] = r[o];\n"
+     << "    std::array<T, " << rates_size << "> r;\n"
+     << "    output_values(q, " << (velocities ? "qd, " : "") << "t, p, value);\n"
+     << "    output_rates(q, qd, t, p, r.data());\n";
+  if (velocities) {
+    os << "    constexpr bool reads_velocity[num_outputs] = {";
+    for (int o = 0; o < n; ++o) os << (o ? ", " : "") << (reads[o] ? "true" : "false");
+    os << "};\n"
+       << "    for (int o = 0; o < num_outputs; ++o) {\n"
+       << "      if (reads_velocity[o]) {\n"
+       << "        T v = r[o];\n"
+       << "        for (int k = 0; k < nq; ++k) v += r[(2 + nq) * num_outputs + o * nq + k] * "
+          "qdd[k];\n"
+       << "        velocity[o] = v;\n"
+       << "        acceleration[o] = T(std::numeric_limits<double>::quiet_NaN());\n"
+       << "        continue;\n"
+       << "      }\n";
+  } else {
+    os << "    for (int o = 0; o < num_outputs; ++o) {\n";
+  }
+  os << "      velocity[o] = r[o];\n"
      << "      T a = r[num_outputs + o];\n"
      << "      for (int k = 0; k < nq; ++k) a += r[2 * num_outputs + o * nq + k] * qdd[k];\n"
      << "      acceleration[o] = a;\n"

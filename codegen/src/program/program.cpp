@@ -233,6 +233,7 @@ ModelPrograms lower_model(const SymbolicModel& model, const SymbolTable& symbols
   p.num_outputs = static_cast<int>(model.output_values.size());
   p.outputs = lower(model.output_values, symbols);
   p.output_rates = lower(output_rate_expressions(model), symbols);
+  p.output_reads_velocity = model.output_reads_velocity;
   return p;
 }
 
@@ -240,6 +241,7 @@ std::vector<ex> output_rate_expressions(const SymbolicModel& model) {
   std::vector<ex> all = model.output_rates;
   all.insert(all.end(), model.output_a0.begin(), model.output_a0.end());
   all.insert(all.end(), model.output_q.begin(), model.output_q.end());
+  all.insert(all.end(), model.output_qd.begin(), model.output_qd.end());
   return all;
 }
 

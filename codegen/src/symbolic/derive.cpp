@@ -121,13 +121,13 @@ std::vector<GiNaC::numeric> parameter_values(const Mechanism& m, const SymbolTab
   return values;
 }
 
-// The coordinates `e` reads, ascending.
-std::vector<int> coordinates_in(const ex& e, const SymbolTable& s) {
+// The coordinates (or with kQd, the velocities) `e` reads, ascending.
+std::vector<int> coordinates_in(const ex& e, const SymbolTable& s, InputKind kind = InputKind::kQ) {
   std::vector<int> coords;
   for (auto it = e.preorder_begin(); it != e.preorder_end(); ++it)
     if (GiNaC::is_a<GiNaC::symbol>(*it)) {
       const Input in = s.classify(*it);
-      if (in.kind == InputKind::kQ) coords.push_back(in.index);
+      if (in.kind == kind) coords.push_back(in.index);
     }
   std::sort(coords.begin(), coords.end());
   coords.erase(std::unique(coords.begin(), coords.end()), coords.end());
@@ -243,24 +243,48 @@ void derive_geometry(const Mechanism& m, const SymbolTable& s, const Builder& bu
     model.point_s.push_back(builder.vec(p.s, "point '" + p.name + "' s"));
 }
 
-// The outputs: values, rates, accelerations at qdd = 0 and O_q.
+// The outputs: values, rates, accelerations at qdd = 0 and O_q; for an output that reads
+// velocities (as a load may), the rate at qdd = 0 and O_qd instead of an acceleration.
 void derive_outputs(const Mechanism& m, const SymbolTable& s, SymbolicModel& model) {
+  std::vector<ex> by_qd;
+  bool any_velocity = false;
   for (const auto& o : m.outputs) {
-    const ex value = s.parse(o.value, Scope::kDriver, "outputs." + o.name);
+    const ex value = s.parse(o.value, Scope::kLoad, "outputs." + o.name);
     const std::vector<int> coords = coordinates_in(value, s);
-    std::vector<ex> grad(s.nq(), ex(0));
+    std::vector<ex> grad(s.nq(), ex(0)), grad_qd(s.nq(), ex(0));
     ex rate = value.diff(s.t());
+    const std::vector<int> velocities = coordinates_in(value, s, InputKind::kQd);
+    const bool reads_velocity = !velocities.empty();
+    for (int k : velocities) grad_qd[k] = value.diff(s.qd(k));
     for (int k : coords) {
       grad[k] = value.diff(s.q(k));
       rate += grad[k] * s.qd(k);
     }
     // The rate reads only the coordinates the value does, and qd.
-    ex a0 = rate.diff(s.t());
-    for (int k : coords) a0 += rate.diff(s.q(k)) * s.qd(k);
+    ex a0 = 0;
+    if (!reads_velocity) {
+      a0 = rate.diff(s.t());
+      for (int k : coords) a0 += rate.diff(s.q(k)) * s.qd(k);
+    }
+    any_velocity = any_velocity || reads_velocity;
     model.output_values.push_back(value);
     model.output_rates.push_back(rate);
     model.output_a0.push_back(a0);
     model.output_q.insert(model.output_q.end(), grad.begin(), grad.end());
+    model.output_reads_velocity.push_back(reads_velocity);
+    by_qd.insert(by_qd.end(), grad_qd.begin(), grad_qd.end());
+  }
+  if (any_velocity) model.output_qd = std::move(by_qd);
+}
+
+// Names each free coordinate's value Z and rate Z_d for the expressions parsed after it
+// (outputs here; loads and stop_when later).
+void define_free_names(const Mechanism& m, SymbolTable& s, const SymbolicModel& model) {
+  const std::vector<int> free = m.free_drivers();
+  for (std::size_t k = 0; k < free.size(); ++k) {
+    const std::string& name = m.drivers[free[k]].name;
+    s.define(name, model.free_values[k]);
+    s.define(name + "_d", model.free_rates[k]);
   }
 }
 
@@ -345,7 +369,7 @@ void derive_free_values(const Mechanism& m, const SymbolTable& s, SymbolicModel&
 
 }  // namespace
 
-SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
+SymbolicModel derive(const Mechanism& m, SymbolTable& s,
                      const std::vector<ParamOverride>& overrides) {
   SymbolicModel model;
   model.param_values = parameter_values(m, s, overrides);
@@ -363,6 +387,7 @@ SymbolicModel derive(const Mechanism& m, const SymbolTable& s,
     derive_free_values(m, s, model);
     derive_rates(m, s, model);
     derive_geometry(m, s, builder, model);
+    define_free_names(m, s, model);
     derive_outputs(m, s, model);
   });
   derive_scales(m, body_scales(m, s, builder, model.param_values), model);

@@ -6,6 +6,7 @@
 
 #include <cctype>
 #include <map>
+#include <set>
 
 #include "kinegen/codegen/symbolic/symbolic.hpp"
 
@@ -79,9 +80,15 @@ void derive_stop_when(const Mechanism& m, SymbolTable& s, SymbolicModel& model,
   const std::vector<int> free = m.free_drivers();
   for (std::size_t k = 0; k < free.size(); ++k)
     columns[m.drivers[free[k]].name + ".v"] = model.free_rates[k];
+  // An output that reads velocities has a rate that reads the accelerations, which
+  // stop_when cannot: its NAME.v is refused below.
+  std::set<std::string> no_rate;
   for (std::size_t o = 0; o < m.outputs.size(); ++o) {
     columns[m.outputs[o].name] = model.output_values[o];
-    columns[m.outputs[o].name + ".v"] = model.output_rates[o];
+    if (model.output_reads_velocity[o])
+      no_rate.insert(m.outputs[o].name + ".v");
+    else
+      columns[m.outputs[o].name + ".v"] = model.output_rates[o];
   }
   // Rewrite the columns the text names (the longest match at each place), and define them.
   const std::string& text = m.stop_when->text;
@@ -108,6 +115,11 @@ void derive_stop_when(const Mechanism& m, SymbolTable& s, SymbolicModel& model,
         model.stop_force_columns.push_back(f->second);
       } else if (const auto c = columns.find(token); c != columns.end()) {
         s.define(alias(token), c->second);
+      } else if (no_rate.count(token)) {
+        throw InputError(m.source, "stop_when", m.stop_when->loc,
+                         "'" + token +
+                             "' is the rate of an output that reads velocities, which needs "
+                             "the accelerations; stop_when may use the output itself");
       } else {
         throw InputError(m.source, "stop_when", m.stop_when->loc,
                          "'" + token +

@@ -114,10 +114,6 @@ const char* scope_hint(Scope scope) {
 
 // Why a velocity may not be used, for the item that uses one (its name says what it is).
 std::string velocity_hint(const std::string& item) {
-  if (item.rfind("outputs.", 0) == 0)
-    return "outputs are functions of positions and time (the coordinates, t, the parameters "
-           "and definitions), not of velocities; an output's velocity and acceleration are its "
-           "NAME.v and NAME.a columns";
   if (item.rfind("forces[", 0) == 0)
     return "only a force's f and a torque's value may use velocities (xd_<body>, yd_<body>, "
            "phid_<body>, <name>_d); a spring-damper's damping gives its own";
@@ -169,6 +165,18 @@ std::string position_of_rate(const std::string& name,
   return "";
 }
 
+// Whether a name position_of_rate reads as a rate reads as a second derivative (alpha_B,
+// ax_B, C_dd, ...): no expression may use those.
+bool reads_as_acceleration(const std::string& name) {
+  for (const char* prefix : {"alpha_", "ddphi_", "phidd_", "xdd_", "ydd_", "a_", "ax_", "ay_"})
+    if (name.rfind(prefix, 0) == 0) return true;
+  for (const std::string suffix : {"_ddot", "_dd", "_a", "_alpha"})
+    if (name.size() > suffix.size() &&
+        name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0)
+      return true;
+  return false;
+}
+
 }  // namespace
 
 std::string SymbolTable::unknown_symbol_hint(const std::string& name, Scope scope,
@@ -180,6 +188,20 @@ std::string SymbolTable::unknown_symbol_hint(const std::string& name, Scope scop
     if (const std::string position = position_of_rate(name, is_coordinate); !position.empty())
       return ": it reads as a rate of '" + position + "'; " + velocity_hint(item) +
              " (its position is '" + position + "')";
+  }
+  if (scope_allows(scope, InputKind::kQd)) {
+    // Where velocities are allowed, name the one the format spells.
+    if (const std::string position = position_of_rate(name, is_coordinate); !position.empty()) {
+      const auto k = std::find(coord_names_.begin(), coord_names_.end(), position);
+      const bool acceleration = reads_as_acceleration(name);
+      const std::string what = acceleration ? "an acceleration" : "a rate";
+      const std::string then = acceleration ? "', which expressions may not use; its velocity is '"
+                                            : "', whose velocity is '";
+      for (const auto& [candidate, value] : names_)
+        if (candidate != position + "_dot" && GiNaC::is_a<GiNaC::symbol>(value) &&
+            value.is_equal(qd_[k - coord_names_.begin()]))
+          return ": it reads as " + what + " of '" + position + then + candidate + "'";
+    }
   }
   // The nearest name the scope allows, within a quarter of the name's length (at least 1).
   std::string best;

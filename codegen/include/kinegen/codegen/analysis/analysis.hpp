@@ -126,7 +126,8 @@ PointState point_state(const Eigen::Vector3d& q, const Eigen::Vector3d& qd,
                        const Eigen::Vector3d& qdd, const Eigen::Vector2d& s);
 
 // Evaluates the outputs' values and exact time derivatives at a solved state:
-// v = O_q qd + O_t, a = O_q qdd + (the rest of d/dt v). Allocates on construction only.
+// v = O_q qd + O_t, a = O_q qdd + (the rest of d/dt v); for an output that reads velocities
+// v = O_q qd + O_qd qdd + O_t and a = nan. Allocates on construction only.
 class OutputEvaluator {
  public:
   explicit OutputEvaluator(const CompiledModel& model);
@@ -136,6 +137,7 @@ class OutputEvaluator {
  private:
   int nq_, n_;
   std::vector<double> params_, values_, rates_;
+  std::vector<bool> reads_velocity_;
   ProgramEvaluator<double> value_program_, rate_program_;
 };
 

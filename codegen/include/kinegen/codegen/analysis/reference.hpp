@@ -69,6 +69,8 @@ struct ReferenceRow {
   std::vector<GiNaC::numeric> q, qd, qdd;
   std::vector<std::array<GiNaC::numeric, 6>> points;  // x, y, vx, vy, ax, ay per named point
   std::vector<std::array<GiNaC::numeric, 3>> outputs;  // value, v, a per output
+  // Outputs that read velocities: their a is 0 here and nan once rounded (to_state_row).
+  std::vector<bool> velocity_outputs;
   int newton_iterations = 0;                          // at this time step
 };
 

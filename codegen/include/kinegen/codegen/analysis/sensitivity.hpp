@@ -22,19 +22,23 @@ struct SensitivityModel {
   // d s'/dp of each named point's local offset, evaluated: point_ds[k][point].
   std::vector<std::vector<Eigen::Vector2d>> point_ds;
   // The outputs' explicit dO/dp (np x outputs, parameter-major), then O_q (outputs x nq), as
-  // derive_output_p orders them.
+  // derive_output_p orders them; empty without `outputs`.
   Program output_p;
+  // Whether the outputs' sensitivities are computed (the CSV's d(O)/d(p)); tolerance needs
+  // the positions' only.
+  bool outputs = true;
 };
 
 // The index of the parameter `name`; a UsageError starting with `option` (the command-line
 // option that named it) lists the parameters there are.
 int find_parameter(const CompiledModel& model, const std::string& name, const std::string& option);
 
-// Resolves `names` (the parameters in the order given) and lowers Phi_p. Throws UsageError
-// naming an unknown or repeated parameter. A
-// parameter that nothing depends on is valid: its columns are zeros.
+// Resolves `names` (the parameters in the order given) and lowers Phi_p, and with `outputs`
+// the outputs' dO/dp. Throws UsageError naming an unknown or repeated parameter, and with
+// `outputs` InputError for an output that reads velocities (its sensitivity would need
+// dqd/dp). A parameter that nothing depends on is valid: its columns are zeros.
 SensitivityModel build_sensitivity(const CompiledModel& model,
-                                   const std::vector<std::string>& names);
+                                   const std::vector<std::string>& names, bool outputs = true);
 
 // Splits "p1,p2,..." (the --sensitivity argument); empty items are a UsageError.
 std::vector<std::string> split_parameter_list(const std::string& list);

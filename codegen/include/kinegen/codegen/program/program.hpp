@@ -6,6 +6,7 @@
 
 #include <ginac/ginac.h>
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -80,14 +81,38 @@ struct ModelPrograms {
   int nq = 0, nc = 0;
   std::vector<int> jac_rows, jac_cols;
   Program phi, phi_q, nu, gamma;
-  // Outputs: their values (q, t); output_rates: the rates, then the accelerations
-  // at qdd = 0, then O_q (outputs x nq, row-major), all in q, qd, t.
+  // Outputs: their values (q, t; q, qd, t for one that reads velocities); output_rates:
+  // the rates, then the accelerations at qdd = 0, then O_q (outputs x nq, row-major), then
+  // O_qd where an output reads velocities (output_rate_expressions), all in q, qd, t.
   int num_outputs = 0;
   Program outputs, output_rates;
+  std::vector<bool> output_reads_velocity;  // SymbolicModel's
 };
 
-// The concatenation output_rates lowers: rates, a0, O_q (SymbolicModel's output fields).
+// The concatenation output_rates lowers: rates, a0, O_q, and O_qd when an output reads
+// velocities (SymbolicModel's output fields).
 std::vector<GiNaC::ex> output_rate_expressions(const SymbolicModel& model);
+
+// Each output's value, v and a from `values` (the outputs' values) and `rates` (what
+// output_rate_expressions lists, evaluated) at the accelerations qdd: v = rate + O_qd qdd and
+// a = `none` for an output that reads velocities (its a would need the jerk), else
+// v = rate and a = a0 + O_q qdd. One assembly for the double and the reference rows.
+template <class T, class Row>
+void assemble_outputs(const std::vector<bool>& reads_velocity, int nq, const T* values,
+                      const T* rates, const T* qdd, const T& none, std::vector<Row>& out) {
+  const int n = static_cast<int>(reads_velocity.size());
+  const T* a0 = rates + n;
+  const T* by_q = rates + 2 * n;
+  const T* by_qd = by_q + static_cast<std::size_t>(n) * nq;
+  out.clear();
+  for (int o = 0; o < n; ++o) {
+    const bool velocity = reads_velocity[o];
+    const T* grad = (velocity ? by_qd : by_q) + static_cast<std::size_t>(o) * nq;
+    T sum = velocity ? rates[o] : a0[o];
+    for (int k = 0; k < nq; ++k) sum = sum + grad[k] * qdd[k];
+    out.push_back(velocity ? Row{values[o], sum, none} : Row{values[o], rates[o], sum});
+  }
+}
 
 ModelPrograms lower_model(const SymbolicModel& model, const SymbolTable& symbols, int nq);
 

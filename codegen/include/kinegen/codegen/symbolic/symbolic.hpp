@@ -122,7 +122,12 @@ struct SymbolicModel {
   // Outputs, one entry each: the value O(q, t), its rate O_q qd + O_t, the part
   // of its acceleration without qdd (d/dt of the rate at qdd = 0), and O_q (dense, row-major
   // outputs x nq), so that the acceleration is output_q qdd + output_a0.
-  std::vector<GiNaC::ex> output_values, output_rates, output_a0, output_q;
+  // An output that reads velocities, O(q, qd, t): its rate is output_rates + output_qd qdd
+  // (output_rates the part without qdd) and it has no acceleration (that would need the
+  // jerk; output_a0 is 0). output_qd is O_qd (dense, row-major outputs x nq), empty when no
+  // output reads a velocity, so that files without such outputs keep their programs.
+  std::vector<GiNaC::ex> output_values, output_rates, output_a0, output_q, output_qd;
+  std::vector<bool> output_reads_velocity;   // one per output
   std::vector<GiNaC::numeric> param_values;  // defaults (after overrides), exact
   // One line each (without "warning: "): a driver's boundary where f' or f'' jumps.
   std::vector<std::string> warnings;
@@ -158,8 +163,10 @@ struct ParamOverride {
   std::string value;
 };
 
-// Builds Phi and its derivatives. Throws InputError for bad expressions or overrides.
-SymbolicModel derive(const Mechanism& mechanism, const SymbolTable& symbols,
+// Builds Phi and its derivatives. Defines each free coordinate's value Z and rate Z_d in
+// `symbols` (loads, outputs and stop_when may read them). Throws InputError for bad
+// expressions or overrides.
+SymbolicModel derive(const Mechanism& mechanism, SymbolTable& symbols,
                      const std::vector<ParamOverride>& overrides = {});
 
 // Substitutes the parameter values into `e` (exact where the values are exact).
