@@ -84,7 +84,9 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
     // Exact values, so constant subtrees still fold to one correctly rounded literal.
     ProgressStage stage(options.progress,
                         "folding " + std::to_string(symbols_->num_params()) + " parameters");
-    const auto fold = [&](GiNaC::ex& e) { e = substitute_params(e, *symbols_, symbolic_.param_values); };
+    const auto fold = [&](GiNaC::ex& e) {
+      e = substitute_params(e, *symbols_, symbolic_.param_values);
+    };
     for (auto& e : symbolic_.phi) fold(e);
     for (auto& e : symbolic_.phi_q) fold(e.value);
     for (auto& e : symbolic_.nu) fold(e);

@@ -47,13 +47,11 @@ std::string alias(const std::string& column) {
   return a;
 }
 
-}  // namespace
-
-void derive_stop_when(const Mechanism& m, SymbolTable& s, SymbolicModel& model,
-                      const std::vector<std::string>& force_columns) {
-  if (!m.stop_when) return;
-  // Every column the expression may name, as an expression (or, for force columns, an extra
-  // parameter that the simulation supplies).
+// Every column stop_when may name, as an expression (force columns are extra parameters that
+// the simulation supplies, not here); the rates it may not name go to no_rate.
+std::map<std::string, ex> stop_when_columns(const Mechanism& m, SymbolTable& s,
+                                            const SymbolicModel& model,
+                                            std::set<std::string>& no_rate) {
   std::map<std::string, ex> columns;
   for (std::size_t b = 0; b < m.bodies.size(); ++b) {
     const std::string& n = m.bodies[b].name;
@@ -81,8 +79,7 @@ void derive_stop_when(const Mechanism& m, SymbolTable& s, SymbolicModel& model,
   for (std::size_t k = 0; k < free.size(); ++k)
     columns[m.drivers[free[k]].name + ".v"] = model.free_rates[k];
   // An output that reads velocities has a rate that reads the accelerations, which
-  // stop_when cannot: its NAME.v is refused below.
-  std::set<std::string> no_rate;
+  // stop_when cannot: its NAME.v is refused (derive_stop_when).
   for (std::size_t o = 0; o < m.outputs.size(); ++o) {
     columns[m.outputs[o].name] = model.output_values[o];
     if (model.output_reads_velocity[o])
@@ -90,6 +87,16 @@ void derive_stop_when(const Mechanism& m, SymbolTable& s, SymbolicModel& model,
     else
       columns[m.outputs[o].name + ".v"] = model.output_rates[o];
   }
+  return columns;
+}
+
+}  // namespace
+
+void derive_stop_when(const Mechanism& m, SymbolTable& s, SymbolicModel& model,
+                      const std::vector<std::string>& force_columns) {
+  if (!m.stop_when) return;
+  std::set<std::string> no_rate;
+  const std::map<std::string, ex> columns = stop_when_columns(m, s, model, no_rate);
   // Rewrite the columns the text names (the longest match at each place), and define them.
   const std::string& text = m.stop_when->text;
   std::string rewritten;
@@ -108,7 +115,8 @@ void derive_stop_when(const Mechanism& m, SymbolTable& s, SymbolicModel& model,
     std::size_t end = k;
     while (end < text.size() && name_char(text[end])) ++end;
     const std::string token = text.substr(k, end - k);
-    if (token.find('.') != std::string::npos && !std::isdigit(static_cast<unsigned char>(token[0]))) {
+    if (token.find('.') != std::string::npos &&
+        !std::isdigit(static_cast<unsigned char>(token[0]))) {
       if (defined[token]) {
       } else if (const auto f = force_index.find(token); f != force_index.end()) {
         s.define_extra(alias(token));
@@ -129,7 +137,8 @@ void derive_stop_when(const Mechanism& m, SymbolTable& s, SymbolicModel& model,
       defined[token] = true;
       rewritten += alias(token);
     } else {
-      if (const auto c = columns.find(token); c != columns.end() && token.find('.') == std::string::npos)
+      if (const auto c = columns.find(token);
+          c != columns.end() && token.find('.') == std::string::npos)
         s.define(token, c->second);  // an output by its name
       rewritten += token;
     }
