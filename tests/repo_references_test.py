@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """ctest repo_references: the repository stands alone. No file refers to the contract outside
-it (`../shared`, the contract's file name) or cites another document's section numbers
+it (the shared folder beside a checkout, the contract's file name) or cites another document's section numbers
 ("format 7.1", "section 6.5", "spec 8.3", "(6.5)", "7.3 amendment"); docs/format.md is the
 project's reference and is cited by section title. docs/format.md's own numbers are its own.
 
