@@ -8,8 +8,8 @@
 //  3. self-consistency: D and D + 10 digits agree to ~D - 5 digits;
 //  4. the double simulation (CVODE at rtol 1e-12) against the reference;
 //  5. the command line: --reference D writes simulate's columns, and bad D exits 2.
-// The long sweeps are tagged [precision]: they run in the Release build (the ctest entry
-// precision.reference_dynamics), not under the sanitizers, where CLN's arithmetic runs about
+// The long sweeps are tagged [release]: they run in the Release build (the ctest entry
+// release.reference_dynamics), not under the sanitizers, where CLN's arithmetic runs about
 // 50x slower (41 min for this file); the sanitizers run the other cases, the same code paths.
 #include <signal.h>
 #include <unistd.h>
@@ -141,7 +141,7 @@ numeric pendulum_half_period(int digits) {
 }  // namespace
 
 TEST_CASE("reference dynamics: the pendulum's half period matches the elliptic integral",
-          "[reference_dynamics][precision]") {
+          "[reference_dynamics][release]") {
   for (const int digits : {20, 30, 60}) {
     const Run r = reference(pendulum_half_period_file(), {0, 2, 4}, digits);
     const cg::ReferenceSimulatedRow& last = r.rows.back();
@@ -272,7 +272,7 @@ TEST_CASE("reference dynamics: energy and power balances hold to ~D - 5 digits",
 }
 
 TEST_CASE("reference dynamics: D and D + 10 digits agree to ~D - 5 digits",
-          "[reference_dynamics][precision]") {
+          "[reference_dynamics][release]") {
   const std::string file = four_bar_file("four_bar_gravity", "0.05");
   // 20 against 30 digits (the pendulum's test above reaches 60 against a closed form).
   const Run a = reference(file, {0, 1, 5}, 20), b = reference(file, {0, 1, 5}, 30);
@@ -413,7 +413,7 @@ double last_row_gap(const cg::ReferenceSimulatedRow& ref, const cg::SimulatedRow
 }  // namespace
 
 TEST_CASE("reference dynamics: the press with flywheel across its poly345 strokes",
-          "[reference_dynamics][precision][breakpoints]") {
+          "[reference_dynamics][release][breakpoints]") {
   // The forming force is poly345 of the ram's depth and speed: kinks of the state, located and
   // restarted from. theta at t = 3: 20.2092458080 (CVODE at rtol 1e-13, RK4 at h = 1e-4,
   // Simbody at 1e-12 and 40 digits agree to 1e-11); with one row or 300 alike.
@@ -564,7 +564,7 @@ StopRun stop_run(const std::string& name, const std::string& stop_when, double t
 TEST_CASE(
     "reference dynamics: stop_when finds a brief dip above 0 and the first of fast "
     "oscillations",
-    "[reference_dynamics][precision][stop_when]") {
+    "[reference_dynamics][release][stop_when]") {
   // 1e-5 - 40 (t - 0.5)^2 is above 0 only on 0.5 -+ 5e-4: its first crossing is 0.5 - 5e-4.
   for (const double dip : {1e-5, 1e-9}) {
     const std::string expr = cg::format_number(dip) + " - 40*(t - 0.5)^2";

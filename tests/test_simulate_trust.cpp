@@ -4,6 +4,8 @@
 // limit over the whole run, stop_when's first crossing (randomized dips, fast oscillations,
 // crossings near rows) against closed forms, --atol following --rtol, rows independent of
 // --steps, and the messages (-v, the stop line, a non-finite stop_when, the tolerance range).
+// [release]: the three long runs (2 minutes under the sanitizers) run in an optimized build only
+// (tests/CMakeLists.txt); the other cases reach the same integrator code under the sanitizers.
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
@@ -136,7 +138,7 @@ gravity: [0, -g]
 // --- The energy balance as a witness ----------------------------------------------------------
 
 TEST_CASE("stiff springs end within the balance's bound or with exit 1, never with percents lost",
-          "[simulate_trust]") {
+          "[simulate_trust][release]") {
   struct Case {
     double k, c, t1;
   };
@@ -163,7 +165,7 @@ TEST_CASE("stiff springs end within the balance's bound or with exit 1, never wi
 }
 
 TEST_CASE("--allow-drift turns the balance's failure into one warning with its largest value",
-          "[simulate_trust]") {
+          "[simulate_trust][release]") {
   const fs::path yaml = write_yaml("drift", oscillator(1e6, 0, 0.01));
   const Run strict = simulate(yaml, {"--t1", "100", "--steps", "100", "--rtol", "1e-4"});
   INFO("stderr: " << strict.r.err);
@@ -400,7 +402,7 @@ TEST_CASE("-v says what the run did: the integrator auto chose, its counts, the 
 }
 
 TEST_CASE("--rtol alone tightens a run: the double pendulum to 1e-9 rad at --rtol 1e-12",
-          "[simulate_trust]") {
+          "[simulate_trust][release]") {
   // Against the 30-digit reference (extrapolation in CLN arithmetic). --atol follows --rtol
   // (1e-14 here); it used to stay at 1e-10 and hold the error at about 1e-7 rad.
   const fs::path yaml = write_yaml("double_pendulum", kDoublePendulum);

@@ -51,12 +51,6 @@ int continuation_steps(const CompiledModel& model, const std::vector<int>& free_
 using K = kernels::DynamicsKernel;
 using analysis_detail::singular_rows;
 
-// A solved position whose scaled Phi_q has a larger condition estimate is a singular position
-// (as in `analyze`: cond * eps would reach 1e-8).
-constexpr double kMaxCondition = 1e8;
-// A solution that misses the first-order prediction from the last one by more than this
-// fraction of the predicted change (scaled) left its branch.
-constexpr double kJumpFraction = 0.25;
 // Where the integrator gives up and Phi_q's condition estimate has grown this much since t0,
 // the cause is the singular position it approaches (singular_diagnosis).
 constexpr double kNearSingular = 1e3;
@@ -565,7 +559,7 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
   w.jac.setZero(nq_, nq_);
   w.eval.jacobian(out.q.data(), t, w.jac);
   condition_ = condition;
-  if (condition > kMaxCondition) return singular_failure(t, out, false, -1);
+  if (condition > kSingularCondition) return singular_failure(t, out, false, -1);
   // A run-time input driver's value set anew since the last solve (equilibrium, modes,
   // linearize, Python's dynamics): the prediction knows nothing of it, so this solve, like the
   // first, is not checked against it.
@@ -584,7 +578,7 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
       change = std::max(change, std::abs(predicted[k] - w.q_last[k]) * inv);
       miss = std::max(miss, std::abs(out.q[k] - predicted[k]) * inv);
     }
-    if (miss > kJumpFraction * change + 1e-9)
+    if (miss > kBranchJumpFraction * change + 1e-9)
       return singular_failure(t, out, true, -1,
                               " (it misses the prediction from the last position by " +
                                   format_estimate(miss) + ", the predicted change being " +

@@ -20,71 +20,14 @@
 #include "kinegen/codegen/symbolic/functions.hpp"
 #include "kinegen/kernels/newton.hpp"
 #include "kinegen/solver.hpp"
+#include "numeric_lu.hpp"
 
 namespace kinegen::codegen {
 
 using GiNaC::ex;
 using GiNaC::numeric;
 using Vector = HighPrecisionEvaluator::Vector;
-
-namespace {
-
-// Dense LU with partial pivoting on numerics (n is small: 3 per body).
-class Lu {
- public:
-  // Returns false when a pivot is below `ratio` times the largest entry of the matrix.
-  bool factor(std::vector<numeric> a, int n, const numeric& ratio) {
-    a_ = std::move(a);
-    n_ = n;
-    perm_.resize(n);
-    numeric largest = 0;
-    for (const auto& v : a_) largest = std::max(largest, GiNaC::abs(v));
-    if (largest.is_zero()) return false;
-    for (int k = 0; k < n; ++k) perm_[k] = k;
-    for (int k = 0; k < n; ++k) {
-      int p = k;
-      for (int r = k + 1; r < n; ++r)
-        if (GiNaC::abs(at(r, k)) > GiNaC::abs(at(p, k))) p = r;
-      if (GiNaC::abs(at(p, k)) <= ratio * largest) return false;
-      if (p != k) {
-        for (int c = 0; c < n; ++c) std::swap(at(p, c), at(k, c));
-        std::swap(perm_[p], perm_[k]);
-      }
-      const numeric inv = numeric(1) / at(k, k);
-      for (int r = k + 1; r < n; ++r) {
-        if (at(r, k).is_zero()) continue;
-        const numeric f = at(r, k) * inv;
-        at(r, k) = f;
-        for (int c = k + 1; c < n; ++c)
-          if (!at(k, c).is_zero()) at(r, c) = at(r, c) - f * at(k, c);
-      }
-    }
-    return true;
-  }
-  Vector solve(const Vector& b) const {
-    Vector x(n_);
-    for (int r = 0; r < n_; ++r) {
-      numeric s = b[perm_[r]];
-      for (int c = 0; c < r; ++c) s = s - at(r, c) * x[c];
-      x[r] = s;
-    }
-    for (int r = n_ - 1; r >= 0; --r) {
-      numeric s = x[r];
-      for (int c = r + 1; c < n_; ++c) s = s - at(r, c) * x[c];
-      x[r] = s / at(r, r);
-    }
-    return x;
-  }
-
- private:
-  numeric& at(int r, int c) { return a_[r * n_ + c]; }
-  const numeric& at(int r, int c) const { return a_[r * n_ + c]; }
-  std::vector<numeric> a_;
-  std::vector<int> perm_;
-  int n_ = 0;
-};
-
-}  // namespace
+using Lu = analysis_detail::NumericLu;
 
 struct ReferenceForces::Data {
   ForceData<numeric> numbers;

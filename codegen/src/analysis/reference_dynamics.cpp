@@ -10,13 +10,14 @@
 #include <kinegen/kernels/newton.hpp>
 #include <string>
 
+#include "diagnosis.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/dynamics.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/model/table.hpp"
-#include "diagnosis.hpp"
+#include "numeric_lu.hpp"
 
 namespace kinegen::codegen {
 
@@ -27,91 +28,11 @@ using Vector = ReferenceDynamics::Vector;
 
 namespace {
 
-// As in double (analysis/dynamics.cpp): a solved position whose scaled Phi_q has a larger
-// condition estimate is a singular position, and a solution that misses the first-order
-// prediction by more than this fraction of the predicted change left its branch.
-constexpr double kMaxCondition = 1e8;
-const numeric kJumpFraction = numeric(1, 4);
 constexpr int kMaxIterations = 60;
 constexpr const char* kNoSingularPositions =
     "; the reference integrates the minimal coordinates, which cannot pass a singular position";
 
-// Dense LU with partial pivoting on numerics (n is small: 3 per body), with the transposed
-// solve for the multipliers.
-class Lu {
- public:
-  // false when a pivot is at most `ratio` times the largest entry of the matrix.
-  bool factor(const std::vector<numeric>& a, int n, const numeric& ratio) {
-    a_ = a;
-    n_ = n;
-    perm_.resize(n);
-    numeric largest = 0;
-    for (const auto& v : a_) largest = std::max(largest, GiNaC::abs(v));
-    if (largest.is_zero()) return false;
-    for (int k = 0; k < n; ++k) perm_[k] = k;
-    for (int k = 0; k < n; ++k) {
-      int p = k;
-      for (int r = k + 1; r < n; ++r)
-        if (GiNaC::abs(at(r, k)) > GiNaC::abs(at(p, k))) p = r;
-      if (GiNaC::abs(at(p, k)) <= ratio * largest) return false;
-      if (p != k) {
-        for (int c = 0; c < n; ++c) std::swap(at(p, c), at(k, c));
-        std::swap(perm_[p], perm_[k]);
-      }
-      const numeric inv = numeric(1) / at(k, k);
-      for (int r = k + 1; r < n; ++r) {
-        if (at(r, k).is_zero()) continue;
-        const numeric f = at(r, k) * inv;
-        at(r, k) = f;
-        for (int c = k + 1; c < n; ++c)
-          if (!at(k, c).is_zero()) at(r, c) = at(r, c) - f * at(k, c);
-      }
-    }
-    return true;
-  }
-  // A x = b.
-  Vector solve(const Vector& b) const {
-    Vector x(n_);
-    for (int r = 0; r < n_; ++r) {
-      numeric s = b[perm_[r]];
-      for (int c = 0; c < r; ++c)
-        if (!at(r, c).is_zero()) s = s - at(r, c) * x[c];
-      x[r] = s;
-    }
-    for (int r = n_ - 1; r >= 0; --r) {
-      numeric s = x[r];
-      for (int c = r + 1; c < n_; ++c)
-        if (!at(r, c).is_zero()) s = s - at(r, c) * x[c];
-      x[r] = s / at(r, r);
-    }
-    return x;
-  }
-  // A^T x = b (P A = L U, so A^T = U^T L^T P).
-  Vector solve_transposed(const Vector& b) const {
-    Vector y(n_), x(n_);
-    for (int r = 0; r < n_; ++r) {
-      numeric s = b[r];
-      for (int c = 0; c < r; ++c)
-        if (!at(c, r).is_zero()) s = s - at(c, r) * y[c];
-      y[r] = s / at(r, r);
-    }
-    for (int r = n_ - 1; r >= 0; --r) {
-      numeric s = y[r];
-      for (int c = r + 1; c < n_; ++c)
-        if (!at(c, r).is_zero()) s = s - at(c, r) * y[c];
-      y[r] = s;
-    }
-    for (int r = 0; r < n_; ++r) x[perm_[r]] = y[r];
-    return x;
-  }
-
- private:
-  numeric& at(int r, int c) { return a_[r * n_ + c]; }
-  const numeric& at(int r, int c) const { return a_[r * n_ + c]; }
-  std::vector<numeric> a_;
-  std::vector<int> perm_;
-  int n_ = 0;
-};
+using Lu = analysis_detail::NumericLu;
 
 numeric dot(const Vector& a, const Vector& b) {
   numeric s = 0;
@@ -391,7 +312,7 @@ void ReferenceDynamics::check_position(const Vector& q, const Vector& predicted,
   for (int r = 0; r < nq_; ++r)
     for (int j = 0; j < nq_; ++j) jd(r, j) = w.jac[r * nq_ + j].to_double();
   const double rcond = Eigen::PartialPivLU<Eigen::MatrixXd>(scaled_jacobian(model_, jd)).rcond();
-  if (!w.lu.factor(w.jac, nq_, w.pivot_ratio) || !(rcond * kMaxCondition > 1))
+  if (!w.lu.factor(w.jac, nq_, w.pivot_ratio) || !(rcond * kSingularCondition > 1))
     throw AnalysisError(
         "the mechanism reached a singular position, where q is not a function of the free "
         "coordinates" +
@@ -402,7 +323,7 @@ void ReferenceDynamics::check_position(const Vector& q, const Vector& predicted,
     change = std::max(change, GiNaC::abs((predicted[j] - w.start.q[j]) * w.inv_scale[j]));
     miss = std::max(miss, GiNaC::abs((q[j] - predicted[j]) * w.inv_scale[j]));
   }
-  if (miss > kJumpFraction * change + w.stagnation)
+  if (miss > numeric(kBranchJumpFraction) * change + w.stagnation)
     throw AnalysisError("the position left its assembly branch (it misses the prediction by " +
                         format_estimate(miss.to_double()) + ", the predicted change being " +
                         format_estimate(change.to_double()) + ")" + singular_rows(model_, jd) +

@@ -18,7 +18,7 @@ namespace kinegen::cli {
 
 namespace {
 
-struct Options {
+struct AnalyzeArgs {
   double t0 = 0, t1 = 0;
   int steps = 0;
   std::string output;  // empty: standard output
@@ -29,7 +29,7 @@ struct Options {
   bool with_forces = false;
 };
 
-int run_analyze(const Common& c, const Options& o) {
+int run_analyze(const Common& c, const AnalyzeArgs& o) {
   auto model = load(c);
   kc::require_driven(*model);
   check_grid(o.t0, o.t1, o.steps);
@@ -102,7 +102,7 @@ int run_analyze(const Common& c, const Options& o) {
 }  // namespace
 
 Subcommand add_analyze(CLI::App& app, Common& common) {
-  const auto o = std::make_shared<Options>();
+  const auto o = std::make_shared<AnalyzeArgs>();
   auto* analyze = app.add_subcommand("analyze", "Position, velocity and acceleration over time");
   add_common(analyze, common);
   analyze->add_option("--t0", o->t0, "Start time")->required();

@@ -16,7 +16,7 @@ namespace kinegen::cli {
 
 namespace {
 
-struct Options {
+struct AnimateArgs {
   kc::AnimateOptions animate;
   std::string output;
   int mode = 0;  // 1-based; 0: an analysis
@@ -25,7 +25,7 @@ struct Options {
   bool grid_given = false;
 };
 
-int run_animate(const Common& c, const Options& o) {
+int run_animate(const Common& c, const AnimateArgs& o) {
   if (o.mode != 0) return run_animate_mode(c, o.animate, o.output, o.mode, o.amplitude, o.at);
   if (!o.grid_given)
     throw kc::UsageError("animate needs --t0, --t1 and --steps (or --mode K for a vibration mode)");
@@ -52,7 +52,7 @@ int run_animate(const Common& c, const Options& o) {
 }  // namespace
 
 Subcommand add_animate(CLI::App& app, Common& common) {
-  const auto o = std::make_shared<Options>();
+  const auto o = std::make_shared<AnimateArgs>();
   kc::AnimateOptions& a = o->animate;
   auto* animate = app.add_subcommand("animate", "Draw the mechanism moving over an analysis (SVG)");
   add_common(animate, common);

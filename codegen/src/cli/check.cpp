@@ -32,13 +32,13 @@ std::string printf_text(const char* format, ...) {
   return buf;
 }
 
-struct Options {
+struct CheckArgs {
   kc::CheckOptions check;
   std::string seed = "1";
   bool structure = false;
 };
 
-int run_check(const Common& c, const Options& o) {
+int run_check(const Common& c, const CheckArgs& o) {
   kc::CheckOptions options = o.check;
   options.seed =
       static_cast<unsigned>(parse_seed(o.seed, std::numeric_limits<decltype(options.seed)>::max()));
@@ -76,7 +76,7 @@ int run_check(const Common& c, const Options& o) {
 }  // namespace
 
 Subcommand add_check(CLI::App& app, Common& common) {
-  const auto o = std::make_shared<Options>();
+  const auto o = std::make_shared<CheckArgs>();
   auto* check = app.add_subcommand("check", "Compare Phi_q, nu and gamma with numeric derivatives");
   add_common(check, common);
   check->add_option("--samples", o->check.samples, "Random configurations (default 5)");

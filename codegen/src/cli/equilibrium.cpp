@@ -16,7 +16,7 @@ namespace kinegen::cli {
 
 namespace {
 
-struct Options {
+struct EquilibriumArgs {
   std::string at, from, format, output = "-";
   bool nearest = false;
 };
@@ -102,7 +102,7 @@ void write_csv(std::ostream& out, const kc::Mechanism& m, const kc::Equilibrium&
   out << header.str() << "\n" << row.str() << "\n";
 }
 
-int run_equilibrium(const Common& c, const Options& o) {
+int run_equilibrium(const Common& c, const EquilibriumArgs& o) {
   const std::string format = output_format(o.format, o.output, "text", {"text", "csv", "json"});
   LinearSetup s = load_linear(c, "equilibrium", o.at, {"t", "u"});
   const kc::OperatingPoint start =
@@ -136,7 +136,7 @@ int run_equilibrium(const Common& c, const Options& o) {
 }  // namespace
 
 Subcommand add_equilibrium(CLI::App& app, Common& common) {
-  const auto o = std::make_shared<Options>();
+  const auto o = std::make_shared<EquilibriumArgs>();
   auto* cmd = app.add_subcommand(
       "equilibrium", "Where the free coordinates come to rest, the reactions, the stability");
   add_common(cmd, common);

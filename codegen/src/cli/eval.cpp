@@ -31,12 +31,12 @@ Eigen::VectorXd vector_arg(const std::vector<double>& values, int n, const char*
   return Eigen::Map<const Eigen::VectorXd>(values.data(), n);
 }
 
-struct Options {
+struct EvalArgs {
   double t = 0;
   std::vector<double> q, qd;  // empty: q0, zeros
 };
 
-int run_eval(const Common& c, const Options& o) {
+int run_eval(const Common& c, const EvalArgs& o) {
   const auto model = load(c, {}, false);
   const int nq = model->nq(), nc = model->nc();
   const Eigen::VectorXd q = o.q.empty() ? model->q0() : vector_arg(o.q, nq, "--q");
@@ -59,7 +59,7 @@ int run_eval(const Common& c, const Options& o) {
 }  // namespace
 
 Subcommand add_eval(CLI::App& app, Common& common) {
-  const auto o = std::make_shared<Options>();
+  const auto o = std::make_shared<EvalArgs>();
   auto* eval = app.add_subcommand("eval", "Print Phi, Phi_q, nu and gamma as JSON");
   add_common(eval, common);
   eval->add_option("--t", o->t, "Time (default 0)");

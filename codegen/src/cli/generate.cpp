@@ -15,7 +15,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Options {
+struct GenerateArgs {
   std::string dir = ".";
   bool fold_params = false;
   std::string name_space = "kinegen::models";
@@ -24,7 +24,7 @@ struct Options {
   int roll_min = kc::kDefaultRollMin;
 };
 
-int run_generate(const Common& c, const Options& o) {
+int run_generate(const Common& c, const GenerateArgs& o) {
   // A bad --namespace is a usage error before any work.
   if (const auto why = kc::namespace_conflict(o.name_space); !why.empty())
     throw kc::UsageError("--namespace: " + why);
@@ -60,7 +60,7 @@ int run_generate(const Common& c, const Options& o) {
 }  // namespace
 
 Subcommand add_generate(CLI::App& app, Common& common) {
-  const auto o = std::make_shared<Options>();
+  const auto o = std::make_shared<GenerateArgs>();
   auto* generate = app.add_subcommand("generate", "Write <DIR>/<name>.hpp for a mechanism");
   add_common(generate, common);
   generate->add_option("-o,--output", o->dir, "Output directory (default: .)");

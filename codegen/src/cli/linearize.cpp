@@ -13,7 +13,7 @@ namespace kinegen::cli {
 
 namespace {
 
-struct Options {
+struct LinearizeArgs {
   std::string at, format, output = "-";
 };
 
@@ -39,7 +39,7 @@ void write_csv(std::ostream& out, const kc::LinearModel& l) {
   }
 }
 
-int run_linearize(const Common& c, const Options& o) {
+int run_linearize(const Common& c, const LinearizeArgs& o) {
   const std::string format = output_format(o.format, o.output, "json", {"json", "csv"});
   LinearSetup s = load_linear(c, "linearize", o.at, {"t", "z", "zd", "u"});
   const kc::LinearModel l = kc::linearize(*s.linearizer, s.at);
@@ -56,7 +56,7 @@ int run_linearize(const Common& c, const Options& o) {
 }  // namespace
 
 Subcommand add_linearize(CLI::App& app, Common& common) {
-  const auto o = std::make_shared<Options>();
+  const auto o = std::make_shared<LinearizeArgs>();
   auto* cmd = app.add_subcommand(
       "linearize", "Exact A and B of x' = f(x, u) at an operating point, for control");
   add_common(cmd, common);

@@ -16,7 +16,7 @@ namespace kinegen::cli {
 
 namespace {
 
-struct Options {
+struct ModesArgs {
   std::string at, format, output = "-";
 };
 
@@ -95,7 +95,7 @@ void write_json(std::ostream& out, const kc::Mechanism& m, const kc::ModalAnalys
       << ", \"kinds\": " << json_strings(kinds) << ", \"shapes_z\": " << shapes_z << "]}\n";
 }
 
-int run_modes(const Common& c, const Options& o) {
+int run_modes(const Common& c, const ModesArgs& o) {
   const std::string format = output_format(o.format, o.output, "text", {"text", "json"});
   LinearSetup s = load_linear(c, "modes", o.at, {"t", "z", "u"});
   // With z in --at, the modes there; else about the equilibrium found from value0.
@@ -131,7 +131,7 @@ int run_modes(const Common& c, const Options& o) {
 }  // namespace
 
 Subcommand add_modes(CLI::App& app, Common& common) {
-  const auto o = std::make_shared<Options>();
+  const auto o = std::make_shared<ModesArgs>();
   auto* cmd = app.add_subcommand(
       "modes", "Natural frequencies and mode shapes about the equilibrium (or --at z=...)");
   add_common(cmd, common);

@@ -21,7 +21,7 @@ namespace kinegen::cli {
 
 namespace {
 
-struct Options {
+struct SimulateArgs {
   double t0 = 0, t1 = 0;
   int steps = 0;
   double rtol = 1e-8;
@@ -35,7 +35,7 @@ struct Options {
 };
 
 // The options checked (before the file is read), as the simulation takes them.
-kc::SimulateOptions check_options(const Options& o) {
+kc::SimulateOptions check_options(const SimulateArgs& o) {
   check_grid(o.t0, o.t1, o.steps);
   if (!(o.t1 > o.t0))
     throw kc::UsageError("--t1 (" + kc::format_number(o.t1) + ") must come after --t0 (" +
@@ -79,12 +79,11 @@ void report(const kc::Mechanism& m, const kc::SimulateSummary& s) {
              std::to_string(s.error_test_failures) + " error-test failures, " +
              std::to_string(s.restarts) + " restarts at breakpoints");
   log.detail("largest |energy.balance| " + kc::format_estimate(s.largest_balance) + " at " +
-             kc::format_time(s.largest_balance_time) + " (" +
-             kc::format_estimate(s.largest_ratio) +
+             kc::format_time(s.largest_balance_time) + " (" + kc::format_estimate(s.largest_ratio) +
              " of its tolerance term C (rtol + atol/S) (S + X))");
 }
 
-int run_simulate(const Common& c, const Options& o) {
+int run_simulate(const Common& c, const SimulateArgs& o) {
   kc::SimulateOptions options = check_options(o);
   kc::BuildOptions build;
   build.free_as_state = true;
@@ -135,7 +134,7 @@ int run_simulate(const Common& c, const Options& o) {
 }  // namespace
 
 Subcommand add_simulate(CLI::App& app, Common& common) {
-  const auto o = std::make_shared<Options>();
+  const auto o = std::make_shared<SimulateArgs>();
   auto* cmd = app.add_subcommand("simulate", "Forward dynamics: the motion under the forces");
   add_common(cmd, common);
   cmd->add_option("--t0", o->t0, "Start time (default 0)");

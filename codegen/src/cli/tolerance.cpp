@@ -14,14 +14,14 @@ namespace kinegen::cli {
 
 namespace {
 
-struct Options {
+struct ToleranceArgs {
   kc::ToleranceOptions tolerance;
   std::string seed = "1";
   std::vector<std::string> tol;  // NAME=DELTA
   std::string output;            // empty: no CSV
 };
 
-int run_tolerance(const Common& c, const Options& o) {
+int run_tolerance(const Common& c, const ToleranceArgs& o) {
   kc::ToleranceOptions options = o.tolerance;
   options.seed = parse_seed(o.seed, std::numeric_limits<std::uint64_t>::max());
   options.overrides = parse_overrides(c.params);
@@ -51,7 +51,7 @@ int run_tolerance(const Common& c, const Options& o) {
 }  // namespace
 
 Subcommand add_tolerance(CLI::App& app, Common& common) {
-  const auto o = std::make_shared<Options>();
+  const auto o = std::make_shared<ToleranceArgs>();
   kc::ToleranceOptions& t = o->tolerance;
   auto* tolerance = app.add_subcommand(
       "tolerance", "Worst-case and RSS deviations of the positions from parameter tolerances");

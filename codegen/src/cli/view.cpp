@@ -15,7 +15,7 @@ namespace kinegen::cli {
 
 namespace {
 
-struct Options {
+struct ViewArgs {
   std::string csv, modes, output;
   std::optional<double> t0, t1;
   std::optional<int> steps;
@@ -24,7 +24,7 @@ struct Options {
   int width = 800;
 };
 
-int run_view(const Common& c, const Options& o) {
+int run_view(const Common& c, const ViewArgs& o) {
   const bool grid = o.t0 || o.t1 || o.steps;
   if (static_cast<int>(!o.csv.empty()) + static_cast<int>(!o.modes.empty()) + grid != 1)
     throw kc::UsageError(
@@ -80,7 +80,7 @@ int run_view(const Common& c, const Options& o) {
 }  // namespace
 
 Subcommand add_view(CLI::App& app, Common& common) {
-  const auto o = std::make_shared<Options>();
+  const auto o = std::make_shared<ViewArgs>();
   auto* view = app.add_subcommand(
       "view", "One self-contained HTML page: the mechanism moving over a run, with plots");
   add_common(view, common);

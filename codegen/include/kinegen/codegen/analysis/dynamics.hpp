@@ -22,6 +22,15 @@ namespace kinegen::codegen {
 
 class BlockInterpreter;
 
+// The minimal method's two judgements of a solved position, one pair for the double
+// integration (dynamics.cpp) and the high-precision reference (reference_dynamics.cpp): a
+// scaled Phi_q whose condition estimate exceeds kSingularCondition is a singular position (as
+// in `analyze`: cond * eps would reach 1e-8), and a solution that misses the first-order
+// prediction from the last one by more than kBranchJumpFraction of the predicted change
+// (scaled) left its branch.
+inline constexpr double kSingularCondition = 1e8;
+inline constexpr double kBranchJumpFraction = 0.25;
+
 // Why an evaluation of the equations of motion failed.
 enum class MotionFailure {
   kNone,
