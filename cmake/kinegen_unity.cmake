@@ -1,8 +1,12 @@
 # kinegen_unity(TARGET SIZE n [ALONE file...]): with KINEGEN_UNITY_BUILD on, compiles TARGET's
 # .cpp files `n` to a unit (CMake's unity build, group mode: most of a file's compile time is
-# the GiNaC, Eigen and Catch2 templates that every file of a unit then shares). The files named
+# the GiNaC, Eigen and CLI11 templates that every file of a unit then shares). The files named
 # after ALONE compile on their own: they define a name in an anonymous namespace that another
-# file defines too (the constraint files' `equations` and `draw`, by design).
+# file defines too (the constraint files' `equations` and `draw`, by design), or GCC warns about
+# them once included by a unit's source. Units follow the order of the target's sources, so a
+# new file shifts the units after it: a clash then shows as a compile error, except between
+# overloads, which is why same-named helpers of different files must differ in their arity (the
+# command line's write_json, write_text and write_csv do) or stay apart.
 function(kinegen_unity target)
   if(NOT KINEGEN_UNITY_BUILD)
     return()

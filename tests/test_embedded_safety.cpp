@@ -6,6 +6,7 @@
 #include <array>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <kinegen/block_options.hpp>
 #include <kinegen/solver.hpp>
 
 #include "drag_link.hpp"
@@ -191,4 +192,52 @@ TEST_CASE("block determinant signs catch a jump to the other assembly branch", "
   crossed[5] = 2 * theta - q[5];
   CHECK(M::solve_position(free.data(), t, p, o).status == 0);
   CHECK(std::abs(free[5] - q[5]) > 0.1);
+}
+
+namespace {
+
+// The options of a header from before min_rcond, max_halvings and residual_tolerance.
+struct OldBlockOptions {
+  double tolerance = 0;
+  int max_iterations = 0;
+  int fixed_iterations = 0;
+  double singular_pivot_ratio = 0;
+};
+
+kinegen::SolverOptions distinct_options() {
+  kinegen::SolverOptions s;
+  s.tolerance = 3e-9;
+  s.max_iterations = 17;
+  s.fixed_iterations = 4;
+  s.singular_pivot_ratio = 7e-14;
+  s.min_rcond = 5e-11;
+  s.max_halvings = 3;
+  s.residual_tolerance = 2e-7;
+  return s;
+}
+
+}  // namespace
+
+TEMPLATE_TEST_CASE("block_options_from carries every option the block options have", "[embedded]",
+                   double, float) {
+  const kinegen::SolverOptions s = distinct_options();
+  using O = kinegen::kernels::ReportKernel::BasicBlockOptions<TestType>;
+  const O o = kinegen::block_options_from<O>(s);
+  CHECK(o.tolerance == TestType(3e-9));
+  CHECK(o.max_iterations == 17);
+  CHECK(o.fixed_iterations == 4);
+  CHECK(o.singular_pivot_ratio == TestType(7e-14));
+  CHECK(o.min_rcond == TestType(5e-11));
+  CHECK(o.residual_tolerance == TestType(2e-7));
+  // A generated header's own options (the runtime's BlockSolver and Simulator convert to them).
+  const auto g = kinegen::block_options_from<kinegen::models::four_bar::BlockOptions>(s);
+  CHECK(g.fixed_iterations == 4);
+  CHECK(g.min_rcond == 5e-11);
+  CHECK(g.residual_tolerance == 2e-7);
+  // An older header's: what it has, nothing else.
+  const OldBlockOptions old = kinegen::block_options_from<OldBlockOptions>(s);
+  CHECK(old.tolerance == 3e-9);
+  CHECK(old.max_iterations == 17);
+  CHECK(old.fixed_iterations == 4);
+  CHECK(old.singular_pivot_ratio == 7e-14);
 }

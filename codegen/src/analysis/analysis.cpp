@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <kinegen/block_options.hpp>
 #include <kinegen/motion.hpp>
 #include <limits>
 #include <memory>
@@ -106,15 +107,8 @@ class TimeLoop {
     row_.qdd = Eigen::VectorXd::Zero(model.nq());
     if (sensitivity_) phi_p_eval_ = std::make_unique<ProgramEvaluator<double>>(sensitivity_->phi_p);
     if (options.forces) force_solver_ = std::make_unique<ForceSolver>(model, *options.forces);
-    // kinegen::Solver's defaults in double (default_options, as Solver::block_options copies
-    // them).
-    const SolverOptions s = default_options<double>();
-    block_options_.tolerance = s.tolerance;
-    block_options_.max_iterations = s.max_iterations;
-    block_options_.fixed_iterations = s.fixed_iterations;
-    block_options_.singular_pivot_ratio = s.singular_pivot_ratio;
-    block_options_.min_rcond = s.min_rcond;
-    block_options_.residual_tolerance = s.residual_tolerance;
+    // kinegen::Solver's defaults in double, converted as its block path converts them.
+    block_options_ = block_options_from<BlockInterpreter::Options>(default_options<double>());
   }
 
   void run(const TimeGrid& grid, const std::function<void(const StateRow&)>& sink) {

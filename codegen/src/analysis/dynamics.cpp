@@ -3,6 +3,7 @@
 
 #include <Eigen/SparseLU>
 #include <cmath>
+#include <kinegen/block_options.hpp>
 #include <kinegen/kernels/dynamics.hpp>
 #include <kinegen/solver.hpp>
 #include <limits>
@@ -56,14 +57,7 @@ using analysis_detail::singular_rows;
 constexpr double kNearSingular = 1e3;
 
 BlockInterpreter::Options block_options() {
-  BlockInterpreter::Options o;
-  const SolverOptions s = default_options<double>();
-  o.tolerance = s.tolerance;
-  o.max_iterations = s.max_iterations;
-  o.singular_pivot_ratio = s.singular_pivot_ratio;
-  o.min_rcond = s.min_rcond;
-  o.residual_tolerance = s.residual_tolerance;
-  return o;
+  return block_options_from<BlockInterpreter::Options>(default_options<double>());
 }
 
 // The numerical rank of the rows `rows` of the scaled Phi_q.

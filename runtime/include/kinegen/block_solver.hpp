@@ -9,6 +9,7 @@
 #include <limits>
 #include <type_traits>
 
+#include "kinegen/block_options.hpp"
 #include "kinegen/motion.hpp"
 #include "kinegen/solver.hpp"
 
@@ -55,21 +56,6 @@ template <class R, class = void>
 struct ReportHasRcond : std::false_type {};
 template <class R>
 struct ReportHasRcond<R, std::void_t<decltype(std::declval<const R&>().rcond)>> : std::true_type {};
-template <class O, class = void>
-struct OptionsHaveMinRcond : std::false_type {};
-template <class O>
-struct OptionsHaveMinRcond<O, std::void_t<decltype(std::declval<O&>().min_rcond)>>
-    : std::true_type {};
-template <class O, class = void>
-struct OptionsHaveMaxHalvings : std::false_type {};
-template <class O>
-struct OptionsHaveMaxHalvings<O, std::void_t<decltype(std::declval<O&>().max_halvings)>>
-    : std::true_type {};
-template <class O, class = void>
-struct OptionsHaveResidualTolerance : std::false_type {};
-template <class O>
-struct OptionsHaveResidualTolerance<O, std::void_t<decltype(std::declval<O&>().residual_tolerance)>>
-    : std::true_type {};
 // Whether the header has parameter sensitivities (phi_p, solve_sensitivity), and how many
 // parameters its Params has (0 when it does not say).
 template <class Model, class = void>
@@ -585,18 +571,7 @@ class Solver {
   }
 
   auto block_options() const {
-    typename Model::BlockOptions o;
-    const SolverOptions& s = dense_.options();
-    o.tolerance = s.tolerance;
-    o.max_iterations = s.max_iterations;
-    o.fixed_iterations = s.fixed_iterations;
-    o.singular_pivot_ratio = s.singular_pivot_ratio;
-    using O = typename Model::BlockOptions;
-    if constexpr (detail::OptionsHaveMinRcond<O>::value) o.min_rcond = s.min_rcond;
-    if constexpr (detail::OptionsHaveMaxHalvings<O>::value) o.max_halvings = s.max_halvings;
-    if constexpr (detail::OptionsHaveResidualTolerance<O>::value)
-      o.residual_tolerance = s.residual_tolerance;
-    return o;
+    return block_options_from<typename Model::BlockOptions>(dense_.options());
   }
 
   // The generated position and full-step solves, with the sin/cos cache and the blocks'

@@ -53,12 +53,7 @@ class Simulator {
   explicit Simulator(const Params& params = Params{}, SimulatorOptions options = {},
                      SolverOptions solver = default_options<T>())
       : params_(params), options_(options) {
-    block_.tolerance = solver.tolerance;
-    block_.max_iterations = solver.max_iterations;
-    block_.fixed_iterations = solver.fixed_iterations;
-    block_.singular_pivot_ratio = solver.singular_pivot_ratio;
-    block_.min_rcond = solver.min_rcond;
-    block_.residual_tolerance = solver.residual_tolerance;
+    block_ = block_options_from<decltype(block_)>(solver);
     for (int k = 0; k < kStates; ++k) x_[k] = xd_[k] = T(0);
     for (int k = 0; k < nf; ++k) scale_[k] = scale_[nf + k] = Real(Model::free_scale(k));
   }

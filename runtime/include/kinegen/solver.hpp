@@ -12,6 +12,7 @@
 #include <limits>
 #include <type_traits>
 
+#include "kinegen/condition_estimate.hpp"
 #include "kinegen/motion.hpp"
 #include "kinegen/kernels/newton.hpp"
 
@@ -186,33 +187,11 @@ bool all_finite(const Eigen::MatrixBase<Derived>& v) {
   return v.allFinite();
 }
 
-// Hager's estimate of 1 / (|A|_1 |A^-1|_1) for the factored scaled Phi_q (as Eigen's rcond(),
-// written out because GCC warns inside Eigen's version for fixed sizes; no allocation).
+// hager_reciprocal_condition for the factored dense scaled Phi_q.
 template <class WS>
 double reciprocal_condition(WS& ws) {
-  using Scalar = typename WS::VectorQ::Scalar;
-  const int n = static_cast<int>(ws.scaled.cols());
   const double norm_a = static_cast<double>(ws.scaled.cwiseAbs().colwise().sum().maxCoeff());
-  if (!(norm_a > 0)) return 0.0;
-  ws.est_x.setConstant(Scalar(1) / Scalar(n));
-  double estimate = 0;
-  int last = -1;
-  for (int iter = 0; iter < 5; ++iter) {
-    ws.est_y = ws.lu.solve(ws.est_x);  // A^-1 x
-    const double norm_y = static_cast<double>(ws.est_y.cwiseAbs().sum());
-    if (iter > 0 && norm_y <= estimate) break;
-    estimate = norm_y;
-    for (int k = 0; k < n; ++k) ws.est_x[k] = ws.est_y[k] >= Scalar(0) ? Scalar(1) : Scalar(-1);
-    ws.est_z = ws.lu.transpose().solve(ws.est_x);  // A^-T sign(y)
-    int j = 0;
-    ws.est_z.cwiseAbs().maxCoeff(&j);
-    if (j == last) break;
-    last = j;
-    ws.est_x.setZero();
-    ws.est_x[j] = Scalar(1);
-  }
-  if (!std::isfinite(estimate) || !(estimate > 0)) return 0.0;
-  return 1.0 / (norm_a * estimate);
+  return hager_reciprocal_condition(ws, norm_a, static_cast<int>(ws.scaled.cols()));
 }
 
 // Evaluates Phi_q at (q, t), scales it and factors it. Fills `result` (condition, rank; status

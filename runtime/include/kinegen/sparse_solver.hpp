@@ -116,8 +116,7 @@ double sparse_pivot_ratio(const Lu& lu) {
   return largest > 0 ? smallest / largest : 0.0;
 }
 
-// Hager's (Higham's) estimate of 1 / (|A|_1 |A^-1|_1) for the factored scaled Phi_q, with
-// SparseLU solves by A and A^T: the dense path's reciprocal_condition, step for step.
+// hager_reciprocal_condition for the factored sparse scaled Phi_q (with SparseLU's solves).
 template <class Scalar>
 double reciprocal_condition(SparseWorkspace<Scalar>& ws) {
   const int n = ws.nq();
@@ -128,26 +127,7 @@ double reciprocal_condition(SparseWorkspace<Scalar>& ws) {
       column += static_cast<double>(std::abs(it.value()));
     norm_a = std::max(norm_a, column);
   }
-  if (!(norm_a > 0)) return 0.0;
-  ws.est_x.setConstant(Scalar(1) / Scalar(n));
-  double estimate = 0;
-  int last = -1;
-  for (int iter = 0; iter < 5; ++iter) {
-    ws.est_y = ws.lu.solve(ws.est_x);  // A^-1 x
-    const double norm_y = static_cast<double>(ws.est_y.cwiseAbs().sum());
-    if (iter > 0 && norm_y <= estimate) break;
-    estimate = norm_y;
-    for (int k = 0; k < n; ++k) ws.est_x[k] = ws.est_y[k] >= Scalar(0) ? Scalar(1) : Scalar(-1);
-    ws.est_z = ws.lu.transpose().solve(ws.est_x);  // A^-T sign(y)
-    int j = 0;
-    ws.est_z.cwiseAbs().maxCoeff(&j);
-    if (j == last) break;
-    last = j;
-    ws.est_x.setZero();
-    ws.est_x[j] = Scalar(1);
-  }
-  if (!std::isfinite(estimate) || !(estimate > 0)) return 0.0;
-  return 1.0 / (norm_a * estimate);
+  return hager_reciprocal_condition(ws, norm_a, n);
 }
 
 // The sparse counterpart of factor() in solver.hpp (found by argument-dependent lookup from the
