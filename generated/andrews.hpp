@@ -1002,13 +1002,15 @@ struct andrews {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -1170,13 +1172,13 @@ struct andrews {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -1197,7 +1199,7 @@ struct andrews {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1407,7 +1409,7 @@ struct andrews {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1689,7 +1691,7 @@ struct andrews {
         for (int k = 0; k < num_f; ++k)
           mz[i * num_f + k] = _dot(num_q, p.b + i * num_q, mb + k * num_q);
       const _real<T> ratio = _ldlt_factor(num_f, mz);
-      if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+      if (!(ratio > _real<T>(0))) return ratio == ratio ? _kStatusSingular : _kStatusNonFinite;
       m_b = mb;
       m_z = mz;
     }
@@ -1723,8 +1725,8 @@ struct andrews {
             _dot(num_q, p.b + k * num_q, f + i * num_q);
     for (int i = 0; i < ndir; ++i) _ldlt_solve(num_f, m_z, dzdd + i * num_f);
     for (int k = 0; k < num_f * ndir; ++k)
-      if (!_finite(_mag(dzdd[k]))) return 3;
-    return 0;
+      if (!_finite(_mag(dzdd[k]))) return _kStatusNonFinite;
+    return _kStatusConverged;
   }
 
   // Direction i's dq (rate: dqd): B's column when known, nullptr when known to be 0, else its
@@ -1911,8 +1913,8 @@ struct andrews {
     for (int i = 0; i < N * N; ++i) a[i] = -T(h * g) * jac[i];
     for (int i = 0; i < N; ++i) a[i * N + i] += T(1);
     const R ratio = _lu_factor<N>(a, piv);
-    if (!(ratio == ratio)) return 3;
-    if (!(ratio > R(0))) return 2;
+    if (!(ratio == ratio)) return _kStatusNonFinite;
+    if (!(ratio > R(0))) return _kStatusSingular;
     int taken = 0;
     // Stage i: base = x + h sum_{j<i} a_ij k_j; Y from the explicit guess base + h g f(t, x).
     for (int stage = 0; stage < 2; ++stage) {
@@ -1931,10 +1933,10 @@ struct andrews {
           const R s = _mag(r[i]) / scale[i];
           size = s > size ? s : size;
         }
-        if (!(size == size)) return 3;
+        if (!(size == size)) return _kStatusNonFinite;
         converged = size <= tolerance;
       }
-      if (!converged) return 1;
+      if (!converged) return _kStatusMaxIterations;
       // k_i from the converged Y (no further evaluation of f): (Y - base) / (h gamma).
       if (stage == 0)
         for (int i = 0; i < N; ++i) k1[i] = (y[i] - base[i]) / (h * T(g));
@@ -2024,7 +2026,7 @@ struct andrews {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 7, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -2040,7 +2042,7 @@ struct andrews {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 7, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 7, _it);
       _nl7 += _linear_step(_step, _pv7);
       _pv7 = _step;
       _conv7 = _small;
@@ -2096,7 +2098,7 @@ struct andrews {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 10, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 10, _it);
       _lu_solve<2>(_a, _piv, _r);
       _step10 = 0;
       R _qs = 0;
@@ -2113,7 +2115,7 @@ struct andrews {
       _step10 = std::max(_step10, _mag(_r[1]));
       _qs += _mag(q[14]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[14]), o.tolerance);
-      if (!_finite(_step10)) return _fail(report, 3, 10, _it);
+      if (!_finite(_step10)) return _fail(report, _kStatusNonFinite, 10, _it);
       _nl10 += _linear_step(_step10, _pv10);
       _pv10 = _step10;
       _conv10 = _small;
@@ -2166,7 +2168,7 @@ struct andrews {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 13, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 13, _it);
       _lu_solve<2>(_a, _piv, _r);
       _step13 = 0;
       R _qs = 0;
@@ -2183,7 +2185,7 @@ struct andrews {
       _step13 = std::max(_step13, _mag(_r[1]));
       _qs += _mag(q[20]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[20]), o.tolerance);
-      if (!_finite(_step13)) return _fail(report, 3, 13, _it);
+      if (!_finite(_step13)) return _fail(report, _kStatusNonFinite, 13, _it);
       _nl13 += _linear_step(_step13, _pv13);
       _pv13 = _step13;
       _conv13 = _small;
@@ -2204,7 +2206,7 @@ struct andrews {
     _rc13 = _coupled_rcond<2>(_rc13, _rmax13, _cm13);
     if (!_newton_end(report, 13, _n13, _conv13, o, _step13, _nl13, _res13, _qs13, _rc13, _sg13, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -2247,7 +2249,7 @@ struct andrews {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     {
       T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
@@ -2273,7 +2275,7 @@ struct andrews {
     int _piv10[2];
     const R _ratio10 = _lu_factor<2>(_a10, _piv10);
     if (!(_ratio10 > o.singular_pivot_ratio))
-      return _fail(report, _ratio10 == _ratio10 ? 2 : 3, 10);
+      return _fail(report, _ratio10 == _ratio10 ? _kStatusSingular : _kStatusNonFinite, 10);
     qd[10] = (qd[4] - _t8*qd[5]);
     qd[9] = (qd[3] - _t4*qd[5]);
     {
@@ -2303,7 +2305,7 @@ struct andrews {
     int _piv13[2];
     const R _ratio13 = _lu_factor<2>(_a13, _piv13);
     if (!(_ratio13 > o.singular_pivot_ratio))
-      return _fail(report, _ratio13 == _ratio13 ? 2 : 3, 13);
+      return _fail(report, _ratio13 == _ratio13 ? _kStatusSingular : _kStatusNonFinite, 13);
     qd[16] = (qd[4] - _t8*qd[5]);
     qd[15] = (qd[3] - _t4*qd[5]);
     {
@@ -2314,7 +2316,7 @@ struct andrews {
     }
     qd[16] += _D13_0_16*qd[17];
     qd[15] += _D13_0_15*qd[17];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -2348,7 +2350,7 @@ struct andrews {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     // Block 8: rows 12 -> q[12]
     // Block 9: rows 13 -> q[13]
     // Block 10: rows 8, 9, 10, 11 -> q[9], q[10], q[11], q[14]
@@ -2366,7 +2368,7 @@ struct andrews {
     int _piv10[2];
     const R _ratio10 = _lu_factor<2>(_a10, _piv10);
     if (!(_ratio10 > o.singular_pivot_ratio))
-      return _fail(report, _ratio10 == _ratio10 ? 2 : 3, 10);
+      return _fail(report, _ratio10 == _ratio10 ? _kStatusSingular : _kStatusNonFinite, 10);
     // Block 11: rows 18 -> q[18]
     // Block 12: rows 19 -> q[19]
     // Block 13: rows 14, 15, 16, 17 -> q[15], q[16], q[17], q[20]
@@ -2384,7 +2386,7 @@ struct andrews {
     int _piv13[2];
     const R _ratio13 = _lu_factor<2>(_a13, _piv13);
     if (!(_ratio13 > o.singular_pivot_ratio))
-      return _fail(report, _ratio13 == _ratio13 ? 2 : 3, 13);
+      return _fail(report, _ratio13 == _ratio13 ? _kStatusSingular : _kStatusNonFinite, 13);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = _free_in<T>(p, 2, p.beta_a);
@@ -2434,7 +2436,7 @@ struct andrews {
     }
     qdd[16] += _D13_0_16*qdd[17];
     qdd[15] += _D13_0_15*qdd[17];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -2478,7 +2480,7 @@ struct andrews {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     {
       T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
@@ -2504,7 +2506,7 @@ struct andrews {
     int _piv10[2];
     const R _ratio10 = _lu_factor<2>(_a10, _piv10);
     if (!(_ratio10 > o.singular_pivot_ratio))
-      return _fail(report, _ratio10 == _ratio10 ? 2 : 3, 10);
+      return _fail(report, _ratio10 == _ratio10 ? _kStatusSingular : _kStatusNonFinite, 10);
     qd[10] = (qd[4] - _t8*qd[5]);
     qd[9] = (qd[3] - _t4*qd[5]);
     {
@@ -2534,7 +2536,7 @@ struct andrews {
     int _piv13[2];
     const R _ratio13 = _lu_factor<2>(_a13, _piv13);
     if (!(_ratio13 > o.singular_pivot_ratio))
-      return _fail(report, _ratio13 == _ratio13 ? 2 : 3, 13);
+      return _fail(report, _ratio13 == _ratio13 ? _kStatusSingular : _kStatusNonFinite, 13);
     qd[16] = (qd[4] - _t8*qd[5]);
     qd[15] = (qd[3] - _t4*qd[5]);
     {
@@ -2545,7 +2547,7 @@ struct andrews {
     }
     qd[16] += _D13_0_16*qd[17];
     qd[15] += _D13_0_15*qd[17];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = _free_in<T>(p, 2, p.beta_a);
@@ -2592,7 +2594,7 @@ struct andrews {
     }
     qdd[16] += _D13_0_16*qdd[17];
     qdd[15] += _D13_0_15*qdd[17];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -2648,7 +2650,7 @@ struct andrews {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 7, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -2664,7 +2666,7 @@ struct andrews {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 7, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 7, _it);
       _nl7 += _linear_step(_step, _pv7);
       _pv7 = _step;
       _conv7 = _small;
@@ -2720,7 +2722,7 @@ struct andrews {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 10, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 10, _it);
       _lu_solve<2>(_a, _piv, _r);
       _step10 = 0;
       R _qs = 0;
@@ -2737,7 +2739,7 @@ struct andrews {
       _step10 = std::max(_step10, _mag(_r[1]));
       _qs += _mag(q[14]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[14]), o.tolerance);
-      if (!_finite(_step10)) return _fail(report, 3, 10, _it);
+      if (!_finite(_step10)) return _fail(report, _kStatusNonFinite, 10, _it);
       _nl10 += _linear_step(_step10, _pv10);
       _pv10 = _step10;
       _conv10 = _small;
@@ -2790,7 +2792,7 @@ struct andrews {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 13, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 13, _it);
       _lu_solve<2>(_a, _piv, _r);
       _step13 = 0;
       R _qs = 0;
@@ -2807,7 +2809,7 @@ struct andrews {
       _step13 = std::max(_step13, _mag(_r[1]));
       _qs += _mag(q[20]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[20]), o.tolerance);
-      if (!_finite(_step13)) return _fail(report, 3, 13, _it);
+      if (!_finite(_step13)) return _fail(report, _kStatusNonFinite, 13, _it);
       _nl13 += _linear_step(_step13, _pv13);
       _pv13 = _step13;
       _conv13 = _small;
@@ -2828,7 +2830,7 @@ struct andrews {
     _rc13 = _coupled_rcond<2>(_rc13, _rmax13, _cm13);
     if (!_newton_end(report, 13, _n13, _conv13, o, _step13, _nl13, _res13, _qs13, _rc13, _sg13, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -2849,7 +2851,7 @@ struct andrews {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     if (factors) {
       std::copy(_a7, _a7 + 4, factors->a + 0);
       std::copy(_piv7, _piv7 + 2, factors->piv + 7);
@@ -2873,7 +2875,7 @@ struct andrews {
     int _piv10[2];
     const R _ratio10 = _lu_factor<2>(_a10, _piv10);
     if (!(_ratio10 > o.singular_pivot_ratio))
-      return _fail(report, _ratio10 == _ratio10 ? 2 : 3, 10);
+      return _fail(report, _ratio10 == _ratio10 ? _kStatusSingular : _kStatusNonFinite, 10);
     if (factors) {
       std::copy(_a10, _a10 + 4, factors->a + 4);
       std::copy(_piv10, _piv10 + 2, factors->piv + 11);
@@ -2905,7 +2907,7 @@ struct andrews {
     int _piv13[2];
     const R _ratio13 = _lu_factor<2>(_a13, _piv13);
     if (!(_ratio13 > o.singular_pivot_ratio))
-      return _fail(report, _ratio13 == _ratio13 ? 2 : 3, 13);
+      return _fail(report, _ratio13 == _ratio13 ? _kStatusSingular : _kStatusNonFinite, 13);
     if (factors) {
       std::copy(_a13, _a13 + 4, factors->a + 8);
       std::copy(_piv13, _piv13 + 2, factors->piv + 17);
@@ -2924,7 +2926,7 @@ struct andrews {
     }
     qd[16] += _D13_0_16*qd[17];
     qd[15] += _D13_0_15*qd[17];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = _free_in<T>(p, 2, p.beta_a);
@@ -2971,7 +2973,7 @@ struct andrews {
     }
     qdd[16] += _D13_0_16*qdd[17];
     qdd[15] += _D13_0_15*qdd[17];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     if (factors) factors->rcond = report.rcond;
     return report;
   }
@@ -4379,7 +4381,7 @@ struct andrews {
     if (rb.status != 0) return _fail(r, rb.status, rb.block);
     if (rb.rcond < r.rcond) r.rcond = rb.rcond;
     if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
-      return _fail(r, 3, -1);
+      return _fail(r, _kStatusNonFinite, -1);
     // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
     // (the same products; the geometry computed once for both).
     _force_geometry(w.q, t, pz, w.geometry);
@@ -4396,9 +4398,9 @@ struct andrews {
     for (int k = 0; k < nf; ++k)
       _mass_times(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.b + k * nq, w.mb + k * nq);
     const R ratio = _reduced_accelerations(nq, nf, w.b, w.mb, w.g, w.mz, zdd, w.qdd);
-    if (!(ratio == ratio)) return _fail(r, 3, -1);
-    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
-    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
+    if (!(ratio == ratio)) return _fail(r, _kStatusNonFinite, -1);
+    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, _kStatusSingular, -1);
+    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, _kStatusNonFinite, -1);
     for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
     w.solved = true;
     w.solved_t = t;

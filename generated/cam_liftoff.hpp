@@ -737,13 +737,15 @@ struct cam_liftoff {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -905,13 +907,13 @@ struct cam_liftoff {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -932,7 +934,7 @@ struct cam_liftoff {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1142,7 +1144,7 @@ struct cam_liftoff {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1424,7 +1426,7 @@ struct cam_liftoff {
         for (int k = 0; k < num_f; ++k)
           mz[i * num_f + k] = _dot(num_q, p.b + i * num_q, mb + k * num_q);
       const _real<T> ratio = _ldlt_factor(num_f, mz);
-      if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+      if (!(ratio > _real<T>(0))) return ratio == ratio ? _kStatusSingular : _kStatusNonFinite;
       m_b = mb;
       m_z = mz;
     }
@@ -1458,8 +1460,8 @@ struct cam_liftoff {
             _dot(num_q, p.b + k * num_q, f + i * num_q);
     for (int i = 0; i < ndir; ++i) _ldlt_solve(num_f, m_z, dzdd + i * num_f);
     for (int k = 0; k < num_f * ndir; ++k)
-      if (!_finite(_mag(dzdd[k]))) return 3;
-    return 0;
+      if (!_finite(_mag(dzdd[k]))) return _kStatusNonFinite;
+    return _kStatusConverged;
   }
 
   // Direction i's dq (rate: dqd): B's column when known, nullptr when known to be 0, else its
@@ -1646,8 +1648,8 @@ struct cam_liftoff {
     for (int i = 0; i < N * N; ++i) a[i] = -T(h * g) * jac[i];
     for (int i = 0; i < N; ++i) a[i * N + i] += T(1);
     const R ratio = _lu_factor<N>(a, piv);
-    if (!(ratio == ratio)) return 3;
-    if (!(ratio > R(0))) return 2;
+    if (!(ratio == ratio)) return _kStatusNonFinite;
+    if (!(ratio > R(0))) return _kStatusSingular;
     int taken = 0;
     // Stage i: base = x + h sum_{j<i} a_ij k_j; Y from the explicit guess base + h g f(t, x).
     for (int stage = 0; stage < 2; ++stage) {
@@ -1666,10 +1668,10 @@ struct cam_liftoff {
           const R s = _mag(r[i]) / scale[i];
           size = s > size ? s : size;
         }
-        if (!(size == size)) return 3;
+        if (!(size == size)) return _kStatusNonFinite;
         converged = size <= tolerance;
       }
-      if (!converged) return 1;
+      if (!converged) return _kStatusMaxIterations;
       // k_i from the converged Y (no further evaluation of f): (Y - base) / (h gamma).
       if (stage == 0)
         for (int i = 0; i < N; ++i) k1[i] = (y[i] - base[i]) / (h * T(g));
@@ -1751,7 +1753,7 @@ struct cam_liftoff {
       const T _t4 = _t3*_cos5 - _t1*_sin5;
       T _r[1] = {-_t1*_cos5 - _t3*_sin5};
       const T _a = _t4;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 5, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 5, _it);
       _rmax5[0] = _mag(_a) * _cs5[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1762,7 +1764,7 @@ struct cam_liftoff {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[6]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[6]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 5, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 5, _it);
       _nl5 += _linear_step(_step, _pv5);
       _pv5 = _step;
       _conv5 = _small;
@@ -1792,7 +1794,7 @@ struct cam_liftoff {
     const T _t12 = T(p.R)*_sin2*_sin6;
     {
       const T _c = _cos5;
-      if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? 2 : 3, 6);
+      if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
       q[7] = -(_t11 - q[0] + _t12 + q[3]) / _c;
     }
     const T _t13 = _t10*_sin2;
@@ -1801,12 +1803,12 @@ struct cam_liftoff {
     {
       const R _own = _mag(_cos5) * R(coordinate_scales[7]);
       const R _rc = _own / std::max(std::max(std::max(std::max(std::max(_own, _mag(T(-1)) * R(coordinate_scales[0])), _mag(_t14)), _mag(T(1)) * R(coordinate_scales[3])), _mag(_t15)), _mag(_t8));
-      if (!(_rc > o.min_rcond)) return _fail(report, 2, 6);
+      if (!(_rc > o.min_rcond)) return _fail(report, _kStatusSingular, 6);
       report.rcond = std::min(report.rcond, _rc);
     }
     // Block 7: rows 5 -> q[4] (explicit)
     q[4] = _t15 + _t13 + _t7 + q[1];
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1842,11 +1844,11 @@ struct cam_liftoff {
     const T _t9 = cos(q[5]);
     const T _t10 = _t8*_t9 - _t5*_t6;
     const T _a5 = _t10;
-    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
+    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? _kStatusSingular : _kStatusNonFinite, 5);
     qd[6] = (-_t10*qd[2] - (_t5*_t6 - _t8*_t9)*qd[5]) / _a5;
     // Block 6: rows 4 -> q[7]
     const T _a6 = _t9;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     const T _t11 = _t4*T(p.R) + T(p.e);
     const T _t12 = _t11*_t0;
     const T _t13 = _t12 + _t7;
@@ -1856,7 +1858,7 @@ struct cam_liftoff {
     const T _t15 = -_t11*_t3;
     const T _t16 = T(p.R)*_t0*_t1;
     qd[4] = qd[1] - (_t15 + _t16)*qd[2] - (_t9*q[7])*qd[5] - (_t16 - _t3*_t4*T(p.R))*qd[6] - _t6*qd[7];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1888,10 +1890,10 @@ struct cam_liftoff {
     const T _t9 = cos(q[5]);
     const T _t10 = _t8*_t9 - _t5*_t6;
     const T _a5 = _t10;
-    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
+    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? _kStatusSingular : _kStatusNonFinite, 5);
     // Block 6: rows 4 -> q[7]
     const T _a6 = _t9;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     // Block 7: rows 5 -> q[4]
     qdd[0] = T(0);
     qdd[1] = T(0);
@@ -1911,7 +1913,7 @@ struct cam_liftoff {
     const T _t19 = -_t15*_t3;
     const T _t20 = T(p.R)*_t0*_t1;
     qdd[4] = -_t17*_t12 - _t8*_t14 - T(2)*_t8*qd[2]*qd[6] - T(2)*_t9*qd[5]*qd[7] + _t13*q[7]*_t6 + qdd[1] - (_t19 + _t20)*qdd[2] - (_t9*q[7])*qdd[5] - (_t20 - _t3*_t4*T(p.R))*qdd[6] - _t6*qdd[7];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1948,11 +1950,11 @@ struct cam_liftoff {
     const T _t9 = cos(q[5]);
     const T _t10 = _t8*_t9 - _t5*_t6;
     const T _a5 = _t10;
-    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
+    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? _kStatusSingular : _kStatusNonFinite, 5);
     qd[6] = (-_t10*qd[2] - (_t5*_t6 - _t8*_t9)*qd[5]) / _a5;
     // Block 6: rows 4 -> q[7]
     const T _a6 = _t9;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     const T _t11 = _t4*T(p.R) + T(p.e);
     const T _t12 = _t11*_t0;
     const T _t13 = _t12 + _t7;
@@ -1962,7 +1964,7 @@ struct cam_liftoff {
     const T _t15 = -_t11*_t3;
     const T _t16 = T(p.R)*_t0*_t1;
     qd[4] = qd[1] - (_t15 + _t16)*qd[2] - (_t9*q[7])*qd[5] - (_t16 - _t3*_t4*T(p.R))*qd[6] - _t6*qd[7];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = (T(0)) / T(-1);
@@ -1975,7 +1977,7 @@ struct cam_liftoff {
     qdd[6] = (-_t17*_t18 - _t17*_t19 - _t17*_t20 - T(2)*_t17*qd[2]*qd[6] + T(2)*_t17*qd[2]*qd[5] + T(2)*_t17*qd[5]*qd[6] - _t10*qdd[2] - (_t5*_t6 - _t8*_t9)*qdd[5]) / _a5;
     qdd[7] = (-(_t2 + _t11*_t3)*_t18 - _t5*_t20 - T(2)*_t5*qd[2]*qd[6] + _t19*_t9*q[7] + T(2)*_t6*qd[5]*qd[7] + qdd[0] - _t13*qdd[2] - qdd[3] - _t14*qdd[5] - _t8*qdd[6]) / _a6;
     qdd[4] = -_t13*_t18 - _t8*_t20 - T(2)*_t8*qd[2]*qd[6] - T(2)*_t9*qd[5]*qd[7] + _t19*q[7]*_t6 + qdd[1] - (_t15 + _t16)*qdd[2] - (_t9*q[7])*qdd[5] - (_t16 - _t3*_t4*T(p.R))*qdd[6] - _t6*qdd[7];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -2023,7 +2025,7 @@ struct cam_liftoff {
       const T _t4 = _t3*_cos5 - _t1*_sin5;
       T _r[1] = {-_t1*_cos5 - _t3*_sin5};
       const T _a = _t4;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 5, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 5, _it);
       _rmax5[0] = _mag(_a) * _cs5[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -2034,7 +2036,7 @@ struct cam_liftoff {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[6]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[6]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 5, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 5, _it);
       _nl5 += _linear_step(_step, _pv5);
       _pv5 = _step;
       _conv5 = _small;
@@ -2064,7 +2066,7 @@ struct cam_liftoff {
     const T _t12 = T(p.R)*_sin2*_sin6;
     {
       const T _c = _cos5;
-      if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? 2 : 3, 6);
+      if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
       q[7] = -(_t11 - q[0] + _t12 + q[3]) / _c;
     }
     const T _t13 = _t10*_sin2;
@@ -2073,12 +2075,12 @@ struct cam_liftoff {
     {
       const R _own = _mag(_cos5) * R(coordinate_scales[7]);
       const R _rc = _own / std::max(std::max(std::max(std::max(std::max(_own, _mag(T(-1)) * R(coordinate_scales[0])), _mag(_t14)), _mag(T(1)) * R(coordinate_scales[3])), _mag(_t15)), _mag(_t8));
-      if (!(_rc > o.min_rcond)) return _fail(report, 2, 6);
+      if (!(_rc > o.min_rcond)) return _fail(report, _kStatusSingular, 6);
       report.rcond = std::min(report.rcond, _rc);
     }
     // Block 7: rows 5 -> q[4] (explicit)
     q[4] = _t15 + _t13 + _t7 + q[1];
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -2091,15 +2093,15 @@ struct cam_liftoff {
     qd[2] = _free_in<T>(p, 1, p.theta_v);
     // Block 5: rows 6 -> q[6]
     const T _a5 = _t9;
-    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
+    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? _kStatusSingular : _kStatusNonFinite, 5);
     qd[6] = (-_t9*qd[2] - (_t6*_sin5 - _t8*_cos5)*qd[5]) / _a5;
     // Block 6: rows 4 -> q[7]
     const T _a6 = _cos5;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     qd[7] = (qd[0] - _t14*qd[2] - qd[3] - _t15*qd[5] - _t8*qd[6]) / _a6;
     // Block 7: rows 5 -> q[4]
     qd[4] = qd[1] - (_t11 + _t12)*qd[2] - (_cos5*q[7])*qd[5] - (_t12 - _cos2*_cos6*T(p.R))*qd[6] - _sin5*qd[7];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = (T(0)) / T(-1);
@@ -2112,7 +2114,7 @@ struct cam_liftoff {
     qdd[6] = (-_t16*_t17 - _t16*_t18 - _t16*_t19 - T(2)*_t16*qd[2]*qd[6] + T(2)*_t16*qd[2]*qd[5] + T(2)*_t16*qd[5]*qd[6] - _t9*qdd[2] - (_t6*_sin5 - _t8*_cos5)*qdd[5]) / _a5;
     qdd[7] = (-(_t5 + _t10*_cos2)*_t17 - _t6*_t19 - T(2)*_t6*qd[2]*qd[6] + _t18*_cos5*q[7] + T(2)*_sin5*qd[5]*qd[7] + qdd[0] - _t14*qdd[2] - qdd[3] - _t15*qdd[5] - _t8*qdd[6]) / _a6;
     qdd[4] = -_t14*_t17 - _t8*_t19 - T(2)*_t8*qd[2]*qd[6] - T(2)*_cos5*qd[5]*qd[7] + _t18*q[7]*_sin5 + qdd[1] - (_t11 + _t12)*qdd[2] - (_cos5*q[7])*qdd[5] - (_t12 - _cos2*_cos6*T(p.R))*qdd[6] - _sin5*qdd[7];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     if (factors) factors->rcond = report.rcond;
     return report;
   }
@@ -2478,7 +2480,7 @@ struct cam_liftoff {
     if (rb.status != 0) return _fail(r, rb.status, rb.block);
     if (rb.rcond < r.rcond) r.rcond = rb.rcond;
     if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
-      return _fail(r, 3, -1);
+      return _fail(r, _kStatusNonFinite, -1);
     // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
     // (the same products; the geometry computed once for both).
     _force_geometry(w.q, t, pz, w.geometry);
@@ -2495,9 +2497,9 @@ struct cam_liftoff {
     for (int k = 0; k < nf; ++k)
       _mass_times(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.b + k * nq, w.mb + k * nq);
     const R ratio = _reduced_accelerations(nq, nf, w.b, w.mb, w.g, w.mz, zdd, w.qdd);
-    if (!(ratio == ratio)) return _fail(r, 3, -1);
-    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
-    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
+    if (!(ratio == ratio)) return _fail(r, _kStatusNonFinite, -1);
+    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, _kStatusSingular, -1);
+    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, _kStatusNonFinite, -1);
     for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
     w.solved = true;
     w.solved_t = t;

@@ -787,13 +787,15 @@ struct disc_cam {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -955,13 +957,13 @@ struct disc_cam {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -982,7 +984,7 @@ struct disc_cam {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1192,7 +1194,7 @@ struct disc_cam {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1252,7 +1254,7 @@ struct disc_cam {
       const T _t10 = _t7*_cos6*T(p.h)*_sin2 - _t7*_cos2*T(p.h)*_sin6 + _t8 + _t9;
       T _r[1] = {_t5 - q[0] + _t6 + q[3]};
       const T _a = _t10;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 5, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 5, _it);
       _rmax5[0] = _mag(_a) * _cs5[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1263,7 +1265,7 @@ struct disc_cam {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[6]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[6]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 5, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 5, _it);
       _nl5 += _linear_step(_step, _pv5);
       _pv5 = _step;
       _conv5 = _small;
@@ -1291,7 +1293,7 @@ struct disc_cam {
       return report;
     // Block 6: rows 5 -> q[4] (explicit)
     q[4] = _t16 + _t17 + q[1];
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1329,7 +1331,7 @@ struct disc_cam {
     const T _t11 = _t9*_t8*_t6;
     const T _t12 = _t4*_t7*T(p.h)*_t8 - _t4*_t5*T(p.h)*_t6 + _t10 + _t11;
     const T _a5 = _t12;
-    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
+    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? _kStatusSingular : _kStatusNonFinite, 5);
     const T _t13 = -_t9*_t5*_t7;
     const T _t14 = -_t9*_t8*_t6;
     qd[6] = (qd[0] - (_t13 + _t14)*qd[2] - qd[3]) / _a5;
@@ -1338,7 +1340,7 @@ struct disc_cam {
     const T _t16 = _t9*_t5*_t6;
     const T _t17 = _t15 + _t16;
     qd[4] = qd[1] - _t17*qd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qd[6];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1372,7 +1374,7 @@ struct disc_cam {
     const T _t11 = _t9*_t8*_t6;
     const T _t12 = _t4*_t7*T(p.h)*_t8 - _t4*_t5*T(p.h)*_t6 + _t10 + _t11;
     const T _a5 = _t12;
-    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
+    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? _kStatusSingular : _kStatusNonFinite, 5);
     // Block 6: rows 5 -> q[4]
     qdd[0] = T(0);
     qdd[1] = T(0);
@@ -1389,7 +1391,7 @@ struct disc_cam {
     const T _t20 = -_t9*_t8*_t6;
     qdd[6] = ((_t13 - _t15*_t7*T(p.h)*_t8 + _t15*_t5*T(p.h)*_t6 + _t14 + T(2)*_t4*_t5*_t7*T(p.h) + T(2)*_t4*T(p.h)*_t8*_t6)*_t16 - T(2)*(_t13 + _t4*_t5*_t7*T(p.h) + _t4*T(p.h)*_t8*_t6 + _t14)*qd[2]*qd[6] + _t17*_t18 + qdd[0] - (_t19 + _t20)*qdd[2] - qdd[3]) / _a5;
     qdd[4] = (_t10 + _t11)*_t18 - (-_t15*_t5*_t7*T(p.h) - _t15*T(p.h)*_t8*_t6 + _t19 + _t20 - T(2)*_t4*_t7*T(p.h)*_t8 + T(2)*_t4*_t5*T(p.h)*_t6)*_t16 + T(2)*(_t19 - _t4*_t7*T(p.h)*_t8 + _t20 + _t4*_t5*T(p.h)*_t6)*qd[2]*qd[6] + qdd[1] - _t17*qdd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qdd[6];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1428,7 +1430,7 @@ struct disc_cam {
     const T _t11 = _t9*_t8*_t6;
     const T _t12 = _t4*_t7*T(p.h)*_t8 - _t4*_t5*T(p.h)*_t6 + _t10 + _t11;
     const T _a5 = _t12;
-    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
+    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? _kStatusSingular : _kStatusNonFinite, 5);
     const T _t13 = -_t9*_t5*_t7;
     const T _t14 = -_t9*_t8*_t6;
     qd[6] = (qd[0] - (_t13 + _t14)*qd[2] - qd[3]) / _a5;
@@ -1437,7 +1439,7 @@ struct disc_cam {
     const T _t16 = _t9*_t5*_t6;
     const T _t17 = _t15 + _t16;
     qd[4] = qd[1] - _t17*qd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qd[6];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = (T(0)) / T(-1);
@@ -1448,7 +1450,7 @@ struct disc_cam {
     const T _t20 = qd[2]*qd[2];
     qdd[6] = ((_t15 - _t18*_t7*T(p.h)*_t8 + _t18*_t5*T(p.h)*_t6 + _t16 + T(2)*_t4*_t5*_t7*T(p.h) + T(2)*_t4*T(p.h)*_t8*_t6)*_t19 - T(2)*(_t15 + _t4*_t5*_t7*T(p.h) + _t4*T(p.h)*_t8*_t6 + _t16)*qd[2]*qd[6] + _t17*_t20 + qdd[0] - (_t13 + _t14)*qdd[2] - qdd[3]) / _a5;
     qdd[4] = (_t10 + _t11)*_t20 - (-_t18*_t5*_t7*T(p.h) - _t18*T(p.h)*_t8*_t6 + _t13 + _t14 - T(2)*_t4*_t7*T(p.h)*_t8 + T(2)*_t4*_t5*T(p.h)*_t6)*_t19 + T(2)*(_t13 - _t4*_t7*T(p.h)*_t8 + _t14 + _t4*_t5*T(p.h)*_t6)*qd[2]*qd[6] + qdd[1] - _t17*qdd[2] - (-_t4*_t5*_t7*T(p.h) - _t4*T(p.h)*_t8*_t6 - _t9*_t5*_t6 + _t9*_t7*_t8)*qdd[6];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1498,7 +1500,7 @@ struct disc_cam {
       const T _t10 = _t7*_cos6*T(p.h)*_sin2 - _t7*_cos2*T(p.h)*_sin6 + _t8 + _t9;
       T _r[1] = {_t5 - q[0] + _t6 + q[3]};
       const T _a = _t10;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 5, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 5, _it);
       _rmax5[0] = _mag(_a) * _cs5[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1509,7 +1511,7 @@ struct disc_cam {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[6]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[6]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 5, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 5, _it);
       _nl5 += _linear_step(_step, _pv5);
       _pv5 = _step;
       _conv5 = _small;
@@ -1537,7 +1539,7 @@ struct disc_cam {
       return report;
     // Block 6: rows 5 -> q[4] (explicit)
     q[4] = _t16 + _t17 + q[1];
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -1554,12 +1556,12 @@ struct disc_cam {
     const T _t20 = _t13*_sin2*_sin6;
     const T _t21 = _t18*_cos6*T(p.h)*_sin2 - _t18*_cos2*T(p.h)*_sin6 + _t19 + _t20;
     const T _a5 = _t21;
-    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? 2 : 3, 5);
+    if (!(_mag(_a5) > 0)) return _fail(report, _mag(_a5) == 0 ? _kStatusSingular : _kStatusNonFinite, 5);
     qd[6] = (qd[0] - (_t16 + _t17)*qd[2] - qd[3]) / _a5;
     // Block 6: rows 5 -> q[4]
     const T _t22 = _t14 + _t15;
     qd[4] = qd[1] - _t22*qd[2] - (-_t18*_cos2*_cos6*T(p.h) - _t18*T(p.h)*_sin2*_sin6 - _t13*_cos2*_sin6 + _t13*_cos6*_sin2)*qd[6];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = (T(0)) / T(-1);
@@ -1570,7 +1572,7 @@ struct disc_cam {
     const T _t25 = qd[2]*qd[2];
     qdd[6] = ((_t14 - _t23*_cos6*T(p.h)*_sin2 + _t23*_cos2*T(p.h)*_sin6 + _t15 + T(2)*_t18*_cos2*_cos6*T(p.h) + T(2)*_t18*T(p.h)*_sin2*_sin6)*_t24 - T(2)*(_t14 + _t18*_cos2*_cos6*T(p.h) + _t18*T(p.h)*_sin2*_sin6 + _t15)*qd[2]*qd[6] + _t22*_t25 + qdd[0] - (_t16 + _t17)*qdd[2] - qdd[3]) / _a5;
     qdd[4] = (_t19 + _t20)*_t25 - (-_t23*_cos2*_cos6*T(p.h) - _t23*T(p.h)*_sin2*_sin6 + _t16 + _t17 - T(2)*_t18*_cos6*T(p.h)*_sin2 + T(2)*_t18*_cos2*T(p.h)*_sin6)*_t24 + T(2)*(_t16 - _t18*_cos6*T(p.h)*_sin2 + _t17 + _t18*_cos2*T(p.h)*_sin6)*qd[2]*qd[6] + qdd[1] - _t22*qdd[2] - (-_t18*_cos2*_cos6*T(p.h) - _t18*T(p.h)*_sin2*_sin6 - _t13*_cos2*_sin6 + _t13*_cos6*_sin2)*qdd[6];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 

@@ -708,13 +708,13 @@ struct double_cart_pole {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -735,7 +735,7 @@ struct double_cart_pole {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -945,7 +945,7 @@ struct double_cart_pole {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1227,7 +1227,7 @@ struct double_cart_pole {
         for (int k = 0; k < num_f; ++k)
           mz[i * num_f + k] = _dot(num_q, p.b + i * num_q, mb + k * num_q);
       const _real<T> ratio = _ldlt_factor(num_f, mz);
-      if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+      if (!(ratio > _real<T>(0))) return ratio == ratio ? _kStatusSingular : _kStatusNonFinite;
       m_b = mb;
       m_z = mz;
     }
@@ -1261,8 +1261,8 @@ struct double_cart_pole {
             _dot(num_q, p.b + k * num_q, f + i * num_q);
     for (int i = 0; i < ndir; ++i) _ldlt_solve(num_f, m_z, dzdd + i * num_f);
     for (int k = 0; k < num_f * ndir; ++k)
-      if (!_finite(_mag(dzdd[k]))) return 3;
-    return 0;
+      if (!_finite(_mag(dzdd[k]))) return _kStatusNonFinite;
+    return _kStatusConverged;
   }
 
   // Direction i's dq (rate: dqd): B's column when known, nullptr when known to be 0, else its
@@ -1449,8 +1449,8 @@ struct double_cart_pole {
     for (int i = 0; i < N * N; ++i) a[i] = -T(h * g) * jac[i];
     for (int i = 0; i < N; ++i) a[i * N + i] += T(1);
     const R ratio = _lu_factor<N>(a, piv);
-    if (!(ratio == ratio)) return 3;
-    if (!(ratio > R(0))) return 2;
+    if (!(ratio == ratio)) return _kStatusNonFinite;
+    if (!(ratio > R(0))) return _kStatusSingular;
     int taken = 0;
     // Stage i: base = x + h sum_{j<i} a_ij k_j; Y from the explicit guess base + h g f(t, x).
     for (int stage = 0; stage < 2; ++stage) {
@@ -1469,10 +1469,10 @@ struct double_cart_pole {
           const R s = _mag(r[i]) / scale[i];
           size = s > size ? s : size;
         }
-        if (!(size == size)) return 3;
+        if (!(size == size)) return _kStatusNonFinite;
         converged = size <= tolerance;
       }
-      if (!converged) return 1;
+      if (!converged) return _kStatusMaxIterations;
       // k_i from the converged Y (no further evaluation of f): (Y - base) / (h gamma).
       if (stage == 0)
         for (int i = 0; i < N; ++i) k1[i] = (y[i] - base[i]) / (h * T(g));
@@ -1545,7 +1545,7 @@ struct double_cart_pole {
     q[7] = _t0 + q[4];
     // Block 8: rows 8 -> q[8] (explicit)
     q[8] = _free_in<T>(p, 2, p.phi2);
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1579,7 +1579,7 @@ struct double_cart_pole {
     qd[7] = qd[4] - (-_t2*T(p.l1))*qd[5];
     // Block 8: rows 8 -> q[8]
     qd[8] = _free_in<T>(p, 5, p.phi2_v);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1615,7 +1615,7 @@ struct double_cart_pole {
     qdd[6] = -_t0*_t1*T(p.l1) + qdd[3] - _t3*qdd[5];
     qdd[7] = -_t0*T(p.l1)*_t2 + qdd[4] - (-_t1*T(p.l1))*qdd[5];
     qdd[8] = _free_in<T>(p, 8, p.phi2_a);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1650,7 +1650,7 @@ struct double_cart_pole {
     qd[7] = qd[4] - (-_t2*T(p.l1))*qd[5];
     // Block 8: rows 8 -> q[8]
     qd[8] = _free_in<T>(p, 5, p.phi2_v);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[1] = T(0);
     qdd[2] = T(0);
     qdd[0] = _free_in<T>(p, 6, p.x_a);
@@ -1661,7 +1661,7 @@ struct double_cart_pole {
     qdd[6] = -_t3*_t2*T(p.l1) + qdd[3] - _t1*qdd[5];
     qdd[7] = -_t3*T(p.l1)*_t0 + qdd[4] - (-_t2*T(p.l1))*qdd[5];
     qdd[8] = _free_in<T>(p, 8, p.phi2_a);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1700,7 +1700,7 @@ struct double_cart_pole {
     q[7] = _t0 + q[4];
     // Block 8: rows 8 -> q[8] (explicit)
     q[8] = _free_in<T>(p, 2, p.phi2);
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[1]
     qd[1] = T(0);
     // Block 1: rows 1 -> q[2]
@@ -1719,7 +1719,7 @@ struct double_cart_pole {
     qd[7] = qd[4] - (-_cos5*T(p.l1))*qd[5];
     // Block 8: rows 8 -> q[8]
     qd[8] = _free_in<T>(p, 5, p.phi2_v);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[1] = T(0);
     qdd[2] = T(0);
     qdd[0] = _free_in<T>(p, 6, p.x_a);
@@ -1730,7 +1730,7 @@ struct double_cart_pole {
     qdd[6] = -_t1*_cos5*T(p.l1) + qdd[3] - _t0*qdd[5];
     qdd[7] = -_t1*T(p.l1)*_sin5 + qdd[4] - (-_cos5*T(p.l1))*qdd[5];
     qdd[8] = _free_in<T>(p, 8, p.phi2_a);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     if (factors) factors->rcond = report.rcond;
     return report;
   }
@@ -2107,7 +2107,7 @@ struct double_cart_pole {
     if (rb.status != 0) return _fail(r, rb.status, rb.block);
     if (rb.rcond < r.rcond) r.rcond = rb.rcond;
     if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
-      return _fail(r, 3, -1);
+      return _fail(r, _kStatusNonFinite, -1);
     // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
     // (the same products; the geometry computed once for both).
     _force_geometry(w.q, t, pz, w.geometry);
@@ -2124,9 +2124,9 @@ struct double_cart_pole {
     for (int k = 0; k < nf; ++k)
       _mass_times(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.b + k * nq, w.mb + k * nq);
     const R ratio = _reduced_accelerations(nq, nf, w.b, w.mb, w.g, w.mz, zdd, w.qdd);
-    if (!(ratio == ratio)) return _fail(r, 3, -1);
-    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
-    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
+    if (!(ratio == ratio)) return _fail(r, _kStatusNonFinite, -1);
+    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, _kStatusSingular, -1);
+    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, _kStatusNonFinite, -1);
     for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
     w.solved = true;
     w.solved_t = t;

@@ -630,13 +630,15 @@ struct four_bar {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -798,13 +800,13 @@ struct four_bar {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -825,7 +827,7 @@ struct four_bar {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1035,7 +1037,7 @@ struct four_bar {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1099,7 +1101,7 @@ struct four_bar {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 7, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1115,7 +1117,7 @@ struct four_bar {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 7, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 7, _it);
       _nl7 += _linear_step(_step, _pv7);
       _pv7 = _step;
       _conv7 = _small;
@@ -1137,7 +1139,7 @@ struct four_bar {
     _rc7 = _coupled_rcond<2>(_rc7, _rmax7, _cm7);
     if (!_newton_end(report, 7, _n7, _conv7, o, _st7, _nl7, _res7, _qs7, _rc7, _sg7, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1180,14 +1182,14 @@ struct four_bar {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     {
       T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qd[5] = _x[0];
       qd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1221,7 +1223,7 @@ struct four_bar {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -1241,7 +1243,7 @@ struct four_bar {
       qdd[5] = _x[0];
       qdd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1285,14 +1287,14 @@ struct four_bar {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     {
       T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qd[5] = _x[0];
       qd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -1309,7 +1311,7 @@ struct four_bar {
       qdd[5] = _x[0];
       qdd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1363,7 +1365,7 @@ struct four_bar {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 7, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1379,7 +1381,7 @@ struct four_bar {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 7, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 7, _it);
       _nl7 += _linear_step(_step, _pv7);
       _pv7 = _step;
       _conv7 = _small;
@@ -1401,7 +1403,7 @@ struct four_bar {
     _rc7 = _coupled_rcond<2>(_rc7, _rmax7, _cm7);
     if (!_newton_end(report, 7, _n7, _conv7, o, _st7, _nl7, _res7, _qs7, _rc7, _sg7, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -1423,14 +1425,14 @@ struct four_bar {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     {
       T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qd[5] = _x[0];
       qd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -1447,7 +1449,7 @@ struct four_bar {
       qdd[5] = _x[0];
       qdd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 

@@ -629,13 +629,15 @@ struct four_bar_balanced {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -797,13 +799,13 @@ struct four_bar_balanced {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -824,7 +826,7 @@ struct four_bar_balanced {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1034,7 +1036,7 @@ struct four_bar_balanced {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1119,7 +1121,7 @@ struct four_bar_balanced {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 7, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1135,7 +1137,7 @@ struct four_bar_balanced {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 7, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 7, _it);
       _nl7 += _linear_step(_step, _pv7);
       _pv7 = _step;
       _conv7 = _small;
@@ -1157,7 +1159,7 @@ struct four_bar_balanced {
     _rc7 = _coupled_rcond<2>(_rc7, _rmax7, _cm7);
     if (!_newton_end(report, 7, _n7, _conv7, o, _st7, _nl7, _res7, _qs7, _rc7, _sg7, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1200,14 +1202,14 @@ struct four_bar_balanced {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     {
       T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qd[5] = _x[0];
       qd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1241,7 +1243,7 @@ struct four_bar_balanced {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -1261,7 +1263,7 @@ struct four_bar_balanced {
       qdd[5] = _x[0];
       qdd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1305,14 +1307,14 @@ struct four_bar_balanced {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     {
       T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qd[5] = _x[0];
       qd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -1329,7 +1331,7 @@ struct four_bar_balanced {
       qdd[5] = _x[0];
       qdd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1385,7 +1387,7 @@ struct four_bar_balanced {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 7, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1401,7 +1403,7 @@ struct four_bar_balanced {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 7, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 7, _it);
       _nl7 += _linear_step(_step, _pv7);
       _pv7 = _step;
       _conv7 = _small;
@@ -1423,7 +1425,7 @@ struct four_bar_balanced {
     _rc7 = _coupled_rcond<2>(_rc7, _rmax7, _cm7);
     if (!_newton_end(report, 7, _n7, _conv7, o, _st7, _nl7, _res7, _qs7, _rc7, _sg7, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -1445,7 +1447,7 @@ struct four_bar_balanced {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     if (factors) {
       std::copy(_a7, _a7 + 4, factors->a + 0);
       std::copy(_piv7, _piv7 + 2, factors->piv + 7);
@@ -1456,7 +1458,7 @@ struct four_bar_balanced {
       qd[5] = _x[0];
       qd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -1473,7 +1475,7 @@ struct four_bar_balanced {
       qdd[5] = _x[0];
       qdd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     if (factors) factors->rcond = report.rcond;
     return report;
   }

@@ -650,13 +650,15 @@ struct four_bar_swing {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -818,13 +820,13 @@ struct four_bar_swing {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -845,7 +847,7 @@ struct four_bar_swing {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1055,7 +1057,7 @@ struct four_bar_swing {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1337,7 +1339,7 @@ struct four_bar_swing {
         for (int k = 0; k < num_f; ++k)
           mz[i * num_f + k] = _dot(num_q, p.b + i * num_q, mb + k * num_q);
       const _real<T> ratio = _ldlt_factor(num_f, mz);
-      if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+      if (!(ratio > _real<T>(0))) return ratio == ratio ? _kStatusSingular : _kStatusNonFinite;
       m_b = mb;
       m_z = mz;
     }
@@ -1371,8 +1373,8 @@ struct four_bar_swing {
             _dot(num_q, p.b + k * num_q, f + i * num_q);
     for (int i = 0; i < ndir; ++i) _ldlt_solve(num_f, m_z, dzdd + i * num_f);
     for (int k = 0; k < num_f * ndir; ++k)
-      if (!_finite(_mag(dzdd[k]))) return 3;
-    return 0;
+      if (!_finite(_mag(dzdd[k]))) return _kStatusNonFinite;
+    return _kStatusConverged;
   }
 
   // Direction i's dq (rate: dqd): B's column when known, nullptr when known to be 0, else its
@@ -1559,8 +1561,8 @@ struct four_bar_swing {
     for (int i = 0; i < N * N; ++i) a[i] = -T(h * g) * jac[i];
     for (int i = 0; i < N; ++i) a[i * N + i] += T(1);
     const R ratio = _lu_factor<N>(a, piv);
-    if (!(ratio == ratio)) return 3;
-    if (!(ratio > R(0))) return 2;
+    if (!(ratio == ratio)) return _kStatusNonFinite;
+    if (!(ratio > R(0))) return _kStatusSingular;
     int taken = 0;
     // Stage i: base = x + h sum_{j<i} a_ij k_j; Y from the explicit guess base + h g f(t, x).
     for (int stage = 0; stage < 2; ++stage) {
@@ -1579,10 +1581,10 @@ struct four_bar_swing {
           const R s = _mag(r[i]) / scale[i];
           size = s > size ? s : size;
         }
-        if (!(size == size)) return 3;
+        if (!(size == size)) return _kStatusNonFinite;
         converged = size <= tolerance;
       }
-      if (!converged) return 1;
+      if (!converged) return _kStatusMaxIterations;
       // k_i from the converged Y (no further evaluation of f): (Y - base) / (h gamma).
       if (stage == 0)
         for (int i = 0; i < N; ++i) k1[i] = (y[i] - base[i]) / (h * T(g));
@@ -1672,7 +1674,7 @@ struct four_bar_swing {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 7, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1688,7 +1690,7 @@ struct four_bar_swing {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 7, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 7, _it);
       _nl7 += _linear_step(_step, _pv7);
       _pv7 = _step;
       _conv7 = _small;
@@ -1710,7 +1712,7 @@ struct four_bar_swing {
     _rc7 = _coupled_rcond<2>(_rc7, _rmax7, _cm7);
     if (!_newton_end(report, 7, _n7, _conv7, o, _st7, _nl7, _res7, _qs7, _rc7, _sg7, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1753,14 +1755,14 @@ struct four_bar_swing {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     {
       T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qd[5] = _x[0];
       qd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1794,7 +1796,7 @@ struct four_bar_swing {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = _free_in<T>(p, 2, p.theta_a);
@@ -1814,7 +1816,7 @@ struct four_bar_swing {
       qdd[5] = _x[0];
       qdd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1858,14 +1860,14 @@ struct four_bar_swing {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     {
       T _x[2] = {qd[3] - qd[6], qd[4] - qd[7]};
       _lu_solve<2>(_a7, _piv7, _x);
       qd[5] = _x[0];
       qd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = _free_in<T>(p, 2, p.theta_a);
@@ -1882,7 +1884,7 @@ struct four_bar_swing {
       qdd[5] = _x[0];
       qdd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1938,7 +1940,7 @@ struct four_bar_swing {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 7, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 7, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1954,7 +1956,7 @@ struct four_bar_swing {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 7, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 7, _it);
       _nl7 += _linear_step(_step, _pv7);
       _pv7 = _step;
       _conv7 = _small;
@@ -1976,7 +1978,7 @@ struct four_bar_swing {
     _rc7 = _coupled_rcond<2>(_rc7, _rmax7, _cm7);
     if (!_newton_end(report, 7, _n7, _conv7, o, _st7, _nl7, _res7, _qs7, _rc7, _sg7, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -1998,7 +2000,7 @@ struct four_bar_swing {
     int _piv7[2];
     const R _ratio7 = _lu_factor<2>(_a7, _piv7);
     if (!(_ratio7 > o.singular_pivot_ratio))
-      return _fail(report, _ratio7 == _ratio7 ? 2 : 3, 7);
+      return _fail(report, _ratio7 == _ratio7 ? _kStatusSingular : _kStatusNonFinite, 7);
     if (factors) {
       std::copy(_a7, _a7 + 4, factors->a + 0);
       std::copy(_piv7, _piv7 + 2, factors->piv + 7);
@@ -2009,7 +2011,7 @@ struct four_bar_swing {
       qd[5] = _x[0];
       qd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = _free_in<T>(p, 2, p.theta_a);
@@ -2026,7 +2028,7 @@ struct four_bar_swing {
       qdd[5] = _x[0];
       qdd[8] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     if (factors) factors->rcond = report.rcond;
     return report;
   }
@@ -2351,7 +2353,7 @@ struct four_bar_swing {
     if (rb.status != 0) return _fail(r, rb.status, rb.block);
     if (rb.rcond < r.rcond) r.rcond = rb.rcond;
     if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
-      return _fail(r, 3, -1);
+      return _fail(r, _kStatusNonFinite, -1);
     // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
     // (the same products; the geometry computed once for both).
     _force_geometry(w.q, t, pz, w.geometry);
@@ -2368,9 +2370,9 @@ struct four_bar_swing {
     for (int k = 0; k < nf; ++k)
       _mass_times(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.b + k * nq, w.mb + k * nq);
     const R ratio = _reduced_accelerations(nq, nf, w.b, w.mb, w.g, w.mz, zdd, w.qdd);
-    if (!(ratio == ratio)) return _fail(r, 3, -1);
-    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
-    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
+    if (!(ratio == ratio)) return _fail(r, _kStatusNonFinite, -1);
+    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, _kStatusSingular, -1);
+    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, _kStatusNonFinite, -1);
     for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
     w.solved = true;
     w.solved_t = t;

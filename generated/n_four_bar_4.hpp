@@ -795,13 +795,15 @@ struct n_four_bar_4 {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -963,13 +965,13 @@ struct n_four_bar_4 {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -990,7 +992,7 @@ struct n_four_bar_4 {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1200,7 +1202,7 @@ struct n_four_bar_4 {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1482,7 +1484,7 @@ struct n_four_bar_4 {
         for (int k = 0; k < num_f; ++k)
           mz[i * num_f + k] = _dot(num_q, p.b + i * num_q, mb + k * num_q);
       const _real<T> ratio = _ldlt_factor(num_f, mz);
-      if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+      if (!(ratio > _real<T>(0))) return ratio == ratio ? _kStatusSingular : _kStatusNonFinite;
       m_b = mb;
       m_z = mz;
     }
@@ -1516,8 +1518,8 @@ struct n_four_bar_4 {
             _dot(num_q, p.b + k * num_q, f + i * num_q);
     for (int i = 0; i < ndir; ++i) _ldlt_solve(num_f, m_z, dzdd + i * num_f);
     for (int k = 0; k < num_f * ndir; ++k)
-      if (!_finite(_mag(dzdd[k]))) return 3;
-    return 0;
+      if (!_finite(_mag(dzdd[k]))) return _kStatusNonFinite;
+    return _kStatusConverged;
   }
 
   // Direction i's dq (rate: dqd): B's column when known, nullptr when known to be 0, else its
@@ -1704,8 +1706,8 @@ struct n_four_bar_4 {
     for (int i = 0; i < N * N; ++i) a[i] = -T(h * g) * jac[i];
     for (int i = 0; i < N; ++i) a[i * N + i] += T(1);
     const R ratio = _lu_factor<N>(a, piv);
-    if (!(ratio == ratio)) return 3;
-    if (!(ratio > R(0))) return 2;
+    if (!(ratio == ratio)) return _kStatusNonFinite;
+    if (!(ratio > R(0))) return _kStatusSingular;
     int taken = 0;
     // Stage i: base = x + h sum_{j<i} a_ij k_j; Y from the explicit guess base + h g f(t, x).
     for (int stage = 0; stage < 2; ++stage) {
@@ -1724,10 +1726,10 @@ struct n_four_bar_4 {
           const R s = _mag(r[i]) / scale[i];
           size = s > size ? s : size;
         }
-        if (!(size == size)) return 3;
+        if (!(size == size)) return _kStatusNonFinite;
         converged = size <= tolerance;
       }
-      if (!converged) return 1;
+      if (!converged) return _kStatusMaxIterations;
       // k_i from the converged Y (no further evaluation of f): (Y - base) / (h gamma).
       if (stage == 0)
         for (int i = 0; i < N; ++i) k1[i] = (y[i] - base[i]) / (h * T(g));
@@ -1830,7 +1832,7 @@ struct n_four_bar_4 {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 13, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 13, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1846,7 +1848,7 @@ struct n_four_bar_4 {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[17]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[17]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 13, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 13, _it);
       _nl13 += _linear_step(_step, _pv13);
       _pv13 = _step;
       _conv13 = _small;
@@ -1895,7 +1897,7 @@ struct n_four_bar_4 {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 16, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 16, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1911,7 +1913,7 @@ struct n_four_bar_4 {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[20]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[20]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 16, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 16, _it);
       _nl16 += _linear_step(_step, _pv16);
       _pv16 = _step;
       _conv16 = _small;
@@ -1960,7 +1962,7 @@ struct n_four_bar_4 {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 19, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 19, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1976,7 +1978,7 @@ struct n_four_bar_4 {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[23]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[23]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 19, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 19, _it);
       _nl19 += _linear_step(_step, _pv19);
       _pv19 = _step;
       _conv19 = _small;
@@ -2024,7 +2026,7 @@ struct n_four_bar_4 {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 22, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 22, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -2040,7 +2042,7 @@ struct n_four_bar_4 {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[26]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[26]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 22, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 22, _it);
       _nl22 += _linear_step(_step, _pv22);
       _pv22 = _step;
       _conv22 = _small;
@@ -2062,7 +2064,7 @@ struct n_four_bar_4 {
     _rc22 = _coupled_rcond<2>(_rc22, _rmax22, _cm22);
     if (!_newton_end(report, 22, _n22, _conv22, o, _st22, _nl22, _res22, _qs22, _rc22, _sg22, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -2117,7 +2119,7 @@ struct n_four_bar_4 {
     int _piv13[2];
     const R _ratio13 = _lu_factor<2>(_a13, _piv13);
     if (!(_ratio13 > o.singular_pivot_ratio))
-      return _fail(report, _ratio13 == _ratio13 ? 2 : 3, 13);
+      return _fail(report, _ratio13 == _ratio13 ? _kStatusSingular : _kStatusNonFinite, 13);
     {
       T _x[2] = {-qd[3] + qd[15], -qd[4] + qd[16]};
       _lu_solve<2>(_a13, _piv13, _x);
@@ -2142,7 +2144,7 @@ struct n_four_bar_4 {
     int _piv16[2];
     const R _ratio16 = _lu_factor<2>(_a16, _piv16);
     if (!(_ratio16 > o.singular_pivot_ratio))
-      return _fail(report, _ratio16 == _ratio16 ? 2 : 3, 16);
+      return _fail(report, _ratio16 == _ratio16 ? _kStatusSingular : _kStatusNonFinite, 16);
     {
       T _x[2] = {-qd[6] + qd[18], -qd[7] + qd[19]};
       _lu_solve<2>(_a16, _piv16, _x);
@@ -2167,7 +2169,7 @@ struct n_four_bar_4 {
     int _piv19[2];
     const R _ratio19 = _lu_factor<2>(_a19, _piv19);
     if (!(_ratio19 > o.singular_pivot_ratio))
-      return _fail(report, _ratio19 == _ratio19 ? 2 : 3, 19);
+      return _fail(report, _ratio19 == _ratio19 ? _kStatusSingular : _kStatusNonFinite, 19);
     {
       T _x[2] = {-qd[9] + qd[21], -qd[10] + qd[22]};
       _lu_solve<2>(_a19, _piv19, _x);
@@ -2192,14 +2194,14 @@ struct n_four_bar_4 {
     int _piv22[2];
     const R _ratio22 = _lu_factor<2>(_a22, _piv22);
     if (!(_ratio22 > o.singular_pivot_ratio))
-      return _fail(report, _ratio22 == _ratio22 ? 2 : 3, 22);
+      return _fail(report, _ratio22 == _ratio22 ? _kStatusSingular : _kStatusNonFinite, 22);
     {
       T _x[2] = {-qd[12] + qd[24], -qd[13] + qd[25]};
       _lu_solve<2>(_a22, _piv22, _x);
       qd[14] = _x[0];
       qd[26] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -2239,7 +2241,7 @@ struct n_four_bar_4 {
     int _piv13[2];
     const R _ratio13 = _lu_factor<2>(_a13, _piv13);
     if (!(_ratio13 > o.singular_pivot_ratio))
-      return _fail(report, _ratio13 == _ratio13 ? 2 : 3, 13);
+      return _fail(report, _ratio13 == _ratio13 ? _kStatusSingular : _kStatusNonFinite, 13);
     // Block 14: rows 14 -> q[18]
     // Block 15: rows 15 -> q[19]
     // Block 16: rows 16, 17 -> q[8], q[20]
@@ -2255,7 +2257,7 @@ struct n_four_bar_4 {
     int _piv16[2];
     const R _ratio16 = _lu_factor<2>(_a16, _piv16);
     if (!(_ratio16 > o.singular_pivot_ratio))
-      return _fail(report, _ratio16 == _ratio16 ? 2 : 3, 16);
+      return _fail(report, _ratio16 == _ratio16 ? _kStatusSingular : _kStatusNonFinite, 16);
     // Block 17: rows 18 -> q[21]
     // Block 18: rows 19 -> q[22]
     // Block 19: rows 20, 21 -> q[11], q[23]
@@ -2271,7 +2273,7 @@ struct n_four_bar_4 {
     int _piv19[2];
     const R _ratio19 = _lu_factor<2>(_a19, _piv19);
     if (!(_ratio19 > o.singular_pivot_ratio))
-      return _fail(report, _ratio19 == _ratio19 ? 2 : 3, 19);
+      return _fail(report, _ratio19 == _ratio19 ? _kStatusSingular : _kStatusNonFinite, 19);
     // Block 20: rows 22 -> q[24]
     // Block 21: rows 23 -> q[25]
     // Block 22: rows 24, 25 -> q[14], q[26]
@@ -2287,7 +2289,7 @@ struct n_four_bar_4 {
     int _piv22[2];
     const R _ratio22 = _lu_factor<2>(_a22, _piv22);
     if (!(_ratio22 > o.singular_pivot_ratio))
-      return _fail(report, _ratio22 == _ratio22 ? 2 : 3, 22);
+      return _fail(report, _ratio22 == _ratio22 ? _kStatusSingular : _kStatusNonFinite, 22);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
@@ -2346,7 +2348,7 @@ struct n_four_bar_4 {
       qdd[14] = _x[0];
       qdd[26] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -2402,7 +2404,7 @@ struct n_four_bar_4 {
     int _piv13[2];
     const R _ratio13 = _lu_factor<2>(_a13, _piv13);
     if (!(_ratio13 > o.singular_pivot_ratio))
-      return _fail(report, _ratio13 == _ratio13 ? 2 : 3, 13);
+      return _fail(report, _ratio13 == _ratio13 ? _kStatusSingular : _kStatusNonFinite, 13);
     {
       T _x[2] = {-qd[3] + qd[15], -qd[4] + qd[16]};
       _lu_solve<2>(_a13, _piv13, _x);
@@ -2427,7 +2429,7 @@ struct n_four_bar_4 {
     int _piv16[2];
     const R _ratio16 = _lu_factor<2>(_a16, _piv16);
     if (!(_ratio16 > o.singular_pivot_ratio))
-      return _fail(report, _ratio16 == _ratio16 ? 2 : 3, 16);
+      return _fail(report, _ratio16 == _ratio16 ? _kStatusSingular : _kStatusNonFinite, 16);
     {
       T _x[2] = {-qd[6] + qd[18], -qd[7] + qd[19]};
       _lu_solve<2>(_a16, _piv16, _x);
@@ -2452,7 +2454,7 @@ struct n_four_bar_4 {
     int _piv19[2];
     const R _ratio19 = _lu_factor<2>(_a19, _piv19);
     if (!(_ratio19 > o.singular_pivot_ratio))
-      return _fail(report, _ratio19 == _ratio19 ? 2 : 3, 19);
+      return _fail(report, _ratio19 == _ratio19 ? _kStatusSingular : _kStatusNonFinite, 19);
     {
       T _x[2] = {-qd[9] + qd[21], -qd[10] + qd[22]};
       _lu_solve<2>(_a19, _piv19, _x);
@@ -2477,14 +2479,14 @@ struct n_four_bar_4 {
     int _piv22[2];
     const R _ratio22 = _lu_factor<2>(_a22, _piv22);
     if (!(_ratio22 > o.singular_pivot_ratio))
-      return _fail(report, _ratio22 == _ratio22 ? 2 : 3, 22);
+      return _fail(report, _ratio22 == _ratio22 ? _kStatusSingular : _kStatusNonFinite, 22);
     {
       T _x[2] = {-qd[12] + qd[24], -qd[13] + qd[25]};
       _lu_solve<2>(_a22, _piv22, _x);
       qd[14] = _x[0];
       qd[26] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
@@ -2537,7 +2539,7 @@ struct n_four_bar_4 {
       qdd[14] = _x[0];
       qdd[26] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -2606,7 +2608,7 @@ struct n_four_bar_4 {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 13, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 13, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -2622,7 +2624,7 @@ struct n_four_bar_4 {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[17]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[17]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 13, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 13, _it);
       _nl13 += _linear_step(_step, _pv13);
       _pv13 = _step;
       _conv13 = _small;
@@ -2671,7 +2673,7 @@ struct n_four_bar_4 {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 16, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 16, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -2687,7 +2689,7 @@ struct n_four_bar_4 {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[20]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[20]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 16, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 16, _it);
       _nl16 += _linear_step(_step, _pv16);
       _pv16 = _step;
       _conv16 = _small;
@@ -2736,7 +2738,7 @@ struct n_four_bar_4 {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 19, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 19, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -2752,7 +2754,7 @@ struct n_four_bar_4 {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[23]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[23]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 19, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 19, _it);
       _nl19 += _linear_step(_step, _pv19);
       _pv19 = _step;
       _conv19 = _small;
@@ -2800,7 +2802,7 @@ struct n_four_bar_4 {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 22, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 22, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -2816,7 +2818,7 @@ struct n_four_bar_4 {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[26]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[26]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 22, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 22, _it);
       _nl22 += _linear_step(_step, _pv22);
       _pv22 = _step;
       _conv22 = _small;
@@ -2838,7 +2840,7 @@ struct n_four_bar_4 {
     _rc22 = _coupled_rcond<2>(_rc22, _rmax22, _cm22);
     if (!_newton_end(report, 22, _n22, _conv22, o, _st22, _nl22, _res22, _qs22, _rc22, _sg22, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -2872,7 +2874,7 @@ struct n_four_bar_4 {
     int _piv13[2];
     const R _ratio13 = _lu_factor<2>(_a13, _piv13);
     if (!(_ratio13 > o.singular_pivot_ratio))
-      return _fail(report, _ratio13 == _ratio13 ? 2 : 3, 13);
+      return _fail(report, _ratio13 == _ratio13 ? _kStatusSingular : _kStatusNonFinite, 13);
     if (factors) {
       std::copy(_a13, _a13 + 4, factors->a + 0);
       std::copy(_piv13, _piv13 + 2, factors->piv + 13);
@@ -2894,7 +2896,7 @@ struct n_four_bar_4 {
     int _piv16[2];
     const R _ratio16 = _lu_factor<2>(_a16, _piv16);
     if (!(_ratio16 > o.singular_pivot_ratio))
-      return _fail(report, _ratio16 == _ratio16 ? 2 : 3, 16);
+      return _fail(report, _ratio16 == _ratio16 ? _kStatusSingular : _kStatusNonFinite, 16);
     if (factors) {
       std::copy(_a16, _a16 + 4, factors->a + 4);
       std::copy(_piv16, _piv16 + 2, factors->piv + 17);
@@ -2916,7 +2918,7 @@ struct n_four_bar_4 {
     int _piv19[2];
     const R _ratio19 = _lu_factor<2>(_a19, _piv19);
     if (!(_ratio19 > o.singular_pivot_ratio))
-      return _fail(report, _ratio19 == _ratio19 ? 2 : 3, 19);
+      return _fail(report, _ratio19 == _ratio19 ? _kStatusSingular : _kStatusNonFinite, 19);
     if (factors) {
       std::copy(_a19, _a19 + 4, factors->a + 8);
       std::copy(_piv19, _piv19 + 2, factors->piv + 21);
@@ -2938,7 +2940,7 @@ struct n_four_bar_4 {
     int _piv22[2];
     const R _ratio22 = _lu_factor<2>(_a22, _piv22);
     if (!(_ratio22 > o.singular_pivot_ratio))
-      return _fail(report, _ratio22 == _ratio22 ? 2 : 3, 22);
+      return _fail(report, _ratio22 == _ratio22 ? _kStatusSingular : _kStatusNonFinite, 22);
     if (factors) {
       std::copy(_a22, _a22 + 4, factors->a + 12);
       std::copy(_piv22, _piv22 + 2, factors->piv + 25);
@@ -2949,7 +2951,7 @@ struct n_four_bar_4 {
       qd[14] = _x[0];
       qd[26] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
@@ -3002,7 +3004,7 @@ struct n_four_bar_4 {
       qdd[14] = _x[0];
       qdd[26] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     if (factors) factors->rcond = report.rcond;
     return report;
   }
@@ -3579,7 +3581,7 @@ struct n_four_bar_4 {
     if (rb.status != 0) return _fail(r, rb.status, rb.block);
     if (rb.rcond < r.rcond) r.rcond = rb.rcond;
     if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
-      return _fail(r, 3, -1);
+      return _fail(r, _kStatusNonFinite, -1);
     // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
     // (the same products; the geometry computed once for both).
     _force_geometry(w.q, t, pz, w.geometry);
@@ -3596,9 +3598,9 @@ struct n_four_bar_4 {
     for (int k = 0; k < nf; ++k)
       _mass_times(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.b + k * nq, w.mb + k * nq);
     const R ratio = _reduced_accelerations(nq, nf, w.b, w.mb, w.g, w.mz, zdd, w.qdd);
-    if (!(ratio == ratio)) return _fail(r, 3, -1);
-    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
-    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
+    if (!(ratio == ratio)) return _fail(r, _kStatusNonFinite, -1);
+    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, _kStatusSingular, -1);
+    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, _kStatusNonFinite, -1);
     for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
     w.solved = true;
     w.solved_t = t;

@@ -1932,13 +1932,15 @@ struct n_four_bar_40 {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -2100,13 +2102,13 @@ struct n_four_bar_40 {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -2127,7 +2129,7 @@ struct n_four_bar_40 {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -2337,7 +2339,7 @@ struct n_four_bar_40 {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -2619,7 +2621,7 @@ struct n_four_bar_40 {
         for (int k = 0; k < num_f; ++k)
           mz[i * num_f + k] = _dot(num_q, p.b + i * num_q, mb + k * num_q);
       const _real<T> ratio = _ldlt_factor(num_f, mz);
-      if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+      if (!(ratio > _real<T>(0))) return ratio == ratio ? _kStatusSingular : _kStatusNonFinite;
       m_b = mb;
       m_z = mz;
     }
@@ -2653,8 +2655,8 @@ struct n_four_bar_40 {
             _dot(num_q, p.b + k * num_q, f + i * num_q);
     for (int i = 0; i < ndir; ++i) _ldlt_solve(num_f, m_z, dzdd + i * num_f);
     for (int k = 0; k < num_f * ndir; ++k)
-      if (!_finite(_mag(dzdd[k]))) return 3;
-    return 0;
+      if (!_finite(_mag(dzdd[k]))) return _kStatusNonFinite;
+    return _kStatusConverged;
   }
 
   // Direction i's dq (rate: dqd): B's column when known, nullptr when known to be 0, else its
@@ -2841,8 +2843,8 @@ struct n_four_bar_40 {
     for (int i = 0; i < N * N; ++i) a[i] = -T(h * g) * jac[i];
     for (int i = 0; i < N; ++i) a[i * N + i] += T(1);
     const R ratio = _lu_factor<N>(a, piv);
-    if (!(ratio == ratio)) return 3;
-    if (!(ratio > R(0))) return 2;
+    if (!(ratio == ratio)) return _kStatusNonFinite;
+    if (!(ratio > R(0))) return _kStatusSingular;
     int taken = 0;
     // Stage i: base = x + h sum_{j<i} a_ij k_j; Y from the explicit guess base + h g f(t, x).
     for (int stage = 0; stage < 2; ++stage) {
@@ -2861,10 +2863,10 @@ struct n_four_bar_40 {
           const R s = _mag(r[i]) / scale[i];
           size = s > size ? s : size;
         }
-        if (!(size == size)) return 3;
+        if (!(size == size)) return _kStatusNonFinite;
         converged = size <= tolerance;
       }
-      if (!converged) return 1;
+      if (!converged) return _kStatusMaxIterations;
       // k_i from the converged Y (no further evaluation of f): (Y - base) / (h gamma).
       if (stage == 0)
         for (int i = 0; i < N; ++i) k1[i] = (y[i] - base[i]) / (h * T(g));
@@ -2920,7 +2922,7 @@ struct n_four_bar_40 {
     report = _solve_position_part1(q, t, p, o, report, trig, block_signs);
     if (report.status != 0) return report;
     report = _solve_position_part2(q, t, p, o, report, trig, block_signs);
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -3576,7 +3578,7 @@ struct n_four_bar_40 {
     report = _solve_velocity_part1(q, t, p, qd, o, report, static_cast<T*>(nullptr));
     if (report.status != 0) return report;
     report = _solve_velocity_part2(q, t, p, qd, o, report, static_cast<T*>(nullptr));
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -4194,7 +4196,7 @@ struct n_four_bar_40 {
     report = _solve_acceleration_part1(q, qd, t, p, qdd, o, report, static_cast<T*>(nullptr));
     if (report.status != 0) return report;
     report = _solve_acceleration_part2(q, qd, t, p, qdd, o, report, static_cast<T*>(nullptr));
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -4855,8 +4857,8 @@ struct n_four_bar_40 {
     report = _solve_velocity_acceleration_part1(q, t, p, qd, qdd, o, report, static_cast<T*>(nullptr), static_cast<StepFactors<T>*>(nullptr));
     if (report.status != 0) return report;
     report = _solve_velocity_acceleration_part2(q, t, p, qd, qdd, o, report, static_cast<T*>(nullptr), static_cast<StepFactors<T>*>(nullptr));
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -5684,14 +5686,14 @@ struct n_four_bar_40 {
     report = _solve_position_part1(q, t, p, o, report, trig, block_signs);
     if (report.status != 0) return report;
     report = _solve_position_part2(q, t, p, o, report, trig, block_signs);
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     report = _solve_velocity_acceleration_part0(q, t, p, qd, qdd, o, report, trig, factors);
     if (report.status != 0) return report;
     report = _solve_velocity_acceleration_part1(q, t, p, qd, qdd, o, report, trig, factors);
     if (report.status != 0) return report;
     report = _solve_velocity_acceleration_part2(q, t, p, qd, qdd, o, report, trig, factors);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     if (factors) factors->rcond = report.rcond;
     return report;
   }
@@ -5816,7 +5818,7 @@ struct n_four_bar_40 {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, _b, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, _b, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -5832,7 +5834,7 @@ struct n_four_bar_40 {
       _step = std::max(_step, _mag(_r[1]));
       _qs += _mag(q[_i[1]]);
       _small &= _step_converged(_mag(_r[1]), _mag(q[_i[1]]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, _b, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, _b, _it);
       _nl0 += _linear_step(_step, _pv0);
       _pv0 = _step;
       _conv0 = _small;
@@ -5877,7 +5879,7 @@ struct n_four_bar_40 {
     int _piv0[2];
     const R _ratio0 = _lu_factor<2>(_a0, _piv0);
     if (!(_ratio0 > o.singular_pivot_ratio))
-      return _fail(report, _ratio0 == _ratio0 ? 2 : 3, _b);
+      return _fail(report, _ratio0 == _ratio0 ? _kStatusSingular : _kStatusNonFinite, _b);
     {
       T _x[2] = {-qd[_i[2]] + qd[_i[4]], -qd[_i[3]] + qd[_i[5]]};
       _lu_solve<2>(_a0, _piv0, _x);
@@ -5908,7 +5910,7 @@ struct n_four_bar_40 {
     int _piv0[2];
     const R _ratio0 = _lu_factor<2>(_a0, _piv0);
     if (!(_ratio0 > o.singular_pivot_ratio))
-      return _fail(report, _ratio0 == _ratio0 ? 2 : 3, _b);
+      return _fail(report, _ratio0 == _ratio0 ? _kStatusSingular : _kStatusNonFinite, _b);
     const T _t4 = qd[_i[1]]*qd[_i[1]];
     const T _t5 = qd[_i[0]]*qd[_i[0]];
     {
@@ -5941,7 +5943,7 @@ struct n_four_bar_40 {
     int _piv0[2];
     const R _ratio0 = _lu_factor<2>(_a0, _piv0);
     if (!(_ratio0 > o.singular_pivot_ratio))
-      return _fail(report, _ratio0 == _ratio0 ? 2 : 3, _b);
+      return _fail(report, _ratio0 == _ratio0 ? _kStatusSingular : _kStatusNonFinite, _b);
     {
       T _x[2] = {-qd[_i[2]] + qd[_i[4]], -qd[_i[3]] + qd[_i[5]]};
       _lu_solve<2>(_a0, _piv0, _x);
@@ -9457,7 +9459,7 @@ struct n_four_bar_40 {
     if (rb.status != 0) return _fail(r, rb.status, rb.block);
     if (rb.rcond < r.rcond) r.rcond = rb.rcond;
     if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
-      return _fail(r, 3, -1);
+      return _fail(r, _kStatusNonFinite, -1);
     // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
     // (the same products; the geometry computed once for both).
     _force_geometry(w.q, t, pz, w.geometry);
@@ -9474,9 +9476,9 @@ struct n_four_bar_40 {
     for (int k = 0; k < nf; ++k)
       _mass_times(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.b + k * nq, w.mb + k * nq);
     const R ratio = _reduced_accelerations(nq, nf, w.b, w.mb, w.g, w.mz, zdd, w.qdd);
-    if (!(ratio == ratio)) return _fail(r, 3, -1);
-    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
-    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
+    if (!(ratio == ratio)) return _fail(r, _kStatusNonFinite, -1);
+    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, _kStatusSingular, -1);
+    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, _kStatusNonFinite, -1);
     for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
     w.solved = true;
     w.solved_t = t;

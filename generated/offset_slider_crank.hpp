@@ -624,13 +624,15 @@ struct offset_slider_crank {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -792,13 +794,13 @@ struct offset_slider_crank {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -819,7 +821,7 @@ struct offset_slider_crank {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1029,7 +1031,7 @@ struct offset_slider_crank {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1082,7 +1084,7 @@ struct offset_slider_crank {
       const T _t1 = -_cos5*T(p.l);
       T _r[1] = {-T(p.l)*_sin5 - q[4] + q[7]};
       const T _a = _t1;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 6, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 6, _it);
       _rmax6[0] = _mag(_a) * _cs6[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1093,7 +1095,7 @@ struct offset_slider_crank {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[5]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 6, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 6, _it);
       _nl6 += _linear_step(_step, _pv6);
       _pv6 = _step;
       _conv6 = _small;
@@ -1116,7 +1118,7 @@ struct offset_slider_crank {
     q[6] = _cos5*T(p.l) + q[3];
     // Block 8: rows 7 -> q[8] (explicit)
     q[8] = T(0);
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1148,14 +1150,14 @@ struct offset_slider_crank {
     const T _t3 = cos(q[5]);
     const T _t4 = -_t3*T(p.l);
     const T _a6 = _t4;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     qd[5] = (qd[4] - qd[7]) / _a6;
     // Block 7: rows 4 -> q[6]
     const T _t5 = sin(q[5]);
     qd[6] = qd[3] - (T(p.l)*_t5)*qd[5];
     // Block 8: rows 7 -> q[8]
     qd[8] = T(0);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1179,7 +1181,7 @@ struct offset_slider_crank {
     const T _t0 = cos(q[5]);
     const T _t1 = -_t0*T(p.l);
     const T _a6 = _t1;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     // Block 7: rows 4 -> q[6]
     // Block 8: rows 7 -> q[8]
     qdd[0] = T(0);
@@ -1197,7 +1199,7 @@ struct offset_slider_crank {
     qdd[5] = (-_t6*T(p.l)*_t7 + qdd[4] - qdd[7]) / _a6;
     qdd[6] = -_t6*_t0*T(p.l) + qdd[3] - (T(p.l)*_t7)*qdd[5];
     qdd[8] = T(0);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1230,14 +1232,14 @@ struct offset_slider_crank {
     const T _t3 = cos(q[5]);
     const T _t4 = -_t3*T(p.l);
     const T _a6 = _t4;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     qd[5] = (qd[4] - qd[7]) / _a6;
     // Block 7: rows 4 -> q[6]
     const T _t5 = sin(q[5]);
     qd[6] = qd[3] - (T(p.l)*_t5)*qd[5];
     // Block 8: rows 7 -> q[8]
     qd[8] = T(0);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -1249,7 +1251,7 @@ struct offset_slider_crank {
     qdd[5] = (-_t7*T(p.l)*_t5 + qdd[4] - qdd[7]) / _a6;
     qdd[6] = -_t7*_t3*T(p.l) + qdd[3] - (T(p.l)*_t5)*qdd[5];
     qdd[8] = T(0);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1292,7 +1294,7 @@ struct offset_slider_crank {
       const T _t1 = -_cos5*T(p.l);
       T _r[1] = {-T(p.l)*_sin5 - q[4] + q[7]};
       const T _a = _t1;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 6, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 6, _it);
       _rmax6[0] = _mag(_a) * _cs6[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1303,7 +1305,7 @@ struct offset_slider_crank {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[5]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 6, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 6, _it);
       _nl6 += _linear_step(_step, _pv6);
       _pv6 = _step;
       _conv6 = _small;
@@ -1326,7 +1328,7 @@ struct offset_slider_crank {
     q[6] = _cos5*T(p.l) + q[3];
     // Block 8: rows 7 -> q[8] (explicit)
     q[8] = T(0);
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -1342,13 +1344,13 @@ struct offset_slider_crank {
     // Block 6: rows 5 -> q[5]
     const T _t2 = -_cos5*T(p.l);
     const T _a6 = _t2;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     qd[5] = (qd[4] - qd[7]) / _a6;
     // Block 7: rows 4 -> q[6]
     qd[6] = qd[3] - (T(p.l)*_sin5)*qd[5];
     // Block 8: rows 7 -> q[8]
     qd[8] = T(0);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -1360,7 +1362,7 @@ struct offset_slider_crank {
     qdd[5] = (-_t4*T(p.l)*_sin5 + qdd[4] - qdd[7]) / _a6;
     qdd[6] = -_t4*_cos5*T(p.l) + qdd[3] - (T(p.l)*_sin5)*qdd[5];
     qdd[8] = T(0);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 

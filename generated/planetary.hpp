@@ -660,13 +660,15 @@ struct planetary {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -828,13 +830,13 @@ struct planetary {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -855,7 +857,7 @@ struct planetary {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1065,7 +1067,7 @@ struct planetary {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1153,7 +1155,7 @@ struct planetary {
       int _piv[4];
       const R _ratio = _lu_factor<4>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 5, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 5, _it);
       _lu_solve<4>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1175,7 +1177,7 @@ struct planetary {
       _step = std::max(_step, _mag(_r[3]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[3]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 5, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 5, _it);
       _nl5 += _linear_step(_step, _pv5);
       _pv5 = _step;
       _conv5 = _small;
@@ -1204,7 +1206,7 @@ struct planetary {
     _rc5 = _coupled_rcond<4>(_rc5, _rmax5, _cm5);
     if (!_newton_end(report, 5, _n5, _conv5, o, _st5, _nl5, _res5, _qs5, _rc5, _sg5, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1250,7 +1252,7 @@ struct planetary {
     int _piv5[4];
     const R _ratio5 = _lu_factor<4>(_a5, _piv5);
     if (!(_ratio5 > o.singular_pivot_ratio))
-      return _fail(report, _ratio5 == _ratio5 ? 2 : 3, 5);
+      return _fail(report, _ratio5 == _ratio5 ? _kStatusSingular : _kStatusNonFinite, 5);
     {
       T _x[4] = {qd[3], qd[4], -_t7*qd[0] - (-_t9)*qd[1] - (_t10*_t5*_t9*T(p.r_sun) + _t11*_t5*T(p.r_sun)*_t7)*qd[2], T(0)};
       _lu_solve<4>(_a5, _piv5, _x);
@@ -1259,7 +1261,7 @@ struct planetary {
       qd[7] = _x[2];
       qd[8] = _x[3];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1301,7 +1303,7 @@ struct planetary {
     int _piv5[4];
     const R _ratio5 = _lu_factor<4>(_a5, _piv5);
     if (!(_ratio5 > o.singular_pivot_ratio))
-      return _fail(report, _ratio5 == _ratio5 ? 2 : 3, 5);
+      return _fail(report, _ratio5 == _ratio5 ? _kStatusSingular : _kStatusNonFinite, 5);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
@@ -1320,7 +1322,7 @@ struct planetary {
       qdd[7] = _x[2];
       qdd[8] = _x[3];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1367,7 +1369,7 @@ struct planetary {
     int _piv5[4];
     const R _ratio5 = _lu_factor<4>(_a5, _piv5);
     if (!(_ratio5 > o.singular_pivot_ratio))
-      return _fail(report, _ratio5 == _ratio5 ? 2 : 3, 5);
+      return _fail(report, _ratio5 == _ratio5 ? _kStatusSingular : _kStatusNonFinite, 5);
     {
       T _x[4] = {qd[3], qd[4], -_t7*qd[0] - (-_t9)*qd[1] - (_t10*_t5*_t9*T(p.r_sun) + _t11*_t5*T(p.r_sun)*_t7)*qd[2], T(0)};
       _lu_solve<4>(_a5, _piv5, _x);
@@ -1376,7 +1378,7 @@ struct planetary {
       qd[7] = _x[2];
       qd[8] = _x[3];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
@@ -1395,7 +1397,7 @@ struct planetary {
       qdd[7] = _x[2];
       qdd[8] = _x[3];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1454,7 +1456,7 @@ struct planetary {
       int _piv[4];
       const R _ratio = _lu_factor<4>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 5, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 5, _it);
       _lu_solve<4>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1476,7 +1478,7 @@ struct planetary {
       _step = std::max(_step, _mag(_r[3]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[3]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 5, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 5, _it);
       _nl5 += _linear_step(_step, _pv5);
       _pv5 = _step;
       _conv5 = _small;
@@ -1505,7 +1507,7 @@ struct planetary {
     _rc5 = _coupled_rcond<4>(_rc5, _rmax5, _cm5);
     if (!_newton_end(report, 5, _n5, _conv5, o, _st5, _nl5, _res5, _qs5, _rc5, _sg5, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -1526,7 +1528,7 @@ struct planetary {
     int _piv5[4];
     const R _ratio5 = _lu_factor<4>(_a5, _piv5);
     if (!(_ratio5 > o.singular_pivot_ratio))
-      return _fail(report, _ratio5 == _ratio5 ? 2 : 3, 5);
+      return _fail(report, _ratio5 == _ratio5 ? _kStatusSingular : _kStatusNonFinite, 5);
     if (factors) {
       std::copy(_a5, _a5 + 16, factors->a + 0);
       std::copy(_piv5, _piv5 + 4, factors->piv + 5);
@@ -1539,7 +1541,7 @@ struct planetary {
       qd[7] = _x[2];
       qd[8] = _x[3];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
@@ -1558,7 +1560,7 @@ struct planetary {
       qdd[7] = _x[2];
       qdd[8] = _x[3];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     if (factors) factors->rcond = report.rcond;
     return report;
   }

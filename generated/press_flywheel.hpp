@@ -794,13 +794,15 @@ struct press_flywheel {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -962,13 +964,13 @@ struct press_flywheel {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -989,7 +991,7 @@ struct press_flywheel {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1199,7 +1201,7 @@ struct press_flywheel {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1481,7 +1483,7 @@ struct press_flywheel {
         for (int k = 0; k < num_f; ++k)
           mz[i * num_f + k] = _dot(num_q, p.b + i * num_q, mb + k * num_q);
       const _real<T> ratio = _ldlt_factor(num_f, mz);
-      if (!(ratio > _real<T>(0))) return ratio == ratio ? 2 : 3;
+      if (!(ratio > _real<T>(0))) return ratio == ratio ? _kStatusSingular : _kStatusNonFinite;
       m_b = mb;
       m_z = mz;
     }
@@ -1515,8 +1517,8 @@ struct press_flywheel {
             _dot(num_q, p.b + k * num_q, f + i * num_q);
     for (int i = 0; i < ndir; ++i) _ldlt_solve(num_f, m_z, dzdd + i * num_f);
     for (int k = 0; k < num_f * ndir; ++k)
-      if (!_finite(_mag(dzdd[k]))) return 3;
-    return 0;
+      if (!_finite(_mag(dzdd[k]))) return _kStatusNonFinite;
+    return _kStatusConverged;
   }
 
   // Direction i's dq (rate: dqd): B's column when known, nullptr when known to be 0, else its
@@ -1703,8 +1705,8 @@ struct press_flywheel {
     for (int i = 0; i < N * N; ++i) a[i] = -T(h * g) * jac[i];
     for (int i = 0; i < N; ++i) a[i * N + i] += T(1);
     const R ratio = _lu_factor<N>(a, piv);
-    if (!(ratio == ratio)) return 3;
-    if (!(ratio > R(0))) return 2;
+    if (!(ratio == ratio)) return _kStatusNonFinite;
+    if (!(ratio > R(0))) return _kStatusSingular;
     int taken = 0;
     // Stage i: base = x + h sum_{j<i} a_ij k_j; Y from the explicit guess base + h g f(t, x).
     for (int stage = 0; stage < 2; ++stage) {
@@ -1723,10 +1725,10 @@ struct press_flywheel {
           const R s = _mag(r[i]) / scale[i];
           size = s > size ? s : size;
         }
-        if (!(size == size)) return 3;
+        if (!(size == size)) return _kStatusNonFinite;
         converged = size <= tolerance;
       }
-      if (!converged) return 1;
+      if (!converged) return _kStatusMaxIterations;
       // k_i from the converged Y (no further evaluation of f): (Y - base) / (h gamma).
       if (stage == 0)
         for (int i = 0; i < N; ++i) k1[i] = (y[i] - base[i]) / (h * T(g));
@@ -1805,7 +1807,7 @@ struct press_flywheel {
       const T _t1 = -_cos5*T(p.l);
       T _r[1] = {-T(p.l)*_sin5 - q[4] + q[7]};
       const T _a = _t1;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 6, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 6, _it);
       _rmax6[0] = _mag(_a) * _cs6[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1816,7 +1818,7 @@ struct press_flywheel {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[5]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 6, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 6, _it);
       _nl6 += _linear_step(_step, _pv6);
       _pv6 = _step;
       _conv6 = _small;
@@ -1839,7 +1841,7 @@ struct press_flywheel {
     q[6] = _cos5*T(p.l) + q[3];
     // Block 8: rows 7 -> q[8] (explicit)
     q[8] = T(0);
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1871,14 +1873,14 @@ struct press_flywheel {
     const T _t3 = cos(q[5]);
     const T _t4 = -_t3*T(p.l);
     const T _a6 = _t4;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     qd[5] = (qd[4] - qd[7]) / _a6;
     // Block 7: rows 4 -> q[6]
     const T _t5 = sin(q[5]);
     qd[6] = qd[3] - (T(p.l)*_t5)*qd[5];
     // Block 8: rows 7 -> q[8]
     qd[8] = T(0);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1902,7 +1904,7 @@ struct press_flywheel {
     const T _t0 = cos(q[5]);
     const T _t1 = -_t0*T(p.l);
     const T _a6 = _t1;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     // Block 7: rows 4 -> q[6]
     // Block 8: rows 7 -> q[8]
     qdd[0] = T(0);
@@ -1920,7 +1922,7 @@ struct press_flywheel {
     qdd[5] = (-_t6*T(p.l)*_t7 + qdd[4] - qdd[7]) / _a6;
     qdd[6] = -_t6*_t0*T(p.l) + qdd[3] - (T(p.l)*_t7)*qdd[5];
     qdd[8] = T(0);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1953,14 +1955,14 @@ struct press_flywheel {
     const T _t3 = cos(q[5]);
     const T _t4 = -_t3*T(p.l);
     const T _a6 = _t4;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     qd[5] = (qd[4] - qd[7]) / _a6;
     // Block 7: rows 4 -> q[6]
     const T _t5 = sin(q[5]);
     qd[6] = qd[3] - (T(p.l)*_t5)*qd[5];
     // Block 8: rows 7 -> q[8]
     qd[8] = T(0);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = _free_in<T>(p, 2, p.theta_a);
@@ -1972,7 +1974,7 @@ struct press_flywheel {
     qdd[5] = (-_t7*T(p.l)*_t5 + qdd[4] - qdd[7]) / _a6;
     qdd[6] = -_t7*_t3*T(p.l) + qdd[3] - (T(p.l)*_t5)*qdd[5];
     qdd[8] = T(0);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -2017,7 +2019,7 @@ struct press_flywheel {
       const T _t1 = -_cos5*T(p.l);
       T _r[1] = {-T(p.l)*_sin5 - q[4] + q[7]};
       const T _a = _t1;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 6, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 6, _it);
       _rmax6[0] = _mag(_a) * _cs6[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -2028,7 +2030,7 @@ struct press_flywheel {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[5]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 6, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 6, _it);
       _nl6 += _linear_step(_step, _pv6);
       _pv6 = _step;
       _conv6 = _small;
@@ -2051,7 +2053,7 @@ struct press_flywheel {
     q[6] = _cos5*T(p.l) + q[3];
     // Block 8: rows 7 -> q[8] (explicit)
     q[8] = T(0);
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -2067,13 +2069,13 @@ struct press_flywheel {
     // Block 6: rows 5 -> q[5]
     const T _t2 = -_cos5*T(p.l);
     const T _a6 = _t2;
-    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? 2 : 3, 6);
+    if (!(_mag(_a6) > 0)) return _fail(report, _mag(_a6) == 0 ? _kStatusSingular : _kStatusNonFinite, 6);
     qd[5] = (qd[4] - qd[7]) / _a6;
     // Block 7: rows 4 -> q[6]
     qd[6] = qd[3] - (T(p.l)*_sin5)*qd[5];
     // Block 8: rows 7 -> q[8]
     qd[8] = T(0);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = _free_in<T>(p, 2, p.theta_a);
@@ -2085,7 +2087,7 @@ struct press_flywheel {
     qdd[5] = (-_t4*T(p.l)*_sin5 + qdd[4] - qdd[7]) / _a6;
     qdd[6] = -_t4*_cos5*T(p.l) + qdd[3] - (T(p.l)*_sin5)*qdd[5];
     qdd[8] = T(0);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     if (factors) factors->rcond = report.rcond;
     return report;
   }
@@ -2466,7 +2468,7 @@ struct press_flywheel {
     if (rb.status != 0) return _fail(r, rb.status, rb.block);
     if (rb.rcond < r.rcond) r.rcond = rb.rcond;
     if (!_block_forward_factored<_model>(w.jac, w.factors, w.pivots, w.e, w.b, nf))
-      return _fail(r, 3, -1);
+      return _fail(r, _kStatusNonFinite, -1);
     // Each body's mass data; g = Q^A - (M qdd + h) at qdd = c, generalized_force's numbers
     // (the same products; the geometry computed once for both).
     _force_geometry(w.q, t, pz, w.geometry);
@@ -2483,9 +2485,9 @@ struct press_flywheel {
     for (int k = 0; k < nf; ++k)
       _mass_times(num_bodies, nq, w.mass, w.inertia, w.ax, w.ay, w.b + k * nq, w.mb + k * nq);
     const R ratio = _reduced_accelerations(nq, nf, w.b, w.mb, w.g, w.mz, zdd, w.qdd);
-    if (!(ratio == ratio)) return _fail(r, 3, -1);
-    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, 2, -1);
-    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, 3, -1);
+    if (!(ratio == ratio)) return _fail(r, _kStatusNonFinite, -1);
+    if (!(ratio > o.singular_pivot_ratio)) return _fail(r, _kStatusSingular, -1);
+    if (!_all_finite<nf>(zdd) || !_all_finite<nq * nf>(w.b)) return _fail(r, _kStatusNonFinite, -1);
     for (int k = 0; k < nf; ++k) w.state[2 * nf + k] = zdd[k];
     w.solved = true;
     w.solved_t = t;

@@ -631,13 +631,15 @@ struct quick_return {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -799,13 +801,13 @@ struct quick_return {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -826,7 +828,7 @@ struct quick_return {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1036,7 +1038,7 @@ struct quick_return {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1094,7 +1096,7 @@ struct quick_return {
       const T _t4 = _t2*_cos5 + _t1*_sin5;
       T _r[1] = {_t3};
       const T _a = _t4;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 7, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 7, _it);
       _rmax7[0] = _mag(_a) * _cs7[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1105,7 +1107,7 @@ struct quick_return {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[5]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 7, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 7, _it);
       _nl7 += _linear_step(_step, _pv7);
       _pv7 = _step;
       _conv7 = _small;
@@ -1127,7 +1129,7 @@ struct quick_return {
       return report;
     // Block 8: rows 7 -> q[8] (explicit)
     q[8] = q[5];
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1164,11 +1166,11 @@ struct quick_return {
     const T _t6 = sin(q[5]);
     const T _t7 = _t3*_t4 + _t5*_t6;
     const T _a7 = _t7;
-    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
+    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? _kStatusSingular : _kStatusNonFinite, 7);
     qd[5] = (-_t6*qd[3] - (-_t4)*qd[4] - (-_t6)*qd[6] - _t4*qd[7]) / _a7;
     // Block 8: rows 7 -> q[8]
     qd[8] = qd[5];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1196,7 +1198,7 @@ struct quick_return {
     const T _t3 = sin(q[5]);
     const T _t4 = _t0*_t1 + _t2*_t3;
     const T _a7 = _t4;
-    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
+    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? _kStatusSingular : _kStatusNonFinite, 7);
     // Block 8: rows 7 -> q[8]
     qdd[0] = T(0);
     qdd[1] = T(0);
@@ -1212,7 +1214,7 @@ struct quick_return {
     const T _t9 = _t0*_t3 - _t2*_t1;
     qdd[5] = (-T(2)*_t1*qd[3]*qd[5] - T(2)*_t3*qd[4]*qd[5] + _t9*(qd[5]*qd[5]) + T(2)*_t1*qd[5]*qd[6] + T(2)*_t3*qd[5]*qd[7] - _t3*qdd[3] - (-_t1)*qdd[4] - (-_t3)*qdd[6] - _t1*qdd[7]) / _a7;
     qdd[8] = qdd[5];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1250,11 +1252,11 @@ struct quick_return {
     const T _t6 = sin(q[5]);
     const T _t7 = _t3*_t4 + _t5*_t6;
     const T _a7 = _t7;
-    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
+    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? _kStatusSingular : _kStatusNonFinite, 7);
     qd[5] = (-_t6*qd[3] - (-_t4)*qd[4] - (-_t6)*qd[6] - _t4*qd[7]) / _a7;
     // Block 8: rows 7 -> q[8]
     qd[8] = qd[5];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
@@ -1266,7 +1268,7 @@ struct quick_return {
     const T _t9 = _t3*_t6 - _t5*_t4;
     qdd[5] = (-T(2)*_t4*qd[3]*qd[5] - T(2)*_t6*qd[4]*qd[5] + _t9*(qd[5]*qd[5]) + T(2)*_t4*qd[5]*qd[6] + T(2)*_t6*qd[5]*qd[7] - _t6*qdd[3] - (-_t4)*qdd[4] - (-_t6)*qdd[6] - _t4*qdd[7]) / _a7;
     qdd[8] = qdd[5];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1314,7 +1316,7 @@ struct quick_return {
       const T _t4 = _t2*_cos5 + _t1*_sin5;
       T _r[1] = {_t3};
       const T _a = _t4;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 7, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 7, _it);
       _rmax7[0] = _mag(_a) * _cs7[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1325,7 +1327,7 @@ struct quick_return {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[5]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 7, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 7, _it);
       _nl7 += _linear_step(_step, _pv7);
       _pv7 = _step;
       _conv7 = _small;
@@ -1347,7 +1349,7 @@ struct quick_return {
       return report;
     // Block 8: rows 7 -> q[8] (explicit)
     q[8] = q[5];
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -1365,11 +1367,11 @@ struct quick_return {
     // Block 7: rows 6 -> q[5]
     const T _t6 = _t2*_cos5 + _t1*_sin5;
     const T _a7 = _t6;
-    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? 2 : 3, 7);
+    if (!(_mag(_a7) > 0)) return _fail(report, _mag(_a7) == 0 ? _kStatusSingular : _kStatusNonFinite, 7);
     qd[5] = (-_sin5*qd[3] - (-_cos5)*qd[4] - (-_sin5)*qd[6] - _cos5*qd[7]) / _a7;
     // Block 8: rows 7 -> q[8]
     qd[8] = qd[5];
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
@@ -1380,7 +1382,7 @@ struct quick_return {
     qdd[7] = -_t7*T(p.r)*_sin2 + qdd[1] - (-_cos2*T(p.r))*qdd[2];
     qdd[5] = (-T(2)*_cos5*qd[3]*qd[5] - T(2)*_sin5*qd[4]*qd[5] + _t5*(qd[5]*qd[5]) + T(2)*_cos5*qd[5]*qd[6] + T(2)*_sin5*qd[5]*qd[7] - _sin5*qdd[3] - (-_cos5)*qdd[4] - (-_sin5)*qdd[6] - _cos5*qdd[7]) / _a7;
     qdd[8] = qdd[5];
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 

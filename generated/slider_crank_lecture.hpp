@@ -604,13 +604,15 @@ struct slider_crank_lecture {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -772,13 +774,13 @@ struct slider_crank_lecture {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -799,7 +801,7 @@ struct slider_crank_lecture {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1009,7 +1011,7 @@ struct slider_crank_lecture {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1057,7 +1059,7 @@ struct slider_crank_lecture {
       const T _t0 = T(p.l)*_sin5;
       T _r[1] = {-_cos5*T(p.l) - q[4] + q[1] + _sin2};
       const T _a = _t0;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 4, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 4, _it);
       _rmax4[0] = _mag(_a) * _cs4[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1068,7 +1070,7 @@ struct slider_crank_lecture {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[5]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 4, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 4, _it);
       _nl4 += _linear_step(_step, _pv4);
       _pv4 = _step;
       _conv4 = _small;
@@ -1090,7 +1092,7 @@ struct slider_crank_lecture {
     // Block 5: rows 2 -> q[3] (explicit)
     const T _t1 = T(p.l)*_sin5;
     q[3] = _t1 + _cos2 + q[0];
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1115,14 +1117,14 @@ struct slider_crank_lecture {
     const T _t0 = sin(q[5]);
     const T _t1 = T(p.l)*_t0;
     const T _a4 = _t1;
-    if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? 2 : 3, 4);
+    if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? _kStatusSingular : _kStatusNonFinite, 4);
     const T _t2 = cos(q[2]);
     qd[5] = (-qd[1] - _t2*qd[2] + qd[4]) / _a4;
     // Block 5: rows 2 -> q[3]
     const T _t3 = sin(q[2]);
     const T _t4 = cos(q[5]);
     qd[3] = (-qd[0] - (-_t3)*qd[2] - (_t4*T(p.l))*qd[5]) / T(-1);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1144,7 +1146,7 @@ struct slider_crank_lecture {
     const T _t0 = sin(q[5]);
     const T _t1 = T(p.l)*_t0;
     const T _a4 = _t1;
-    if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? 2 : 3, 4);
+    if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? _kStatusSingular : _kStatusNonFinite, 4);
     // Block 5: rows 2 -> q[3]
     qdd[0] = T(0);
     qdd[1] = T(0);
@@ -1157,7 +1159,7 @@ struct slider_crank_lecture {
     const T _t6 = cos(q[2]);
     qdd[5] = (_t4*_t5 - _t2*_t3*T(p.l) - qdd[1] - _t6*qdd[2] + qdd[4]) / _a4;
     qdd[3] = (_t4*_t6 + _t2*T(p.l)*_t0 - qdd[0] - (-_t5)*qdd[2] - (_t3*T(p.l))*qdd[5]) / T(-1);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1183,14 +1185,14 @@ struct slider_crank_lecture {
     const T _t0 = sin(q[5]);
     const T _t1 = T(p.l)*_t0;
     const T _a4 = _t1;
-    if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? 2 : 3, 4);
+    if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? _kStatusSingular : _kStatusNonFinite, 4);
     const T _t2 = cos(q[2]);
     qd[5] = (-qd[1] - _t2*qd[2] + qd[4]) / _a4;
     // Block 5: rows 2 -> q[3]
     const T _t3 = sin(q[2]);
     const T _t4 = cos(q[5]);
     qd[3] = (-qd[0] - (-_t3)*qd[2] - (_t4*T(p.l))*qd[5]) / T(-1);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -1199,7 +1201,7 @@ struct slider_crank_lecture {
     const T _t6 = qd[2]*qd[2];
     qdd[5] = (_t6*_t3 - _t5*_t4*T(p.l) - qdd[1] - _t2*qdd[2] + qdd[4]) / _a4;
     qdd[3] = (_t6*_t2 + _t5*T(p.l)*_t0 - qdd[0] - (-_t3)*qdd[2] - (_t4*T(p.l))*qdd[5]) / T(-1);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1237,7 +1239,7 @@ struct slider_crank_lecture {
       const T _t0 = T(p.l)*_sin5;
       T _r[1] = {-_cos5*T(p.l) - q[4] + q[1] + _sin2};
       const T _a = _t0;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 4, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 4, _it);
       _rmax4[0] = _mag(_a) * _cs4[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1248,7 +1250,7 @@ struct slider_crank_lecture {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[5]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[5]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 4, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 4, _it);
       _nl4 += _linear_step(_step, _pv4);
       _pv4 = _step;
       _conv4 = _small;
@@ -1270,7 +1272,7 @@ struct slider_crank_lecture {
     // Block 5: rows 2 -> q[3] (explicit)
     const T _t1 = T(p.l)*_sin5;
     q[3] = _t1 + _cos2 + q[0];
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -1281,11 +1283,11 @@ struct slider_crank_lecture {
     qd[4] = T(0);
     // Block 4: rows 3 -> q[5]
     const T _a4 = _t1;
-    if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? 2 : 3, 4);
+    if (!(_mag(_a4) > 0)) return _fail(report, _mag(_a4) == 0 ? _kStatusSingular : _kStatusNonFinite, 4);
     qd[5] = (-qd[1] - _cos2*qd[2] + qd[4]) / _a4;
     // Block 5: rows 2 -> q[3]
     qd[3] = (-qd[0] - (-_sin2)*qd[2] - (_cos5*T(p.l))*qd[5]) / T(-1);
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[2] = T(0);
@@ -1294,7 +1296,7 @@ struct slider_crank_lecture {
     const T _t3 = qd[2]*qd[2];
     qdd[5] = (_t3*_sin2 - _t2*_cos5*T(p.l) - qdd[1] - _cos2*qdd[2] + qdd[4]) / _a4;
     qdd[3] = (_t3*_cos2 + _t2*T(p.l)*_sin5 - qdd[0] - (-_sin2)*qdd[2] - (_cos5*T(p.l))*qdd[5]) / T(-1);
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 

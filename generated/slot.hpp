@@ -673,13 +673,15 @@ struct slot {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -841,13 +843,13 @@ struct slot {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -868,7 +870,7 @@ struct slot {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1078,7 +1080,7 @@ struct slot {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1139,7 +1141,7 @@ struct slot {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 5, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 5, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1153,7 +1155,7 @@ struct slot {
       _step = std::max(_step, _mag(_r[1]) * R(1 / coordinate_scales[6]));
       _qs += _mag(q[6]) * R(1 / coordinate_scales[6]);
       _small &= _step_converged(_mag(_r[1]) * R(1 / coordinate_scales[6]), _mag(q[6]) * R(1 / coordinate_scales[6]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 5, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 5, _it);
       _nl5 += _linear_step(_step, _pv5);
       _pv5 = _step;
       _conv5 = _small;
@@ -1176,7 +1178,7 @@ struct slot {
     _rc5 = _coupled_rcond<2>(_rc5, _rmax5, _cm5);
     if (!_newton_end(report, 5, _n5, _conv5, o, _st5, _nl5, _res5, _qs5, _rc5, _sg5, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1213,7 +1215,7 @@ struct slot {
     int _piv5[2];
     const R _ratio5 = _lu_factor<2>(_a5, _piv5);
     if (!(_ratio5 > o.singular_pivot_ratio))
-      return _fail(report, _ratio5 == _ratio5 ? 2 : 3, 5);
+      return _fail(report, _ratio5 == _ratio5 ? _kStatusSingular : _kStatusNonFinite, 5);
     const T _t9 = sin(q[2]);
     const T _t10 = cos(q[2]);
     const T _t11 = _t10*T(p.rc);
@@ -1223,7 +1225,7 @@ struct slot {
       qd[5] = _x[0];
       qd[6] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1256,7 +1258,7 @@ struct slot {
     int _piv5[2];
     const R _ratio5 = _lu_factor<2>(_a5, _piv5);
     if (!(_ratio5 > o.singular_pivot_ratio))
-      return _fail(report, _ratio5 == _ratio5 ? 2 : 3, 5);
+      return _fail(report, _ratio5 == _ratio5 ? _kStatusSingular : _kStatusNonFinite, 5);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
@@ -1274,7 +1276,7 @@ struct slot {
       qdd[5] = _x[0];
       qdd[6] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1312,7 +1314,7 @@ struct slot {
     int _piv5[2];
     const R _ratio5 = _lu_factor<2>(_a5, _piv5);
     if (!(_ratio5 > o.singular_pivot_ratio))
-      return _fail(report, _ratio5 == _ratio5 ? 2 : 3, 5);
+      return _fail(report, _ratio5 == _ratio5 ? _kStatusSingular : _kStatusNonFinite, 5);
     const T _t9 = sin(q[2]);
     const T _t10 = cos(q[2]);
     const T _t11 = _t10*T(p.rc);
@@ -1322,7 +1324,7 @@ struct slot {
       qd[5] = _x[0];
       qd[6] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
@@ -1337,7 +1339,7 @@ struct slot {
       qdd[5] = _x[0];
       qdd[6] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1388,7 +1390,7 @@ struct slot {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 5, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 5, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1402,7 +1404,7 @@ struct slot {
       _step = std::max(_step, _mag(_r[1]) * R(1 / coordinate_scales[6]));
       _qs += _mag(q[6]) * R(1 / coordinate_scales[6]);
       _small &= _step_converged(_mag(_r[1]) * R(1 / coordinate_scales[6]), _mag(q[6]) * R(1 / coordinate_scales[6]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 5, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 5, _it);
       _nl5 += _linear_step(_step, _pv5);
       _pv5 = _step;
       _conv5 = _small;
@@ -1425,7 +1427,7 @@ struct slot {
     _rc5 = _coupled_rcond<2>(_rc5, _rmax5, _cm5);
     if (!_newton_end(report, 5, _n5, _conv5, o, _st5, _nl5, _res5, _qs5, _rc5, _sg5, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -1445,14 +1447,14 @@ struct slot {
     int _piv5[2];
     const R _ratio5 = _lu_factor<2>(_a5, _piv5);
     if (!(_ratio5 > o.singular_pivot_ratio))
-      return _fail(report, _ratio5 == _ratio5 ? 2 : 3, 5);
+      return _fail(report, _ratio5 == _ratio5 ? _kStatusSingular : _kStatusNonFinite, 5);
     {
       T _x[2] = {-qd[0] - (-T(p.rc)*_sin2)*qd[2] + qd[3], -qd[1] - _t0*qd[2] + qd[4]};
       _lu_solve<2>(_a5, _piv5, _x);
       qd[5] = _x[0];
       qd[6] = _x[1];
     }
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[3] = T(0);
@@ -1467,7 +1469,7 @@ struct slot {
       qdd[5] = _x[0];
       qdd[6] = _x[1];
     }
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 

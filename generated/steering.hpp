@@ -823,13 +823,15 @@ struct steering {
   static int _newton_status(bool budget, bool converged, bool small, bool linear, const R& residual,
                             const R& rcond, const R& min_rcond) noexcept {
     using std::abs;
-    if (!_finite(abs(residual))) return 3;
+    if (!_finite(abs(residual))) return _kStatusNonFinite;
     // The iterations ran out: converging linearly onto a singular point, or not at all.
-    if (!converged && !budget) return linear && _poorly_conditioned(rcond, min_rcond) ? 2 : 1;
-    if (!small) return budget ? 5 : 4;
-    if (!(rcond > min_rcond)) return 2;
-    if (linear && _poorly_conditioned(rcond, min_rcond)) return 2;
-    return 0;
+    if (!converged && !budget)
+      return linear && _poorly_conditioned(rcond, min_rcond) ? _kStatusSingular
+                                                             : _kStatusMaxIterations;
+    if (!small) return budget ? _kStatusBudgetExhausted : _kStatusInconsistent;
+    if (!(rcond > min_rcond)) return _kStatusSingular;
+    if (linear && _poorly_conditioned(rcond, min_rcond)) return _kStatusSingular;
+    return _kStatusConverged;
   }
   // The largest v[i] / scale[i] (a block's scaled residual) with one division; NaN if any v is.
   template <int K, class R>
@@ -991,13 +993,13 @@ struct steering {
     }
     const R ratio = _lu_factor<K>(a, piv);
     if (!(ratio == ratio)) {
-      r = _fail(r, 3, k);
+      r = _fail(r, _kStatusNonFinite, k);
       return false;
     }
     const R rcond = ratio > 0 ? _lu_rcond<K>(a, piv, row_max, d) : R(0);
     r.rcond = std::min(r.rcond, rcond);
     if (!(rcond > min_rcond)) {
-      r = _fail(r, rcond == rcond ? 2 : 3, k);
+      r = _fail(r, rcond == rcond ? _kStatusSingular : _kStatusNonFinite, k);
       return false;
     }
     return true;
@@ -1018,7 +1020,7 @@ struct steering {
         T a[K * K];
         int piv[K];
         if (!(ok = _block_factor<S, K>(k, jac, a, piv, r, o.min_rcond))) return;
-        if (!(ok = solve(size, k, a, piv))) r = _fail(r, 3, k);
+        if (!(ok = solve(size, k, a, piv))) r = _fail(r, _kStatusNonFinite, k);
       });
     }
     return r;
@@ -1228,7 +1230,7 @@ struct steering {
           ok = _transposed_block<S, decltype(s)::value>(k, jac, a, piv, b, y);
         });
       }
-      if (!ok) r = _fail(r, 3, k);
+      if (!ok) r = _fail(r, _kStatusNonFinite, k);
     }
     return r;
   }
@@ -1288,7 +1290,7 @@ struct steering {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 4, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 4, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1300,7 +1302,7 @@ struct steering {
       _step = std::max(_step, _mag(_r[1]) * R(1 / coordinate_scales[4]));
       _qs += _mag(q[4]) * R(1 / coordinate_scales[4]);
       _small &= _step_converged(_mag(_r[1]) * R(1 / coordinate_scales[4]), _mag(q[4]) * R(1 / coordinate_scales[4]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 4, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 4, _it);
       _nl4 += _linear_step(_step, _pv4);
       _pv4 = _step;
       _conv4 = _small;
@@ -1363,7 +1365,7 @@ struct steering {
       const T _t34 = T(2)*_t28*_t33 - T(2)*_t31*_t32;
       T _r[1] = {_t22 + _t25 + _t28*_t28 + _t31*_t31};
       const T _a = _t34;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 9, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 9, _it);
       _rmax9[0] = _mag(_a) * _cs9[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1374,7 +1376,7 @@ struct steering {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 9, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 9, _it);
       _nl9 += _linear_step(_step, _pv9);
       _pv9 = _step;
       _conv9 = _small;
@@ -1427,7 +1429,7 @@ struct steering {
       const T _t57 = T(2)*_t51*_t56 - T(2)*_t55*_t54;
       T _r[1] = {_t22 + _t25 + _t51*_t51 + _t54*_t54};
       const T _a = _t57;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 10, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 10, _it);
       _rmax10[0] = _mag(_a) * _cs10[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1438,7 +1440,7 @@ struct steering {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[11]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[11]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 10, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 10, _it);
       _nl10 += _linear_step(_step, _pv10);
       _pv10 = _step;
       _conv10 = _small;
@@ -1463,7 +1465,7 @@ struct steering {
     _rc10 = _coupled_rcond<1>(_rc10, _rmax10, _cm10);
     if (!_newton_end(report, 10, _n10, _conv10, o, _st10, _nl10, _res10, _qs10, _rc10, _sg10, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1494,7 +1496,7 @@ struct steering {
     int _piv4[2];
     const R _ratio4 = _lu_factor<2>(_a4, _piv4);
     if (!(_ratio4 > o.singular_pivot_ratio))
-      return _fail(report, _ratio4 == _ratio4 ? 2 : 3, 4);
+      return _fail(report, _ratio4 == _ratio4 ? _kStatusSingular : _kStatusNonFinite, 4);
     const T _t5 = q[0] - q[3];
     const T _t6 = -q[4];
     const T _t7 = _t6 + q[1];
@@ -1529,7 +1531,7 @@ struct steering {
     const T _t21 = _t12 + _t15;
     const T _t22 = T(2)*_t20*_t21 - T(2)*_t16*_t19;
     const T _a9 = _t22;
-    if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? 2 : 3, 9);
+    if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? _kStatusSingular : _kStatusNonFinite, 9);
     const T _t23 = T(-2)*_t2*T(p.a);
     const T _t24 = T(2)*q[3];
     const T _t25 = T(-2)*T(p.a)*_t1;
@@ -1552,9 +1554,9 @@ struct steering {
     const T _t40 = _t36 + _t37;
     const T _t41 = T(2)*_t39*_t40 - T(2)*_t35*_t38;
     const T _a10 = _t41;
-    if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? 2 : 3, 10);
+    if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? _kStatusSingular : _kStatusNonFinite, 10);
     qd[11] = (-(-T(2)*_t31*T(p.arm)*_t10 - T(2)*q[9] + T(2)*_t13*T(p.arm)*_t33 + _t28 + _t24)*qd[3] - (-T(2)*_t13*_t31*T(p.arm) - T(2)*T(p.arm)*_t10*_t33 - T(2)*q[10] + _t30 + _t26)*qd[4] - (-T(2)*_t39*T(p.a)*_t1 - T(2)*_t38*_t2*T(p.a))*qd[5] - (_t23 - T(2)*_t13*T(p.arm)*_t33 + _t27 + T(2)*_t31*T(p.arm)*_t10 + T(2)*q[9])*qd[9] - (_t25 + _t29 + T(2)*_t13*_t31*T(p.arm) + T(2)*T(p.arm)*_t10*_t33 + T(2)*q[10])*qd[10]) / _a10;
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1581,7 +1583,7 @@ struct steering {
     int _piv4[2];
     const R _ratio4 = _lu_factor<2>(_a4, _piv4);
     if (!(_ratio4 > o.singular_pivot_ratio))
-      return _fail(report, _ratio4 == _ratio4 ? 2 : 3, 4);
+      return _fail(report, _ratio4 == _ratio4 ? _kStatusSingular : _kStatusNonFinite, 4);
     // Block 5: rows 5 -> q[6]
     // Block 6: rows 6 -> q[7]
     // Block 7: rows 7 -> q[9]
@@ -1602,7 +1604,7 @@ struct steering {
     const T _t16 = _t6 + _t10;
     const T _t17 = T(2)*_t15*_t16 - T(2)*_t11*_t14;
     const T _a9 = _t17;
-    if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? 2 : 3, 9);
+    if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? _kStatusSingular : _kStatusNonFinite, 9);
     // Block 10: rows 10 -> q[11]
     const T _t18 = cos(q[11]);
     const T _t19 = -_t18*T(p.arm)*_t4;
@@ -1616,7 +1618,7 @@ struct steering {
     const T _t27 = _t23 + _t24;
     const T _t28 = T(2)*_t26*_t27 - T(2)*_t22*_t25;
     const T _a10 = _t28;
-    if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? 2 : 3, 10);
+    if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? _kStatusSingular : _kStatusNonFinite, 10);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[5] = T(0);
@@ -1655,7 +1657,7 @@ struct steering {
     const T _t50 = T(2)*T(p.a)*_t0;
     qdd[8] = (_t41 - T(2)*(_t15*_t1*T(p.a) - _t11*T(p.a)*_t0 + _t38*_t39 + _t39*_t40)*_t33 + _t42 - T(2)*(qd[6]*qd[6]) - T(2)*(qd[7]*qd[7]) - T(4)*(_t16*T(p.a)*_t0 - _t14*_t1*T(p.a))*qd[5]*qd[8] - T(4)*_t16*qd[3]*qd[8] - T(4)*_t14*qd[4]*qd[8] - T(4)*_t1*T(p.a)*qd[5]*qd[7] - T(4)*T(p.a)*_t0*qd[3]*qd[5] + T(2)*(-(_t16*_t16) - (_t14*_t14) + _t15*_t14 + _t11*_t16)*(qd[8]*qd[8]) + T(4)*_t16*qd[6]*qd[8] + T(4)*_t14*qd[7]*qd[8] + T(4)*_t1*T(p.a)*qd[4]*qd[5] + T(4)*T(p.a)*_t0*qd[5]*qd[6] + T(4)*qd[3]*qd[6] + T(4)*qd[4]*qd[7] - (_t43 - T(2)*q[6] + T(2)*_t8*T(p.arm)*_t5 + T(2)*_t9*T(p.arm)*_t4 + _t44)*qdd[3] - (_t45 - T(2)*_t8*_t9*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t4*_t5 + _t46)*qdd[4] - (T(2)*_t15*T(p.a)*_t0 + T(2)*_t11*_t1*T(p.a))*qdd[5] - (-T(2)*_t8*T(p.arm)*_t5 - T(2)*_t9*T(p.arm)*_t4 + _t47 + _t48 + T(2)*q[6])*qdd[6] - (_t49 - T(2)*T(p.arm)*_t4*_t5 + T(2)*_t8*_t9*T(p.arm) + _t50 + T(2)*q[7])*qdd[7]) / _a9;
     qdd[11] = (_t41 - T(2)*(qd[10]*qd[10]) + _t42 - T(2)*(qd[9]*qd[9]) - T(4)*(_t22*_t1*T(p.a) - _t27*T(p.a)*_t0)*qd[11]*qd[5] - T(4)*_t22*qd[11]*qd[4] - T(4)*_t27*qd[11]*qd[3] - T(4)*_t1*T(p.a)*qd[4]*qd[5] - T(4)*T(p.a)*_t0*qd[5]*qd[9] + T(2)*(-_t25*T(p.a)*_t0 - _t38*_t39 - _t39*_t40 + _t26*_t1*T(p.a))*_t33 + T(2)*(-(_t22*_t22) - (_t27*_t27) + _t26*_t22 + _t25*_t27)*(qd[11]*qd[11]) + T(4)*_t22*qd[10]*qd[11] + T(4)*_t27*qd[11]*qd[9] + T(4)*_t1*T(p.a)*qd[10]*qd[5] + T(4)*T(p.a)*_t0*qd[3]*qd[5] + T(4)*qd[10]*qd[4] + T(4)*qd[3]*qd[9] - (-T(2)*_t18*T(p.arm)*_t4 - T(2)*q[9] + T(2)*_t8*T(p.arm)*_t20 + _t48 + _t44)*qdd[3] - (-T(2)*_t8*_t18*T(p.arm) - T(2)*T(p.arm)*_t4*_t20 - T(2)*q[10] + _t50 + _t46)*qdd[4] - (-T(2)*_t26*T(p.a)*_t0 - T(2)*_t25*_t1*T(p.a))*qdd[5] - (_t43 - T(2)*_t8*T(p.arm)*_t20 + _t47 + T(2)*_t18*T(p.arm)*_t4 + T(2)*q[9])*qdd[9] - (_t45 + _t49 + T(2)*_t8*_t18*T(p.arm) + T(2)*T(p.arm)*_t4*_t20 + T(2)*q[10])*qdd[10]) / _a10;
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1687,7 +1689,7 @@ struct steering {
     int _piv4[2];
     const R _ratio4 = _lu_factor<2>(_a4, _piv4);
     if (!(_ratio4 > o.singular_pivot_ratio))
-      return _fail(report, _ratio4 == _ratio4 ? 2 : 3, 4);
+      return _fail(report, _ratio4 == _ratio4 ? _kStatusSingular : _kStatusNonFinite, 4);
     const T _t5 = q[0] - q[3];
     const T _t6 = -q[4];
     const T _t7 = _t6 + q[1];
@@ -1722,7 +1724,7 @@ struct steering {
     const T _t21 = _t12 + _t15;
     const T _t22 = T(2)*_t20*_t21 - T(2)*_t16*_t19;
     const T _a9 = _t22;
-    if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? 2 : 3, 9);
+    if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? _kStatusSingular : _kStatusNonFinite, 9);
     const T _t23 = T(-2)*_t2*T(p.a);
     const T _t24 = T(2)*q[3];
     const T _t25 = T(-2)*T(p.a)*_t1;
@@ -1745,9 +1747,9 @@ struct steering {
     const T _t40 = _t36 + _t37;
     const T _t41 = T(2)*_t39*_t40 - T(2)*_t35*_t38;
     const T _a10 = _t41;
-    if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? 2 : 3, 10);
+    if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? _kStatusSingular : _kStatusNonFinite, 10);
     qd[11] = (-(-T(2)*_t31*T(p.arm)*_t10 - T(2)*q[9] + T(2)*_t13*T(p.arm)*_t33 + _t28 + _t24)*qd[3] - (-T(2)*_t13*_t31*T(p.arm) - T(2)*T(p.arm)*_t10*_t33 - T(2)*q[10] + _t30 + _t26)*qd[4] - (-T(2)*_t39*T(p.a)*_t1 - T(2)*_t38*_t2*T(p.a))*qd[5] - (_t23 - T(2)*_t13*T(p.arm)*_t33 + _t27 + T(2)*_t31*T(p.arm)*_t10 + T(2)*q[9])*qd[9] - (_t25 + _t29 + T(2)*_t13*_t31*T(p.arm) + T(2)*T(p.arm)*_t10*_t33 + T(2)*q[10])*qd[10]) / _a10;
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[5] = T(0);
@@ -1773,7 +1775,7 @@ struct steering {
     const T _t50 = T(-2)*(qd[4]*qd[4]);
     qdd[8] = (_t49 - T(2)*(_t20*_t2*T(p.a) - _t16*T(p.a)*_t1 + _t46*_t47 + _t47*_t48)*_t43 + _t50 - T(2)*(qd[6]*qd[6]) - T(2)*(qd[7]*qd[7]) - T(4)*(_t21*T(p.a)*_t1 - _t19*_t2*T(p.a))*qd[5]*qd[8] - T(4)*_t21*qd[3]*qd[8] - T(4)*_t19*qd[4]*qd[8] - T(4)*_t2*T(p.a)*qd[5]*qd[7] - T(4)*T(p.a)*_t1*qd[3]*qd[5] + T(2)*(-(_t21*_t21) - (_t19*_t19) + _t20*_t19 + _t16*_t21)*(qd[8]*qd[8]) + T(4)*_t21*qd[6]*qd[8] + T(4)*_t19*qd[7]*qd[8] + T(4)*_t2*T(p.a)*qd[4]*qd[5] + T(4)*T(p.a)*_t1*qd[5]*qd[6] + T(4)*qd[3]*qd[6] + T(4)*qd[4]*qd[7] - (_t23 - T(2)*q[6] + T(2)*_t13*T(p.arm)*_t11 + T(2)*_t14*T(p.arm)*_t10 + _t24)*qdd[3] - (_t25 - T(2)*_t13*_t14*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t10*_t11 + _t26)*qdd[4] - (T(2)*_t20*T(p.a)*_t1 + T(2)*_t16*_t2*T(p.a))*qdd[5] - (-T(2)*_t13*T(p.arm)*_t11 - T(2)*_t14*T(p.arm)*_t10 + _t27 + _t28 + T(2)*q[6])*qdd[6] - (_t29 - T(2)*T(p.arm)*_t10*_t11 + T(2)*_t13*_t14*T(p.arm) + _t30 + T(2)*q[7])*qdd[7]) / _a9;
     qdd[11] = (_t49 - T(2)*(qd[10]*qd[10]) + _t50 - T(2)*(qd[9]*qd[9]) - T(4)*(_t35*_t2*T(p.a) - _t40*T(p.a)*_t1)*qd[11]*qd[5] - T(4)*_t35*qd[11]*qd[4] - T(4)*_t40*qd[11]*qd[3] - T(4)*_t2*T(p.a)*qd[4]*qd[5] - T(4)*T(p.a)*_t1*qd[5]*qd[9] + T(2)*(-_t38*T(p.a)*_t1 - _t46*_t47 - _t47*_t48 + _t39*_t2*T(p.a))*_t43 + T(2)*(-(_t35*_t35) - (_t40*_t40) + _t39*_t35 + _t38*_t40)*(qd[11]*qd[11]) + T(4)*_t35*qd[10]*qd[11] + T(4)*_t40*qd[11]*qd[9] + T(4)*_t2*T(p.a)*qd[10]*qd[5] + T(4)*T(p.a)*_t1*qd[3]*qd[5] + T(4)*qd[10]*qd[4] + T(4)*qd[3]*qd[9] - (-T(2)*_t31*T(p.arm)*_t10 - T(2)*q[9] + T(2)*_t13*T(p.arm)*_t33 + _t28 + _t24)*qdd[3] - (-T(2)*_t13*_t31*T(p.arm) - T(2)*T(p.arm)*_t10*_t33 - T(2)*q[10] + _t30 + _t26)*qdd[4] - (-T(2)*_t39*T(p.a)*_t1 - T(2)*_t38*_t2*T(p.a))*qdd[5] - (_t23 - T(2)*_t13*T(p.arm)*_t33 + _t27 + T(2)*_t31*T(p.arm)*_t10 + T(2)*q[9])*qdd[9] - (_t25 + _t29 + T(2)*_t13*_t31*T(p.arm) + T(2)*T(p.arm)*_t10*_t33 + T(2)*q[10])*qdd[10]) / _a10;
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 
@@ -1823,7 +1825,7 @@ struct steering {
       int _piv[2];
       const R _ratio = _lu_factor<2>(_a, _piv);
       if (!(_ratio > o.singular_pivot_ratio))
-        return _fail(report, _ratio == _ratio ? 2 : 3, 4, _it);
+        return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, 4, _it);
       _lu_solve<2>(_a, _piv, _r);
       R _step = 0, _qs = 0;
       bool _small = true;
@@ -1835,7 +1837,7 @@ struct steering {
       _step = std::max(_step, _mag(_r[1]) * R(1 / coordinate_scales[4]));
       _qs += _mag(q[4]) * R(1 / coordinate_scales[4]);
       _small &= _step_converged(_mag(_r[1]) * R(1 / coordinate_scales[4]), _mag(q[4]) * R(1 / coordinate_scales[4]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 4, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 4, _it);
       _nl4 += _linear_step(_step, _pv4);
       _pv4 = _step;
       _conv4 = _small;
@@ -1898,7 +1900,7 @@ struct steering {
       const T _t34 = T(2)*_t28*_t33 - T(2)*_t31*_t32;
       T _r[1] = {_t22 + _t25 + _t28*_t28 + _t31*_t31};
       const T _a = _t34;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 9, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 9, _it);
       _rmax9[0] = _mag(_a) * _cs9[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1909,7 +1911,7 @@ struct steering {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[8]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[8]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 9, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 9, _it);
       _nl9 += _linear_step(_step, _pv9);
       _pv9 = _step;
       _conv9 = _small;
@@ -1962,7 +1964,7 @@ struct steering {
       const T _t57 = T(2)*_t51*_t56 - T(2)*_t55*_t54;
       T _r[1] = {_t22 + _t25 + _t51*_t51 + _t54*_t54};
       const T _a = _t57;
-      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, 10, _it);
+      if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : _kStatusNonFinite, 10, _it);
       _rmax10[0] = _mag(_a) * _cs10[0];
       _r[0] /= _a;
       R _step = 0, _qs = 0;
@@ -1973,7 +1975,7 @@ struct steering {
       _step = std::max(_step, _mag(_r[0]));
       _qs += _mag(q[11]);
       _small &= _step_converged(_mag(_r[0]), _mag(q[11]), o.tolerance);
-      if (!_finite(_step)) return _fail(report, 3, 10, _it);
+      if (!_finite(_step)) return _fail(report, _kStatusNonFinite, 10, _it);
       _nl10 += _linear_step(_step, _pv10);
       _pv10 = _step;
       _conv10 = _small;
@@ -1998,7 +2000,7 @@ struct steering {
     _rc10 = _coupled_rcond<1>(_rc10, _rmax10, _cm10);
     if (!_newton_end(report, 10, _n10, _conv10, o, _st10, _nl10, _res10, _qs10, _rc10, _sg10, block_signs))
       return report;
-    if (!_all_finite<nq>(q)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(q)) return _fail(report, _kStatusNonFinite, -1);
     // Block 0: rows 0 -> q[0]
     qd[0] = T(0);
     // Block 1: rows 1 -> q[1]
@@ -2012,7 +2014,7 @@ struct steering {
     int _piv4[2];
     const R _ratio4 = _lu_factor<2>(_a4, _piv4);
     if (!(_ratio4 > o.singular_pivot_ratio))
-      return _fail(report, _ratio4 == _ratio4 ? 2 : 3, 4);
+      return _fail(report, _ratio4 == _ratio4 ? _kStatusSingular : _kStatusNonFinite, 4);
     {
       T _x[2] = {-_t4*qd[0] - _cos5*qd[1] - (-_t11*_cos5 - _t13*_sin5)*qd[5], -_cos5*qd[0] - _sin5*qd[1] - T(p.rj)*qd[2] - _t14*qd[5]};
       _lu_solve<2>(_a4, _piv4, _x);
@@ -2032,16 +2034,16 @@ struct steering {
     const T _t65 = _t38 + _t39;
     const T _t66 = T(2)*_t37*_t65 - T(2)*_t40*_t64;
     const T _a9 = _t66;
-    if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? 2 : 3, 9);
+    if (!(_mag(_a9) > 0)) return _fail(report, _mag(_a9) == 0 ? _kStatusSingular : _kStatusNonFinite, 9);
     qd[8] = (-(_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42)*qd[3] - (_t43 - T(2)*_t23*_cos8*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44)*qd[4] - (T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))*qd[5] - (-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6])*qd[6] - (_t47 - T(2)*T(p.arm)*_t20*_sin8 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7])*qd[7]) / _a9;
     // Block 10: rows 10 -> q[11]
     const T _t67 = _t58 + _t59;
     const T _t68 = _t61 + _t62;
     const T _t69 = T(2)*_t60*_t68 - T(2)*_t67*_t63;
     const T _a10 = _t69;
-    if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? 2 : 3, 10);
+    if (!(_mag(_a10) > 0)) return _fail(report, _mag(_a10) == 0 ? _kStatusSingular : _kStatusNonFinite, 10);
     qd[11] = (-(-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42)*qd[3] - (-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44)*qd[4] - (-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))*qd[5] - (_t41 - T(2)*_t23*T(p.arm)*_sin11 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9])*qd[9] - (_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10])*qd[10]) / _a10;
-    if (!_all_finite<nq>(qd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qd)) return _fail(report, _kStatusNonFinite, -1);
     qdd[0] = T(0);
     qdd[1] = T(0);
     qdd[5] = T(0);
@@ -2064,7 +2066,7 @@ struct steering {
     const T _t75 = T(-2)*(qd[4]*qd[4]);
     qdd[8] = (_t74 - T(2)*(_t37*_cos5*T(p.a) - _t40*T(p.a)*_sin5 + _t71*_t72 + _t72*_t73)*_t70 + _t75 - T(2)*(qd[6]*qd[6]) - T(2)*(qd[7]*qd[7]) - T(4)*(_t65*T(p.a)*_sin5 - _t64*_cos5*T(p.a))*qd[5]*qd[8] - T(4)*_t65*qd[3]*qd[8] - T(4)*_t64*qd[4]*qd[8] - T(4)*_cos5*T(p.a)*qd[5]*qd[7] - T(4)*T(p.a)*_sin5*qd[3]*qd[5] + T(2)*(-(_t65*_t65) - (_t64*_t64) + _t37*_t64 + _t40*_t65)*(qd[8]*qd[8]) + T(4)*_t65*qd[6]*qd[8] + T(4)*_t64*qd[7]*qd[8] + T(4)*_cos5*T(p.a)*qd[4]*qd[5] + T(4)*T(p.a)*_sin5*qd[5]*qd[6] + T(4)*qd[3]*qd[6] + T(4)*qd[4]*qd[7] - (_t41 - T(2)*q[6] + T(2)*_t23*T(p.arm)*_sin8 + T(2)*_cos8*T(p.arm)*_t20 + _t42)*qdd[3] - (_t43 - T(2)*_t23*_cos8*T(p.arm) - T(2)*q[7] + T(2)*T(p.arm)*_t20*_sin8 + _t44)*qdd[4] - (T(2)*_t37*T(p.a)*_sin5 + T(2)*_t40*_cos5*T(p.a))*qdd[5] - (-T(2)*_t23*T(p.arm)*_sin8 - T(2)*_cos8*T(p.arm)*_t20 + _t45 + _t46 + T(2)*q[6])*qdd[6] - (_t47 - T(2)*T(p.arm)*_t20*_sin8 + T(2)*_t23*_cos8*T(p.arm) + _t48 + T(2)*q[7])*qdd[7]) / _a9;
     qdd[11] = (_t74 - T(2)*(qd[10]*qd[10]) + _t75 - T(2)*(qd[9]*qd[9]) - T(4)*(_t67*_cos5*T(p.a) - _t68*T(p.a)*_sin5)*qd[11]*qd[5] - T(4)*_t67*qd[11]*qd[4] - T(4)*_t68*qd[11]*qd[3] - T(4)*_cos5*T(p.a)*qd[4]*qd[5] - T(4)*T(p.a)*_sin5*qd[5]*qd[9] + T(2)*(-_t63*T(p.a)*_sin5 - _t71*_t72 - _t72*_t73 + _t60*_cos5*T(p.a))*_t70 + T(2)*(-(_t67*_t67) - (_t68*_t68) + _t60*_t67 + _t63*_t68)*(qd[11]*qd[11]) + T(4)*_t67*qd[10]*qd[11] + T(4)*_t68*qd[11]*qd[9] + T(4)*_cos5*T(p.a)*qd[10]*qd[5] + T(4)*T(p.a)*_sin5*qd[3]*qd[5] + T(4)*qd[10]*qd[4] + T(4)*qd[3]*qd[9] - (-T(2)*_cos11*T(p.arm)*_t20 - T(2)*q[9] + T(2)*_t23*T(p.arm)*_sin11 + _t46 + _t42)*qdd[3] - (-T(2)*_t23*_cos11*T(p.arm) - T(2)*T(p.arm)*_t20*_sin11 - T(2)*q[10] + _t48 + _t44)*qdd[4] - (-T(2)*_t60*T(p.a)*_sin5 - T(2)*_t63*_cos5*T(p.a))*qdd[5] - (_t41 - T(2)*_t23*T(p.arm)*_sin11 + _t45 + T(2)*_cos11*T(p.arm)*_t20 + T(2)*q[9])*qdd[9] - (_t43 + _t47 + T(2)*_t23*_cos11*T(p.arm) + T(2)*T(p.arm)*_t20*_sin11 + T(2)*q[10])*qdd[10]) / _a10;
-    if (!_all_finite<nq>(qdd)) return _fail(report, 3, -1);
+    if (!_all_finite<nq>(qdd)) return _fail(report, _kStatusNonFinite, -1);
     return report;
   }
 

@@ -127,6 +127,15 @@ struct ReducedDynamics::Impl {
   double t_last = 0;
   Eigen::VectorXd z_last, q_last, rheonomic_last;  // rheonomic: qd - B zd (the drivers' part)
   std::vector<double> inputs_last;                  // the input slots at the last solution
+  // All of the above and B, as keep() found them.
+  struct Kept {
+    bool have_last = false;
+    double t_last = 0;
+    Eigen::VectorXd z_last, q_last, rheonomic_last;
+    Eigen::MatrixXd b;
+    std::vector<double> inputs_last;
+    BlockInterpreter::Memory blocks;
+  } kept;
 
   // Each body's mass, inertia and rotated centre of mass at q, for the mass kernel.
   void mass_data(const ForceModel& f, const Eigen::VectorXd& q) {
@@ -433,8 +442,12 @@ bool ReducedDynamics::solve_kinematics(double t, MotionState& out, double& condi
       const char* phase = BlockInterpreter::to_string(w.blocks->failed_phase());
       const std::string what = std::string(phase) + " solve failed: " +
                                to_string(static_cast<Status>(r.status));
-      if (r.status == 2 || r.status == 6) return singular_failure(t, out, r.status == 6, r.block);
-      return fail(r.status == 3 ? MotionFailure::kNonFinite : MotionFailure::kPosition, what);
+      const auto status = static_cast<Status>(r.status);
+      if (status == Status::kSingular || status == Status::kBranchJump)
+        return singular_failure(t, out, status == Status::kBranchJump, r.block);
+      return fail(
+          status == Status::kNonFinite ? MotionFailure::kNonFinite : MotionFailure::kPosition,
+          what);
     }
     condition = r.rcond > 0 ? 1 / static_cast<double>(r.rcond) : 1;
   } else {
@@ -586,6 +599,43 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
   w.rheonomic_last = out.qd - b_ * out.zd;
   w.inputs_last = w.inputs;
   return true;
+}
+
+void ReducedDynamics::keep() {
+  Impl& w = *impl_;
+  Impl::Kept& k = w.kept;
+  k.have_last = w.have_last;
+  k.t_last = w.t_last;
+  k.z_last = w.z_last;
+  k.q_last = w.q_last;
+  k.rheonomic_last = w.rheonomic_last;
+  k.inputs_last = w.inputs_last;
+  k.b = b_;
+  if (w.blocks) w.blocks->save(k.blocks);
+}
+
+void ReducedDynamics::restore() {
+  Impl& w = *impl_;
+  const Impl::Kept& k = w.kept;
+  w.have_last = k.have_last;
+  w.t_last = k.t_last;
+  w.z_last = k.z_last;
+  w.q_last = k.q_last;
+  w.rheonomic_last = k.rheonomic_last;
+  w.inputs_last = k.inputs_last;
+  b_ = k.b;
+  if (w.blocks) w.blocks->restore(k.blocks);
+}
+
+double energy_scale(double start_energy, const ForceModel& forces, double length_scale) {
+  double unit = 0;
+  const ForceData<double>& d = forces.numbers;
+  for (std::size_t b = 0; b < d.mass.size(); ++b)
+    unit += 0.5 * (d.mass[b] * length_scale * length_scale + d.inertia[b]);
+  const double scale = std::max(std::abs(start_energy), unit);
+  // No mass at all never integrates (the reduced mass is singular); 1 keeps the tolerance
+  // positive for the message that says so.
+  return scale > 0 ? scale : 1.0;
 }
 
 Energy ReducedDynamics::energy(const MotionState& s) {

@@ -618,7 +618,8 @@ ReferenceSimulationStats run_reference_simulation_exact(
     fail(p.t, e.what());
   }
   const auto e0 = dyn.energy(p.state);
-  gbs.energy_scale = std::max((GiNaC::abs(e0[0]) + GiNaC::abs(e0[1])).to_double(), 1.0);
+  gbs.energy_scale = energy_scale((GiNaC::abs(e0[0]) + GiNaC::abs(e0[1])).to_double(), forces,
+                                  model.symbolic().length_scale);
   gbs.initial_step(p, grid.t1 - grid.t0);
   const auto emit = [&](const StepPoint& at) {
     sink(rows.row(at));

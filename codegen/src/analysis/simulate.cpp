@@ -68,6 +68,8 @@ class MinimalFormulation : public MotionFormulation {
     return true;
   }
   const MotionState& state() const override { return state_; }
+  void keep() override { dynamics_.keep(); }
+  void restore() override { dynamics_.restore(); }
   Energy energy() override { return dynamics_.energy(state_); }
   double activity(const Energy& e) override {
     const MotionState& s = state_;
@@ -169,11 +171,13 @@ class Integration {
     std::vector<double> ydot(n_);
     ++evaluations_;
     if (!f.rhs(t0, y0.data(), ydot.data())) throw failure(t0, f.reason() + f.advice());
+    f.keep();
     const Energy e = f.energy();
     energy0_ = e.kinetic + e.potential;
     largest_energy_ = e.kinetic + std::abs(e.potential);
     // The work's and the exchange's absolute tolerance: --atol times the energy scale at t0.
-    atol_energy_ = o.atol * std::max(e.kinetic + std::abs(e.potential), 1.0);
+    atol_energy_ = o.atol * energy_scale(e.kinetic + std::abs(e.potential), forces,
+                                         model.symbolic().length_scale);
     NV_Ith_S(atol_, n_) = NV_Ith_S(atol_, n_ + 1) = atol_energy_;
     const bool springs = has_springs(model.mechanism());
     const bool bdf = o.integrator == Integrator::kBdf ||
@@ -328,6 +332,7 @@ class Integration {
                                (integrator_.rfind("BDF", 0) == 0 ? "bdf" : "adams") +
                                " at this tolerance; try another --integrator or --method)");
     double reached = tcur_;
+    f_.restore();  // the rows and stop_when samples since the last step leave no trace
     const int flag = CVode(cvode_, tstop_, y_, &reached, CV_ONE_STEP);
     if (interrupt_) throw *interrupt_;
     if (flag < 0) {
@@ -341,6 +346,7 @@ class Integration {
     ++evaluations_;
     if (!f_.rhs(reached, y.data(), ydot.data()))
       throw failure(reached, f_.reason() + f_.advice());
+    f_.keep();
     check_energy(reached, y);
     if (stop_ && !stopped_) {
       const StopSample end = stop_sample(reached, &last_);

@@ -58,7 +58,7 @@ int lu_tangent(const Eigen::MatrixXd& jac, const K::_TangentPoint<double>& p,
   const auto in_place = [nq](auto&& solver, const double* b, double* x, int m) {
     Eigen::Map<Eigen::MatrixXd> cols(x, nq, m);
     cols = solver.solve(Eigen::Map<const Eigen::MatrixXd>(b, nq, m));
-    return cols.allFinite() ? 0 : 3;
+    return cols.allFinite() ? K::_kStatusConverged : K::_kStatusNonFinite;
   };
   if (nq <= 48) {
     const Eigen::PartialPivLU<Eigen::MatrixXd> lu(jac), lu_t(jac.transpose());
@@ -69,7 +69,7 @@ int lu_tangent(const Eigen::MatrixXd& jac, const K::_TangentPoint<double>& p,
   }
   const Eigen::SparseMatrix<double> sparse = jac.sparseView(), sparse_t = sparse.transpose();
   Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(sparse), lu_t(sparse_t);
-  if (lu.info() != Eigen::Success || lu_t.info() != Eigen::Success) return 2;
+  if (lu.info() != Eigen::Success || lu_t.info() != Eigen::Success) return K::_kStatusSingular;
   return K::_dynamics_tangent(
       p, ndir, slots.data(), out.data(), work.data(),
       [&](double* b, double* x, int m) { return in_place(lu, b, x, m); },

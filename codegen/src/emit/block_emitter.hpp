@@ -119,7 +119,8 @@ class BlockEmitter {
     os << kOptions << kIn << "BlockReport<R> report;\n";
   }
   void finite_check(std::ostringstream& os, const char* v) {
-    os << kIn << "if (!_all_finite<nq>(" << v << ")) return _fail(report, 3, -1);\n";
+    os << kIn << "if (!_all_finite<nq>(" << v
+       << ")) return _fail(report, _kStatusNonFinite, -1);\n";
   }
   // Blocks [b0, b1).
   void position_body(std::ostringstream& os, FunctionPrinter& pr, int b0, int b1);

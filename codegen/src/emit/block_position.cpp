@@ -80,8 +80,10 @@ void BlockEmitter::explicit_block(std::ostringstream& os, FunctionPrinter& pr, s
   pr.ensure(out(f + 1), os, in);
   os << in << "{\n"
      << in << "  const T _c = " << pr.text(out(f)) << ";\n"
-     << in << "  if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? 2 : 3, " << block_id(bi)
-     << ");\n"
+     << in
+     << "  if (!(_mag(_c) > 0)) return _fail(report, _mag(_c) == 0 ? _kStatusSingular : "
+        "_kStatusNonFinite, "
+     << block_id(bi) << ");\n"
      << in << "  " << ref("q", b.cols[0]) << " = -(" << pr.text(out(f + 1)) << ") / _c;\n"
      << in << "}\n";
   declare_trig(os, pr, b.cols[0], false);
@@ -114,7 +116,8 @@ void BlockEmitter::newton_block(std::ostringstream& os, FunctionPrinter& pr, std
     os << in2 << "_step = std::max(_step, _mag(_r[" << i << "])" << inv_scale(c) << ");\n";
     step_criterion(os, in2, c, i);
   }
-  os << in2 << "if (!_finite(_step)) return _fail(report, 3, " << block_id(bi) << ", _it);\n";
+  os << in2 << "if (!_finite(_step)) return _fail(report, _kStatusNonFinite, " << block_id(bi)
+     << ", _it);\n";
   linear_count(os, in2, bs, "_step");
   newton_stop(os, in2, bi, k, {"_st" + bs + " = _step;", "break;"});
   pr.close_scope();
@@ -151,7 +154,7 @@ void BlockEmitter::guarded_condition(std::ostringstream& os, FunctionPrinter& pr
   os << kIn << "{\n"
      << kIn << "  const R _own = " << scaled_entry(pr, c, bo.jbb[0]) << ";\n"
      << kIn << "  const R _rc = _own / " << m << ";\n"
-     << kIn << "  if (!(_rc > o.min_rcond)) return _fail(report, 2, " << b << ");\n"
+     << kIn << "  if (!(_rc > o.min_rcond)) return _fail(report, _kStatusSingular, " << b << ");\n"
      << kIn << "  report.rcond = std::min(report.rcond, _rc);\n"
      << kIn << "}\n";
 }
@@ -268,8 +271,10 @@ void BlockEmitter::newton_solve(std::ostringstream& os, const std::string& in, s
   const std::string b = idx(static_cast<int>(bi));
   if (k == 1) {
     os << in << "const T _a = " << a[0] << ";\n"
-       << in << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? 2 : 3, " << block_id(bi)
-       << ", _it);\n"
+       << in
+       << "if (!(_mag(_a) > 0)) return _fail(report, _mag(_a) == 0 ? _kStatusSingular : "
+          "_kStatusNonFinite, "
+       << block_id(bi) << ", _it);\n"
        << in << "_rmax" << b << "[0] = _mag(_a) * _cs" << b << "[0];\n"
        << in << "_r[0] /= _a;\n";
     return;
@@ -279,7 +284,8 @@ void BlockEmitter::newton_solve(std::ostringstream& os, const std::string& in, s
      << in << "int _piv[" << k << "];\n"
      << in << "const R _ratio = _lu_factor<" << k << ">(_a, _piv);\n"
      << in << "if (!(_ratio > o.singular_pivot_ratio))\n"
-     << in << "  return _fail(report, _ratio == _ratio ? 2 : 3, " << block_id(bi) << ", _it);\n"
+     << in << "  return _fail(report, _ratio == _ratio ? _kStatusSingular : _kStatusNonFinite, "
+     << block_id(bi) << ", _it);\n"
      << in << "_lu_solve<" << k << ">(_a, _piv, _r);\n";
 }
 

@@ -20,7 +20,7 @@ void BlockEmitter::factor(std::ostringstream& os, std::size_t bi, int k,
   if (k == 1) {
     os << in << "const T _a" << b << " = " << a[0] << ";\n"
        << in << "if (!(_mag(_a" << b << ") > 0)) return _fail(report, _mag(_a" << b
-       << ") == 0 ? 2 : 3, " << block_id(bi) << ");\n";
+       << ") == 0 ? _kStatusSingular : _kStatusNonFinite, " << block_id(bi) << ");\n";
     save_factors(os, bi, k);
     return;
   }
@@ -29,8 +29,8 @@ void BlockEmitter::factor(std::ostringstream& os, std::size_t bi, int k,
      << in << "const R _ratio" << b << " = _lu_factor<" << k << ">(_a" << b << ", _piv" << b
      << ");\n"
      << in << "if (!(_ratio" << b << " > o.singular_pivot_ratio))\n"
-     << in << "  return _fail(report, _ratio" << b << " == _ratio" << b << " ? 2 : 3, "
-     << block_id(bi) << ");\n";
+     << in << "  return _fail(report, _ratio" << b << " == _ratio" << b
+     << " ? _kStatusSingular : _kStatusNonFinite, " << block_id(bi) << ");\n";
   save_factors(os, bi, k);
 }
 

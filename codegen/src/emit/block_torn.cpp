@@ -318,8 +318,8 @@ void BlockEmitter::torn_position(std::ostringstream& os, FunctionPrinter& pr, st
        << inv_scale(c) << ");\n";
     step_criterion(os, in2, c, i);
   }
-  os << in2 << "if (!_finite(_step" << b << ")) return _fail(report, 3, " << block_id(bi)
-     << ", _it);\n";
+  os << in2 << "if (!_finite(_step" << b << ")) return _fail(report, _kStatusNonFinite, "
+     << block_id(bi) << ", _it);\n";
   linear_count(os, in2, b, "_step" + b);
   newton_stop(os, in2, bi, m, {"_stop" + b + " = true;"});
   pr.close_scope();

@@ -53,6 +53,20 @@ class BlockInterpreter {
   }
   // Empties the sin/cos cache and forgets the determinant signs (kinegen::Solver::reset).
   void reset();
+  // What solve_step carries from call to call, to put back after a solve that must leave no
+  // trace (ReducedDynamics::keep).
+  struct Memory {
+    std::vector<double> trig;
+    std::vector<signed char> signs;
+  };
+  void save(Memory& m) const {
+    m.trig = trig_;
+    m.signs = signs_;
+  }
+  void restore(const Memory& m) {
+    trig_ = m.trig;
+    signs_ = m.signs;
+  }
   // The input drivers' values for the next steps (ProgramEvaluator::set_inputs: 3 per driver,
   // value, rate, acceleration), as a generated Params holds them. Not owned.
   void set_inputs(const double* inputs) { inputs_ = inputs; }

@@ -54,6 +54,13 @@ struct Energy {
   double power = 0;      // of the loads, dampers and prescribed drivers: the work's rate
 };
 
+// The energy that `simulate`'s absolute tolerance on the work (and its reference's) is a
+// fraction of: kinetic + |potential| at t0, or where the start holds less, the model's own unit
+// 1/2 sum(m L^2 + I) per second squared (each body moving at one length scale L and turning at
+// one radian per second). Not a fixed 1 J, which held a gram-sized mechanism's balance to a
+// bound a hundred times its energy.
+double energy_scale(double start_energy, const ForceModel& forces, double length_scale);
+
 class ReducedDynamics {
  public:
   // Checks at t0 what docs/format.md asks of free items (`free`) and assembles there: the
@@ -74,6 +81,12 @@ class ReducedDynamics {
   // false and failure() / reason() otherwise. Starts Newton from the last solution, moved
   // along B by the change in z, so that it stays on the branch it assembled on.
   bool evaluate(double t, const double* z, const double* zd, MotionState& out);
+  // An evaluation between keep() and restore() leaves no trace in the next one (Newton's
+  // start, the branch check's reference, the block solver's sin/cos cache and signs): a row or
+  // a stop_when sample between the integrator's steps, so that the steps, and so the rows, do
+  // not depend on the output grid.
+  void keep();
+  void restore();
   MotionFailure failure() const { return failure_; }
   // One line: what failed.
   const std::string& reason() const { return reason_; }

@@ -37,6 +37,11 @@ class MotionFormulation {
   // at state() (per coordinate; e its energy()): the rate of the energy exchanged, X' in the
   // energy balance's bound.
   virtual double activity(const Energy& e) = 0;
+  // An evaluation between keep() and restore() (a row, a stop_when sample) leaves no trace in
+  // the next rhs: the steps, and so the rows, do not depend on the output grid. Nothing to keep
+  // by default (an rhs that is a function of (t, y) alone).
+  virtual void keep() {}
+  virtual void restore() {}
   virtual MotionFailure failure() const = 0;
   virtual const std::string& reason() const = 0;
   // Projection onto the constraints after each step (CVODE's CVodeSetProjFn): the
