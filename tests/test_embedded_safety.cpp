@@ -17,6 +17,19 @@ namespace {
 
 constexpr double kTwoPi = 6.283185307179586;
 
+// The kernels, the printed code and the analysis name their statuses by the kernels' numbers;
+// kinegen::Status reads them as its own.
+using Numbers = kinegen::kernels::ReportKernel;
+using kinegen::Status;
+static_assert(static_cast<int>(Status::kConverged) == Numbers::_kStatusConverged);
+static_assert(static_cast<int>(Status::kMaxIterations) == Numbers::_kStatusMaxIterations);
+static_assert(static_cast<int>(Status::kSingular) == Numbers::_kStatusSingular);
+static_assert(static_cast<int>(Status::kNonFinite) == Numbers::_kStatusNonFinite);
+static_assert(static_cast<int>(Status::kInconsistent) == Numbers::_kStatusInconsistent);
+static_assert(static_cast<int>(Status::kBudgetExhausted) == Numbers::_kStatusBudgetExhausted);
+static_assert(static_cast<int>(Status::kBranchJump) == Numbers::_kStatusBranchJump);
+static_assert(static_cast<int>(Status::kTooFar) == Numbers::_kStatusTooFar);
+
 template <class T>
 const char* scalar_name() {
   return sizeof(T) == sizeof(float) ? "float" : "double";

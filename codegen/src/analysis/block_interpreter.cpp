@@ -19,6 +19,7 @@ namespace {
 
 // The kernels as the generated model struct has them: static members of one scope.
 struct K : kernels::LuKernel, kernels::TrigCacheKernel, kernels::NewtonKernel {};
+constexpr int kSingular = K::_kStatusSingular, kNonFinite = K::_kStatusNonFinite;
 
 // f(std::integral_constant<int, n>) for a run-time n in [1, BlockInterpreter::kMaxNewton].
 template <int N = 1, class F>
@@ -387,7 +388,7 @@ struct BlockInterpreter::Step {
     const int block = static_cast<int>(bi);
     const double coefficient = r.out(f);
     if (!(std::abs(coefficient) > 0))
-      return fail(std::abs(coefficient) == 0 ? K::_kStatusSingular : K::_kStatusNonFinite, block);
+      return fail(std::abs(coefficient) == 0 ? kSingular : kNonFinite, block);
     q[b.cols[0]] = -(r.out(f + 1)) / coefficient;
     bind_trig(b.cols[0]);
     const BlockRates& bo = in.bp_.rates[bi];
@@ -400,7 +401,7 @@ struct BlockInterpreter::Step {
       for (const auto& [c, out] : bo.coupling[0])
         if (r.node_of(out)) m = std::max(m, scaled_entry(c, out));
       const double rc = own / m;
-      if (!(rc > o.min_rcond)) return fail(K::_kStatusSingular, block);
+      if (!(rc > o.min_rcond)) return fail(kSingular, block);
       report.rcond = std::min(report.rcond, rc);
     }
     return true;
@@ -446,15 +447,14 @@ struct BlockInterpreter::Step {
       int piv[M];
       if constexpr (M == 1) {
         const double a = jac[0];
-        if (!(std::abs(a) > 0))
-          return fail(std::abs(a) == 0 ? K::_kStatusSingular : K::_kStatusNonFinite, block, iter);
+        if (!(std::abs(a) > 0)) return fail(std::abs(a) == 0 ? kSingular : kNonFinite, block, iter);
         end.rmax[0] = std::abs(a) * cs[0];
         res[0] /= a;
       } else {
         K::_row_max<M>(jac, cs, end.rmax);
         const double ratio = K::_lu_factor<M>(jac, piv);
         if (!(ratio > o.singular_pivot_ratio))
-          return fail(ratio == ratio ? K::_kStatusSingular : K::_kStatusNonFinite, block, iter);
+          return fail(ratio == ratio ? kSingular : kNonFinite, block, iter);
         K::_lu_solve<M>(jac, piv, res);
       }
       double step = 0, qs = 0;
@@ -466,7 +466,7 @@ struct BlockInterpreter::Step {
         qs += scaled(q[col], col);
         small &= K::_step_converged(scaled(res[i], col), scaled(q[col], col), o.tolerance);
       }
-      if (!K::_finite(step)) return fail(K::_kStatusNonFinite, block, iter);
+      if (!K::_finite(step)) return fail(kNonFinite, block, iter);
       end.linear_steps += K::_linear_step(step, prev);  // linear_count
       prev = step;
       end.conv = small;
@@ -539,7 +539,7 @@ struct BlockInterpreter::Step {
       a.assign(1, r.out(bo.jbb[0]));
       r.divide[bi] = !(n->kind == OpKind::kConst && n->value == 1);
       if (n->kind != OpKind::kConst && !(std::abs(a[0]) > 0))
-        return fail(std::abs(a[0]) == 0 ? K::_kStatusSingular : K::_kStatusNonFinite, block);
+        return fail(std::abs(a[0]) == 0 ? kSingular : kNonFinite, block);
       r.rates(bi, qd, true);
       return true;
     } else {
@@ -550,13 +550,12 @@ struct BlockInterpreter::Step {
     piv.resize(m);
     if (m == 1) {
       r.divide[bi] = 1;
-      if (!(std::abs(a[0]) > 0))
-        return fail(std::abs(a[0]) == 0 ? K::_kStatusSingular : K::_kStatusNonFinite, block);
+      if (!(std::abs(a[0]) > 0)) return fail(std::abs(a[0]) == 0 ? kSingular : kNonFinite, block);
     } else {
       const double ratio = with_size(
           m, [&](auto size) { return K::_lu_factor<decltype(size)::value>(a.data(), piv.data()); });
       if (!(ratio > o.singular_pivot_ratio))
-        return fail(ratio == ratio ? K::_kStatusSingular : K::_kStatusNonFinite, block);
+        return fail(ratio == ratio ? kSingular : kNonFinite, block);
     }
     r.rates(bi, qd, true);
     return true;
@@ -586,15 +585,15 @@ BlockInterpreter::Report BlockInterpreter::solve_step(double* q, double t, doubl
   phase_ = Phase::kPosition;
   for (std::size_t bi = 0; bi < st_.plans.size(); ++bi)
     if (!step.position(bi)) return step.report;
-  if (!all_finite(q, nq)) return K::_fail(step.report, K::_kStatusNonFinite, -1);
+  if (!all_finite(q, nq)) return K::_fail(step.report, kNonFinite, -1);
   phase_ = Phase::kVelocity;
   // Velocity and acceleration (motion_body, the trig cache's values still bound).
   for (std::size_t bi = 0; bi < st_.plans.size(); ++bi)
     if (!step.rates(bi, qd)) return step.report;
-  if (!all_finite(qd, nq)) return K::_fail(step.report, K::_kStatusNonFinite, -1);
+  if (!all_finite(qd, nq)) return K::_fail(step.report, kNonFinite, -1);
   phase_ = Phase::kAcceleration;
   for (std::size_t bi = 0; bi < st_.plans.size(); ++bi) r.rates(bi, qdd, false);
-  if (!all_finite(qdd, nq)) return K::_fail(step.report, K::_kStatusNonFinite, -1);
+  if (!all_finite(qdd, nq)) return K::_fail(step.report, kNonFinite, -1);
   return step.report;
 }
 

@@ -123,19 +123,16 @@ struct ReducedDynamics::Impl {
   Eigen::VectorXd g, nu, mass_m, mass_j, mass_ax, mass_ay, reduced;
   std::vector<double> force_columns;
   // The last solution, the start of the next Newton solve.
-  bool have_last = false;
-  double t_last = 0;
-  Eigen::VectorXd z_last, q_last, rheonomic_last;  // rheonomic: qd - B zd (the drivers' part)
-  std::vector<double> inputs_last;                  // the input slots at the last solution
-  // All of the above and B, as keep() found them.
-  struct Kept {
-    bool have_last = false;
-    double t_last = 0;
-    Eigen::VectorXd z_last, q_last, rheonomic_last;
-    Eigen::MatrixXd b;
-    std::vector<double> inputs_last;
-    BlockInterpreter::Memory blocks;
-  } kept;
+  struct Last {
+    bool valid = false;
+    double t = 0;
+    Eigen::VectorXd z, q, rheonomic;  // rheonomic: qd - B zd (the drivers' part)
+    std::vector<double> inputs;       // the input slots at the last solution
+  } last;
+  // It, B and the block solver's memory as keep() found them.
+  Last kept_last;
+  Eigen::MatrixXd kept_b;
+  BlockInterpreter::Memory kept_blocks;
 
   // Each body's mass, inertia and rotated centre of mass at q, for the mass kernel.
   void mass_data(const ForceModel& f, const Eigen::VectorXd& q) {
@@ -286,8 +283,8 @@ void ReducedDynamics::check_at_t0(double t0) {
     if (c.free->value0) z0[k] = model_.geometry_number(*c.free->value0, c.item + " value0");
     zd0[k] = model_.geometry_number(c.free->v0, c.item + " v0");
   }
-  w.q_last = q;
-  w.have_last = false;
+  w.last.q = q;
+  w.last.valid = false;
   initial_.t = t0;
   // A value0 far from the quantity at the assembled position is reached by continuation, as
   // a generated dynamics() with a fresh work space reaches it (docs/embedding.md, "First
@@ -304,8 +301,8 @@ void ReducedDynamics::check_at_t0(double t0) {
                          "the position at value0");
   // A failure's diagnosis starts again from the assembled position.
   const auto refuse = [&] {
-    w.q_last = q;
-    w.have_last = false;
+    w.last.q = q;
+    w.last.valid = false;
     report_t0_failure(t0);
   };
   for (int i = 1; i < steps; ++i) {
@@ -338,7 +335,7 @@ void ReducedDynamics::report_t0_failure(double t0) {
   // at a time, in `free:` order, from the assembled position (the others at their assembled
   // values), not merely the first item that has a value0.
   const std::string reason = reason_;
-  const Eigen::VectorXd q = w.q_last;  // the assembled position (a failed solve keeps it)
+  const Eigen::VectorXd q = w.last.q;  // the assembled position (a failed solve keeps it)
   Eigen::VectorXd z(nf_);
   const Eigen::VectorXd zd = Eigen::VectorXd::Zero(nf_);
   w.free_values.run(q.data(), nullptr, t0, model_.params().data(), z.data());
@@ -347,8 +344,8 @@ void ReducedDynamics::report_t0_failure(double t0) {
     const Constraint& c = m.drivers[free[k]];
     if (!c.free->value0) continue;
     z[k] = model_.geometry_number(*c.free->value0, c.item + " value0");
-    w.q_last = q;
-    w.have_last = false;
+    w.last.q = q;
+    w.last.valid = false;
     MotionState trial;
     if (!solve(t0, z.data(), zd.data(), trial) && failure_ != MotionFailure::kReducedMass)
       throw InputError(
@@ -358,8 +355,8 @@ void ReducedDynamics::report_t0_failure(double t0) {
               format_time(t0) + ": " + reason_);
     before += (before.empty() ? "" : ", ") + c.item;
   }
-  w.q_last = q;
-  w.have_last = false;
+  w.last.q = q;
+  w.last.valid = false;
   for (int k = 0; k < nf_; ++k) {
     const Constraint& c = m.drivers[free[k]];
     if (c.free->value0)
@@ -438,16 +435,13 @@ bool ReducedDynamics::solve_kinematics(double t, MotionState& out, double& condi
   if (w.blocks) {
     const auto r = w.blocks->solve_step(out.q.data(), t, out.qd.data(), out.qdd.data(),
                                         block_options());
-    if (r.status != 0) {
-      const char* phase = BlockInterpreter::to_string(w.blocks->failed_phase());
-      const std::string what = std::string(phase) + " solve failed: " +
-                               to_string(static_cast<Status>(r.status));
-      const auto status = static_cast<Status>(r.status);
+    if (const auto status = static_cast<Status>(r.status); status != Status::kConverged) {
       if (status == Status::kSingular || status == Status::kBranchJump)
         return singular_failure(t, out, status == Status::kBranchJump, r.block);
+      const char* phase = BlockInterpreter::to_string(w.blocks->failed_phase());
       return fail(
           status == Status::kNonFinite ? MotionFailure::kNonFinite : MotionFailure::kPosition,
-          what);
+          std::string(phase) + " solve failed: " + to_string(status));
     }
     condition = r.rcond > 0 ? 1 / static_cast<double>(r.rcond) : 1;
   } else {
@@ -555,8 +549,8 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
   out.zd = Eigen::Map<const Eigen::VectorXd>(zd, nf_);
   // Newton's start: the last solution moved along B by the change in z, and along the
   // prescribed drivers' rates by the change in t.
-  out.q = w.q_last;
-  if (w.have_last) out.q += b_ * (out.z - w.z_last) + (t - w.t_last) * w.rheonomic_last;
+  out.q = w.last.q;
+  if (w.last.valid) out.q += b_ * (out.z - w.last.z) + (t - w.last.t) * w.last.rheonomic;
   const Eigen::VectorXd predicted = out.q;
   out.qd.resize(nq_);
   out.qdd.resize(nq_);
@@ -571,10 +565,10 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
   // linearize, Python's dynamics): the prediction knows nothing of it, so this solve, like the
   // first, is not checked against it.
   bool inputs_moved = false;
-  for (std::size_t d = 0; w.have_last && d < m.drivers.size(); ++d)
+  for (std::size_t d = 0; w.last.valid && d < m.drivers.size(); ++d)
     if (m.drivers[d].law.input && !m.drivers[d].free)
-      inputs_moved = inputs_moved || w.inputs[3 * d] != w.inputs_last[3 * d];
-  if (w.have_last && !inputs_moved) {
+      inputs_moved = inputs_moved || w.inputs[3 * d] != w.last.inputs[3 * d];
+  if (w.last.valid && !inputs_moved) {
     // The branch check: the solution must agree with the first-order prediction to far better
     // than the predicted change itself (the miss is second order in the step).
     double change = 0, miss = 0;
@@ -582,7 +576,7 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
       const double inv = model_.symbolic().coordinate_kinds[k] == CoordinateKind::kAngle
                              ? 1.0
                              : 1 / scales[k];
-      change = std::max(change, std::abs(predicted[k] - w.q_last[k]) * inv);
+      change = std::max(change, std::abs(predicted[k] - w.last.q[k]) * inv);
       miss = std::max(miss, std::abs(out.q[k] - predicted[k]) * inv);
     }
     if (miss > kBranchJumpFraction * change + 1e-9)
@@ -592,50 +586,27 @@ bool ReducedDynamics::solve(double t, const double* z, const double* zd, MotionS
                                   format_estimate(change) + ")");
   }
   if (!reduce(t, out)) return false;
-  w.have_last = true;
-  w.t_last = t;
-  w.z_last = out.z;
-  w.q_last = out.q;
-  w.rheonomic_last = out.qd - b_ * out.zd;
-  w.inputs_last = w.inputs;
+  w.last.valid = true;
+  w.last.t = t;
+  w.last.z = out.z;
+  w.last.q = out.q;
+  w.last.rheonomic = out.qd - b_ * out.zd;
+  w.last.inputs = w.inputs;
   return true;
 }
 
 void ReducedDynamics::keep() {
   Impl& w = *impl_;
-  Impl::Kept& k = w.kept;
-  k.have_last = w.have_last;
-  k.t_last = w.t_last;
-  k.z_last = w.z_last;
-  k.q_last = w.q_last;
-  k.rheonomic_last = w.rheonomic_last;
-  k.inputs_last = w.inputs_last;
-  k.b = b_;
-  if (w.blocks) w.blocks->save(k.blocks);
+  w.kept_last = w.last;
+  w.kept_b = b_;
+  if (w.blocks) w.blocks->save(w.kept_blocks);
 }
 
 void ReducedDynamics::restore() {
   Impl& w = *impl_;
-  const Impl::Kept& k = w.kept;
-  w.have_last = k.have_last;
-  w.t_last = k.t_last;
-  w.z_last = k.z_last;
-  w.q_last = k.q_last;
-  w.rheonomic_last = k.rheonomic_last;
-  w.inputs_last = k.inputs_last;
-  b_ = k.b;
-  if (w.blocks) w.blocks->restore(k.blocks);
-}
-
-double energy_scale(double start_energy, const ForceModel& forces, double length_scale) {
-  double unit = 0;
-  const ForceData<double>& d = forces.numbers;
-  for (std::size_t b = 0; b < d.mass.size(); ++b)
-    unit += 0.5 * (d.mass[b] * length_scale * length_scale + d.inertia[b]);
-  const double scale = std::max(std::abs(start_energy), unit);
-  // No mass at all never integrates (the reduced mass is singular); 1 keeps the tolerance
-  // positive for the message that says so.
-  return scale > 0 ? scale : 1.0;
+  w.last = w.kept_last;
+  b_ = w.kept_b;
+  if (w.blocks) w.blocks->restore(w.kept_blocks);
 }
 
 Energy ReducedDynamics::energy(const MotionState& s) {

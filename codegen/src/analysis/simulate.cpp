@@ -175,7 +175,6 @@ class Integration {
     const Energy e = f.energy();
     energy0_ = e.kinetic + e.potential;
     largest_energy_ = e.kinetic + std::abs(e.potential);
-    // The work's and the exchange's absolute tolerance: --atol times the energy scale at t0.
     atol_energy_ = o.atol * energy_scale(e.kinetic + std::abs(e.potential), forces,
                                          model.symbolic().length_scale);
     NV_Ith_S(atol_, n_) = NV_Ith_S(atol_, n_ + 1) = atol_energy_;

@@ -11,6 +11,8 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -59,7 +61,16 @@ struct Energy {
 // 1/2 sum(m L^2 + I) per second squared (each body moving at one length scale L and turning at
 // one radian per second). Not a fixed 1 J, which held a gram-sized mechanism's balance to a
 // bound a hundred times its energy.
-double energy_scale(double start_energy, const ForceModel& forces, double length_scale);
+inline double energy_scale(double start_energy, const ForceModel& forces, double length_scale) {
+  double unit = 0;
+  const ForceData<double>& d = forces.numbers;
+  for (std::size_t b = 0; b < d.mass.size(); ++b)
+    unit += 0.5 * (d.mass[b] * length_scale * length_scale + d.inertia[b]);
+  const double scale = std::max(std::abs(start_energy), unit);
+  // No mass at all never integrates (the reduced mass is singular); 1 keeps the tolerance
+  // positive for the message that says so.
+  return scale > 0 ? scale : 1.0;
+}
 
 class ReducedDynamics {
  public:
