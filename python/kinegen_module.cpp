@@ -25,15 +25,15 @@
 #include <utility>
 #include <vector>
 
+#include "dynamics_api.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/check.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "kinegen/codegen/model/table.hpp"
-#include "dynamics_api.hpp"
 #include "locked.hpp"
 #include "view_page.hpp"
 

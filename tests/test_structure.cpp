@@ -2,8 +2,8 @@
 // the BLT order is valid on every example, the classification is the expected one, the block
 // solver agrees with the dense solver, float works, guarded explicit rows stay correct, and
 // singular blocks are reported.
-#include <catch2/catch.hpp>
 #include <array>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <kinegen/solver.hpp>
 #include <map>
@@ -15,7 +15,7 @@
 #include "four_bar.hpp"
 #include "fourbar_chain_3.hpp"
 #include "guarded_slider.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
 #include "offset_slider_crank.hpp"

@@ -14,12 +14,11 @@
 // part's coordinates from the cache, so their last bits may differ.
 #pragma once
 
+#include <kinegen/kernels/report.hpp>
 #include <memory>
 #include <vector>
 
-#include <kinegen/kernels/report.hpp>
-
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/structure/block_program.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
 
