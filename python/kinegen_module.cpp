@@ -367,11 +367,7 @@ class Mechanism {
         folded = kc::CompiledModel::from_file(path_, overrides_, build);
       }
       const kc::CompiledModel& m = folded ? *folded : *model_;
-      kc::EmitOptions options;
-      options.folded_params = fold_params;
-      const std::string text =
-          kc::emit_header(m.mechanism(), m.symbols(), m.symbolic(), m.programs(),
-                          m.structure(), options);
+      const std::string text = kc::emit_header(m);
       std::error_code ec;
       fs::create_directories(dir, ec);
       const fs::path target = fs::path(dir) / (m.mechanism().name + ".hpp");

@@ -152,9 +152,7 @@ TEST_CASE("item 1: eight threads load, analyze, check, generate and eval under t
             break;
           }
           case 2:
-            if (kc::emit_header(m->mechanism(), m->symbols(), m->symbolic(), m->programs(),
-                                m->structure())
-                    .empty())
+            if (kc::emit_header(*m).empty())
               ++wrong;
             break;
           default: {

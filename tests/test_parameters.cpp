@@ -146,8 +146,7 @@ TEST_CASE("derived parameters: sensitivities see through the formulas", "[params
 
 TEST_CASE("derived parameters are not members of a generated header's Params", "[params]") {
   const auto model = compile(kScaled);
-  const std::string header = kc::emit_header(model->mechanism(), model->symbols(),
-                                             model->symbolic(), model->programs());
+  const std::string header = kc::emit_header(*model);
   const auto params = header.substr(header.find("struct Params {"),
                                     header.find("};", header.find("struct Params {")) -
                                         header.find("struct Params {"));

@@ -416,8 +416,7 @@ TEST_CASE("generate --outputs selects the analyses in the header", "[structure][
   const auto text = [&](cg::Outputs outputs) {
     cg::EmitOptions options;
     options.outputs = outputs;
-    return cg::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
-                           model->programs(), options);
+    return cg::emit_header(*model, options);
   };
   const auto has = [](const std::string& s, const char* what) {
     return s.find(what) != std::string::npos;
@@ -425,8 +424,7 @@ TEST_CASE("generate --outputs selects the analyses in the header", "[structure][
   const std::string all = text(cg::Outputs::kAll), pos = text(cg::Outputs::kPosition),
                     vel = text(cg::Outputs::kVelocity);
   // The default is everything, and the header the CLI writes by default.
-  CHECK(all == cg::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
-                               model->programs()));
+  CHECK(all == cg::emit_header(*model));
   for (const char* f : {"static void phi(", "static void phi_q(", "solve_position("}) {
     CHECK(has(all, f));
     CHECK(has(pos, f));

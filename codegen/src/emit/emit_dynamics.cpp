@@ -502,7 +502,7 @@ void emit_jacobians(std::ostringstream& os, const DynamicsSource& d) {
   std::vector<GiNaC::ex> applied = d.forces.applied;
   std::vector<int> begin;
   std::vector<GiNaC::ex> outputs = tangent_outputs(t, applied, begin);
-  if (d.options.folded_params)
+  if (d.compiled.build_options().fold_params)
     for (auto& e : outputs) e = substitute_params(e, d.symbols, d.model.param_values);
   const int num_values = static_cast<int>(outputs.size());
   if (outputs.empty()) outputs.push_back(0);  // out[1], so that the function reads `out`

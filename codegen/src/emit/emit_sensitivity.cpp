@@ -26,13 +26,15 @@ std::vector<int> constraint_groups(const SymbolicModel& model) {
 
 // num_params, has_sensitivity, phi_p and solve_sensitivity. With --fold-params the code does
 // not read Params, so there is nothing to differentiate: only the flags, false.
-void emit_sensitivity(std::ostringstream& os, const SymbolTable& symbols,
-                      const SymbolicModel& model, const EmitOptions& options) {
+void emit_sensitivity(std::ostringstream& os, const CompiledModel& compiled,
+                      const EmitOptions& options) {
+  const SymbolTable& symbols = compiled.symbols();
+  const SymbolicModel& model = compiled.symbolic();
   const int np = symbols.num_params();
   os << "\n  // Parameter sensitivities. num_params: the members of Params, in order\n"
      << "  // (parameter k is the k-th member).\n"
      << "  static constexpr int num_params = " << np << ";\n";
-  if (options.folded_params) {
+  if (compiled.build_options().fold_params) {
     os << "  // None: the parameters were folded into constants (--fold-params), so nothing here\n"
        << "  // depends on Params.\n"
        << "  static constexpr bool has_sensitivity = false;\n";
