@@ -57,6 +57,12 @@ void for_row(const std::map<std::pair<int, int>, int>& entries, int row, F&& f) 
 
 bool is_unit(const Node& n) { return n.kind == OpKind::kConst && (n.value == 1 || n.value == -1); }
 
+// The compile stage's block program, of a structure the interpreter serves.
+const BlockProgram& supported_program(const CompiledModel& model) {
+  if (BlockInterpreter::supported(model.structure())) return model.block_program();
+  throw std::logic_error("BlockInterpreter: the structure is not supported");
+}
+
 }  // namespace
 
 // One step's state: node values with validity flags, the bound sin and cos of each
@@ -306,9 +312,7 @@ bool BlockInterpreter::supported(const Structure& st) {
 }
 
 BlockInterpreter::BlockInterpreter(const CompiledModel& model)
-    : model_(model), st_(model.structure()) {
-  if (!supported(st_)) throw std::logic_error("BlockInterpreter: the structure is not supported");
-  bp_ = build_block_program(model.symbolic(), model.symbols(), st_);
+    : model_(model), st_(model.structure()), bp_(supported_program(model)) {
   for (const BlockPlan& plan : st_.plans)
     if (plan.kind == BlockKind::kNewton)
       for (int col : plan.torn() ? plan.tears : plan.block.cols) newton_coordinates_.push_back(col);

@@ -418,7 +418,6 @@ void emit_block_solver(std::ostringstream& os, const CompiledModel& compiled, co
   const Mechanism& m = compiled.mechanism();
   const SymbolTable& symbols = compiled.symbols();
   const SymbolicModel& model = compiled.symbolic();
-  const ModelPrograms& programs = compiled.programs();
   const bool velocity = has_velocity(options), acceleration = has_acceleration(options);
   os << "\n  // Block solver: Phi(q, t) = 0 in block-lower-triangular order (maximum matching, "
         "then\n"
@@ -443,8 +442,8 @@ void emit_block_solver(std::ostringstream& os, const CompiledModel& compiled, co
        << "  static constexpr int num_newton_coordinates = " << iterated.size() << ";\n"
        << "  static constexpr std::array<int, num_newton_coordinates> newton_coordinates = {"
        << join(iterated) << "};\n";
-    const SolverPlan plan =
-        plan_block_solver(model, symbols, st, options.max_function_ops, options.roll_min);
+    const SolverPlan plan = plan_block_solver(model, symbols, st, compiled.block_program(),
+                                              options.max_function_ops, options.roll_min);
     BlockSolverPrinter blocks(model, symbols, plan);
     os << "  // Values in the optional sin/cos cache of solve_position and solve_step (3 per\n"
        << "  // coordinate whose sin or cos the model uses).\n"
@@ -483,7 +482,7 @@ void emit_block_solver(std::ostringstream& os, const CompiledModel& compiled, co
     // The tables only where a function reads them (folded headers say has_sensitivity = false).
     if (linear_code.find("_block_forward<") != std::string::npos ||
         linear_code.find("_block_transposed_reusing<") != std::string::npos)
-      emit_structure_tables(os, m.name, st, programs);
+      emit_structure_tables(os, m.name, st, compiled.programs());
     code << linear_code;
     emit_kernels(os, code.str());
     if (code.str().find("_trig(") != std::string::npos)

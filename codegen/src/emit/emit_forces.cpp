@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -58,11 +59,12 @@ class ForceCode {
   // generalized_force, solve_forces and force_columns, with applied_force and the private
   // _force_geometry they share.
   void print(std::ostringstream& os) const {
-    std::vector<GiNaC::ex> applied;
-    for (const auto& e : f_.applied) applied.push_back(fold(e));
+    const std::shared_ptr<const ForcePrograms> programs = compiled_.force_programs(f_);
+    const Program& applied_program = programs->applied;
     std::vector<GiNaC::ex> geometry = geometry_;
     if (geometry.empty()) geometry.push_back(0);  // out[1], so that the function reads `out`
-    const Program applied_program = lower(applied, symbols_);
+    // What the printed columns read, built with their text here (the analysis computes the
+    // same geometry in double, forces.hpp): the one program the emitter lowers itself.
     const Program geometry_program = lower(geometry, symbols_);
     const std::string ng = idx(static_cast<int>(geometry.size()));
     std::vector<std::string> quoted;
@@ -267,9 +269,8 @@ void emit_forces(std::ostringstream& os, const CompiledModel& compiled, const Em
                  const std::vector<int>& trig_slot) {
   const Mechanism& m = compiled.mechanism();
   if (m.forces.loads.empty() && m.forces.bodies.empty()) return;
-  ForceModel f = derive_forces(m, compiled.symbols(), compiled.symbolic(), m.forces);
-  if (!has_force_data(f)) return;
-  ForceCode(compiled, options, std::move(f), trig_slot).print(os);
+  if (!has_force_data(compiled.forces())) return;
+  ForceCode(compiled, options, compiled.forces(), trig_slot).print(os);
 }
 
 }  // namespace kinegen::codegen::emit_detail

@@ -65,7 +65,7 @@ class BlockInterpreter {
   struct Step;  // one solve_step's blocks (block_interpreter.cpp)
   const CompiledModel& model_;
   const Structure& st_;
-  BlockProgram bp_;
+  const BlockProgram& bp_;  // the compile stage's
   std::vector<int> newton_coordinates_;
   std::vector<double> trig_;       // 3 per slot: anchor, sin, cos (NaN: empty)
   std::vector<signed char> signs_;  // per block

@@ -39,7 +39,8 @@ class ModelEvaluator {
   void jacobian(const T* q, T t, M& jac) {
     phi_q_values(q, t, jac_values_.data());
     const auto& p = model_->programs();
-    for (std::size_t k = 0; k < jac_values_.size(); ++k) jac(p.jac_rows[k], p.jac_cols[k]) = jac_values_[k];
+    for (std::size_t k = 0; k < jac_values_.size(); ++k)
+      jac(p.jac_rows[k], p.jac_cols[k]) = jac_values_[k];
   }
 
  private:

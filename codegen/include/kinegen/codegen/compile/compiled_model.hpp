@@ -3,13 +3,17 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "kinegen/codegen/base/progress.hpp"
+#include "kinegen/codegen/compile/programs.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "kinegen/codegen/program/program.hpp"
+#include "kinegen/codegen/structure/block_program.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
 #include "kinegen/codegen/symbolic/symbolic.hpp"
 
@@ -78,6 +82,31 @@ class CompiledModel {
   // The block-lower-triangular structure of Phi (structure.hpp), computed on first use.
   const Structure& structure() const;
 
+  // The block program of structure() (structure/block_program.hpp), for a structure the block
+  // solver serves (a perfect matching); built on first use.
+  const BlockProgram& block_program() const;
+
+  // The programs beyond programs(), each built on first use and kept (programs.hpp).
+  // The file's force model (derive_forces with the mechanism's masses, gravity and loads).
+  const ForceModel& forces() const;
+  // The programs of `forces`: the model's own, lowered once, when `forces` holds forces()'s
+  // expressions (a derive_forces of this model with the file's ForceSpec does); another
+  // ForceSpec's lowered for this call.
+  std::shared_ptr<const ForcePrograms> force_programs(const ForceModel& forces) const;
+  std::shared_ptr<const ForcePrograms> force_programs() const { return force_programs(forces()); }
+  // The free items' value, rate, gradient and a0 programs.
+  const FreePrograms& free_programs() const;
+  // stop_when's g and rate (a model with stop_when).
+  const StopPrograms& stop_programs() const;
+  // The dynamics' tangent with `forces`' Q^A (the model's own computed once, as force_programs).
+  std::shared_ptr<const TangentProgram> tangent_program(const ForceModel& forces) const;
+  std::shared_ptr<const TangentProgram> tangent_program() const {
+    return tangent_program(forces());
+  }
+  // The derivatives by the parameters `params` (SymbolTable indices, in their order), with the
+  // outputs' where `outputs`; built once per list.
+  const ParameterPrograms& parameter_programs(const std::vector<int>& params, bool outputs) const;
+
  private:
   explicit CompiledModel(Mechanism mechanism) : mechanism_(std::move(mechanism)) {}
   void build(const std::vector<ParamOverride>& overrides, const BuildOptions& options);
@@ -91,6 +120,16 @@ class CompiledModel {
   BuildOptions options_;
   std::vector<Eigen::Vector2d> point_s_;
   mutable std::unique_ptr<Structure> structure_;
+  mutable std::unique_ptr<BlockProgram> block_program_;
+  // forces() and what is built from it; a ForceModel equal to forces() shares them.
+  bool same_forces(const ForceModel& forces) const;
+  mutable std::unique_ptr<ForceModel> forces_;
+  mutable std::shared_ptr<const ForcePrograms> force_programs_;
+  mutable std::shared_ptr<const TangentProgram> tangent_program_;
+  mutable std::unique_ptr<FreePrograms> free_programs_;
+  mutable std::unique_ptr<StopPrograms> stop_programs_;
+  mutable std::map<std::pair<std::vector<int>, bool>, std::unique_ptr<ParameterPrograms>>
+      parameter_programs_;
 };
 
 }  // namespace kinegen::codegen
