@@ -57,12 +57,6 @@ void for_row(const std::map<std::pair<int, int>, int>& entries, int row, F&& f) 
 
 bool is_unit(const Node& n) { return n.kind == OpKind::kConst && (n.value == 1 || n.value == -1); }
 
-// The compile stage's block program, of a structure the interpreter serves.
-const BlockProgram& supported_program(const CompiledModel& model) {
-  if (BlockInterpreter::supported(model.structure())) return model.block_program();
-  throw std::logic_error("BlockInterpreter: the structure is not supported");
-}
-
 }  // namespace
 
 // One step's state: node values with validity flags, the bound sin and cos of each
@@ -312,7 +306,8 @@ bool BlockInterpreter::supported(const Structure& st) {
 }
 
 BlockInterpreter::BlockInterpreter(const CompiledModel& model)
-    : model_(model), st_(model.structure()), bp_(supported_program(model)) {
+    : model_(model), st_(model.structure()), bp_(model.block_program()) {
+  if (!supported(st_)) throw std::logic_error("BlockInterpreter: the structure is not supported");
   for (const BlockPlan& plan : st_.plans)
     if (plan.kind == BlockKind::kNewton)
       for (int col : plan.torn() ? plan.tears : plan.block.cols) newton_coordinates_.push_back(col);

@@ -2,6 +2,8 @@
 // on first use for both consumers.
 #include "kinegen/codegen/compile/programs.hpp"
 
+#include <stdexcept>
+
 #include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/symbolic/sensitivity.hpp"
 #include "kinegen/codegen/symbolic/stop_when.hpp"
@@ -48,6 +50,8 @@ ForcePrograms compile_forces(const ForceModel& forces, const SymbolTable& symbol
 }
 
 const BlockProgram& CompiledModel::block_program() const {
+  if (!structure().order.perfect)
+    throw std::logic_error("CompiledModel::block_program: the structure has no block order");
   if (!block_program_)
     block_program_ =
         std::make_unique<BlockProgram>(build_block_program(symbolic_, *symbols_, structure()));
