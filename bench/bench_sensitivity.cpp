@@ -18,8 +18,8 @@
 
 #include "four_bar.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/evaluator.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "offset_slider_crank.hpp"
 #include "quick_return.hpp"

@@ -30,7 +30,7 @@
 #include "best_of_chunks.hpp"
 #include "four_bar.hpp"
 #include "kinegen/codegen/analysis/block_interpreter.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "offset_slider_crank.hpp"
 #include "quick_return.hpp"
 #include "slider_crank.hpp"

@@ -30,7 +30,7 @@
 #include "four_bar.hpp"
 #include "generic_from_mechanism.hpp"
 #include "generic_solver.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "offset_slider_crank.hpp"
 #include "quick_return.hpp"
 #include "reference.hpp"

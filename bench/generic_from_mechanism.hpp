@@ -7,7 +7,7 @@
 #include <string>
 
 #include "generic_solver.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 
 namespace kinegen::generic {
 

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 
 #if __has_include("kinegen/codegen/reference.hpp")
 #include "kinegen/codegen/analysis/reference.hpp"

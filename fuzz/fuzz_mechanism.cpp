@@ -9,8 +9,8 @@
 #include <string>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "kinegen/codegen/analysis/simulate.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
@@ -46,8 +46,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     build.free_as_state = true;  // as simulate builds it; a file without free: is unchanged
     auto model = kc::CompiledModel::from_mechanism(kc::parse_mechanism(text, "fuzz.yaml"), {},
                                                    build);
-    (void)kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
-                          model->programs(), model->structure());
+    (void)kc::emit_header(*model);
     // Evaluate once at q0 so the lowered programs run too.
     kc::ModelEvaluator<double> eval(*model);
     Eigen::VectorXd q = model->q0(), out(model->nc());

@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/linearize.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 
 namespace kinegen::python {
 

@@ -25,15 +25,15 @@
 #include <utility>
 #include <vector>
 
+#include "dynamics_api.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/check.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "kinegen/codegen/model/table.hpp"
-#include "dynamics_api.hpp"
 #include "locked.hpp"
 #include "view_page.hpp"
 
@@ -367,11 +367,7 @@ class Mechanism {
         folded = kc::CompiledModel::from_file(path_, overrides_, build);
       }
       const kc::CompiledModel& m = folded ? *folded : *model_;
-      kc::EmitOptions options;
-      options.folded_params = fold_params;
-      const std::string text =
-          kc::emit_header(m.mechanism(), m.symbols(), m.symbolic(), m.programs(),
-                          m.structure(), options);
+      const std::string text = kc::emit_header(m);
       std::error_code ec;
       fs::create_directories(dir, ec);
       const fs::path target = fs::path(dir) / (m.mechanism().name + ".hpp");

@@ -8,7 +8,7 @@
 #include <optional>
 #include <string>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 
 namespace kinegen::python {
 

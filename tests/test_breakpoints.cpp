@@ -11,9 +11,9 @@
 #include <vector>
 
 #include "kinegen/codegen/analysis/breakpoints.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "support/run_command.hpp"
 
 namespace {

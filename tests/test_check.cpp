@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "kinegen/codegen/analysis/check.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "support/run_command.hpp"
 

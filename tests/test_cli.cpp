@@ -16,7 +16,7 @@
 #include <utility>
 #include <vector>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "support/closed_form.hpp"
 #include "support/files.hpp"

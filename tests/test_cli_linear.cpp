@@ -9,7 +9,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/io/view.hpp"
 #include "support/run_command.hpp"
 

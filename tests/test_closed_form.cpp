@@ -14,7 +14,7 @@
 
 #include "four_bar.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "offset_slider_crank.hpp"
 #include "quick_return.hpp"
 #include "slider_crank.hpp"

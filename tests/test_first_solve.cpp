@@ -15,9 +15,9 @@
 #include "disc_cam.hpp"
 #include "drag_link.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/simulate.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "planetary.hpp"
 
 namespace {

@@ -20,9 +20,9 @@
 
 #include "gear_pair.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/reference.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "planetary.hpp"
 #include "support/files.hpp"

@@ -4,9 +4,8 @@
 //   motion, for T = double, float and std::complex<double>;
 // - the in-process evaluator against the generated double code, bit for bit (both follow the
 //   same straight-line program, so the command line and embedded code agree exactly).
-#include <catch2/catch.hpp>
-
 #include <Eigen/Dense>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <complex>
 #include <random>
@@ -14,7 +13,7 @@
 #include <type_traits>
 
 #include "four_bar.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "offset_slider_crank.hpp"
 #include "quick_return.hpp"
 #include "slider_crank.hpp"

@@ -27,8 +27,8 @@
 #include "four_bar.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/check.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/analysis/tolerance.hpp"
 #include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/base/library_lock.hpp"
@@ -152,9 +152,7 @@ TEST_CASE("item 1: eight threads load, analyze, check, generate and eval under t
             break;
           }
           case 2:
-            if (kc::emit_header(m->mechanism(), m->symbols(), m->symbolic(), m->programs(),
-                                m->structure())
-                    .empty())
+            if (kc::emit_header(*m).empty())
               ++wrong;
             break;
           default: {

@@ -17,8 +17,8 @@
 #include "harmonic_return.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/check.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/reference.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
 #include "kinegen/codegen/symbolic/symbolic.hpp"
 

@@ -18,7 +18,7 @@
 #include "dwell_slider_crank.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/check.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/analysis/reference.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
 #include "support/run_command.hpp"

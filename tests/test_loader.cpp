@@ -13,7 +13,7 @@
 #include <utility>
 #include <vector>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "kinegen/codegen/model/table.hpp"

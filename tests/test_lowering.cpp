@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/evaluator.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/program/program.hpp"
 
 namespace {

@@ -5,7 +5,6 @@
 // differences of the analysis), generated headers keep only the base parameters, and the
 // errors name the item and its line.
 #include <catch2/catch.hpp>
-
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -13,9 +12,9 @@
 #include <string>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "support/closed_form.hpp"
 #include "support/run_command.hpp"
@@ -147,8 +146,7 @@ TEST_CASE("derived parameters: sensitivities see through the formulas", "[params
 
 TEST_CASE("derived parameters are not members of a generated header's Params", "[params]") {
   const auto model = compile(kScaled);
-  const std::string header = kc::emit_header(model->mechanism(), model->symbols(),
-                                             model->symbolic(), model->programs());
+  const std::string header = kc::emit_header(*model);
   const auto params = header.substr(header.find("struct Params {"),
                                     header.find("};", header.find("struct Params {")) -
                                         header.find("struct Params {"));

@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "pieces_drive.hpp"
 #include "support/run_command.hpp"

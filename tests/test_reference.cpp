@@ -20,7 +20,7 @@
 
 #include "four_bar.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/analysis/reference.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "offset_slider_crank.hpp"

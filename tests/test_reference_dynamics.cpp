@@ -26,11 +26,11 @@
 #include <thread>
 #include <vector>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/reference_dynamics.hpp"
 #include "kinegen/codegen/analysis/simulate.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/symbolic/symbolic.hpp"
 #include "support/run_command.hpp"
 

@@ -5,7 +5,7 @@
 #include <set>
 #include <string>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 

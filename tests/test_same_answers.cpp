@@ -4,16 +4,16 @@
 // with the same kernels; the header's statements are compiled C++ and the interpreter's are
 // ProgramEvaluator::node_value and the kernels compiled here, so any difference in an operation's
 // order or a kernel's use shows up as a differing bit.
-#include <catch2/catch.hpp>
 #include <algorithm>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
+#include <kinegen/block_solver.hpp>
 #include <limits>
 #include <memory>
-#include <kinegen/block_solver.hpp>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -38,7 +38,7 @@
 #include "indexer.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/block_interpreter.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "offset_slider_crank.hpp"
 #include "parabolic_slot.hpp"
 #include "planetary.hpp"

@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "kinegen/codegen/analysis/analysis.hpp"  // format_number
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "slider_crank.hpp"
 #include "slider_crank_lecture.hpp"
 

@@ -17,11 +17,11 @@
 #include <vector>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/evaluator.hpp"
 #include "kinegen/codegen/analysis/reference.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "support/run_command.hpp"
 
 namespace {

@@ -6,7 +6,7 @@
 #include <set>
 #include <string>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/structure/solver_plan.hpp"
 
 namespace cg = kinegen::codegen;

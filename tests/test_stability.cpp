@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "support/closed_form.hpp"
 #include "support/run_command.hpp"
 

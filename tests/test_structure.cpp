@@ -2,8 +2,8 @@
 // the BLT order is valid on every example, the classification is the expected one, the block
 // solver agrees with the dense solver, float works, guarded explicit rows stay correct, and
 // singular blocks are reported.
-#include <catch2/catch.hpp>
 #include <array>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <kinegen/solver.hpp>
 #include <map>
@@ -15,7 +15,7 @@
 #include "four_bar.hpp"
 #include "fourbar_chain_3.hpp"
 #include "guarded_slider.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
 #include "offset_slider_crank.hpp"
@@ -416,8 +416,7 @@ TEST_CASE("generate --outputs selects the analyses in the header", "[structure][
   const auto text = [&](cg::Outputs outputs) {
     cg::EmitOptions options;
     options.outputs = outputs;
-    return cg::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
-                           model->programs(), options);
+    return cg::emit_header(*model, options);
   };
   const auto has = [](const std::string& s, const char* what) {
     return s.find(what) != std::string::npos;
@@ -425,8 +424,7 @@ TEST_CASE("generate --outputs selects the analyses in the header", "[structure][
   const std::string all = text(cg::Outputs::kAll), pos = text(cg::Outputs::kPosition),
                     vel = text(cg::Outputs::kVelocity);
   // The default is everything, and the header the CLI writes by default.
-  CHECK(all == cg::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
-                               model->programs()));
+  CHECK(all == cg::emit_header(*model));
   for (const char* f : {"static void phi(", "static void phi_q(", "solve_position("}) {
     CHECK(has(all, f));
     CHECK(has(pos, f));

@@ -18,7 +18,7 @@
 
 #include "indexer.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "support/run_command.hpp"
 
 namespace {

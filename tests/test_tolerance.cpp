@@ -14,9 +14,9 @@
 #include <sstream>
 #include <string>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/tolerance.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "support/run_command.hpp"
 

@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <string>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "support/files.hpp"
 #include "support/run_command.hpp"

@@ -9,8 +9,8 @@
 #include <set>
 #include <string>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/io/view.hpp"
 #include "support/files.hpp"
 #include "support/run_command.hpp"

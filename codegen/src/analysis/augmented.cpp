@@ -168,9 +168,8 @@ class AugmentedLagrangian : public MotionFormulation {
   const ForceModel& forces_;
   int nq_ = 0, nb_ = 0, nf_ = 0;
   ModelEvaluator<double> eval_;
-  Program applied_program_, nonconservative_program_, potential_program_;
+  std::shared_ptr<const ForcePrograms> programs_;  // the compile stage's
   ProgramEvaluator<double> applied_, nonconservative_, potential_;
-  Program free_value_program_, free_rate_program_, free_gradient_program_, free_a0_program_;
   ProgramEvaluator<double> free_value_, free_rate_, free_gradient_, free_a0_;
   ConstraintRows j_;
   AugmentedMatrix a_;
@@ -196,37 +195,18 @@ AugmentedLagrangian::AugmentedLagrangian(const CompiledModel& model, const Force
       nb_(static_cast<int>(model.mechanism().bodies.size())),
       nf_(model.mechanism().num_free()),
       eval_(model),
-      applied_program_(lower(forces.applied, model.symbols())),
-      nonconservative_program_(lower(forces.nonconservative, model.symbols())),
-      potential_program_(lower({forces.potential}, model.symbols())),
-      applied_(applied_program_),
-      nonconservative_(nonconservative_program_),
-      potential_(potential_program_),
-      free_value_program_(lower(model.symbolic().free_values, model.symbols())),
-      free_rate_program_(lower(model.symbolic().free_rates, model.symbols())),
-      free_value_(free_value_program_),
-      free_rate_(free_rate_program_),
-      free_gradient_(free_gradient_program_),
-      free_a0_(free_a0_program_),
+      programs_(model.force_programs(forces)),
+      applied_(programs_->applied),
+      nonconservative_(programs_->nonconservative),
+      potential_(programs_->potential),
+      free_value_(model.free_programs().values),
+      free_rate_(model.free_programs().rates),
+      free_gradient_(model.free_programs().gradient),
+      free_a0_(model.free_programs().a0),
       a_(model.nq(), j_),
       scale_(Vec::Map(model.symbolic().coordinate_scales.data(), model.nq())) {
   // The start and the free items' checks at t0: the minimal method's (InputError on bad input).
   const MotionState s0 = ReducedDynamics(model, forces, t0).initial();
-  // zdd of the free items: their gradient in q and the part of their acceleration without qdd.
-  const SymbolTable& sym = model.symbols();
-  std::vector<GiNaC::ex> gradient, a0;
-  for (int k = 0; k < nf_; ++k) {
-    GiNaC::ex acc = 0;
-    for (int c = 0; c < nq_; ++c) {
-      gradient.push_back(model.symbolic().free_values[k].diff(sym.q(c)));
-      acc += model.symbolic().free_rates[k].diff(sym.q(c)) * sym.qd(c);
-    }
-    a0.push_back(acc);
-  }
-  free_gradient_program_ = lower(gradient, sym);
-  free_a0_program_ = lower(a0, sym);
-  free_gradient_ = ProgramEvaluator<double>(free_gradient_program_);
-  free_a0_ = ProgramEvaluator<double>(free_a0_program_);
   // The constraints: every row of Phi but the free items'.
   const Mechanism& m = model.mechanism();
   std::vector<int> row_index(model.nc(), 0);

@@ -307,9 +307,8 @@ bool BlockInterpreter::supported(const Structure& st) {
 }
 
 BlockInterpreter::BlockInterpreter(const CompiledModel& model)
-    : model_(model), st_(model.structure()) {
+    : model_(model), st_(model.structure()), bp_(model.block_program()) {
   if (!supported(st_)) throw std::logic_error("BlockInterpreter: the structure is not supported");
-  bp_ = build_block_program(model.symbolic(), model.symbols(), st_);
   for (const BlockPlan& plan : st_.plans)
     if (plan.kind == BlockKind::kNewton)
       for (int col : plan.torn() ? plan.tears : plan.block.cols) newton_coordinates_.push_back(col);

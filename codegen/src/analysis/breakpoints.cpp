@@ -10,11 +10,11 @@
 #include <set>
 #include <string>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/reference.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/base/format.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/model/table.hpp"
 #include "kinegen/codegen/symbolic/functions.hpp"
 #include "kinegen/codegen/symbolic/symbolic.hpp"

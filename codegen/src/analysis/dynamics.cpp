@@ -81,14 +81,11 @@ std::vector<std::string> free_names(const Mechanism& m) {
 struct ReducedDynamics::Impl {
   explicit Impl(const CompiledModel& model, const ForceModel& forces)
       : eval(model),
-        applied_program(lower(forces.applied, model.symbols())),
-        applied(applied_program),
-        nonconservative_program(lower(forces.nonconservative, model.symbols())),
-        nonconservative(nonconservative_program),
-        potential_program(lower({forces.potential}, model.symbols())),
-        potential(potential_program),
-        free_program(lower(model.symbolic().free_values, model.symbols())),
-        free_values(free_program),
+        programs(model.force_programs(forces)),
+        applied(programs->applied),
+        nonconservative(programs->nonconservative),
+        potential(programs->potential),
+        free_values(model.free_programs().values),
         inputs(model.mechanism().input_slots(), 0.0) {
     eval.set_inputs(inputs.data());
     applied.set_inputs(inputs.data());
@@ -103,13 +100,10 @@ struct ReducedDynamics::Impl {
   }
 
   ModelEvaluator<double> eval;
-  Program applied_program;
+  std::shared_ptr<const ForcePrograms> programs;  // the compile stage's
   ProgramEvaluator<double> applied;
-  Program nonconservative_program;
   ProgramEvaluator<double> nonconservative;
-  Program potential_program;
   ProgramEvaluator<double> potential;
-  Program free_program;
   ProgramEvaluator<double> free_values;
   // 3 per driver (the free items' z, zd and 0 (zdd); an input driver's value, rate and
   // acceleration), then the loads' inputs (Mechanism::input_slots).

@@ -41,8 +41,8 @@ ForceSolver::ForceSolver(const CompiledModel& model, const ForceModel& forces, d
     : model_(&model),
       forces_(&forces),
       eval_(model),
-      applied_program_(lower(forces.applied, model.symbols())),
-      applied_(applied_program_),
+      programs_(model.force_programs(forces)),
+      applied_(programs_->applied),
       params_(model.params()),
       jac_(model.nc(), model.nq()),
       q_total_(model.nq()),
@@ -94,9 +94,9 @@ namespace {
 // Q^A of `spec` alone at (q, qd, t), or empty when it is all finite.
 Eigen::VectorXd applied_of(const CompiledModel& model, const ForceSpec& spec, double t,
                            const Eigen::VectorXd& q, const Eigen::VectorXd& qd) {
-  const ForceModel part = derive_forces(model, spec);
-  const Program program = lower(part.applied, model.symbols());
-  ProgramEvaluator<double> eval(program);
+  const ForcePrograms part = compile_forces(derive_forces(model, spec), model.symbols(),
+                                            model.symbolic(), model.build_options().fold_params);
+  ProgramEvaluator<double> eval(part.applied);
   Eigen::VectorXd out(model.nq());
   eval.run(q.data(), qd.data(), t, model.params().data(), out.data());
   return out;

@@ -54,7 +54,8 @@ SensitivityModel build_sensitivity(const CompiledModel& model,
                        "--sensitivity: the output reads velocities, and only positions' "
                        "sensitivities are computed (remove the output or --sensitivity)");
   s.outputs = outputs;
-  s.phi_p = lower(derive_phi_p(model.symbolic(), symbols, s.params), symbols);
+  const ParameterPrograms& programs = model.parameter_programs(s.params, outputs);
+  s.phi_p = programs.phi_p;
   const auto& values = model.symbolic().param_values;
   for (int p : s.params) {
     std::vector<Eigen::Vector2d> ds;
@@ -63,7 +64,7 @@ SensitivityModel build_sensitivity(const CompiledModel& model,
                       to_double(substitute_params(y.diff(symbols.param(p)), symbols, values)));
     s.point_ds.push_back(std::move(ds));
   }
-  if (outputs) s.output_p = lower(derive_output_p(model.symbolic(), symbols, s.params), symbols);
+  if (outputs) s.output_p = programs.output_p;
   return s;
 }
 

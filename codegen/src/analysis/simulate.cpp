@@ -18,7 +18,6 @@
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/base/interrupt.hpp"
-#include "kinegen/codegen/symbolic/stop_when.hpp"
 
 namespace kinegen::codegen {
 
@@ -31,10 +30,9 @@ class MinimalFormulation : public MotionFormulation {
       : model_(model),
         dynamics_(model, forces, t0),
         state_(dynamics_.initial()),
-        applied_program_(lower(forces.applied, model.symbols())),
-        nonconservative_program_(lower(forces.nonconservative, model.symbols())),
-        applied_(applied_program_),
-        nonconservative_(nonconservative_program_) {
+        programs_(model.force_programs(forces)),
+        applied_(programs_->applied),
+        nonconservative_(programs_->nonconservative) {
     applied_.set_inputs(dynamics_.input_slots());
     nonconservative_.set_inputs(dynamics_.input_slots());
   }
@@ -103,7 +101,7 @@ class MinimalFormulation : public MotionFormulation {
   const CompiledModel& model_;
   ReducedDynamics dynamics_;
   MotionState state_;
-  Program applied_program_, nonconservative_program_;
+  std::shared_ptr<const ForcePrograms> programs_;  // the compile stage's
   ProgramEvaluator<double> applied_, nonconservative_;
 };
 
@@ -217,13 +215,11 @@ class Integration {
     if (f.has_projection()) check(CVodeSetProjFn(cvode_, &Integration::project), "CVodeSetProjFn");
     if (model.mechanism().stop_when) {
       const SymbolicModel& sym = model.symbolic();
-      std::vector<GiNaC::ex> outputs{sym.stop_when};
-      const std::vector<GiNaC::ex> rate = stop_when_rate(sym, model.symbols());
-      outputs.insert(outputs.end(), rate.begin(), rate.end());
-      has_rate_ = !rate.empty();
-      stop_ = std::make_unique<Program>(lower(outputs, model.symbols()));
+      const StopPrograms& stop = model.stop_programs();
+      has_rate_ = stop.has_rate;
+      stop_ = &stop.program;
       stop_eval_ = std::make_unique<ProgramEvaluator<double>>(*stop_);
-      stop_values_.resize(outputs.size());
+      stop_values_.resize(stop.size);
       if (!sym.stop_force_columns.empty())
         stop_forces_ = std::make_unique<ForceSolver>(model, forces);
       last_ = stop_sample(t0, nullptr);
@@ -680,7 +676,7 @@ class Integration {
   std::string last_failure_;
   std::unique_ptr<Interrupted> interrupt_;  // the rhs saw an interruption point throw
   // stop_when.
-  std::unique_ptr<Program> stop_;
+  const Program* stop_ = nullptr;  // the compile stage's stop_when program
   std::unique_ptr<ProgramEvaluator<double>> stop_eval_;
   std::vector<double> stop_values_;
   std::unique_ptr<ForceSolver> stop_forces_;

@@ -9,7 +9,6 @@
 #include "block_tables.hpp"
 #include "kinegen/codegen/analysis/evaluator.hpp"
 #include "kinegen/codegen/base/format.hpp"
-#include "kinegen/codegen/symbolic/tangent.hpp"
 
 namespace kinegen::codegen {
 
@@ -17,8 +16,7 @@ namespace {
 
 using K = kernels::LinearizeKernel;
 
-// The tangent's expressions in one list, so that one program shares their common terms, and
-// where each piece starts in it.
+// The pieces of the compile stage's TangentProgram, in its order.
 enum Piece {
   kPhiQq,
   kNuQ,
@@ -33,21 +31,6 @@ enum Piece {
   kAppliedW,
   kPieces
 };
-
-std::vector<GiNaC::ex> concatenate(const TangentModel& t, const ForceModel& f,
-                                   std::vector<int>& begin) {
-  const SparseExpr* parts[] = {&t.nu_q,    &t.gamma_q, &t.gamma_qd,  &t.phi_w,      &t.nu_w,
-                               &t.gamma_w, nullptr,    &t.applied_q, &t.applied_qd, &t.applied_w};
-  std::vector<GiNaC::ex> all = t.phi_qq.value;
-  begin = {0};
-  for (const SparseExpr* p : parts) {
-    begin.push_back(static_cast<int>(all.size()));
-    const auto& v = p ? p->value : f.applied;
-    all.insert(all.end(), v.begin(), v.end());
-  }
-  begin.push_back(static_cast<int>(all.size()));
-  return all;
-}
 
 // The kernel with solves on one LU of all of Phi_q (where its blocks do not serve): dense up
 // to 48 coordinates, sparse beyond.
@@ -80,15 +63,16 @@ int lu_tangent(const Eigen::MatrixXd& jac, const K::_TangentPoint<double>& p,
 
 struct Linearizer::Impl {
   Impl(const CompiledModel& model, const ForceModel& forces)
-      : tangent(derive_tangent(model.mechanism(), model.symbols(), model.symbolic(), forces)),
-        program(lower(concatenate(tangent, forces, begin), model.symbols())),
-        eval(program),
-        values(program.outputs.size()),
+      : compiled(model.tangent_program(forces)),
+        tangent(compiled->tangent),
+        begin(compiled->begin),
+        eval(compiled->program),
+        values(compiled->program.outputs.size()),
         model_eval(model) {}
 
-  TangentModel tangent;
-  std::vector<int> begin;  // of each Piece in the program's outputs
-  Program program;
+  std::shared_ptr<const TangentProgram> compiled;  // the compile stage's
+  const TangentModel& tangent;
+  const std::vector<int>& begin;  // of each Piece in the program's outputs
   ProgramEvaluator<double> eval;
   std::vector<double> values;
   ModelEvaluator<double> model_eval;

@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "cli.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/evaluator.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/io/output_file.hpp"
 

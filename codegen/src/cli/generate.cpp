@@ -35,14 +35,12 @@ int run_generate(const Common& c, const GenerateArgs& o) {
   kc::EmitOptions options;
   if (o.outputs == "position") options.outputs = kc::Outputs::kPosition;
   if (o.outputs == "velocity") options.outputs = kc::Outputs::kVelocity;
-  options.folded_params = o.fold_params;
   options.max_function_ops = o.max_function_ops;
   options.roll_min = o.roll_min;
   options.name_space = o.name_space;
   // A name the header cannot carry is refused before the structure is analyzed.
   kc::check_header_names(model->mechanism());
-  const std::string text = kc::emit_header(model->mechanism(), model->symbols(), model->symbolic(),
-                                           model->programs(), model->structure(), options);
+  const std::string text = kc::emit_header(*model, options);
   stage.done(std::to_string(text.size() / 1024) + " KiB");
   std::error_code ec;
   fs::create_directories(o.dir, ec);

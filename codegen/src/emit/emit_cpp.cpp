@@ -232,15 +232,6 @@ void emit_outputs(std::ostringstream& os, const Mechanism& m, const SymbolTable&
      << "  }\n";
 }
 
-std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
-                        const ModelPrograms& programs, const EmitOptions& options) {
-  return emit_header(m, symbols, model, programs,
-                     options.block_solver && programs.nq == programs.nc
-                         ? analyze_structure(model, symbols)
-                         : Structure{},
-                     options);
-}
-
 namespace {
 
 // What --outputs asks for: nu (velocity) and gamma (acceleration) besides phi and phi_q.
@@ -249,7 +240,8 @@ bool has_acceleration(const EmitOptions& options) { return options.outputs == Ou
 
 // The banner (where the file came from, "do not edit", the command that regenerates it), the
 // standard headers and the opening of the namespace.
-void emit_banner(std::ostringstream& os, const Mechanism& m, const EmitOptions& options) {
+void emit_banner(std::ostringstream& os, const Mechanism& m, const EmitOptions& options,
+                 bool folded) {
   std::string base = m.source;
   if (const auto slash = base.find_last_of("/\\"); slash != std::string::npos)
     base = base.substr(slash + 1);
@@ -260,8 +252,8 @@ void emit_banner(std::ostringstream& os, const Mechanism& m, const EmitOptions& 
      << (options.outputs == Outputs::kPosition   ? " --outputs position"
          : options.outputs == Outputs::kVelocity ? " --outputs velocity"
                                                  : "")
-     << (options.folded_params ? " --fold-params" : "") << "\n";
-  if (options.folded_params)
+     << (folded ? " --fold-params" : "") << "\n";
+  if (folded)
     os << "// Parameters folded into constants (--fold-params): Params is kept for the same "
           "API, but its members are ignored.\n";
   os << "//\n"
@@ -324,9 +316,9 @@ void emit_model_tables(std::ostringstream& os, const Mechanism& m, const SymbolT
 
 // Params: each parameter with its value from the file, and an input driver's members.
 void emit_params(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
-                 const SymbolicModel& model, const EmitOptions& options) {
+                 const SymbolicModel& model, bool folded) {
   os << "  struct Params {\n";
-  if (options.folded_params)
+  if (folded)
     os << "    // Ignored: these values were folded into the code at generation.\n";
   for (int k = 0; k < symbols.num_params(); ++k)
     os << "    double " << symbols.param_name(k) << " = "
@@ -421,9 +413,11 @@ void emit_output_flags(std::ostringstream& os, const EmitOptions& options) {
 // that the functions below call and nothing else, the sin/cos cache type, and the functions:
 // the step's factors, the block functions printed from the solver plan, and the linear solves
 // that reuse its blocks (sensitivities, forces).
-void emit_block_solver(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
-                       const SymbolicModel& model, const ModelPrograms& programs,
-                       const Structure& st, const EmitOptions& options) {
+void emit_block_solver(std::ostringstream& os, const CompiledModel& compiled, const Structure& st,
+                       const EmitOptions& options) {
+  const Mechanism& m = compiled.mechanism();
+  const SymbolTable& symbols = compiled.symbols();
+  const SymbolicModel& model = compiled.symbolic();
   const bool velocity = has_velocity(options), acceleration = has_acceleration(options);
   os << "\n  // Block solver: Phi(q, t) = 0 in block-lower-triangular order (maximum matching, "
         "then\n"
@@ -448,8 +442,8 @@ void emit_block_solver(std::ostringstream& os, const Mechanism& m, const SymbolT
        << "  static constexpr int num_newton_coordinates = " << iterated.size() << ";\n"
        << "  static constexpr std::array<int, num_newton_coordinates> newton_coordinates = {"
        << join(iterated) << "};\n";
-    const SolverPlan plan =
-        plan_block_solver(model, symbols, st, options.max_function_ops, options.roll_min);
+    const SolverPlan plan = plan_block_solver(model, symbols, st, compiled.block_program(),
+                                              options.max_function_ops, options.roll_min);
     BlockSolverPrinter blocks(model, symbols, plan);
     os << "  // Values in the optional sin/cos cache of solve_position and solve_step (3 per\n"
        << "  // coordinate whose sin or cos the model uses).\n"
@@ -458,10 +452,10 @@ void emit_block_solver(std::ostringstream& os, const Mechanism& m, const SymbolT
     // sensitivities and kinetostatics append their functions after the block functions.
     std::ostringstream linear;
     if (linear_blocks_supported(st)) {
-      emit_sensitivity(linear, symbols, model, options);
+      emit_sensitivity(linear, compiled, options);
       // The force functions take qdd, which only a header with the accelerations gives.
       if (acceleration)
-        emit_forces(linear, m, symbols, model, programs, options, plan.program.trig_slot);
+        emit_forces(linear, compiled, options, plan.program.trig_slot);
     }
     const std::string linear_code = linear.str();
     // With forces solve_step keeps its factors for solve_forces.
@@ -488,7 +482,7 @@ void emit_block_solver(std::ostringstream& os, const Mechanism& m, const SymbolT
     // The tables only where a function reads them (folded headers say has_sensitivity = false).
     if (linear_code.find("_block_forward<") != std::string::npos ||
         linear_code.find("_block_transposed_reusing<") != std::string::npos)
-      emit_structure_tables(os, m.name, st, programs);
+      emit_structure_tables(os, m.name, st, compiled.programs());
     code << linear_code;
     emit_kernels(os, code.str());
     if (code.str().find("_trig(") != std::string::npos)
@@ -502,36 +496,28 @@ void emit_block_solver(std::ostringstream& os, const Mechanism& m, const SymbolT
 
 }  // namespace
 
-std::string emit_header(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
-                        const ModelPrograms& programs, const Structure& structure,
-                        const EmitOptions& options) {
+std::string emit_header(const CompiledModel& compiled, const EmitOptions& options) {
+  const Mechanism& m = compiled.mechanism();
+  const SymbolTable& symbols = compiled.symbols();
+  const SymbolicModel& model = compiled.symbolic();
+  const ModelPrograms& programs = compiled.programs();
   check_header_names(m);  // a name the header cannot carry is refused here, with the reason
   if (const auto why = namespace_conflict(options.name_space); !why.empty())
     throw UsageError("--namespace: " + why);
   static const Structure kNone;  // no block solver: the section-4 functions alone
-  const Structure& st = options.block_solver && programs.nq == programs.nc ? structure : kNone;
-  if (st.order.perfect) {
-    // The caller's Structure must be this model's: its blocks cover every row and coordinate.
-    std::size_t rows = 0, cols = 0;
-    for (const Block& b : st.order.blocks) {
-      rows += b.rows.size();
-      cols += b.cols.size();
-    }
-    if (rows != static_cast<std::size_t>(programs.nc) ||
-        cols != static_cast<std::size_t>(programs.nq) || st.plans.size() != st.order.blocks.size())
-      throw std::logic_error("emit_header: the Structure is not this model's");
-  }
+  const Structure& st =
+      options.block_solver && programs.nq == programs.nc ? compiled.structure() : kNone;
   std::ostringstream os;
-  emit_banner(os, m, options);
+  emit_banner(os, m, options, compiled.build_options().fold_params);
   emit_model_tables(os, m, symbols, model, programs);
-  emit_params(os, m, symbols, model, options);
+  emit_params(os, m, symbols, model, compiled.build_options().fold_params);
   // The expression kernels (motion laws, pieces, tables) are inserted here once it is known
   // which ones the functions call.
   const auto expression_kernels_at = static_cast<std::size_t>(os.tellp());
   emit_constraint_functions(os, symbols, model, programs, options);
   if (programs.num_outputs > 0) emit_outputs(os, m, symbols, programs, options.max_function_ops);
   emit_output_flags(os, options);
-  emit_block_solver(os, m, symbols, model, programs, st, options);
+  emit_block_solver(os, compiled, st, options);
   os << "};\n\n}  // namespace " << options.name_space << "\n";
   return with_input_members(with_expression_kernels(os.str(), expression_kernels_at), m);
 }

@@ -237,25 +237,9 @@ void emit_solved_at(std::ostringstream& os) {
 )";
 }
 
-// ---- The exact Jacobians: the tangent's derivatives as one program, in the order of the
-// command line's Linearizer (analysis/tangent.cpp), so that both evaluate the same operations,
-// and the linearize kernel's _dynamics_tangent on the header's block solves.
-
-// The tangent's pieces in one list (Linearizer's order), and where each starts.
-std::vector<GiNaC::ex> tangent_outputs(const TangentModel& t, const std::vector<GiNaC::ex>& applied,
-                                       std::vector<int>& begin) {
-  const SparseExpr* parts[] = {&t.nu_q,    &t.gamma_q, &t.gamma_qd,  &t.phi_w,      &t.nu_w,
-                               &t.gamma_w, nullptr,    &t.applied_q, &t.applied_qd, &t.applied_w};
-  std::vector<GiNaC::ex> all = t.phi_qq.value;
-  begin = {0};
-  for (const SparseExpr* p : parts) {
-    begin.push_back(static_cast<int>(all.size()));
-    const auto& v = p ? p->value : applied;
-    all.insert(all.end(), v.begin(), v.end());
-  }
-  begin.push_back(static_cast<int>(all.size()));
-  return all;
-}
+// ---- The exact Jacobians: the tangent's derivatives as one program, the compile stage's
+// TangentProgram that the command line's Linearizer (analysis/tangent.cpp) evaluates too, and
+// the linearize kernel's _dynamics_tangent on the header's block solves.
 
 std::string int_array(const std::string& name, const std::vector<int>& v) {
   std::vector<std::string> s;
@@ -498,15 +482,12 @@ int emit_tangent_values(std::ostringstream& os, const Program& program, int num_
 }
 
 void emit_jacobians(std::ostringstream& os, const DynamicsSource& d) {
-  const TangentModel t = derive_tangent(d.m, d.symbols, d.model, d.forces);
-  std::vector<GiNaC::ex> applied = d.forces.applied;
-  std::vector<int> begin;
-  std::vector<GiNaC::ex> outputs = tangent_outputs(t, applied, begin);
-  if (d.options.folded_params)
-    for (auto& e : outputs) e = substitute_params(e, d.symbols, d.model.param_values);
-  const int num_values = static_cast<int>(outputs.size());
-  if (outputs.empty()) outputs.push_back(0);  // out[1], so that the function reads `out`
-  const Program program = lower(outputs, d.symbols);
+  const std::shared_ptr<const TangentProgram> tangent = d.compiled.tangent_program(d.forces);
+  const TangentModel& t = tangent->tangent;
+  const std::vector<int>& begin = tangent->begin;
+  Program program = tangent->program;
+  const int num_values = static_cast<int>(program.outputs.size());
+  if (program.outputs.empty()) program.outputs.push_back(Program::kZero);  // out[1]: reads `out`
   const std::vector<int> slots = tangent_slots(d.m);
   std::vector<std::string> names;
   for (const RunInput& in : run_inputs(d.m)) names.push_back("\"" + in.name + "\"");

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -32,17 +33,19 @@ bool has_force_data(const ForceModel& f) {
 // (one program), the inertia forces per body and the force columns, as text.
 class ForceCode {
  public:
-  ForceCode(const Mechanism& m, const SymbolTable& symbols, const SymbolicModel& model,
-            const ModelPrograms& programs, const EmitOptions& options, ForceModel f,
+  ForceCode(const CompiledModel& compiled, const EmitOptions& options, ForceModel f,
             const std::vector<int>& trig_slot)
-      : m_(m),
-        symbols_(symbols),
-        model_(model),
+      : compiled_(compiled),
+        m_(compiled.mechanism()),
+        symbols_(compiled.symbols()),
+        model_(compiled.symbolic()),
         options_(options),
         f_(std::move(f)),
-        names_(force_columns(m)),
+        names_(force_columns(m_)),
         trig_slot_(trig_slot),
-        mass_at_(m.bodies.size(), -1) {
+        mass_at_(m_.bodies.size(), -1) {
+    const Mechanism& m = m_;
+    const ModelPrograms& programs = compiled.programs();
     for (std::size_t e = 0; e < programs.jac_rows.size(); ++e)
       entry_[{programs.jac_rows[e], programs.jac_cols[e]}] = static_cast<int>(e);
     for (int b = 0; b < static_cast<int>(m.bodies.size()); ++b) add_inertia(b);
@@ -56,11 +59,12 @@ class ForceCode {
   // generalized_force, solve_forces and force_columns, with applied_force and the private
   // _force_geometry they share.
   void print(std::ostringstream& os) const {
-    std::vector<GiNaC::ex> applied;
-    for (const auto& e : f_.applied) applied.push_back(fold(e));
+    const std::shared_ptr<const ForcePrograms> programs = compiled_.force_programs(f_);
+    const Program& applied_program = programs->applied;
     std::vector<GiNaC::ex> geometry = geometry_;
     if (geometry.empty()) geometry.push_back(0);  // out[1], so that the function reads `out`
-    const Program applied_program = lower(applied, symbols_);
+    // What the printed columns read, built with their text here (the analysis computes the
+    // same geometry in double, forces.hpp): the one program the emitter lowers itself.
     const Program geometry_program = lower(geometry, symbols_);
     const std::string ng = idx(static_cast<int>(geometry.size()));
     std::vector<std::string> quoted;
@@ -127,13 +131,15 @@ class ForceCode {
        << "    _force_geometry(q, t, p, g);\n"
        << columns_.str() << "  }\n";
     if (!m_.free_drivers().empty())
-      emit_dynamics(os, {m_, symbols_, model_, f_, options_, mass_at_,
+      emit_dynamics(os, {compiled_, m_, symbols_, model_, f_, options_, mass_at_,
                          static_cast<int>(geometry.size()), trig_slot_});
   }
 
  private:
   GiNaC::ex fold(const GiNaC::ex& e) const {
-    return options_.folded_params ? substitute_params(e, symbols_, model_.param_values) : e;
+    return compiled_.build_options().fold_params
+               ? substitute_params(e, symbols_, model_.param_values)
+               : e;
   }
   // A s: a body-fixed offset in global axes (ground: s itself).
   std::array<GiNaC::ex, 2> rotated(int body, const std::array<GiNaC::ex, 2>& s) const {
@@ -235,6 +241,7 @@ class ForceCode {
     col_ += 3 + static_cast<int>(c.kind->normal_force);
   }
 
+  const CompiledModel& compiled_;
   const Mechanism& m_;
   const SymbolTable& symbols_;
   const SymbolicModel& model_;
@@ -258,13 +265,12 @@ class ForceCode {
 // (constants with --fold-params). The inertia forces and the columns follow add_inertia_forces
 // and columns_from_lambda, the analysis' numeric templates (analysis/forces.hpp), printed
 // instead of evaluated.
-void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
-                 const SymbolicModel& model, const ModelPrograms& programs,
-                 const EmitOptions& options, const std::vector<int>& trig_slot) {
+void emit_forces(std::ostringstream& os, const CompiledModel& compiled, const EmitOptions& options,
+                 const std::vector<int>& trig_slot) {
+  const Mechanism& m = compiled.mechanism();
   if (m.forces.loads.empty() && m.forces.bodies.empty()) return;
-  ForceModel f = derive_forces(m, symbols, model, m.forces);
-  if (!has_force_data(f)) return;
-  ForceCode(m, symbols, model, programs, options, std::move(f), trig_slot).print(os);
+  if (!has_force_data(compiled.forces())) return;
+  ForceCode(compiled, options, compiled.forces(), trig_slot).print(os);
 }
 
 }  // namespace kinegen::codegen::emit_detail

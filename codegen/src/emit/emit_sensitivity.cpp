@@ -26,13 +26,15 @@ std::vector<int> constraint_groups(const SymbolicModel& model) {
 
 // num_params, has_sensitivity, phi_p and solve_sensitivity. With --fold-params the code does
 // not read Params, so there is nothing to differentiate: only the flags, false.
-void emit_sensitivity(std::ostringstream& os, const SymbolTable& symbols,
-                      const SymbolicModel& model, const EmitOptions& options) {
+void emit_sensitivity(std::ostringstream& os, const CompiledModel& compiled,
+                      const EmitOptions& options) {
+  const SymbolTable& symbols = compiled.symbols();
+  const SymbolicModel& model = compiled.symbolic();
   const int np = symbols.num_params();
   os << "\n  // Parameter sensitivities. num_params: the members of Params, in order\n"
      << "  // (parameter k is the k-th member).\n"
      << "  static constexpr int num_params = " << np << ";\n";
-  if (options.folded_params) {
+  if (compiled.build_options().fold_params) {
     os << "  // None: the parameters were folded into constants (--fold-params), so nothing here\n"
        << "  // depends on Params.\n"
        << "  static constexpr bool has_sensitivity = false;\n";
@@ -41,7 +43,8 @@ void emit_sensitivity(std::ostringstream& os, const SymbolTable& symbols,
   os << "  static constexpr bool has_sensitivity = true;\n\n";
   std::vector<int> params(np);
   for (int k = 0; k < np; ++k) params[k] = k;
-  const std::vector<GiNaC::ex> exprs = derive_phi_p(model, symbols, params);
+  const ParameterPrograms& phi_p = compiled.parameter_programs(params, false);
+  const std::vector<GiNaC::ex>& exprs = phi_p.phi_p_expressions;
   // Output k * nc + r is row r's derivative by parameter k: rows of one constraint by one
   // parameter form a group (alike constraints roll as in phi).
   const std::vector<int> rows = constraint_groups(model);
@@ -55,8 +58,8 @@ void emit_sensitivity(std::ostringstream& os, const SymbolTable& symbols,
        << "  static void phi_p([[maybe_unused]] const T* q, [[maybe_unused]] T t,\n"
        << "      [[maybe_unused]] const Params& p, [[maybe_unused]] T* out) noexcept {}\n";
   } else {
-    emit_function_rolled_if(os, "phi_p", "nc * num_params", lower(exprs, symbols), exprs, group,
-                            symbols, false, options.max_function_ops, options.roll_min);
+    emit_function_rolled_if(os, "phi_p", "nc * num_params", phi_p.phi_p, exprs, group, symbols,
+                            false, options.max_function_ops, options.roll_min);
   }
   os << "\n  // The work space of solve_sensitivity, in T's: Phi_q's entries, then -Phi_p.\n"
      << "  static constexpr int sensitivity_work_size = jac_nnz + nc * num_params;\n\n"

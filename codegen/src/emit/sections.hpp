@@ -16,18 +16,18 @@ namespace kinegen::codegen::emit_detail {
 std::vector<int> constraint_groups(const SymbolicModel& model);
 
 // num_params, has_sensitivity, phi_p and solve_sensitivity (emit_sensitivity.cpp).
-void emit_sensitivity(std::ostringstream& os, const SymbolTable& symbols,
-                      const SymbolicModel& model, const EmitOptions& options);
+void emit_sensitivity(std::ostringstream& os, const CompiledModel& compiled,
+                      const EmitOptions& options);
 
 // The force functions, when the mechanism has masses, inertias or loads (emit_forces.cpp).
 // trig_slot: each coordinate's slot in the block solver's sin/cos cache (-1: none).
-void emit_forces(std::ostringstream& os, const Mechanism& m, const SymbolTable& symbols,
-                 const SymbolicModel& model, const ModelPrograms& programs,
-                 const EmitOptions& options, const std::vector<int>& trig_slot);
+void emit_forces(std::ostringstream& os, const CompiledModel& compiled, const EmitOptions& options,
+                 const std::vector<int>& trig_slot);
 
 // What emit_dynamics prints from: the force model and mass_at[b], where body b's m, J and A
 // com start in _force_geometry's output of geometry_size values (-1: no mass).
 struct DynamicsSource {
+  const CompiledModel& compiled;
   const Mechanism& m;
   const SymbolTable& symbols;
   const SymbolicModel& model;

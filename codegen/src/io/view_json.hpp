@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/io/animate.hpp"
 
 namespace kinegen::codegen::view {

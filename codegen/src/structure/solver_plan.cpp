@@ -244,9 +244,15 @@ void split_blocks(SolverPlan& sp, int max_ops) {
 
 SolverPlan plan_block_solver(const SymbolicModel& model, const SymbolTable& symbols,
                              const Structure& st, int max_ops, int roll_min) {
+  return plan_block_solver(model, symbols, st, build_block_program(model, symbols, st), max_ops,
+                           roll_min);
+}
+
+SolverPlan plan_block_solver(const SymbolicModel& model, const SymbolTable& symbols,
+                             const Structure& st, BlockProgram program, int max_ops, int roll_min) {
   SolverPlan sp;
   sp.structure = st;
-  sp.program = build_block_program(model, symbols, st);
+  sp.program = std::move(program);
   const int nb = static_cast<int>(st.plans.size());
   sp.class_of.assign(nb, -1);
   sp.member_of.assign(nb, -1);

@@ -5,12 +5,11 @@
 #include <Eigen/Dense>
 #include <array>
 #include <functional>
+#include <kinegen/motion.hpp>
 #include <string>
 #include <vector>
 
-#include <kinegen/motion.hpp>
-
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/base/format.hpp"  // format_number, which CSV rows use
 
 namespace kinegen::codegen {

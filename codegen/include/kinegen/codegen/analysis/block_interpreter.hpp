@@ -14,12 +14,11 @@
 // part's coordinates from the cache, so their last bits may differ.
 #pragma once
 
+#include <kinegen/kernels/report.hpp>
 #include <memory>
 #include <vector>
 
-#include <kinegen/kernels/report.hpp>
-
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/structure/block_program.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
 
@@ -80,7 +79,7 @@ class BlockInterpreter {
   struct Step;  // one solve_step's blocks (block_interpreter.cpp)
   const CompiledModel& model_;
   const Structure& st_;
-  BlockProgram bp_;
+  const BlockProgram& bp_;  // the compile stage's
   std::vector<int> newton_coordinates_;
   std::vector<double> trig_;       // 3 per slot: anchor, sin, cos (NaN: empty)
   std::vector<signed char> signs_;  // per block

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/symbolic/forces.hpp"
 
 namespace kinegen::codegen {

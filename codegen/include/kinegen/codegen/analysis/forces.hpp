@@ -11,11 +11,12 @@
 #include <Eigen/Dense>
 #include <array>
 #include <cmath>
+#include <memory>
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
 #include "kinegen/codegen/analysis/kinematics.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "kinegen/codegen/program/program.hpp"
@@ -112,10 +113,8 @@ void columns_from_lambda(const Mechanism& m, const ForceModel& f, const ForceDat
 
 // derive_forces (symbolic/forces.hpp) on the pieces a CompiledModel holds.
 ForceModel derive_forces(const CompiledModel& model, const ForceSpec& spec);
-// The same for the mechanism's own masses, gravity and loads.
-inline ForceModel derive_forces(const CompiledModel& model) {
-  return derive_forces(model, model.mechanism().forces);
-}
+// The same for the mechanism's own masses, gravity and loads: the compile stage's, derived once.
+inline ForceModel derive_forces(const CompiledModel& model) { return model.forces(); }
 
 // What `analyze --forces` needs, checked first: UsageError for a redundant model (more
 // equations than coordinates), whose reactions are not unique, naming the equations that are
@@ -138,7 +137,7 @@ class ForceSolver {
  public:
   ForceSolver(const CompiledModel& model, const ForceModel& forces,
               double min_rcond = force_min_rcond<double>());
-  // applied_ points into applied_program_.
+  // applied_ points into programs_.
   ForceSolver(const ForceSolver&) = delete;
   ForceSolver& operator=(const ForceSolver&) = delete;
 
@@ -172,7 +171,7 @@ class ForceSolver {
   const CompiledModel* model_;
   const ForceModel* forces_;
   ModelEvaluator<double> eval_;
-  Program applied_program_;  // Q^A lowered
+  std::shared_ptr<const ForcePrograms> programs_;  // the compile stage's Q^A
   ProgramEvaluator<double> applied_;
   std::vector<double> params_;
   Eigen::MatrixXd jac_;

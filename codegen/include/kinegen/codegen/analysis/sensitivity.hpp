@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/program/program.hpp"
 #include "kinegen/codegen/symbolic/sensitivity.hpp"
 

@@ -5,10 +5,7 @@
 
 #include "kinegen/codegen/base/format.hpp"  // format_double
 #include "kinegen/codegen/base/version.hpp"  // kVersion
-#include "kinegen/codegen/model/mechanism.hpp"
-#include "kinegen/codegen/program/program.hpp"
-#include "kinegen/codegen/structure/structure.hpp"
-#include "kinegen/codegen/symbolic/symbolic.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 
 namespace kinegen::codegen {
 
@@ -25,9 +22,6 @@ struct EmitOptions {
   Outputs outputs = Outputs::kAll;
   // The block solver (structure.hpp) besides the section-4 functions.
   bool block_solver = true;
-  // The parameters were folded into constants (--fold-params): the header says so, and keeps
-  // Params only for the same API.
-  bool folded_params = false;
   // Functions with more operations than this are split into private parts that the public
   // function calls in order (g++ -O2 compile time grows superlinearly with a function's size);
   // 0: never split. The block solver is split at block boundaries. See docs/scale.md.
@@ -42,16 +36,11 @@ struct EmitOptions {
   std::string name_space = "kinegen::models";
 };
 
-// The generated header's text. Only validated identifiers and numbers from the mechanism reach
-// it; the source file is named by its base name, with anything unusual replaced.
-// `structure` is analyze_structure(model, symbols) for a square model, empty otherwise, as
-// CompiledModel::structure() holds it; the emitter prints it and does not analyze again.
-std::string emit_header(const Mechanism& mechanism, const SymbolTable& symbols,
-                        const SymbolicModel& model, const ModelPrograms& programs,
-                        const Structure& structure, const EmitOptions& options = {});
-// The same, analyzing the structure itself (for callers that hold no Structure).
-std::string emit_header(const Mechanism& mechanism, const SymbolTable& symbols,
-                        const SymbolicModel& model, const ModelPrograms& programs,
-                        const EmitOptions& options = {});
+// The generated header's text, printed from the compiled model: its programs and, for the
+// block solver, its structure() (analyzed once, on first use). Only validated identifiers and
+// numbers from the mechanism reach it; the source file is named by its base name, with
+// anything unusual replaced. A model built with BuildOptions::fold_params gives a header whose
+// parameters are folded into constants (it says so, and keeps Params only for the same API).
+std::string emit_header(const CompiledModel& model, const EmitOptions& options = {});
 
 }  // namespace kinegen::codegen

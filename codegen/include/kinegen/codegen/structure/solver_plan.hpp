@@ -81,5 +81,8 @@ std::vector<std::pair<std::pair<int, int>, int>> row_entries(
 // partition.hpp).
 SolverPlan plan_block_solver(const SymbolicModel& model, const SymbolTable& symbols,
                              const Structure& st, int max_ops, int roll_min);
+// The same from `st`'s block program built already (CompiledModel::block_program()).
+SolverPlan plan_block_solver(const SymbolicModel& model, const SymbolTable& symbols,
+                             const Structure& st, BlockProgram program, int max_ops, int roll_min);
 
 }  // namespace kinegen::codegen

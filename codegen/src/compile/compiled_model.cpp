@@ -1,10 +1,10 @@
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 
 #include <sstream>
 
-#include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/model/table.hpp"
+#include "kinegen/codegen/symbolic/forces.hpp"
 
 namespace kinegen::codegen {
 
@@ -112,27 +112,6 @@ void CompiledModel::build(const std::vector<ParamOverride>& overrides,
   for (const auto& [x, y] : symbolic_.point_s)
     point_s_.emplace_back(to_double(substitute_params(x, *symbols_, symbolic_.param_values)),
                           to_double(substitute_params(y, *symbols_, symbolic_.param_values)));
-}
-
-EvalResult evaluate(const CompiledModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
-                    double t) {
-  const int nq = model.nq(), nc = model.nc();
-  EvalResult r;
-  ModelEvaluator<double> ev(model);
-  r.phi.resize(nc);
-  r.nu.resize(nc);
-  r.gamma.resize(nc);
-  r.phi_q = Eigen::MatrixXd::Zero(nc, nq);
-  ev.phi(q.data(), t, r.phi.data());
-  ev.jacobian(q.data(), t, r.phi_q);
-  ev.nu(q.data(), t, r.nu.data());
-  ev.gamma(q.data(), qd.data(), t, r.gamma.data());
-  r.outputs.resize(model.programs().num_outputs);
-  if (r.outputs.size() > 0) {
-    ProgramEvaluator<double> program(model.programs().outputs);
-    program.run(q.data(), qd.data(), t, model.params().data(), r.outputs.data());
-  }
-  return r;
 }
 
 Eigen::VectorXd CompiledModel::q0() const {

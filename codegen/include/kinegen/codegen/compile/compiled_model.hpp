@@ -1,16 +1,19 @@
-// A mechanism compiled for in-process use: every stage from the file to the straight-line
-// programs, and an adapter that lets the runtime's solver drive the programs directly.
+// A mechanism compiled: every stage from the file to the straight-line programs and the
+// structure, owned in one place for both consumers (the emitter and the analyses).
 #pragma once
 
 #include <Eigen/Dense>
+#include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
-#include "kinegen/codegen/analysis/evaluator.hpp"
 #include "kinegen/codegen/base/progress.hpp"
+#include "kinegen/codegen/compile/programs.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "kinegen/codegen/program/program.hpp"
+#include "kinegen/codegen/structure/block_program.hpp"
 #include "kinegen/codegen/structure/structure.hpp"
 #include "kinegen/codegen/symbolic/symbolic.hpp"
 
@@ -79,6 +82,31 @@ class CompiledModel {
   // The block-lower-triangular structure of Phi (structure.hpp), computed on first use.
   const Structure& structure() const;
 
+  // The block program of structure() (structure/block_program.hpp), for a structure the block
+  // solver serves (a perfect matching); built on first use.
+  const BlockProgram& block_program() const;
+
+  // The programs beyond programs(), each built on first use and kept (programs.hpp).
+  // The file's force model (derive_forces with the mechanism's masses, gravity and loads).
+  const ForceModel& forces() const;
+  // The programs of `forces`: the model's own, lowered once, when `forces` holds forces()'s
+  // expressions (a derive_forces of this model with the file's ForceSpec does); another
+  // ForceSpec's lowered for this call.
+  std::shared_ptr<const ForcePrograms> force_programs(const ForceModel& forces) const;
+  std::shared_ptr<const ForcePrograms> force_programs() const { return force_programs(forces()); }
+  // The free items' value, rate, gradient and a0 programs.
+  const FreePrograms& free_programs() const;
+  // stop_when's g and rate (a model with stop_when).
+  const StopPrograms& stop_programs() const;
+  // The dynamics' tangent with `forces`' Q^A (the model's own computed once, as force_programs).
+  std::shared_ptr<const TangentProgram> tangent_program(const ForceModel& forces) const;
+  std::shared_ptr<const TangentProgram> tangent_program() const {
+    return tangent_program(forces());
+  }
+  // The derivatives by the parameters `params` (SymbolTable indices, in their order), with the
+  // outputs' where `outputs`; built once per list.
+  const ParameterPrograms& parameter_programs(const std::vector<int>& params, bool outputs) const;
+
  private:
   explicit CompiledModel(Mechanism mechanism) : mechanism_(std::move(mechanism)) {}
   void build(const std::vector<ParamOverride>& overrides, const BuildOptions& options);
@@ -92,92 +120,16 @@ class CompiledModel {
   BuildOptions options_;
   std::vector<Eigen::Vector2d> point_s_;
   mutable std::unique_ptr<Structure> structure_;
-};
-
-// Evaluates a compiled model's programs on scalar type T (dense Phi_q).
-template <class T>
-class ModelEvaluator {
- public:
-  using Vector = Eigen::Matrix<T, Eigen::Dynamic, 1>;
-  using Matrix = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
-
-  explicit ModelEvaluator(const CompiledModel& model)
-      : model_(&model),
-        phi_(model.programs().phi),
-        phi_q_(model.programs().phi_q),
-        nu_(model.programs().nu),
-        gamma_(model.programs().gamma),
-        params_(model.params().begin(), model.params().end()),
-        jac_values_(model.programs().jac_rows.size()) {}
-
-  // The input drivers' values (ProgramEvaluator::set_inputs); not owned.
-  void set_inputs(const T* inputs) {
-    for (auto* p : {&phi_, &phi_q_, &nu_, &gamma_}) p->set_inputs(inputs);
-  }
-  void phi(const T* q, T t, T* out) { phi_.run(q, nullptr, t, params_.data(), out); }
-  void nu(const T* q, T t, T* out) { nu_.run(q, nullptr, t, params_.data(), out); }
-  void gamma(const T* q, const T* qd, T t, T* out) { gamma_.run(q, qd, t, params_.data(), out); }
-  // The structural non-zeros in jac_rows/jac_cols order.
-  void phi_q_values(const T* q, T t, T* out) { phi_q_.run(q, nullptr, t, params_.data(), out); }
-  template <class M>
-  void jacobian(const T* q, T t, M& jac) {
-    phi_q_values(q, t, jac_values_.data());
-    const auto& p = model_->programs();
-    for (std::size_t k = 0; k < jac_values_.size(); ++k) jac(p.jac_rows[k], p.jac_cols[k]) = jac_values_[k];
-  }
-
- private:
-  const CompiledModel* model_;
-  ProgramEvaluator<T> phi_, phi_q_, nu_, gamma_;
-  std::vector<T> params_;
-  std::vector<T> jac_values_;
-};
-
-// What `kinegen eval` prints (and the Python module's eval returns): Phi, the dense Phi_q, nu
-// and gamma at (q, qd, t), and the outputs' values (empty without outputs).
-struct EvalResult {
-  Eigen::VectorXd phi, nu, gamma, outputs;
-  Eigen::MatrixXd phi_q;
-};
-EvalResult evaluate(const CompiledModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
-                    double t);
-
-// The runtime's view of a compiled model (sizes known at run time).
-class ProgramSystem {
- public:
-  using Scalar = double;
-  static constexpr int kNq = Eigen::Dynamic;
-  static constexpr int kNc = Eigen::Dynamic;
-
-  explicit ProgramSystem(const CompiledModel& model) : model_(&model), eval_(model) {}
-  ProgramSystem(const ProgramSystem& other) : model_(other.model_), eval_(*other.model_) {}
-
-  int nq() const { return model_->nq(); }
-  int nc() const { return model_->nc(); }
-  // The input drivers' values (ProgramEvaluator::set_inputs); not owned.
-  void set_inputs(const double* inputs) { eval_.set_inputs(inputs); }
-  double length_scale() const { return model_->symbolic().length_scale; }
-  double coordinate_scale(int k) const { return model_->symbolic().coordinate_scales[k]; }
-  void phi(const double* q, double t, double* out) const { eval_.phi(q, t, out); }
-  void nu(const double* q, double t, double* out) const { eval_.nu(q, t, out); }
-  void gamma(const double* q, const double* qd, double t, double* out) const {
-    eval_.gamma(q, qd, t, out);
-  }
-  template <class M>
-  void jacobian(const double* q, double t, M& jac) const {
-    eval_.jacobian(q, t, jac);
-  }
-  // Phi_q as structural non-zeros (the sparse path, kinegen/sparse_solver.hpp).
-  int jacobian_nnz() const { return static_cast<int>(model_->programs().jac_rows.size()); }
-  const int* jacobian_rows() const { return model_->programs().jac_rows.data(); }
-  const int* jacobian_cols() const { return model_->programs().jac_cols.data(); }
-  void jacobian_values(const double* q, double t, double* out) const {
-    eval_.phi_q_values(q, t, out);
-  }
-
- private:
-  const CompiledModel* model_;
-  mutable ModelEvaluator<double> eval_;  // scratch storage only
+  mutable std::unique_ptr<BlockProgram> block_program_;
+  // forces() and what is built from it; a ForceModel equal to forces() shares them.
+  bool same_forces(const ForceModel& forces) const;
+  mutable std::unique_ptr<ForceModel> forces_;
+  mutable std::shared_ptr<const ForcePrograms> force_programs_;
+  mutable std::shared_ptr<const TangentProgram> tangent_program_;
+  mutable std::unique_ptr<FreePrograms> free_programs_;
+  mutable std::unique_ptr<StopPrograms> stop_programs_;
+  mutable std::map<std::pair<std::vector<int>, bool>, std::unique_ptr<ParameterPrograms>>
+      parameter_programs_;
 };
 
 }  // namespace kinegen::codegen
