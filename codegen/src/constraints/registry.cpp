@@ -7,6 +7,11 @@ namespace kinegen::codegen {
 extern const ConstraintKind kRevolute, kTranslational, kDistance, kRevoluteTranslational,
     kAbsoluteX, kAbsoluteY, kAbsoluteAngle, kRelativeAngle, kExpression, kFixed, kGear, kRackPinion,
     kPointFollower, kCamFollower;
+// Spatial files' types (docs/format.md, Spatial mechanisms).
+extern const ConstraintKind kSpatialDp1, kSpatialDp2, kSpatialD, kSpatialCd, kSpatialSpherical,
+    kSpatialUniversal, kSpatialRevolute, kSpatialCylindrical, kSpatialTranslational,
+    kSpatialDistance, kSpatialFixed, kSpatialRevoluteAngle, kSpatialTranslation,
+    kSpatialAbsoluteX, kSpatialAbsoluteY, kSpatialAbsoluteZ, kEulerNormalization;
 
 const std::vector<const ConstraintKind*>& constraint_kinds() {
   static const std::vector<const ConstraintKind*> kKinds = {
@@ -14,13 +19,17 @@ const std::vector<const ConstraintKind*>& constraint_kinds() {
       &kAbsoluteX,  &kAbsoluteY,     &kAbsoluteAngle, &kRelativeAngle,
       &kExpression, &kFixed,         &kGear,          &kRackPinion,
       &kPointFollower, &kCamFollower,
+      &kSpatialDp1, &kSpatialDp2, &kSpatialD, &kSpatialCd, &kSpatialSpherical,
+      &kSpatialUniversal, &kSpatialRevolute, &kSpatialCylindrical, &kSpatialTranslational,
+      &kSpatialDistance, &kSpatialFixed, &kSpatialRevoluteAngle, &kSpatialTranslation,
+      &kSpatialAbsoluteX, &kSpatialAbsoluteY, &kSpatialAbsoluteZ, &kEulerNormalization,
   };
   return kKinds;
 }
 
-const ConstraintKind* find_constraint_kind(const std::string& name) {
+const ConstraintKind* find_constraint_kind(const std::string& name, bool spatial) {
   for (const ConstraintKind* k : constraint_kinds())
-    if (name == k->name) return k;
+    if (name == k->name && k->in_space(spatial)) return k;
   return nullptr;
 }
 

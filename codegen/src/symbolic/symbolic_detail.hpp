@@ -102,6 +102,11 @@ void check_defined_value(const Mechanism& m, const SymbolTable& s,
                          const std::vector<GiNaC::numeric>& values, const GiNaC::ex& value,
                          const Expr& e, const std::string& item);
 
+// A spatial body's q0 (spatial_context.cpp): r0, and p from p0 (or q0) or rot0, normalized;
+// in the parameters. InputError for a zero rot0 axis or |p0| < 1e-12.
+std::vector<GiNaC::ex> spatial_q0(const Mechanism& m, const SymbolTable& s,
+                                  const std::vector<GiNaC::numeric>& values, int body);
+
 // A driver's law in pieces, with a period, from a table or an input, as one expression
 // in t (driver_law.cpp). Its boundaries are checked by driver_law_warnings, which
 // derive() runs first.
