@@ -2,6 +2,8 @@
 // them) and one line in each of the two lists below.
 #include "kinegen/codegen/constraints/registry.hpp"
 
+#include "kinegen/codegen/constraints/spatial_branch.hpp"
+
 namespace kinegen::codegen {
 
 extern const ConstraintKind kRevolute, kTranslational, kDistance, kRevoluteTranslational,
@@ -12,6 +14,15 @@ extern const ConstraintKind kSpatialDp1, kSpatialDp2, kSpatialD, kSpatialCd, kSp
     kSpatialUniversal, kSpatialRevolute, kSpatialCylindrical, kSpatialTranslational,
     kSpatialDistance, kSpatialFixed, kSpatialRevoluteAngle, kSpatialTranslation,
     kSpatialAbsoluteX, kSpatialAbsoluteY, kSpatialAbsoluteZ, kEulerNormalization;
+extern const SpatialBranch kSpatialRevoluteBranch, kSpatialCylindricalBranch,
+    kSpatialTranslationalBranch, kSpatialRevoluteAngleBranch;
+
+BranchConditions branch_conditions(const EquationContext& context) {
+  for (const SpatialBranch* b : {&kSpatialRevoluteBranch, &kSpatialCylindricalBranch,
+                                 &kSpatialTranslationalBranch, &kSpatialRevoluteAngleBranch})
+    if (b->kind == context.constraint().kind) return b->conditions(context);
+  return {};
+}
 
 const std::vector<const ConstraintKind*>& constraint_kinds() {
   static const std::vector<const ConstraintKind*> kKinds = {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "kinegen/codegen/constraints/registry.hpp"
+#include "kinegen/codegen/constraints/spatial_branch.hpp"
 
 namespace kinegen::codegen::spatial {
 

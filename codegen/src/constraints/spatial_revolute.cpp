@@ -17,6 +17,13 @@ std::vector<GiNaC::ex> revolute3_equations(const EquationContext& c) {
   return {d[0], d[1], d[2], dot(global(c, k.i, n.f), axis_j), dot(global(c, k.i, n.g), axis_j)};
 }
 
+BranchConditions revolute3_branch(const EquationContext& c) {
+  using namespace spatial;
+  const auto& k = c.constraint();
+  return {{dot(global(c, k.i, unit_axis(c, "axis_i")), global(c, k.j, unit_axis(c, "axis_j"))),
+           "axis_i . axis_j"}};
+}
+
 std::string revolute3_row(const Constraint& c, int component) {
   return component < 3    ? spatial::xyz_row(c, component)
          : component == 3 ? "axis_j normal to f_i"
@@ -34,5 +41,7 @@ extern const ConstraintKind kSpatialRevolute = spatial::spatial_two_point({
     .equations = revolute3_equations,
     .row_name = revolute3_row,
 });
+
+extern const SpatialBranch kSpatialRevoluteBranch{&kSpatialRevolute, revolute3_branch};
 
 }  // namespace kinegen::codegen

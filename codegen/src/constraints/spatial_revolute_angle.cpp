@@ -8,7 +8,12 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> revolute_angle_equations(const EquationContext& c) {
+// f_i . f_j and g_i . f_j (global), and F = f - angle0.
+struct Measured {
+  GiNaC::ex cosine, sine, angle;
+};
+
+Measured measured(const EquationContext& c) {
   using namespace spatial;
   const EquationContext jc = c.joint_context();
   const Constraint& joint = jc.constraint();
@@ -21,9 +26,19 @@ std::vector<GiNaC::ex> revolute_angle_equations(const EquationContext& c) {
   const Eigen::Matrix3d rj = aligned_rotation0(jc, numbers(jc, ai), numbers(jc, aj));
   const V3 fj = exact(carried(rj, jc.rotation0(joint.i) * numbers(jc, n.f)).normalized());
   const V3 f_j = global(jc, joint.j, fj);
-  const ex angle = c.value() - c.scalar("angle0");
-  return {GiNaC::sin(angle) * dot(global(jc, joint.i, n.f), f_j) -
-          GiNaC::cos(angle) * dot(global(jc, joint.i, n.g), f_j)};
+  return {dot(global(jc, joint.i, n.f), f_j), dot(global(jc, joint.i, n.g), f_j),
+          c.value() - c.scalar("angle0")};
+}
+
+std::vector<GiNaC::ex> revolute_angle_equations(const EquationContext& c) {
+  const Measured m = measured(c);
+  return {GiNaC::sin(m.angle) * m.cosine - GiNaC::cos(m.angle) * m.sine};
+}
+
+// The row also holds at theta = f + pi; the branch theta = f has cos(theta - f) > 0.
+BranchConditions revolute_angle_branch(const EquationContext& c) {
+  const Measured m = measured(c);
+  return {{GiNaC::cos(m.angle) * m.cosine + GiNaC::sin(m.angle) * m.sine, "cos(theta - f)"}};
 }
 
 }  // namespace
@@ -40,5 +55,8 @@ extern const ConstraintKind kSpatialRevoluteAngle{
     .reaction = false,
     .space = KindSpace::kSpatial,
 };
+
+extern const SpatialBranch kSpatialRevoluteAngleBranch{&kSpatialRevoluteAngle,
+                                                       revolute_angle_branch};
 
 }  // namespace kinegen::codegen

@@ -33,6 +33,13 @@ std::vector<GiNaC::ex> translational3_equations(const EquationContext& c) {
           dot(global(c, k.i, ref_i), global(c, k.j, cross(aj, ref_j)))};
 }
 
+BranchConditions translational3_branch(const EquationContext& c) {
+  using namespace spatial;
+  const auto& k = c.constraint();
+  const auto [ref_i, ref_j] = translational_refs(c);
+  return {{dot(global(c, k.i, ref_i), global(c, k.j, ref_j)), "ref_i . ref_j"}};
+}
+
 std::string translational3_row(const Constraint&, int component) {
   const char* kNames[] = {"axis_j normal to f_i", "axis_j normal to g_i", "d_ij normal to f_i",
                           "d_ij normal to g_i", "rotation lock"};
@@ -53,5 +60,8 @@ extern const ConstraintKind kSpatialTranslational = spatial::spatial_two_point({
     .equations = translational3_equations,
     .row_name = translational3_row,
 });
+
+extern const SpatialBranch kSpatialTranslationalBranch{&kSpatialTranslational,
+                                                       translational3_branch};
 
 }  // namespace kinegen::codegen

@@ -261,11 +261,13 @@ void derive_geometry(const Mechanism& m, const SymbolTable& s, const Builder& bu
 
 // The outputs: values, rates, accelerations at qdd = 0 and O_q; for an output that reads
 // velocities (as a load may), the rate at qdd = 0 and O_qd instead of an acceleration.
-void derive_outputs(const Mechanism& m, const SymbolTable& s, SymbolicModel& model) {
+void derive_outputs(const Mechanism& m, SymbolTable& s, SymbolicModel& model) {
   std::vector<ex> by_qd;
   bool any_velocity = false;
+  if (m.spatial) define_spatial_names(m, s, model);
   for (const auto& o : m.outputs) {
-    const ex value = s.parse(o.value, Scope::kLoad, "outputs." + o.name);
+    const Expr text = m.spatial ? spatial_output_text(m, o.value) : o.value;
+    const ex value = s.parse(text, Scope::kLoad, "outputs." + o.name);
     const std::vector<int> coords = coordinates_in(value, s);
     std::vector<ex> grad(s.nq(), ex(0)), grad_qd(s.nq(), ex(0));
     ex rate = value.diff(s.t());

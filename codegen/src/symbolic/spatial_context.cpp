@@ -1,6 +1,7 @@
 // Spatial files (docs/format.md, Spatial mechanisms): a body's q0 from its pose (p normalized),
 // and EquationContext's 3-vector view: frames of Euler parameters, A(p) in its homogeneous
 // form, d_ij and the q0 pose in numbers for the vectors carried into a body there.
+#include <cctype>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -44,6 +45,46 @@ std::vector<ex> spatial_q0(const Mechanism& m, const SymbolTable& s,
                          "; it must be a finite number of at least 1e-12 (they are normalized)");
   for (const ex& e : p) q.push_back(e / GiNaC::sqrt(norm2));
   return q;
+}
+
+void define_spatial_names(const Mechanism& m, SymbolTable& s, const SymbolicModel& model) {
+  const auto frame = [&](int body) {
+    std::array<ex, 4> p;
+    for (int k = 0; k < 4; ++k) p[k] = s.q(7 * body + 3 + k);
+    return p;
+  };
+  const char* const kAxes[] = {"x", "y", "z"};
+  for (std::size_t k = 0; k < m.points.size(); ++k) {
+    const auto& v = model.point_s3[k];
+    const int b = m.points[k].body;
+    const auto a = EquationContext::rotate3(frame(b), {v[0], v[1], v[2]});
+    for (int c = 0; c < 3; ++c)
+      s.define(m.points[k].name + "__" + kAxes[c], s.q(7 * b + c) + a[c]);
+  }
+  for (std::size_t k = 0; k < m.vectors.size(); ++k) {
+    const auto& v = model.vectors3[k];
+    const auto a = EquationContext::rotate3(frame(m.vectors[k].body), {v[0], v[1], v[2]});
+    for (int c = 0; c < 3; ++c) s.define(m.vectors[k].name + "__" + kAxes[c], a[c]);
+  }
+}
+
+Expr spatial_output_text(const Mechanism& m, const Expr& e) {
+  Expr out = e;
+  std::string& t = out.text;
+  const auto word = [&](std::size_t at) {
+    return at < t.size() && (std::isalnum(static_cast<unsigned char>(t[at])) || t[at] == '_');
+  };
+  for (const auto* list : {&m.points, &m.vectors})
+    for (const Point& p : *list)
+      for (std::size_t at = t.find(p.name + "."); at != std::string::npos;
+           at = t.find(p.name + ".", at + 1)) {
+        const std::size_t axis = at + p.name.size() + 1;
+        if ((at > 0 && word(at - 1)) || axis >= t.size() || word(axis + 1) ||
+            (t[axis] != 'x' && t[axis] != 'y' && t[axis] != 'z'))
+          continue;
+        t.replace(at + p.name.size(), 1, "__");
+      }
+  return out;
 }
 
 }  // namespace symbolic_detail

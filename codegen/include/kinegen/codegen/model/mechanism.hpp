@@ -25,7 +25,7 @@ struct Expr {
 // files).
 struct Vec2 {
   Expr x, y;
-  Expr z;
+  Expr z{};
 };
 
 struct Parameter {
