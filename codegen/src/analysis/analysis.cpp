@@ -17,6 +17,7 @@
 #include "kinegen/codegen/analysis/block_interpreter.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
+#include "kinegen/codegen/analysis/spatial.hpp"
 #include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/model/table.hpp"
 
@@ -107,6 +108,7 @@ class TimeLoop {
     row_.qdd = Eigen::VectorXd::Zero(model.nq());
     if (sensitivity_) phi_p_eval_ = std::make_unique<ProgramEvaluator<double>>(sensitivity_->phi_p);
     if (options.forces) force_solver_ = std::make_unique<ForceSolver>(model, *options.forces);
+    if (model.mechanism().spatial) spatial_ = std::make_unique<SpatialAnalysis>(model);
     // kinegen::Solver's defaults in double, converted as its block path converts them.
     block_options_ = block_options_from<BlockInterpreter::Options>(default_options<double>());
   }
@@ -151,7 +153,12 @@ class TimeLoop {
   // no continuation runs, and the block path's first solve starts from q0 as a generated
   // Solver's does, to the same bits.
   void solve_first(double t) {
-    if constexpr (std::is_same_v<S, analysis_detail::Solver>) {
+    if (spatial_) {
+      // Spatial files: the drivers' own continuation from the q0 pose (docs/format.md,
+      // Spatial mechanisms), then the ordinary solve at t below.
+      spatial_->first_position(row_.q, t);
+      continued_ = true;
+    } else if constexpr (std::is_same_v<S, analysis_detail::Solver>) {
       const double steps = solver_.first_steps(row_.q, t);
       if (!(steps <= 1)) {
         if (const Result r = solver_.first_position(row_.q, t); !r) fail("position", t, r);
@@ -278,6 +285,7 @@ class TimeLoop {
     };
     if (auto r = solver_.position(row_.q, t); !r) return refuse("position", r);
     first_solve_ = false;
+    if (spatial_) spatial_->check_branches(row_.q, t);
     if (first) {
       // After a continuation every angle has its continued value, as in a generated Solver.
       if (!continued_) keep_turns_of_estimates(solver_, model_, row_.q, t);
@@ -325,7 +333,7 @@ class TimeLoop {
   void complete_row(double t) {
     row_.points.clear();
     const auto& points = model_.mechanism().points;
-    for (std::size_t p = 0; p < points.size(); ++p) {
+    for (std::size_t p = 0; p < points.size() && !spatial_; ++p) {
       const int b = 3 * points[p].body;
       row_.points.push_back(point_state(row_.q.segment<3>(b), row_.qd.segment<3>(b),
                                         row_.qdd.segment<3>(b), model_.point_offsets()[p]));
@@ -436,6 +444,7 @@ class TimeLoop {
   const SensitivityModel* sensitivity_;
   std::unique_ptr<ProgramEvaluator<double>> phi_p_eval_;
   std::unique_ptr<ForceSolver> force_solver_;
+  std::unique_ptr<SpatialAnalysis> spatial_;  // spatial files only
   bool force_warned_ = false;
   BlockInterpreter::Options block_options_;
   // The last accepted state (a row, or a sub-step between rows), where the next step starts.
@@ -463,10 +472,13 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
                   const AnalysisOptions& options) {
   require_driven(model);
   std::unique_ptr<BlockInterpreter> blocks;
-  if (options.block_solver && model.nq() == model.nc() &&
+  // Spatial files take the dense Newton path: the block program's trig cache and tearing are
+  // planar so far.
+  const bool spatial = model.mechanism().spatial;
+  if (!spatial && options.block_solver && model.nq() == model.nc() &&
       BlockInterpreter::supported(model.structure()))
     blocks = std::make_unique<BlockInterpreter>(model);
-  if (model.nq() == model.nc() && model.nq() > options.sparse_above_nq) {
+  if (!spatial && model.nq() == model.nc() && model.nq() > options.sparse_above_nq) {
     LargeSolver solver{RhsSystem(model)};
     TimeLoop<LargeSolver>(solver, model, options, blocks.get()).run(grid, sink);
   } else {

@@ -198,6 +198,14 @@ void require_driven(const CompiledModel& model) {
   std::string what = "the mechanism is not kinematically driven: " + std::to_string(nc) +
                      " equations for " + std::to_string(nq) + " coordinates leave " +
                      std::to_string(nq - nc) + " degree(s) of freedom undriven";
+  if (m.spatial) {  // the normalization rows are the tool's own, not joints (Gruebler)
+    int joint_rows = 0;
+    for (const Constraint& c : m.joints) joint_rows += c.equation_count();
+    what += " (the Euler parameter rows included; Gruebler counts 6 x " +
+            std::to_string(m.bodies.size()) + " - " + std::to_string(joint_rows) + " = " +
+            std::to_string(6 * static_cast<int>(m.bodies.size()) - joint_rows) +
+            " before the drivers)";
+  }
   // The bodies that still move with every constraint held, at q0: the coordinates in the null
   // space of Phi_q. They, not the drivers, are where a joint (a ground pivot) or a driver is
   // missing.
@@ -217,7 +225,9 @@ void require_driven(const CompiledModel& model) {
         kernel = svd.matrixV().rightCols(nq - rank);
       }
       for (std::size_t b = 0; b < m.bodies.size(); ++b)
-        if (kernel.middleRows(3 * static_cast<int>(b), 3).cwiseAbs().maxCoeff() > 1e-6)
+        if (kernel.middleRows(m.body_coordinates() * static_cast<int>(b), m.body_coordinates())
+                .cwiseAbs()
+                .maxCoeff() > 1e-6)
           free_bodies.push_back(static_cast<int>(b));
     }
   }

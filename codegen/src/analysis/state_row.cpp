@@ -43,7 +43,25 @@ void OutputEvaluator::evaluate(double t, const Eigen::VectorXd& q, const Eigen::
                    std::numeric_limits<double>::quiet_NaN(), out);
 }
 
+// Spatial files (docs/format.md, Spatial mechanisms): the bodies' seven coordinates and their
+// linear and angular rates, points and vectors in 3D.
+std::string spatial_csv_header(const Mechanism& m) {
+  std::string h = "t";
+  const auto add = [&](const std::string& name, std::initializer_list<const char*> columns) {
+    for (const char* c : columns) h += "," + name + "." + c;
+  };
+  for (const auto& b : m.bodies)
+    add(b.name, {"x", "y", "z", "e0", "e1", "e2", "e3", "vx", "vy", "vz", "wx", "wy", "wz", "ax",
+                 "ay", "az", "alphax", "alphay", "alphaz"});
+  for (const auto* list : {&m.points, &m.vectors})
+    for (const auto& p : *list)
+      add(p.name, {"x", "y", "z", "vx", "vy", "vz", "ax", "ay", "az"});
+  for (const auto& o : m.outputs) h += "," + o.name + "," + o.name + ".v," + o.name + ".a";
+  return h + "\n";
+}
+
 std::string csv_header(const Mechanism& m) {
+  if (m.spatial) return spatial_csv_header(m);
   std::string h = "t";
   for (const auto& b : m.bodies)
     for (const char* c : {"x", "y", "phi", "vx", "vy", "omega", "ax", "ay", "alpha"})

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "kinegen/codegen/analysis/spatial.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/reference.hpp"
@@ -29,8 +30,22 @@ struct AnalyzeArgs {
   bool with_forces = false;
 };
 
+// What analyze cannot do on a spatial file yet (docs/format.md, Spatial mechanisms).
+void refuse_spatial_options(const Common& c, const AnalyzeArgs& o, const kc::CompiledModel& m) {
+  if (!m.mechanism().spatial) return;
+  for (const auto& [given, option] : {std::pair{!o.sensitivity_list.empty(), "--sensitivity"},
+                                      std::pair{o.with_forces, "--forces"},
+                                      std::pair{o.reference_digits != 0, "--reference-digits"}})
+    if (given)
+      throw kc::InputError(c.file, "space", m.mechanism().space_loc,
+                           std::string("spatial files (space: 3d) are not supported by "
+                                       "`kinegen analyze ") +
+                               option + "` yet");
+}
+
 int run_analyze(const Common& c, const AnalyzeArgs& o) {
   auto model = load(c);
+  refuse_spatial_options(c, o, *model);
   kc::require_driven(*model);
   check_grid(o.t0, o.t1, o.steps);
   if (o.reference_digits != 0 && (o.reference_digits < kc::kMinReferenceDigits ||
@@ -54,6 +69,10 @@ int run_analyze(const Common& c, const AnalyzeArgs& o) {
     forces = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*model, o.t0));
     force_names = kc::force_columns(model->mechanism());
   }
+  // Spatial files' rows carry their angular rates, points and vectors in 3D.
+  const auto spatial = model->mechanism().spatial
+                           ? std::make_unique<kc::SpatialAnalysis>(*model)
+                           : std::unique_ptr<kc::SpatialAnalysis>();
   kc::OutputFile file(o.output.empty() ? "-" : o.output);
   std::ostream& out = file.stream();
   out << kc::csv_header(model->mechanism(), force_names, sensitivity.names);
@@ -62,7 +81,8 @@ int run_analyze(const Common& c, const AnalyzeArgs& o) {
   double t_last = 0;
   try {
     const auto sink = [&](const kc::StateRow& row) {
-      out << kc::csv_row(row, static_cast<int>(model->mechanism().bodies.size()));
+      out << (spatial ? spatial->csv_row(row)
+                      : kc::csv_row(row, static_cast<int>(model->mechanism().bodies.size())));
       file.check();  // a full disk or a closed pipe ends the run now, not after it
       ++rows;
       t_last = row.t;

@@ -33,6 +33,7 @@ struct Common {
   std::string file;
   std::vector<std::string> params;
   std::vector<std::string> inputs;  // NAME=FILE.csv
+  std::string command;              // the subcommand's name (main sets it before running it)
 };
 
 std::vector<kc::ParamOverride> parse_overrides(const std::vector<std::string>& args);

@@ -73,6 +73,9 @@ std::unique_ptr<kc::CompiledModel> load(const Common& c, kc::BuildOptions build,
                                         bool inputs_required) {
   build.progress = kc::Log::global().progress_callbacks();
   build.inputs_required = inputs_required;
+  // The commands that take spatial files so far (docs/format.md, Spatial mechanisms).
+  build.spatial = c.command == "eval" || c.command == "check" || c.command == "analyze";
+  build.user = "`kinegen " + c.command + "`";
   for (const std::string& in : c.inputs) {
     const auto eq = in.find('=');
     if (eq == std::string::npos || eq == 0 || eq + 1 == in.size())
@@ -165,7 +168,10 @@ int main(int argc, char** argv) {
                                             : kc::Verbosity::kNormal);
   try {
     for (const auto& s : subs)
-      if (*s.command) return s.run();
+      if (*s.command) {
+        common.command = s.command->get_name();
+        return s.run();
+      }
   } catch (const kc::InputError& e) {
     std::cerr << "error: " << one_line(e.what()) << "\n";
     return kExitInvalid;

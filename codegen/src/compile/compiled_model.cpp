@@ -23,6 +23,9 @@ std::unique_ptr<CompiledModel> CompiledModel::from_file(const std::string& path,
 std::unique_ptr<CompiledModel> CompiledModel::from_mechanism(
     Mechanism mechanism, const std::vector<ParamOverride>& overrides,
     const BuildOptions& options) {
+  if (mechanism.spatial && !options.spatial)
+    throw InputError(mechanism.source, "space", mechanism.space_loc,
+                     "spatial files (space: 3d) are not supported by " + options.user + " yet");
   std::unique_ptr<CompiledModel> model(new CompiledModel(std::move(mechanism)));
   model->build(overrides, options);
   return model;

@@ -23,6 +23,7 @@ extern const ConstraintKind kExpression{
     .equations = equations,
     .row_name = row_name,
     .reaction = false,
+    .space = KindSpace::kBoth,  // the coordinates by name, planar or spatial
 };
 
 }  // namespace kinegen::codegen

@@ -2,11 +2,27 @@
 // them) and one line in each of the two lists below.
 #include "kinegen/codegen/constraints/registry.hpp"
 
+#include "kinegen/codegen/constraints/spatial_branch.hpp"
+
 namespace kinegen::codegen {
 
 extern const ConstraintKind kRevolute, kTranslational, kDistance, kRevoluteTranslational,
     kAbsoluteX, kAbsoluteY, kAbsoluteAngle, kRelativeAngle, kExpression, kFixed, kGear, kRackPinion,
     kPointFollower, kCamFollower;
+// Spatial files' types (docs/format.md, Spatial mechanisms).
+extern const ConstraintKind kSpatialDp1, kSpatialDp2, kSpatialD, kSpatialCd, kSpatialSpherical,
+    kSpatialUniversal, kSpatialRevolute, kSpatialCylindrical, kSpatialTranslational,
+    kSpatialDistance, kSpatialFixed, kSpatialRevoluteAngle, kSpatialTranslation,
+    kSpatialAbsoluteX, kSpatialAbsoluteY, kSpatialAbsoluteZ, kEulerNormalization;
+extern const SpatialBranch kSpatialRevoluteBranch, kSpatialCylindricalBranch,
+    kSpatialTranslationalBranch, kSpatialRevoluteAngleBranch;
+
+BranchConditions branch_conditions(const EquationContext& context) {
+  for (const SpatialBranch* b : {&kSpatialRevoluteBranch, &kSpatialCylindricalBranch,
+                                 &kSpatialTranslationalBranch, &kSpatialRevoluteAngleBranch})
+    if (b->kind == context.constraint().kind) return b->conditions(context);
+  return {};
+}
 
 const std::vector<const ConstraintKind*>& constraint_kinds() {
   static const std::vector<const ConstraintKind*> kKinds = {
@@ -14,13 +30,17 @@ const std::vector<const ConstraintKind*>& constraint_kinds() {
       &kAbsoluteX,  &kAbsoluteY,     &kAbsoluteAngle, &kRelativeAngle,
       &kExpression, &kFixed,         &kGear,          &kRackPinion,
       &kPointFollower, &kCamFollower,
+      &kSpatialDp1, &kSpatialDp2, &kSpatialD, &kSpatialCd, &kSpatialSpherical,
+      &kSpatialUniversal, &kSpatialRevolute, &kSpatialCylindrical, &kSpatialTranslational,
+      &kSpatialDistance, &kSpatialFixed, &kSpatialRevoluteAngle, &kSpatialTranslation,
+      &kSpatialAbsoluteX, &kSpatialAbsoluteY, &kSpatialAbsoluteZ, &kEulerNormalization,
   };
   return kKinds;
 }
 
-const ConstraintKind* find_constraint_kind(const std::string& name) {
+const ConstraintKind* find_constraint_kind(const std::string& name, bool spatial) {
   for (const ConstraintKind* k : constraint_kinds())
-    if (name == k->name) return k;
+    if (name == k->name && k->in_space(spatial)) return k;
   return nullptr;
 }
 

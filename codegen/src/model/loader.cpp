@@ -40,10 +40,11 @@ Mechanism Loader::load(const YAML::Node& root) {
   if (!root.IsDefined() || root.IsNull()) fail("file", {}, "the file is empty");
   if (!root.IsMap()) fail("file", loc_of(root), "the top level must be a mapping of keys");
   check_keys(root, "file", {"name"},
-             {"parameters", "definitions", "bodies", "coordinates", "joints", "drivers", "points",
-              "outputs", "gravity", "forces", "free", "stop_when"});
+             {"space", "parameters", "definitions", "bodies", "coordinates", "joints", "drivers",
+              "points", "vectors", "outputs", "gravity", "forces", "free", "stop_when"});
   Mechanism m;
   m.source = source_;
+  read_space(root, m);
   m.name = name_of(root["name"], "name");
   m.name_loc = loc_of(root["name"]);
   if (root["parameters"]) read_named(root["parameters"], "parameters", "value", m.parameters);
@@ -55,6 +56,8 @@ Mechanism Loader::load(const YAML::Node& root) {
   read_constraints(root["joints"], "joints", false, m);
   read_constraints(root["drivers"], "drivers", true, m);
   if (root["points"]) read_points(root["points"], m);
+  if (root["vectors"]) read_vectors(root["vectors"], m);
+  add_normalization(m);
   if (root["outputs"]) read_outputs(root["outputs"], m);
   if (root["gravity"]) {
     m.forces.gravity = vec2_of(root["gravity"], "gravity");
@@ -164,6 +167,22 @@ void Loader::read_bodies(const YAML::Node& node, Mechanism& m) {
     const YAML::Node b = node[k];
     std::string item = "bodies[" + std::to_string(k) + "]";
     if (!b.IsMap()) fail(item, loc_of(b), "expected a mapping with 'name' and 'q0'");
+    if (spatial_) {
+      check_keys(b, item, {"name"}, {"r0", "rot0", "p0", "q0"});
+      Body body;
+      body.name = name_of(b["name"], item);
+      body.loc = loc_of(b);
+      read_spatial_pose(b, "body '" + body.name + "'", body);
+      m.forces.bodies.push_back({});
+      if (m.find_body(body.name)) fail(item, loc_of(b["name"]), "duplicate body name");
+      m.bodies.push_back(std::move(body));
+      continue;
+    }
+    for (const char* key : {"r0", "rot0", "p0"})
+      if (b[key])
+        fail(item, loc_of(b[key]),
+             "'" + std::string(key) + "' belongs to spatial files (space: 3d); a planar body has "
+             "q0: [x, y, phi]");
     check_keys(b, item, {"name", "q0"}, {"mass", "inertia", "com"});
     Body body;
     body.name = name_of(b["name"], item);
@@ -241,7 +260,7 @@ void Loader::read_points(const YAML::Node& node, Mechanism& m) {
     item = "point '" + point.name + "'";
     point.body = body_ref(p["body"], m, item, false);
     const Expr zero{"0", loc_of(p)};
-    point.s = p["s"] ? vec2_of(p["s"], item + " s") : Vec2{zero, zero};
+    point.s = p["s"] ? vec_of(p["s"], item + " s") : Vec2{zero, zero, spatial_ ? zero : Expr{}};
     point.loc = loc_of(p);
     m.points.push_back(std::move(point));
   }
@@ -251,8 +270,13 @@ void Loader::read_points(const YAML::Node& node, Mechanism& m) {
 // CSV headers; a clash would make an expression or a column ambiguous.
 void Loader::check_unique_names(const Mechanism& m) {
   std::set<std::string> taken;
-  for (const auto& b : m.bodies)
-    for (const char* prefix : {"x_", "y_", "phi_"}) taken.insert(prefix + b.name);
+  for (const auto& b : m.bodies) {
+    if (m.spatial)
+      for (const char* prefix : {"x_", "y_", "z_", "e0_", "e1_", "e2_", "e3_"})
+        taken.insert(prefix + b.name);
+    else
+      for (const char* prefix : {"x_", "y_", "phi_"}) taken.insert(prefix + b.name);
+  }
   // Coordinates share the one namespace with everything named below.
   for (const auto& q : m.coordinates) {
     const auto named = [&](const auto& list) {

@@ -46,6 +46,18 @@ class Loader {
   // YAML's true/false (and its other spellings: True, FALSE, yes, no, on, off).
   bool flag_of(const YAML::Node& node, const std::string& item);
   Vec2 vec2_of(const YAML::Node& node, const std::string& item);
+  // A vector of the file's space: [x, y], or [x, y, z] in a spatial file.
+  Vec2 vec_of(const YAML::Node& node, const std::string& item);
+  // Spatial files (loader_spatial.cpp, docs/format.md, Spatial mechanisms): `space`, which
+  // top-level keys a spatial file may not have yet, a body's pose, `vectors:` and the
+  // normalization rows.
+  void read_space(const YAML::Node& root, Mechanism& m);
+  void read_spatial_pose(const YAML::Node& b, const std::string& item, Body& body);
+  void read_vectors(const YAML::Node& node, Mechanism& m);
+  void add_normalization(Mechanism& m);
+  // A kJoint key: the index of the joint it names.
+  int joint_ref(const YAML::Node& node, const Mechanism& m, const std::string& item);
+  bool spatial_ = false;
   // `parameters:` and `definitions:`: a mapping of names to expressions, in file order.
   template <class Named>
   void read_named(const YAML::Node& node, const std::string& section, const std::string& what,

@@ -31,11 +31,15 @@ void Loader::read_constraints(const YAML::Node& node, const std::string& list, b
       return free ? t->driver && t->rows == 1 && has_value_key(*t)
                   : (driver ? t->driver : t->joint);
     };
-    const ConstraintKind* kind = find_constraint_kind(type_name);
+    const ConstraintKind* kind = find_constraint_kind(type_name, spatial_);
+    if (!kind && find_constraint_kind(type_name, !spatial_))
+      fail(item, loc_of(c["type"]),
+           "the type '" + type_name + "' exists only in " +
+               (spatial_ ? "planar files" : "spatial files (space: 3d)"));
     if (!kind || !allowed_kind(kind)) {
       std::string allowed;
       for (const ConstraintKind* t : constraint_kinds())
-        if (allowed_kind(t)) allowed += (allowed.empty() ? "" : ", ") + std::string(t->name);
+        if (t->in_space(spatial_) && allowed_kind(t)) allowed += (allowed.empty() ? "" : ", ") + std::string(t->name);
       fail(item, loc_of(c["type"]),
            "unknown " + std::string(free ? "free" : driver ? "driver" : "joint") + " type '" +
                type_name + "' (expected one of: " + allowed + ")");
@@ -117,7 +121,8 @@ void Loader::read_key(const YAML::Node& c, const KeySpec& k, const std::string& 
   switch (k.kind) {
     case KeyKind::kOffset:
     case KeyKind::kDirection:
-      con.vectors[key] = node ? vec2_of(node, item + " " + key) : Vec2{fallback, fallback};
+      con.vectors[key] = node ? vec_of(node, item + " " + key)
+                              : Vec2{fallback, fallback, spatial_ ? fallback : Expr{}};
       break;
     case KeyKind::kValue:
       if (con.free) {
@@ -163,6 +168,9 @@ void Loader::read_key(const YAML::Node& c, const KeySpec& k, const std::string& 
       con.coordinates[key] = static_cast<int>(it - m.coordinates.begin());
       break;
     }
+    case KeyKind::kJoint:
+      con.joint = joint_ref(node, m, item + " " + key);
+      break;
     case KeyKind::kBody:
     case KeyKind::kBodyOrGround:
       break;

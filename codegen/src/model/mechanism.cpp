@@ -75,6 +75,7 @@ std::vector<const Constraint*> Mechanism::constraints() const {
   std::vector<const Constraint*> all;
   for (const auto& c : joints) all.push_back(&c);
   for (const auto& c : drivers) all.push_back(&c);
+  for (const auto& c : normalization) all.push_back(&c);
   return all;
 }
 
@@ -227,8 +228,13 @@ Mechanism load_mechanism(const std::string& path) {
 
 std::vector<std::string> coordinate_labels(const Mechanism& m) {
   std::vector<std::string> labels;
-  for (const auto& b : m.bodies)
-    for (const char* c : {".x", ".y", ".phi"}) labels.push_back(b.name + c);
+  for (const auto& b : m.bodies) {
+    if (m.spatial)
+      for (const char* c : {".x", ".y", ".z", ".e0", ".e1", ".e2", ".e3"})
+        labels.push_back(b.name + c);
+    else
+      for (const char* c : {".x", ".y", ".phi"}) labels.push_back(b.name + c);
+  }
   for (const auto& c : m.coordinates) labels.push_back(c.name);
   return labels;
 }

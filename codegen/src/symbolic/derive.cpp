@@ -222,7 +222,13 @@ void derive_rates(const Mechanism& m, const SymbolTable& s, SymbolicModel& model
 // q0 and the points' offsets, and the check that every extra coordinate is read.
 void derive_geometry(const Mechanism& m, const SymbolTable& s, const Builder& builder,
                      SymbolicModel& model) {
-  for (const auto& b : m.bodies) {
+  for (std::size_t k = 0; k < m.bodies.size(); ++k) {
+    const Body& b = m.bodies[k];
+    if (m.spatial) {
+      for (const ex& e : spatial_q0(m, s, model.param_values, static_cast<int>(k)))
+        model.q0.push_back(e);
+      continue;
+    }
     const std::string item = "body '" + b.name + "' q0";
     for (int c = 0; c < 3; ++c) model.q0.push_back(builder.geometry(b.q0[c], item));
   }
@@ -241,15 +247,27 @@ void derive_geometry(const Mechanism& m, const SymbolTable& s, const Builder& bu
   }
   for (const auto& p : m.points)
     model.point_s.push_back(builder.vec(p.s, "point '" + p.name + "' s"));
+  if (!m.spatial) return;
+  for (const auto& p : m.points)
+    model.point_s3.push_back({model.point_s[model.point_s3.size()].first,
+                              model.point_s[model.point_s3.size()].second,
+                              builder.geometry(p.s.z, "point '" + p.name + "' s")});
+  for (const auto& v : m.vectors) {
+    const std::string item = "vector '" + v.name + "' v";
+    model.vectors3.push_back(
+        {builder.geometry(v.s.x, item), builder.geometry(v.s.y, item), builder.geometry(v.s.z, item)});
+  }
 }
 
 // The outputs: values, rates, accelerations at qdd = 0 and O_q; for an output that reads
 // velocities (as a load may), the rate at qdd = 0 and O_qd instead of an acceleration.
-void derive_outputs(const Mechanism& m, const SymbolTable& s, SymbolicModel& model) {
+void derive_outputs(const Mechanism& m, SymbolTable& s, SymbolicModel& model) {
   std::vector<ex> by_qd;
   bool any_velocity = false;
+  if (m.spatial) define_spatial_names(m, s, model);
   for (const auto& o : m.outputs) {
-    const ex value = s.parse(o.value, Scope::kLoad, "outputs." + o.name);
+    const Expr text = m.spatial ? spatial_output_text(m, o.value) : o.value;
+    const ex value = s.parse(text, Scope::kLoad, "outputs." + o.name);
     const std::vector<int> coords = coordinates_in(value, s);
     std::vector<ex> grad(s.nq(), ex(0)), grad_qd(s.nq(), ex(0));
     ex rate = value.diff(s.t());
@@ -304,9 +322,11 @@ std::vector<double> body_scales(const Mechanism& m, const SymbolTable& s, const 
   };
   for (const auto* c : m.constraints()) {
     for (const auto& [body, v] : offsets(*c)) {
+      if (v->x.text.empty()) continue;  // a spatial default computed at the q0 pose
       const auto lv = builder.vec(*v, c->item);
       grow(body, lv.first);
       grow(body, lv.second);
+      if (m.spatial && !v->z.text.empty()) grow(body, builder.geometry(v->z, c->item));
     }
     if (c->kind->squared_distance && !c->is_driver) {
       const ex length = builder.geometry(c->value, c->item + " value");
@@ -339,7 +359,14 @@ void derive_scales(const Mechanism& m, const std::vector<double>& body_scale,
     const double length = body_scale[b] > 0 ? body_scale[b]
                           : joined[b] > 0   ? joined[b]
                                             : model.length_scale;
-    for (auto kind : {CoordinateKind::kLength, CoordinateKind::kLength, CoordinateKind::kAngle}) {
+    // Spatial: x, y, z, then the Euler parameters (unit quaternions: scale 1).
+    const std::vector<CoordinateKind> kinds =
+        m.spatial ? std::vector<CoordinateKind>(3, CoordinateKind::kLength)
+                  : std::vector<CoordinateKind>{CoordinateKind::kLength, CoordinateKind::kLength,
+                                                CoordinateKind::kAngle};
+    std::vector<CoordinateKind> all = kinds;
+    if (m.spatial) all.insert(all.end(), 4, CoordinateKind::kScalar);
+    for (auto kind : all) {
       model.coordinate_kinds.push_back(kind);
       model.coordinate_scales.push_back(scale_of(kind, length));
     }

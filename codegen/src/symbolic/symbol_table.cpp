@@ -24,12 +24,42 @@ using namespace symbolic_detail;
 
 namespace {
 
+// atan2(y, x) as its half-angle form 2 atan(y / (sqrt(x^2 + y^2) + x)): the angle of (x, y) in
+// (-pi, pi], built from the functions every stage lowers (singular only on the negative x
+// axis, where atan2 jumps). Aligned as read_law in functions.cpp: GiNaC tells readers from
+// function serials by their lowest bit.
+[[gnu::aligned(16)]] ex read_atan2(const GiNaC::exvector& args) {
+  const ex &y = args[0], &x = args[1];
+  return 2 * GiNaC::atan(y / (GiNaC::sqrt(x * x + y * y) + x));
+}
+
+// The prefixes of a body's coordinates' names: x_, y_, phi_ (spatial: x_ ... e3_).
+std::vector<const char*> body_prefixes(const Mechanism& m) {
+  if (m.spatial) return {"x_", "y_", "z_", "e0_", "e1_", "e2_", "e3_"};
+  return {"x_", "y_", "phi_"};
+}
+
+// The names loads use for rates: xd_<body>, yd_<body>, phid_<body> (spatial: zd_, e0d_ ...),
+// <coordinate>_d.
+void name_rates(const Mechanism& m, const std::vector<const char*>& prefixes,
+                const std::vector<GiNaC::realsymbol>& qd, std::map<std::string, ex>& names) {
+  const std::size_t per_body = prefixes.size();
+  for (std::size_t b = 0; b < m.bodies.size(); ++b)
+    for (std::size_t c = 0; c < per_body; ++c) {
+      const std::string prefix = prefixes[c];
+      names[prefix.substr(0, prefix.size() - 1) + "d_" + m.bodies[b].name] = qd[per_body * b + c];
+    }
+  for (std::size_t c = 0; c < m.coordinates.size(); ++c)
+    names[m.coordinates[c].name + "_d"] = qd[per_body * m.bodies.size() + c];
+}
+
 // The functions the format allows (functions.hpp), looked up in GiNaC's own reader table.
 GiNaC::prototype_table allowed_functions() {
   GiNaC::prototype_table table;
   for (const auto& [proto, reader] : GiNaC::get_default_reader())
     if (find_math_function(proto.first) && proto.second == 1) table[proto] = reader;
   add_motion_law_readers(table);
+  table[{"atan2", 2}] = read_atan2;
   return table;
 }
 
@@ -243,8 +273,9 @@ std::string clean_message(const std::string& what) {
 
 SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& overridden)
     : source_(m.source), t_("t") {
+  const std::vector<const char*> prefixes = body_prefixes(m);
   for (const auto& b : m.bodies) {
-    for (const char* prefix : {"x_", "y_", "phi_"}) {
+    for (const char* prefix : prefixes) {
       const std::string name = prefix + b.name;
       coord_names_.push_back(name);
       q_.emplace_back(name);
@@ -266,12 +297,7 @@ SymbolTable::SymbolTable(const Mechanism& m, const std::vector<std::string>& ove
   // admits them nowhere), not as an unknown symbol.
   for (int k = 0; k < nq(); ++k) names_[coord_names_[k] + "_dot"] = qd_[k];
   // The names loads use: xd_<body>, yd_<body>, phid_<body>, <coordinate>_d.
-  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
-    const char* const kRates[] = {"xd_", "yd_", "phid_"};
-    for (int c = 0; c < 3; ++c) names_[kRates[c] + m.bodies[b].name] = qd_[3 * b + c];
-  }
-  for (std::size_t c = 0; c < m.coordinates.size(); ++c)
-    names_[m.coordinates[c].name + "_d"] = qd_[3 * m.bodies.size() + c];
+  name_rates(m, prefixes, qd_, names_);
   // A name read above its definition is an "unknown symbol" to the parser, which sends the
   // user looking for a typo: say where it is defined instead.
   const auto in_order = [&](const Expr& value, Scope scope, const std::string& item,

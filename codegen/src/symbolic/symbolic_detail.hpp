@@ -102,6 +102,17 @@ void check_defined_value(const Mechanism& m, const SymbolTable& s,
                          const std::vector<GiNaC::numeric>& values, const GiNaC::ex& value,
                          const Expr& e, const std::string& item);
 
+// A spatial body's q0 (spatial_context.cpp): r0, and p from p0 (or q0) or rot0, normalized;
+// in the parameters. InputError for a zero rot0 axis or |p0| < 1e-12.
+std::vector<GiNaC::ex> spatial_q0(const Mechanism& m, const SymbolTable& s,
+                                  const std::vector<GiNaC::numeric>& values, int body);
+
+// Spatial files: names each point's global P.x, P.y, P.z and each vector's V.x, V.y, V.z for
+// the outputs (as P__x ...: the expression reader knows no dots), and rewrites an output's text
+// to use them.
+void define_spatial_names(const Mechanism& m, SymbolTable& s, const SymbolicModel& model);
+Expr spatial_output_text(const Mechanism& m, const Expr& e);
+
 // A driver's law in pieces, with a period, from a table or an input, as one expression
 // in t (driver_law.cpp). Its boundaries are checked by driver_law_warnings, which
 // derive() runs first.

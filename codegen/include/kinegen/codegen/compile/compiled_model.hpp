@@ -34,6 +34,10 @@ struct BuildOptions {
   // The free coordinates are the state of a simulation, not inputs needing a table
   // (simulate, equilibrium, modes, linearize).
   bool free_as_state = false;
+  // Spatial files (space: 3d) are taken only by the callers that handle them (eval, check,
+  // analyze); the others refuse them, naming `user` ("`kinegen generate`").
+  bool spatial = false;
+  std::string user = "this command";
 };
 
 // Owns the stages; not copyable because later stages point into earlier ones.

@@ -10,6 +10,7 @@
 #include <ginac/ginac.h>
 
 #include <Eigen/Core>
+#include <array>
 #include <functional>
 #include <string>
 #include <utility>
@@ -34,6 +35,7 @@ enum class KeyKind {
   kCoordinate,    // the name of an extra coordinate: Constraint::coordinates
   kCurve,         // [x(u), y(u)], a curve local to a body in one extra coordinate u (the kind's
                   // kCoordinate key that EquationContext::curve is given): Constraint::curves
+  kJoint,         // the name of a joint of the file (a spatial driver's): Constraint::joint
 };
 
 struct KeySpec {
@@ -52,6 +54,12 @@ class EquationContext {
   using Vec = std::pair<GiNaC::ex, GiNaC::ex>;
   struct Frame {
     GiNaC::ex x, y, phi;
+  };
+  // Spatial files (spatial_context.cpp): 3-vectors, and a body's origin and Euler parameters.
+  using Vec3 = std::array<GiNaC::ex, 3>;
+  struct Frame3 {
+    Vec3 r;
+    std::array<GiNaC::ex, 4> p;
   };
 
   EquationContext(const Constraint& c, const Mechanism& m, const SymbolTable& symbols,
@@ -92,6 +100,22 @@ class EquationContext {
   Vec curve(const std::string& key, const std::string& coordinate_key) const;
   // d curve / du of such a curve.
   Vec tangent(const Vec& curve, const std::string& coordinate_key) const;
+
+  // Spatial files. The origin and Euler parameters of a body (ground: 0 and [1, 0, 0, 0]).
+  Frame3 frame3(int body) const;
+  // A(p) v in the homogeneous form (e0^2 - e.e) v + 2 e (e.v) + 2 e0 e x v, which holds for p
+  // of any length, so Phi, Phi_q and gamma come from one expression.
+  static Vec3 rotate3(const std::array<GiNaC::ex, 4>& p, const Vec3& v);
+  // A 3-vector key, checked finite.
+  Vec3 vector3(const std::string& key) const;
+  // d_ij = r_j + A_j sj - r_i - A_i si from the keys si and sj (or the points given).
+  Vec3 d_ij3() const;
+  Vec3 d_ij3(const Vec3& si, const Vec3& sj) const;
+  // The body's rotation matrix and origin at the q0 pose (the file's guesses, p normalized).
+  Eigen::Matrix3d rotation0(int body) const;
+  Eigen::Vector3d origin0(int body) const;
+  // The context of the joint a kJoint key names (a driver's `joint`).
+  EquationContext joint_context() const;
 
  private:
   GiNaC::ex geometry(const Expr& e, const std::string& item) const;
@@ -165,6 +189,10 @@ struct DrawContext {
                               const std::string& coordinate_key) const;
 };
 
+// Which files a type belongs to: a type name resolves by the file's `space`, so `revolute` in a
+// spatial file is the spatial revolute.
+enum class KindSpace { kPlanar, kSpatial, kBoth };
+
 struct ConstraintKind {
   const char* name;    // the `type` in the file
   bool joint, driver;  // whether it may appear under `joints`, under `drivers`
@@ -195,7 +223,11 @@ struct ConstraintKind {
   // A cam contact: adds the column J.fn, the force on j along the normal of curve_i (positive
   // in compression, see forces.hpp).
   bool normal_force = false;
+  KindSpace space = KindSpace::kPlanar;
 
+  bool in_space(bool spatial) const {
+    return space == KindSpace::kBoth || (space == KindSpace::kSpatial) == spatial;
+  }
   const KeySpec* key(const std::string& key_name) const {
     for (const auto& k : keys)
       if (key_name == k.name) return &k;
@@ -205,8 +237,8 @@ struct ConstraintKind {
 
 // Every registered kind, in the order messages list them.
 const std::vector<const ConstraintKind*>& constraint_kinds();
-// The kind called `name`, or nullptr.
-const ConstraintKind* find_constraint_kind(const std::string& name);
+// The kind called `name` in a planar (spatial) file, or nullptr.
+const ConstraintKind* find_constraint_kind(const std::string& name, bool spatial = false);
 
 // The local vectors of `c` that are lengths (kOffset keys), each with the body it is local to
 // (sj: body j, the others: body i), for the coordinates' tolerance scales.

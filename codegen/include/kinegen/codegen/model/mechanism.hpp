@@ -21,8 +21,11 @@ struct Expr {
   SourceLoc loc;
 };
 
+// A vector of the file: [x, y], or in a spatial file [x, y, z] (z's text is empty in planar
+// files).
 struct Vec2 {
   Expr x, y;
+  Expr z{};
 };
 
 struct Parameter {
@@ -48,8 +51,19 @@ struct Output {
 
 struct Body {
   std::string name;
-  std::array<Expr, 3> q0;  // x, y, phi
+  std::array<Expr, 3> q0;  // x, y, phi (planar files)
   SourceLoc loc;
+  // A spatial file's guess of the body's pose (docs/format.md, Spatial mechanisms): the
+  // frame's origin r0, and its orientation as Euler parameters p0 (from `p0` or `q0`, not yet
+  // normalized), or else as the rotation `rot0` by `angle` about `axis` (default: none).
+  struct Pose {
+    std::array<Expr, 3> r0;
+    std::vector<Expr> p0;  // e0, e1, e2, e3; empty: from axis and angle
+    std::array<Expr, 3> axis;
+    Expr angle;
+    SourceLoc rotation_loc;  // of p0, q0 or rot0
+  };
+  Pose pose;
 };
 
 // An extra scalar unknown: a curve parameter, a contact angle. Follows the bodies'
@@ -97,6 +111,7 @@ struct Constraint {
   int j = kGround;   // body j
   std::map<std::string, Vec2> vectors;  // local vectors by key: si, sj, s, vi
   std::map<std::string, Expr> scalars;  // other constants by key
+  int joint = -1;  // a kJoint key (a spatial driver's `joint`): index into Mechanism::joints
   std::map<std::string, bool> flags;    // true/false keys (a gear's `internal`)
   Expr value;        // value / length / angle of a joint, or f(t) of a driver
   DriverLaw law;     // a driver's pieces, period, table or input
@@ -169,6 +184,9 @@ struct ForceSpec {
 };
 
 struct Mechanism {
+  // `space: 3d`: bodies have q = [x, y, z, e0, e1, e2, e3] (docs/format.md, Spatial mechanisms).
+  bool spatial = false;
+  SourceLoc space_loc;
   std::string name;
   SourceLoc name_loc;  // of the `name:` value
   std::string source;  // the file it was read from, as given by the user
@@ -179,18 +197,28 @@ struct Mechanism {
   std::vector<Constraint> joints;
   std::vector<Constraint> drivers;
   std::vector<Point> points;
+  std::vector<Point> vectors;  // spatial files: named vectors fixed in a body (Point::s)
+  // Spatial files: one Euler parameter normalization row per body (`euler_<body>`), the
+  // tool's own: after the drivers in Phi, and not counted among the joints.
+  std::vector<Constraint> normalization;
   std::vector<Output> outputs;
   ForceSpec forces;  // masses, gravity and loads (`analyze --forces`)
   // docs/format.md, `stop_when`: `simulate` ends where this crosses 0 from below.
   std::optional<Expr> stop_when;
 
+  // Coordinates per body: x, y, phi; or x, y, z, e0, e1, e2, e3 in a spatial file.
+  int body_coordinates() const { return spatial ? 7 : 3; }
   int nq() const {
-    return 3 * static_cast<int>(bodies.size()) + static_cast<int>(coordinates.size());
+    return body_coordinates() * static_cast<int>(bodies.size()) +
+           static_cast<int>(coordinates.size());
   }
   // The index in q of extra coordinate k.
-  int coordinate_index(int k) const { return 3 * static_cast<int>(bodies.size()) + k; }
+  int coordinate_index(int k) const {
+    return body_coordinates() * static_cast<int>(bodies.size()) + k;
+  }
   int nc() const;
-  // Joints then drivers, in file order: the order of the rows of Phi.
+  // Joints then drivers, in file order, then the normalization rows: the order of the rows
+  // of Phi.
   std::vector<const Constraint*> constraints() const;
   std::optional<int> find_body(const std::string& name) const;
   // The free coordinates as indices into `drivers`, in `free:` order; they follow
@@ -222,7 +250,8 @@ Mechanism load_mechanism(const std::string& path);
 Mechanism parse_mechanism(const std::string& yaml_text, const std::string& source);
 
 // Every coordinate's name as the CSV's position columns give it, in q's order: each body's
-// `B.x, B.y, B.phi`, then the extra coordinates by name.
+// `B.x, B.y, B.phi` (spatial: `B.x, B.y, B.z, B.e0, B.e1, B.e2, B.e3`), then the extra
+// coordinates by name.
 std::vector<std::string> coordinate_labels(const Mechanism& mechanism);
 
 // Whether `name` may become a C++ identifier in generated code: a C identifier, not a C++

@@ -119,6 +119,9 @@ struct SymbolicModel {
   std::vector<GiNaC::ex> gamma;          // nc
   std::vector<GiNaC::ex> q0;             // nq, in the parameters
   std::vector<std::pair<GiNaC::ex, GiNaC::ex>> point_s;  // local offsets, in the parameters
+  // Spatial files: each point's local offset and each named vector (Mechanism::vectors), as
+  // [x, y, z] in the parameters (point_s then holds x and y).
+  std::vector<std::vector<GiNaC::ex>> point_s3, vectors3;
   // Outputs, one entry each: the value O(q, t), its rate O_q qd + O_t, the part
   // of its acceleration without qdd (d/dt of the rate at qdd = 0), and O_q (dense, row-major
   // outputs x nq), so that the acceleration is output_q qdd + output_a0.
