@@ -5,19 +5,13 @@
 #include <stdexcept>
 
 #include "kinegen/codegen/compile/compiled_model.hpp"
+#include "kinegen/codegen/program/repeated.hpp"  // same_expressions
 #include "kinegen/codegen/symbolic/sensitivity.hpp"
 #include "kinegen/codegen/symbolic/stop_when.hpp"
 
 namespace kinegen::codegen {
 
 namespace {
-
-bool same_expressions(const std::vector<GiNaC::ex>& a, const std::vector<GiNaC::ex>& b) {
-  if (a.size() != b.size()) return false;
-  for (std::size_t k = 0; k < a.size(); ++k)
-    if (!a[k].is_equal(b[k])) return false;
-  return true;
-}
 
 // The tangent's pieces in one list, in TangentProgram's order, and where each starts.
 std::vector<GiNaC::ex> tangent_expressions(const TangentModel& t,
