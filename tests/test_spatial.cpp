@@ -11,7 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 #include "kinegen/codegen/analysis/evaluator.hpp"
 #include "support/files.hpp"
 #include "support/run_command.hpp"

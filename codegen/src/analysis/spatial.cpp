@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
-#include "kinegen/codegen/analysis/compiled_model.hpp"
+#include "kinegen/codegen/compile/compiled_model.hpp"
 
 namespace kinegen::codegen {
 
