@@ -144,6 +144,25 @@ TEST_CASE("spatial analyze: a solve off a hinge's branch is exit 1 naming it", "
   CHECK(r.err.find("left its branch (axis_i . axis_j") != std::string::npos);
 }
 
+TEST_CASE("spatial analyze: a slider turned end for end is off its branch", "[spatial]") {
+  // The guide's axis_j reversed: all five rows hold (ref_j follows the reversed axis at the q0
+  // pose, so the lock holds too), and only the axes' check catches it.
+  std::string text = kinegen::test::read_text(mechanism("spatial_slider_crank"));
+  const std::string axis =
+      "si: [0, 0, 0], sj: [0, 0, 0],\n     axis_i: [1, 0, 0], axis_j: [1, 0, 0]}";
+  REQUIRE(text.find(axis) != std::string::npos);
+  text.replace(text.find(axis), axis.size(),
+               "si: [0, 0, 0], sj: [0, 0, 0],\n     axis_i: [1, 0, 0], axis_j: [-1, 0, 0]}");
+  const auto dir = kinegen::test::scratch_dir("spatial", "slider_branch");
+  kinegen::test::write_text(dir / "reversed.yaml", text);
+  const auto r = kinegen_cli(
+      {"analyze", (dir / "reversed.yaml").string(), "--t0", "0", "--t1", "1", "--steps", "4"});
+  INFO(r.err);
+  CHECK(r.exit_code == 1);
+  CHECK(r.err.find("translational") != std::string::npos);
+  CHECK(r.err.find("left its branch (axis_i . axis_j") != std::string::npos);
+}
+
 TEST_CASE("spatial analyze: an undriven file names both counts", "[spatial]") {
   std::string text = kinegen::test::read_text(mechanism("spatial_slider_crank"));
   const std::string driver = "  - {type: revolute_angle, joint: bearing, f: \"omega*t\"}\n";

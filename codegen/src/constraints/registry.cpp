@@ -15,11 +15,12 @@ extern const ConstraintKind kSpatialDp1, kSpatialDp2, kSpatialD, kSpatialCd, kSp
     kSpatialDistance, kSpatialFixed, kSpatialRevoluteAngle, kSpatialTranslation,
     kSpatialAbsoluteX, kSpatialAbsoluteY, kSpatialAbsoluteZ, kEulerNormalization;
 extern const SpatialBranch kSpatialRevoluteBranch, kSpatialCylindricalBranch,
-    kSpatialTranslationalBranch, kSpatialRevoluteAngleBranch;
+    kSpatialTranslationalBranch, kSpatialRevoluteAngleBranch, kSpatialFixedBranch;
 
 BranchConditions branch_conditions(const EquationContext& context) {
-  for (const SpatialBranch* b : {&kSpatialRevoluteBranch, &kSpatialCylindricalBranch,
-                                 &kSpatialTranslationalBranch, &kSpatialRevoluteAngleBranch})
+  for (const SpatialBranch* b :
+       {&kSpatialRevoluteBranch, &kSpatialCylindricalBranch, &kSpatialTranslationalBranch,
+        &kSpatialRevoluteAngleBranch, &kSpatialFixedBranch})
     if (b->kind == context.constraint().kind) return b->conditions(context);
   return {};
 }

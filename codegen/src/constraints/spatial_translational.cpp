@@ -1,5 +1,6 @@
 // translational (spatial): a prismatic joint. A cylindrical joint with the rotation about the
-// axis locked: (A_i ref_i)^T (A_j (axis_j x ref_j)) = 0, on the branch ref_i^T ref_j > 0. By
+// axis locked: (A_i ref_i)^T (A_j (axis_j x ref_j)) = 0, on the branch axis_i^T axis_j > 0 and
+// ref_i^T ref_j > 0. By
 // default ref_i is f_i and ref_j is ref_i carried into body j at the q0 pose.
 #include "spatial_common.hpp"
 
@@ -37,7 +38,10 @@ BranchConditions translational3_branch(const EquationContext& c) {
   using namespace spatial;
   const auto& k = c.constraint();
   const auto [ref_i, ref_j] = translational_refs(c);
-  return {{dot(global(c, k.i, ref_i), global(c, k.j, ref_j)), "ref_i . ref_j"}};
+  // The axes too: a half-turn of j about ref_i keeps every row and ref_j, flipping axis_j.
+  return {{dot(global(c, k.i, unit_axis(c, "axis_i")), global(c, k.j, unit_axis(c, "axis_j"))),
+           "axis_i . axis_j"},
+          {dot(global(c, k.i, ref_i), global(c, k.j, ref_j)), "ref_i . ref_j"}};
 }
 
 std::string translational3_row(const Constraint&, int component) {
