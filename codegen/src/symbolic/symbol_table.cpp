@@ -30,6 +30,8 @@ namespace {
 // function serials by their lowest bit.
 [[gnu::aligned(16)]] ex read_atan2(const GiNaC::exvector& args) {
   const ex &y = args[0], &x = args[1];
+  // On the x axis itself the form gives 0 for every x: pi on its negative half.
+  if (y.is_zero()) return GiNaC::Pi * (1 - x / GiNaC::sqrt(x * x)) / 2;
   return 2 * GiNaC::atan(y / (GiNaC::sqrt(x * x + y * y) + x));
 }
 
