@@ -163,6 +163,38 @@ TEST_CASE("spatial analyze: a slider turned end for end is off its branch", "[sp
   CHECK(r.err.find("left its branch (axis_i . axis_j") != std::string::npos);
 }
 
+TEST_CASE("atan2 in outputs: every quadrant and the x axis, with exact rates", "[spatial]") {
+  // A point driven once round the unit circle: atan2(y, x) is the angle t wrapped to (-pi, pi],
+  // its rate 1 and its acceleration 0; atan2(0, x) is 0 or pi by the side.
+  const auto dir = kinegen::test::scratch_dir("spatial", "atan2");
+  kinegen::test::write_text(dir / "circle.yaml", R"(name: circle
+bodies:
+  - {name: b, q0: [1, 0, 0]}
+drivers:
+  - {type: absolute_x, body: b, f: "cos(t)"
+}
+  - {type: absolute_y, body: b, f: "sin(t)"}
+  - {type: absolute_angle, body: b, f: "0"}
+outputs:
+  angle: "atan2(y_b, x_b)"
+  side: "atan2(0, x_b)"
+)");
+  const auto r = kinegen_cli({"analyze", (dir / "circle.yaml").string(), "--t0", "0.05", "--t1",
+                              "6.25", "--steps", "62"});
+  INFO(r.err);
+  REQUIRE(r.exit_code == 0);
+  auto c = columns(r.out);
+  const double pi = std::acos(-1.0);
+  for (std::size_t k = 0; k < c["t"].size(); ++k) {
+    const double t = c["t"][k];
+    CAPTURE(t);
+    CHECK(std::abs(c["angle"][k] - std::atan2(std::sin(t), std::cos(t))) < 1e-14);
+    CHECK(std::abs(c["angle.v"][k] - 1) < 1e-9);
+    CHECK(std::abs(c["angle.a"][k]) < 1e-8);
+    CHECK(c["side"][k] == (std::cos(t) < 0 ? pi : 0.0));
+  }
+  }
+
 TEST_CASE("spatial analyze: an undriven file names both counts", "[spatial]") {
   std::string text = kinegen::test::read_text(mechanism("spatial_slider_crank"));
   const std::string driver = "  - {type: revolute_angle, joint: bearing, f: \"omega*t\"}\n";
