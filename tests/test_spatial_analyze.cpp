@@ -167,18 +167,17 @@ TEST_CASE("atan2 in outputs: every quadrant and the x axis, with exact rates", "
   // A point driven once round the unit circle: atan2(y, x) is the angle t wrapped to (-pi, pi],
   // its rate 1 and its acceleration 0; atan2(0, x) is 0 or pi by the side.
   const auto dir = kinegen::test::scratch_dir("spatial", "atan2");
-  kinegen::test::write_text(dir / "circle.yaml", R"(name: circle
+  kinegen::test::write_text(dir / "circle.yaml", R"yaml(name: circle
 bodies:
   - {name: b, q0: [1, 0, 0]}
 drivers:
-  - {type: absolute_x, body: b, f: "cos(t)"
-}
+  - {type: absolute_x, body: b, f: "cos(t)"}
   - {type: absolute_y, body: b, f: "sin(t)"}
   - {type: absolute_angle, body: b, f: "0"}
 outputs:
   angle: "atan2(y_b, x_b)"
   side: "atan2(0, x_b)"
-)");
+)yaml");
   const auto r = kinegen_cli({"analyze", (dir / "circle.yaml").string(), "--t0", "0.05", "--t1",
                               "6.25", "--steps", "62"});
   INFO(r.err);
