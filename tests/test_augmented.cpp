@@ -251,11 +251,12 @@ TEST_CASE("the minimal method stops at the N-four-bar's first flat position", "[
     CHECK(r.err.find("involved: ") != std::string::npos);
     CHECK(r.err.find("(revolute)") != std::string::npos);
     CHECK(r.err.find("use --method augmented") != std::string::npos);
-    // The time and the free coordinate named are the flat position's (to the integration
-    // error of the time it is reached).
+    // The time and the free coordinate named are the flat position's: the run stops where
+    // Phi_q's condition estimate passes its limit, theta a few 1e-4 rad before the flat, so
+    // the time is within the theta bound's 1e-3 rad over theta' (about 4 rad/s there).
     std::smatch m;
     REQUIRE(std::regex_search(r.err, m, std::regex("failed at t = ([0-9.e+-]+)")));
-    CHECK(std::abs(std::stod(m[1]) - flat) < 1e-4);
+    CHECK(std::abs(std::stod(m[1]) - flat) < 3e-4);
     REQUIRE(std::regex_search(r.err, m, std::regex("theta = ([0-9.e+-]+)")));
     CHECK(std::abs(std::stod(m[1])) < 1e-3);
     // The rows so far: up to the last grid time before the flat position, every one on the

@@ -44,12 +44,15 @@ std::vector<std::string> example_files() {
   return yaml_files(fs::path(KINEGEN_SOURCE_DIR) / "examples");
 }
 
-// Every mechanism that analyzes over t in [0, 1]: the examples and the test mechanisms except
-// all_types.yaml (a loader test that is singular by design).
+// Every planar mechanism that analyzes over t in [0, 1]: the examples and the test mechanisms
+// except all_types.yaml (a loader test that is singular by design) and the spatial ones (whose
+// sensitivities are not built yet: refused).
 std::vector<std::string> analyzable_files() {
   auto files = example_files();
-  for (const auto& f : yaml_files(fs::path(KINEGEN_SOURCE_DIR) / "tests" / "mechanisms"))
-    if (fs::path(f).filename() != "all_types.yaml") files.push_back(f);
+  for (const auto& f : yaml_files(fs::path(KINEGEN_SOURCE_DIR) / "tests" / "mechanisms")) {
+    const std::string name = fs::path(f).filename().string();
+    if (name != "all_types.yaml" && name.rfind("spatial_", 0) != 0) files.push_back(f);
+  }
   return files;
 }
 

@@ -38,7 +38,8 @@ def test_simulate_atol_follows_rtol_and_allow_drift_warns(tmp_path):
     past its bound into one warning."""
     m = kinegen.Mechanism(str(DYN / "pendulum.yaml"))
     default = m.simulate(1, 4, rtol=1e-11)
-    given = m.simulate(1, 4, rtol=1e-11, atol=1e-13)
+    # 1e-2 * 1e-11 is the double the default computes (1.0000000000000001e-13, not 1e-13).
+    given = m.simulate(1, 4, rtol=1e-11, atol=1e-2 * 1e-11)
     assert np.array_equal(default["theta"], given["theta"])
     assert not np.array_equal(m.simulate(1, 4, rtol=1e-11, atol=1e-10)["theta"], given["theta"])
     with pytest.raises(kinegen.UsageError, match="usable range"):
