@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "common.hpp"  // two_point_joint
 #include "kinegen/codegen/constraints/registry.hpp"
 #include "kinegen/codegen/constraints/spatial_branch.hpp"
 
@@ -37,14 +38,7 @@ inline V3 exact(const Eigen::Vector3d& v) { return {exact(v[0]), exact(v[1]), ex
 
 // `kind` with the keys i, j, si, sj before its own, reactions at si and sj, spatial.
 inline ConstraintKind spatial_two_point(ConstraintKind kind) {
-  std::vector<KeySpec> keys = {{"i", KeyKind::kBodyOrGround, true},
-                               {"j", KeyKind::kBodyOrGround, true},
-                               {"si", KeyKind::kOffset, false},
-                               {"sj", KeyKind::kOffset, false}};
-  keys.insert(keys.end(), kind.keys.begin(), kind.keys.end());
-  kind.keys = std::move(keys);
-  kind.reaction_i = "si";
-  kind.reaction_j = "sj";
+  kind = two_point_joint(std::move(kind));
   kind.space = KindSpace::kSpatial;
   return kind;
 }
