@@ -99,4 +99,12 @@ inline std::string xyz_row(const Constraint&, int component) {
   return component == 0 ? "x-component" : component == 1 ? "y-component" : "z-component";
 }
 
+// The branch of a joint whose axes are held parallel (revolute, cylindrical, translational):
+// they point the same way, not opposite.
+inline std::pair<GiNaC::ex, std::string> axes_aligned(const EquationContext& c) {
+  const auto& k = c.constraint();
+  return {dot(global(c, k.i, unit_axis(c, "axis_i")), global(c, k.j, unit_axis(c, "axis_j"))),
+          "axis_i . axis_j"};
+}
+
 }  // namespace kinegen::codegen::spatial

@@ -17,12 +17,7 @@ std::vector<GiNaC::ex> cylindrical_equations(const EquationContext& c) {
   return {dot(f, axis_j), dot(g, axis_j), dot(f, d), dot(g, d)};
 }
 
-BranchConditions cylindrical_branch(const EquationContext& c) {
-  using namespace spatial;
-  const auto& k = c.constraint();
-  return {{dot(global(c, k.i, unit_axis(c, "axis_i")), global(c, k.j, unit_axis(c, "axis_j"))),
-           "axis_i . axis_j"}};
-}
+BranchConditions cylindrical_branch(const EquationContext& c) { return {spatial::axes_aligned(c)}; }
 
 std::string cylindrical_row(const Constraint&, int component) {
   const char* kNames[] = {"axis_j normal to f_i", "axis_j normal to g_i", "d_ij normal to f_i",

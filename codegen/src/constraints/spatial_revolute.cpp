@@ -17,12 +17,7 @@ std::vector<GiNaC::ex> revolute3_equations(const EquationContext& c) {
   return {d[0], d[1], d[2], dot(global(c, k.i, n.f), axis_j), dot(global(c, k.i, n.g), axis_j)};
 }
 
-BranchConditions revolute3_branch(const EquationContext& c) {
-  using namespace spatial;
-  const auto& k = c.constraint();
-  return {{dot(global(c, k.i, unit_axis(c, "axis_i")), global(c, k.j, unit_axis(c, "axis_j"))),
-           "axis_i . axis_j"}};
-}
+BranchConditions revolute3_branch(const EquationContext& c) { return {spatial::axes_aligned(c)}; }
 
 std::string revolute3_row(const Constraint& c, int component) {
   return component < 3    ? spatial::xyz_row(c, component)

@@ -39,9 +39,7 @@ BranchConditions translational3_branch(const EquationContext& c) {
   const auto& k = c.constraint();
   const auto [ref_i, ref_j] = translational_refs(c);
   // The axes too: a half-turn of j about ref_i keeps every row and ref_j, flipping axis_j.
-  return {{dot(global(c, k.i, unit_axis(c, "axis_i")), global(c, k.j, unit_axis(c, "axis_j"))),
-           "axis_i . axis_j"},
-          {dot(global(c, k.i, ref_i), global(c, k.j, ref_j)), "ref_i . ref_j"}};
+  return {axes_aligned(c), {dot(global(c, k.i, ref_i), global(c, k.j, ref_j)), "ref_i . ref_j"}};
 }
 
 std::string translational3_row(const Constraint&, int component) {
