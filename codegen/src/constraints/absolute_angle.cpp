@@ -5,7 +5,7 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> equations(const EquationContext& c) { return {c.frame_i().phi - c.value()}; }
+std::vector<GiNaC::ex> absolute_angle_equations(const EquationContext& c) { return {c.frame_i().phi - c.value()}; }
 
 }  // namespace
 
@@ -15,7 +15,7 @@ extern const ConstraintKind kAbsoluteAngle{
     .driver = true,
     .keys = {{"body", KeyKind::kBody, true}, {"value", KeyKind::kValue, true}},
     .rows = 1,
-    .equations = equations,
+    .equations = absolute_angle_equations,
 };
 
 }  // namespace kinegen::codegen

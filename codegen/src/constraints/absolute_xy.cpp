@@ -7,7 +7,7 @@ namespace kinegen::codegen {
 namespace {
 
 template <int kAxis>  // 0: x, 1: y
-std::vector<GiNaC::ex> equations(const EquationContext& c) {
+std::vector<GiNaC::ex> absolute_xy_equations(const EquationContext& c) {
   const auto fi = c.frame_i();
   const auto s = EquationContext::rotate(fi.phi, c.vector("s"));
   if constexpr (kAxis == 0) return {fi.x + s.first - c.value()};
@@ -17,7 +17,7 @@ std::vector<GiNaC::ex> equations(const EquationContext& c) {
 // A fixed x (y): the point runs on a guide along global y (x). A driven coordinate moves on
 // purpose: no guide to draw.
 template <int kAxis>
-void draw(const DrawContext& c, Sketch& sketch) {
+void absolute_xy_draw(const DrawContext& c, Sketch& sketch) {
   const Constraint& k = c.constraint;
   const Eigen::Vector2d s = c.vector("s");
   sketch.landmarks.push_back({k.i, s});
@@ -37,8 +37,8 @@ extern const ConstraintKind kAbsoluteX{
              {"s", KeyKind::kOffset, false},
              {"value", KeyKind::kValue, true}},
     .rows = 1,
-    .equations = equations<0>,
-    .draw = draw<0>,
+    .equations = absolute_xy_equations<0>,
+    .draw = absolute_xy_draw<0>,
     .reaction_i = "s",
 };
 
@@ -50,8 +50,8 @@ extern const ConstraintKind kAbsoluteY{
              {"s", KeyKind::kOffset, false},
              {"value", KeyKind::kValue, true}},
     .rows = 1,
-    .equations = equations<1>,
-    .draw = draw<1>,
+    .equations = absolute_xy_equations<1>,
+    .draw = absolute_xy_draw<1>,
     .reaction_i = "s",
 };
 

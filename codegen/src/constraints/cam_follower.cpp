@@ -9,7 +9,7 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> equations(const EquationContext& c) {
+std::vector<GiNaC::ex> cam_follower_equations(const EquationContext& c) {
   const Constraint& k = c.constraint();
   if (k.coordinates.at("coordinate_i") == k.coordinates.at("coordinate_j"))
     c.fail("coordinate_j", "coordinate_i and coordinate_j must be different coordinates");
@@ -23,13 +23,13 @@ std::vector<GiNaC::ex> equations(const EquationContext& c) {
 }
 
 // Both profiles, each on its body.
-void draw(const DrawContext& c, Sketch& sketch) {
+void cam_follower_draw(const DrawContext& c, Sketch& sketch) {
   const Constraint& k = c.constraint;
   sketch.curves.push_back(c.sampled_curve(k.i, "curve_i", "coordinate_i"));
   sketch.curves.push_back(c.sampled_curve(k.j, "curve_j", "coordinate_j"));
 }
 
-std::string row_name(const Constraint&, int component) {
+std::string cam_follower_row_name(const Constraint&, int component) {
   return component == 0 ? "contact x-component"
          : component == 1 ? "contact y-component"
                           : "tangency";
@@ -50,9 +50,9 @@ extern const ConstraintKind kCamFollower{
              {"curve_j", KeyKind::kCurve, true},
              {"coordinate_j", KeyKind::kCoordinate, true}},
     .rows = 3,
-    .equations = equations,
-    .draw = draw,
-    .row_name = row_name,
+    .equations = cam_follower_equations,
+    .draw = cam_follower_draw,
+    .row_name = cam_follower_row_name,
     .normal_force = true,
 };
 

@@ -6,13 +6,13 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> equations(const EquationContext& c) {
+std::vector<GiNaC::ex> distance_equations(const EquationContext& c) {
   const auto d = c.d_ij();
   return {GiNaC::pow(d.first, 2) + GiNaC::pow(d.second, 2) - GiNaC::pow(c.value(), 2)};
 }
 
 // A strut between the two points.
-void draw(const DrawContext& c, Sketch& sketch) {
+void distance_draw(const DrawContext& c, Sketch& sketch) {
   const TwoPoints p = draw_two_points(c, sketch);
   sketch.struts.push_back({p.i, p.j});
 }
@@ -25,8 +25,8 @@ extern const ConstraintKind kDistance = two_point_joint({
     .driver = true,
     .keys = {{"length", KeyKind::kValue, true}},
     .rows = 1,
-    .equations = equations,
-    .draw = draw,
+    .equations = distance_equations,
+    .draw = distance_draw,
     .squared_distance = true,
 });
 

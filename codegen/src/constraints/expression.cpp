@@ -6,9 +6,9 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> equations(const EquationContext& c) { return c.equations(); }
+std::vector<GiNaC::ex> expression_equations(const EquationContext& c) { return c.equations(); }
 
-std::string row_name(const Constraint&, int component) {
+std::string expression_row_name(const Constraint&, int component) {
   return "equations[" + std::to_string(component) + "]";
 }
 
@@ -20,8 +20,8 @@ extern const ConstraintKind kExpression{
     .driver = true,
     .keys = {{"equations", KeyKind::kEquations, true}},
     .rows = 0,  // one per equation
-    .equations = equations,
-    .row_name = row_name,
+    .equations = expression_equations,
+    .row_name = expression_row_name,
     .reaction = false,
     .space = KindSpace::kBoth,  // the coordinates by name, planar or spatial
 };

@@ -6,19 +6,19 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> equations(const EquationContext& c) {
+std::vector<GiNaC::ex> fixed_equations(const EquationContext& c) {
   const auto d = c.d_ij();
   return {d.first, d.second, c.frame_j().phi - c.frame_i().phi - c.value()};
 }
 
 // Both outlines reach the common point, which is marked as a weld.
-void draw(const DrawContext& c, Sketch& sketch) {
+void fixed_draw(const DrawContext& c, Sketch& sketch) {
   const TwoPoints p = draw_two_points(c, sketch);
   sketch.welds.push_back(p.i);
   draw_ground_pivots(p, sketch);
 }
 
-std::string row_name(const Constraint&, int component) {
+std::string fixed_row_name(const Constraint&, int component) {
   return component == 0 ? "x-component" : component == 1 ? "y-component" : "relative angle";
 }
 
@@ -30,9 +30,9 @@ extern const ConstraintKind kFixed = two_point_joint({
     .driver = false,
     .keys = {{"angle", KeyKind::kValue, false}},
     .rows = 3,
-    .equations = equations,
-    .draw = draw,
-    .row_name = row_name,
+    .equations = fixed_equations,
+    .draw = fixed_draw,
+    .row_name = fixed_row_name,
 });
 
 }  // namespace kinegen::codegen

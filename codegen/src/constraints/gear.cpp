@@ -31,7 +31,7 @@ std::pair<ex, ex> radii(const EquationContext& c) {
   return {ri, rj};
 }
 
-std::vector<ex> equations(const EquationContext& c) {
+std::vector<ex> gear_equations(const EquationContext& c) {
   const auto [ri, rj] = radii(c);
   const ex offset = c.scalar("c");
   const ex phi_i = c.frame_i().phi, phi_j = c.frame_j().phi;
@@ -42,7 +42,7 @@ std::vector<ex> equations(const EquationContext& c) {
 }
 
 // The two pitch circles, each with a radius mark that turns with its body.
-void draw(const DrawContext& c, Sketch& sketch) {
+void gear_draw(const DrawContext& c, Sketch& sketch) {
   const TwoPoints p = draw_two_points(c, sketch);
   sketch.pitch_circles.push_back({p.i, c.scalar("ri")});
   sketch.pitch_circles.push_back({p.j, c.scalar("rj")});
@@ -97,8 +97,8 @@ extern const ConstraintKind kGear = two_point_joint({
              {"internal", KeyKind::kFlag, false, "false"},
              {"c", KeyKind::kScalar, false}},
     .rows = 1,
-    .equations = equations,
-    .draw = draw,
+    .equations = gear_equations,
+    .draw = gear_draw,
     .assembly_warning = assembly_warning,
 });
 

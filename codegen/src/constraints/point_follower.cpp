@@ -7,7 +7,7 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> equations(const EquationContext& c) {
+std::vector<GiNaC::ex> point_follower_equations(const EquationContext& c) {
   const auto fi = c.frame_i(), fj = c.frame_j();
   const auto on_i = EquationContext::rotate(fi.phi, c.curve("curve", "coordinate"));
   const auto on_j = EquationContext::rotate(fj.phi, c.vector("sj"));
@@ -15,7 +15,7 @@ std::vector<GiNaC::ex> equations(const EquationContext& c) {
 }
 
 // The slot on body i and the pin on body j.
-void draw(const DrawContext& c, Sketch& sketch) {
+void point_follower_draw(const DrawContext& c, Sketch& sketch) {
   const Constraint& k = c.constraint;
   const Eigen::Vector2d sj = c.vector("sj");
   sketch.landmarks.push_back({k.j, sj});
@@ -24,7 +24,7 @@ void draw(const DrawContext& c, Sketch& sketch) {
   sketch.curves.push_back(c.sampled_curve(k.i, "curve", "coordinate"));
 }
 
-std::string row_name(const Constraint&, int component) {
+std::string point_follower_row_name(const Constraint&, int component) {
   return component == 0 ? "x-component" : "y-component";
 }
 
@@ -42,9 +42,9 @@ extern const ConstraintKind kPointFollower{
              {"j", KeyKind::kBodyOrGround, true},
              {"sj", KeyKind::kOffset, false}},
     .rows = 2,
-    .equations = equations,
-    .draw = draw,
-    .row_name = row_name,
+    .equations = point_follower_equations,
+    .draw = point_follower_draw,
+    .row_name = point_follower_row_name,
     .reaction_i = nullptr,
     .reaction_j = "sj",
 };

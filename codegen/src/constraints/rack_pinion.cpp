@@ -11,7 +11,7 @@ namespace {
 
 using GiNaC::ex;
 
-std::vector<ex> equations(const EquationContext& c) {
+std::vector<ex> rack_pinion_equations(const EquationContext& c) {
   const ex rj = c.scalar("rj");
   if (!(c.number(rj) > 0)) c.fail("rj", "rj (the pinion's pitch radius) must be > 0");
   const auto d = c.d_ij();
@@ -24,13 +24,13 @@ std::vector<ex> equations(const EquationContext& c) {
 }
 
 // The pinion's pitch circle and the rack's pitch line along the pinion's travel.
-void draw(const DrawContext& c, Sketch& sketch) {
+void rack_pinion_draw(const DrawContext& c, Sketch& sketch) {
   const TwoPoints p = draw_two_points(c, sketch);
   sketch.pitch_circles.push_back({p.j, c.scalar("rj")});
   sketch.pitch_lines.push_back({p.j, p.i.body, p.i.s, unit_direction(c, "vi")});
 }
 
-std::string row_name(const Constraint&, int component) {
+std::string rack_pinion_row_name(const Constraint&, int component) {
   return component == 0 ? "distance from the pitch line" : "rolling";
 }
 
@@ -44,9 +44,9 @@ extern const ConstraintKind kRackPinion = two_point_joint({
              {"rj", KeyKind::kScalar, true},
              {"c", KeyKind::kScalar, false}},
     .rows = 2,
-    .equations = equations,
-    .draw = draw,
-    .row_name = row_name,
+    .equations = rack_pinion_equations,
+    .draw = rack_pinion_draw,
+    .row_name = rack_pinion_row_name,
 });
 
 }  // namespace kinegen::codegen

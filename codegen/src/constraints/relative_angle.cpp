@@ -5,7 +5,7 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> equations(const EquationContext& c) {
+std::vector<GiNaC::ex> relative_angle_equations(const EquationContext& c) {
   return {c.frame_j().phi - c.frame_i().phi - c.value()};
 }
 
@@ -19,7 +19,7 @@ extern const ConstraintKind kRelativeAngle{
              {"j", KeyKind::kBodyOrGround, true},
              {"value", KeyKind::kValue, true}},
     .rows = 1,
-    .equations = equations,
+    .equations = relative_angle_equations,
 };
 
 }  // namespace kinegen::codegen

@@ -5,18 +5,18 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> equations(const EquationContext& c) {
+std::vector<GiNaC::ex> revolute_equations(const EquationContext& c) {
   const auto d = c.d_ij();
   return {d.first, d.second};
 }
 
-void draw(const DrawContext& c, Sketch& sketch) {
+void revolute_draw(const DrawContext& c, Sketch& sketch) {
   const TwoPoints p = draw_two_points(c, sketch);
   sketch.pins.push_back(p.i);
   draw_ground_pivots(p, sketch);
 }
 
-std::string row_name(const Constraint&, int component) {
+std::string revolute_row_name(const Constraint&, int component) {
   return component == 0 ? "x-component" : "y-component";
 }
 
@@ -28,9 +28,9 @@ extern const ConstraintKind kRevolute = two_point_joint({
     .driver = false,
     .keys = {},  // i, j, si, sj only
     .rows = 2,
-    .equations = equations,
-    .draw = draw,
-    .row_name = row_name,
+    .equations = revolute_equations,
+    .draw = revolute_draw,
+    .row_name = revolute_row_name,
 });
 
 }  // namespace kinegen::codegen

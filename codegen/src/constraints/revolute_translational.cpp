@@ -6,10 +6,10 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> equations(const EquationContext& c) { return {c.perpendicular(c.d_ij())}; }
+std::vector<GiNaC::ex> revolute_translational_equations(const EquationContext& c) { return {c.perpendicular(c.d_ij())}; }
 
 // A block sliding on a guide fixed in body i (a slot when i moves).
-void draw(const DrawContext& c, Sketch& sketch) {
+void revolute_translational_draw(const DrawContext& c, Sketch& sketch) {
   const TwoPoints p = draw_two_points(c, sketch);
   sketch.sliders.push_back({p.j, p.i.body, p.i.s, unit_direction(c, "vi")});
 }
@@ -22,8 +22,8 @@ extern const ConstraintKind kRevoluteTranslational = two_point_joint({
     .driver = false,
     .keys = {{"vi", KeyKind::kDirection, true}},
     .rows = 1,
-    .equations = equations,
-    .draw = draw,
+    .equations = revolute_translational_equations,
+    .draw = revolute_translational_draw,
 });
 
 }  // namespace kinegen::codegen

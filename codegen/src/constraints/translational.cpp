@@ -6,18 +6,18 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<GiNaC::ex> equations(const EquationContext& c) {
+std::vector<GiNaC::ex> translational_equations(const EquationContext& c) {
   const auto d = c.d_ij();
   return {c.perpendicular(d), c.frame_j().phi - c.frame_i().phi - c.value()};
 }
 
 // A block sliding on a guide fixed in body i (a slot when i moves).
-void draw(const DrawContext& c, Sketch& sketch) {
+void translational_draw(const DrawContext& c, Sketch& sketch) {
   const TwoPoints p = draw_two_points(c, sketch);
   sketch.sliders.push_back({p.j, p.i.body, p.i.s, unit_direction(c, "vi")});
 }
 
-std::string row_name(const Constraint&, int component) {
+std::string translational_row_name(const Constraint&, int component) {
   return component == 0 ? "normal offset" : "relative angle";
 }
 
@@ -29,9 +29,9 @@ extern const ConstraintKind kTranslational = two_point_joint({
     .driver = false,
     .keys = {{"vi", KeyKind::kDirection, true}, {"angle", KeyKind::kValue, false}},
     .rows = 2,
-    .equations = equations,
-    .draw = draw,
-    .row_name = row_name,
+    .equations = translational_equations,
+    .draw = translational_draw,
+    .row_name = translational_row_name,
 });
 
 }  // namespace kinegen::codegen
