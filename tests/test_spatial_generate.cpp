@@ -17,6 +17,7 @@
 
 #include "spatial_all_types.hpp"
 #include "spatial_slider_crank.hpp"
+#include "support/files.hpp"
 #include "support/run_command.hpp"
 
 namespace {
@@ -234,6 +235,23 @@ TEST_CASE("spatial generate: phi_q against the complex step of phi", "[spatial][
   STATIC_REQUIRE(AllTypes::nq == 21);
   STATIC_REQUIRE(Crank::nq == 21);
   STATIC_REQUIRE(Crank::nc == 21);
+}
+
+TEST_CASE("spatial generate: a model named like a spatial header's member is refused",
+          "[spatial][generate]") {
+  // A struct continued_rows cannot have the member continued_rows (the drivers' rows).
+  std::string text = kinegen::test::read_text(mechanism("spatial_slider_crank"));
+  const std::string name = "name: spatial_slider_crank";
+  text.replace(text.find(name), name.size(), "name: continued_rows");
+  const auto dir = kinegen::test::scratch_dir("spatial_generate", "member_name");
+  kinegen::test::write_text(dir / "crank.yaml", text);
+  const auto r = kinegen::test::run_command(
+      {KINEGEN_EXE, "generate", (dir / "crank.yaml").string(), "-o", (dir / "out").string()});
+  INFO(r.err);
+  CHECK(r.exit_code == 2);
+  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  CHECK(r.err.find("continued_rows") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(dir / "out" / "continued_rows.hpp"));
 }
 
 }  // namespace
