@@ -237,6 +237,23 @@ TEST_CASE("spatial generate: phi_q against the complex step of phi", "[spatial][
   STATIC_REQUIRE(Crank::nc == 21);
 }
 
+TEST_CASE("spatial generate: the header's sensitivity to omega against the closed form",
+          "[spatial][generate]") {
+  // x(omega t): dx/domega = x'(theta) t.
+  kinegen::Solver<Crank> solver;
+  auto q = solver.initial_estimate();
+  const double t = 0.5, th = kOmega * t;
+  REQUIRE(solver.position(q, t));
+  STATIC_REQUIRE(Crank::num_params == 1);
+  double dq_dp[Crank::nq];
+  REQUIRE(
+      Crank::solve_sensitivity(q.data(), t, Crank::Params{}, dq_dp, Crank::BlockOptions{}).status ==
+      0);
+  const double y = 0.1 - 0.08 * std::sin(th), z = 0.12 + 0.08 * std::cos(th);
+  const double du = -2 * (y * -0.08 * std::cos(th) + z * -0.08 * std::sin(th));
+  CHECK(std::abs(dq_dp[kSliderX] - du / (2 * slider_x(th)) * t) < 1e-12);
+}
+
 TEST_CASE("spatial generate: a model named like a spatial header's member is refused",
           "[spatial][generate]") {
   // A struct continued_rows cannot have the member continued_rows (the drivers' rows).
