@@ -216,7 +216,6 @@ TEST_CASE("spatial: commands without spatial support refuse a spatial file, exit
     return args;
   };
   const std::vector<std::vector<std::string>> commands = {
-      {"generate", file, "-o", out.string()},
       with_run({"simulate", file}),
       {"equilibrium", file},
       {"modes", file},

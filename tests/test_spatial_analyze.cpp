@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <sstream>
 #include <string>
@@ -38,7 +39,9 @@ std::map<std::string, std::vector<double>> columns(const std::string& csv) {
   while (std::getline(in, line)) {
     std::istringstream row(line);
     std::size_t k = 0;
-    for (std::string v; std::getline(row, v, ','); ++k) out[names.at(k)].push_back(std::stod(v));
+    // strtod: a subnormal value (the noise of a coordinate that is 0) is a value too.
+    for (std::string v; std::getline(row, v, ','); ++k)
+      out[names.at(k)].push_back(std::strtod(v.c_str(), nullptr));
   }
   return out;
 }

@@ -13,6 +13,7 @@
 #include "four_bar.hpp"
 #include "quick_return.hpp"
 #include "slider_crank.hpp"
+#include "spatial_slider_crank.hpp"
 #include <kinegen/simulator.hpp>
 #include <kinegen/solver.hpp>
 
@@ -87,5 +88,22 @@ TEST_CASE("Simulator and dynamics_jacobians allocate nothing", "[runtime][alloc]
     ++steps;
   }
   CHECK(steps == 500);
+  CHECK(g_allocations.load() - before == 0);
+}
+
+// A spatial header's first solve (the drivers' continuation from the q0 pose, on the stack) and
+// its steps with the branch checks.
+TEST_CASE("A spatial Solver allocates nothing after construction", "[runtime][alloc]") {
+  using M = kinegen::models::spatial_slider_crank;
+  kinegen::Solver<M> solver;
+  auto q = solver.initial_estimate();
+  decltype(q) qd = decltype(q)::Zero(), qdd = decltype(q)::Zero();
+  const long before = g_allocations.load();
+  int solved = 0;
+  for (int k = 0; k <= 200; ++k) {
+    if (!solver.step(0.3 + 0.005 * k, q, qd, qdd)) break;
+    ++solved;
+  }
+  CHECK(solved == 201);
   CHECK(g_allocations.load() - before == 0);
 }

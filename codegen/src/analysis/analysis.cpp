@@ -273,6 +273,7 @@ class TimeLoop {
       r.status = Status::kSingular;
       fail("position", t, r);
     }
+    if (spatial_) spatial_->check_branches(row_.q, t);
     return true;
   }
 
@@ -472,10 +473,10 @@ void run_analysis(const CompiledModel& model, const TimeGrid& grid,
                   const AnalysisOptions& options) {
   require_driven(model);
   std::unique_ptr<BlockInterpreter> blocks;
-  // Spatial files take the dense Newton path: the block program's trig cache and tearing are
-  // planar so far.
+  // Spatial files run on the block program as their generated headers do, but never on the
+  // sparse solver (their first solve's continuation is SpatialAnalysis's, on the dense one).
   const bool spatial = model.mechanism().spatial;
-  if (!spatial && options.block_solver && model.nq() == model.nc() &&
+  if (options.block_solver && model.nq() == model.nc() &&
       BlockInterpreter::supported(model.structure()))
     blocks = std::make_unique<BlockInterpreter>(model);
   if (!spatial && model.nq() == model.nc() && model.nq() > options.sparse_above_nq) {

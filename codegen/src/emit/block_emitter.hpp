@@ -54,6 +54,8 @@ class BlockEmitter {
   void emit_step(std::ostringstream& os);
   // solve_step keeps its factors for solve_forces (StepFactors, emit_step_factors).
   void keep_step_factors() { step_factors_ = true; }
+  // solve_position and solve_step check the branch conditions (_branches_hold) at the solved q.
+  void check_branches() { branches_ = true; }
   // StepFactors and the tables _block_transposed_reusing reads (kernels/block_linear.hpp):
   // where each block's factors are, whether solve_step keeps them (not in a repeated block's
   // function), and each torn block's rows and coordinates in the
@@ -121,6 +123,8 @@ class BlockEmitter {
   void finite_check(std::ostringstream& os, const char* v) {
     os << kIn << "if (!_all_finite<nq>(" << v
        << ")) return _fail(report, _kStatusNonFinite, -1);\n";
+    if (branches_ && std::string(v) == "q")
+      os << kIn << "if (!_branches_hold(q, t, p)) return _fail(report, _kStatusBranchJump, -1);\n";
   }
   // Blocks [b0, b1).
   void position_body(std::ostringstream& os, FunctionPrinter& pr, int b0, int b1);
@@ -345,6 +349,7 @@ class BlockEmitter {
   bool step_mode_ = false;     // emitting solve_step (motion terms follow position)
   bool motion_trig_ = false;   // the motion being emitted has the trig cache
   bool step_factors_ = false;  // solve_step takes StepFactors (the header has forces)
+  bool branches_ = false;      // spatial files: the branch conditions after a position solve
   bool saving_ = false;        // emitting solve_step's rates: keep the factors
   // sin and cos of a coordinate are declared where first read (not where it is solved): with
   // repeated blocks, whose functions solve coordinates the caller reads.

@@ -399,6 +399,7 @@ BlockSolverPrinter::BlockSolverPrinter(const SymbolicModel& model, const SymbolT
 BlockSolverPrinter::~BlockSolverPrinter() = default;
 int BlockSolverPrinter::trig_cache_size() const { return impl_->trig_cache_size(); }
 void BlockSolverPrinter::keep_step_factors() { impl_->keep_step_factors(); }
+void BlockSolverPrinter::check_branches() { impl_->check_branches(); }
 void BlockSolverPrinter::emit_step_factors(std::ostringstream& os) const {
   impl_->emit_step_factors(os);
 }

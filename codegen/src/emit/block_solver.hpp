@@ -25,6 +25,8 @@ class BlockSolverPrinter {
   int trig_cache_size() const;
   // solve_step keeps its factors for solve_forces (a header with forces).
   void keep_step_factors();
+  // solve_position and solve_step check _branches_hold at the solved q (spatial files).
+  void check_branches();
   void emit_step_factors(std::ostringstream& os) const;
   void emit_position(std::ostringstream& os);
   void emit_motion(std::ostringstream& os, bool velocity, bool acceleration);

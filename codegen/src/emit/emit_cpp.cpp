@@ -36,13 +36,15 @@ namespace {
 // The block-solver kernels (runtime/include/kinegen/kernels/, embedded at build time) that
 // `code` calls, with those they call, in dependency order: each pasted unchanged between marker
 // comments (tests/test_kernels.cpp compares them with the files).
-void emit_kernels(std::ostringstream& os, const std::string& code) {
+// with_linear: the block-linear kernels even where `code` calls none (a spatial file's first
+// solve runs on them: kinegen/driver_continuation.hpp).
+void emit_kernels(std::ostringstream& os, const std::string& code, bool with_linear) {
   const auto calls = [&](const char* name) { return code.find(name) != std::string::npos; };
   const bool trig = calls("_trig(");
   const bool rotation = trig || calls("_rotate(");
   const bool lu = calls("_lu_factor<") || calls("_sdirk2_step<");
   const bool newton = calls("_newton_end(");
-  const bool linear = calls("_block_forward<") || calls("_block_transposed<") ||
+  const bool linear = with_linear || calls("_block_forward<") || calls("_block_transposed<") ||
                       calls("_block_transposed_reusing<");
   const bool tangent = calls("_dynamics_tangent<");
   const bool dynamics = tangent || calls("_reduced_accelerations(");
@@ -257,7 +259,10 @@ void emit_banner(std::ostringstream& os, const Mechanism& m, const EmitOptions& 
     os << "// Parameters folded into constants (--fold-params): Params is kept for the same "
           "API, but its members are ignored.\n";
   os << "//\n"
-     << "// Planar Cartesian kinematics of mechanism '" << m.name << "': Phi(q, t) = 0 with\n"
+     << (m.spatial ? "// Spatial Cartesian kinematics (Euler parameters, one normalization row per "
+                     "body)\n// of mechanism '"
+                   : "// Planar Cartesian kinematics of mechanism '")
+     << m.name << "': Phi(q, t) = 0 with\n"
      << "// nu = -Phi_t and gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt.\n"
      << "#pragma once\n\n#include <algorithm>\n#include <array>\n#include <cmath>\n#include "
         "<cstring>\n#include <limits>\n#include <type_traits>\n#include <utility>\n\n"
@@ -270,10 +275,11 @@ void emit_model_tables(std::ostringstream& os, const Mechanism& m, const SymbolT
                        const SymbolicModel& model, const ModelPrograms& programs) {
   os << "// Coordinates:";
   // A line per body, then one for the extra coordinates.
-  const int body_coordinates = 3 * static_cast<int>(m.bodies.size());
+  const int per_body = m.spatial ? 7 : 3;
+  const int body_coordinates = per_body * static_cast<int>(m.bodies.size());
   for (int k = 0; k < programs.nq; ++k)
-    os << ((k < body_coordinates ? k % 3 == 0 : k == body_coordinates) ? "\n//  " : ",") << " q["
-       << k << "] = " << symbols.coord_name(k);
+    os << ((k < body_coordinates ? k % per_body == 0 : k == body_coordinates) ? "\n//  " : ",")
+       << " q[" << k << "] = " << symbols.coord_name(k);
   os << "\n// Constraint rows:\n";
   for (int r = 0; r < programs.nc; ++r) {
     const Constraint* c = model.rows[r].constraint;
@@ -409,6 +415,20 @@ void emit_output_flags(std::ostringstream& os, const EmitOptions& options) {
   os << "  static constexpr bool has_acceleration = " << (acceleration ? "true" : "false") << ";\n";
 }
 
+// The coordinates Newton iterates (num_newton_coordinates, newton_coordinates).
+void emit_newton_coordinates(std::ostringstream& os, const Structure& st) {
+  std::vector<std::string> iterated;
+  for (const BlockPlan& plan : st.plans)
+    if (plan.kind == BlockKind::kNewton)
+      for (int c : plan.torn() ? plan.tears : plan.block.cols) iterated.push_back(idx(c));
+  os << "  // The coordinates Newton iterates; the block solver computes the others from them, "
+        "so\n"
+     << "  // only these need a good start (a predictor).\n"
+     << "  static constexpr int num_newton_coordinates = " << iterated.size() << ";\n"
+     << "  static constexpr std::array<int, num_newton_coordinates> newton_coordinates = {"
+     << join(iterated) << "};\n";
+}
+
 // The block solver: its structure constants; then the tables the linear solves read, the kernels
 // that the functions below call and nothing else, the sin/cos cache type, and the functions:
 // the step's factors, the block functions printed from the solver plan, and the linear solves
@@ -432,19 +452,14 @@ void emit_block_solver(std::ostringstream& os, const CompiledModel& compiled, co
     os << "  // The largest system a Newton iteration solves (torn blocks: their tear "
           "variables).\n";
     os << "  static constexpr int max_newton_size = " << st.largest_newton() << ";\n";
-    std::vector<std::string> iterated;
-    for (const BlockPlan& plan : st.plans)
-      if (plan.kind == BlockKind::kNewton)
-        for (int c : plan.torn() ? plan.tears : plan.block.cols) iterated.push_back(idx(c));
-    os << "  // The coordinates Newton iterates; the block solver computes the others from them, "
-          "so\n"
-       << "  // only these need a good start (a predictor).\n"
-       << "  static constexpr int num_newton_coordinates = " << iterated.size() << ";\n"
-       << "  static constexpr std::array<int, num_newton_coordinates> newton_coordinates = {"
-       << join(iterated) << "};\n";
+    emit_newton_coordinates(os, st);
     const SolverPlan plan = plan_block_solver(model, symbols, st, compiled.block_program(),
                                               options.max_function_ops, options.roll_min);
     BlockSolverPrinter blocks(model, symbols, plan);
+    // Spatial files: every solve checks its branch, and the first solve's continuation runs
+    // on the block-linear kernels and tables.
+    const bool spatial_first = m.spatial && linear_blocks_supported(st);
+    if (m.spatial) blocks.check_branches();
     os << "  // Values in the optional sin/cos cache of solve_position and solve_step (3 per\n"
        << "  // coordinate whose sin or cos the model uses).\n"
        << "  static constexpr int trig_cache_size = " << blocks.trig_cache_size() << ";\n\n";
@@ -480,11 +495,11 @@ void emit_block_solver(std::ostringstream& os, const CompiledModel& compiled, co
     }
     blocks.emit_rolls(code, velocity, acceleration);
     // The tables only where a function reads them (folded headers say has_sensitivity = false).
-    if (linear_code.find("_block_forward<") != std::string::npos ||
+    if (spatial_first || linear_code.find("_block_forward<") != std::string::npos ||
         linear_code.find("_block_transposed_reusing<") != std::string::npos)
       emit_structure_tables(os, m.name, st, compiled.programs());
     code << linear_code;
-    emit_kernels(os, code.str());
+    emit_kernels(os, code.str(), spatial_first);
     if (code.str().find("_trig(") != std::string::npos)
       os << "  // The sin/cos cache, constructed empty: `TrigCache<double> cache;` then "
             "cache.data().\n"
@@ -517,6 +532,7 @@ std::string emit_header(const CompiledModel& compiled, const EmitOptions& option
   emit_constraint_functions(os, symbols, model, programs, options);
   if (programs.num_outputs > 0) emit_outputs(os, m, symbols, programs, options.max_function_ops);
   emit_output_flags(os, options);
+  if (m.spatial) emit_spatial(os, compiled, options);
   emit_block_solver(os, compiled, st, options);
   os << "};\n\n}  // namespace " << options.name_space << "\n";
   return with_input_members(with_expression_kernels(os.str(), expression_kernels_at), m);

@@ -35,6 +35,9 @@ const std::vector<std::string> kHeaderMembers = {
     // the structure tables of the linear block solves (emit_structure_tables)
     "block_begin", "block_rows", "block_cols", "coordinate_block", "coordinate_slot",
     "jac_row_begin", "block_factor_begin",
+    // spatial files: branch conditions and the drivers' continuation (emit_spatial)
+    "num_branches", "num_continued", "continued_rows", "continued_steps", "continued_first",
+    "continued_count",
     // forward dynamics (emit_dynamics)
     "has_dynamics", "nf", "num_bodies", "free_names", "free_rows", "free_distance", "free_scale",
     "DynamicsWork", "dynamics", "has_dynamics_jacobians", "num_inputs", "input_names", "JacobianWork",

@@ -24,6 +24,11 @@ void emit_sensitivity(std::ostringstream& os, const CompiledModel& compiled,
 void emit_forces(std::ostringstream& os, const CompiledModel& compiled, const EmitOptions& options,
                  const std::vector<int>& trig_slot);
 
+// A spatial file's branch conditions and its drivers' rows by value for the first solve
+// (emit_spatial.cpp).
+void emit_spatial(std::ostringstream& os, const CompiledModel& compiled,
+                  const EmitOptions& options);
+
 // What emit_dynamics prints from: the force model and mass_at[b], where body b's m, J and A
 // com start in _force_geometry's output of geometry_size values (-1: no mass).
 struct DynamicsSource {

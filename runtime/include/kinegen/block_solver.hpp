@@ -10,6 +10,7 @@
 #include <type_traits>
 
 #include "kinegen/block_options.hpp"
+#include "kinegen/driver_continuation.hpp"
 #include "kinegen/motion.hpp"
 #include "kinegen/solver.hpp"
 
@@ -96,12 +97,6 @@ template <class Model, class Scalar>
 struct StepFactorsOf<Model, Scalar, true> {
   using type = typename Model::template StepFactors<Scalar>;
 };
-// Whether the header has the block-linear kernels with all blocks' factors kept
-// (block_factor_begin), on which the first solve's continuation runs.
-template <class Model, class = void>
-struct HasBlockFactors : std::false_type {};
-template <class Model>
-struct HasBlockFactors<Model, std::void_t<decltype(Model::block_factor_begin)>> : std::true_type {};
 template <class Model, class = void>
 struct NumForceColumns : std::integral_constant<int, 1> {};
 template <class Model>
@@ -212,6 +207,8 @@ class Solver {
       return r;
     } else {
       Result r = assembled_ ? dense_.position(q, t) : dense_.first_position(q, t);
+      if (r && !detail::branches_hold<Model>(q.data(), t, dense_.system().params()))
+        r.status = Status::kBranchJump;  // a spatial header's branch conditions
       if (r) assembled_ = true;
       return r;
     }
@@ -446,16 +443,18 @@ class Solver {
   }
   static constexpr double kTurn = 6.283185307179586;
 
-  // The first solve's continuation (detail::first_position on the dense path), on the
-  // header's block-linear kernels: Newton on Phi(q, t) = (1 - s) Phi(q_given, t), s = 1/n ..
-  // 1, each step from the last; every block's determinant sign is held to its sign at the
-  // first step's solution (a rough q0 is no assembly; that solution is) and every angle to
-  // within half a turn of the step before (Status::kBranchJump).
-  // Success leaves q at the solution for t, which the ordinary solve then refines and checks;
-  // n = 1 (the q given fits) leaves q as it is. Nothing is allocated.
+  // The first solve's continuation (detail::first_position on the dense path; spatial headers
+  // move the drivers' values instead: detail::continue_drivers), on the block-linear kernels:
+  // Newton on Phi(q, t) = (1 - s) Phi(q_given, t), s = 1/n .. 1, each from the last; each block's
+  // determinant sign held to the first step's solution's and every angle within half a turn of
+  // the step before (Status::kBranchJump). Success leaves q at t's solution, which the ordinary
+  // solve refines and checks (n = 1: q unchanged). Nothing is allocated.
   Result continue_first(Vector& q, Scalar t) {
     Result r;
-    if constexpr (detail::HasBlockFactors<Model>::value) {
+    if constexpr (detail::HasContinuedDrivers<Model>::value) {  // spatial: by the drivers' values
+      return detail::continue_drivers<Model>(q, t, dense_.system().params(), dense_.options(),
+                                             block_options());
+    } else if constexpr (detail::HasBlockFactors<Model>::value) {
       using R = typename Eigen::NumTraits<Scalar>::Real;
       using std::abs;
       constexpr int kNq = Model::nq, kNc = Model::nc, kBlocks = Model::num_blocks;
