@@ -141,6 +141,33 @@ test('spatial slider-crank analysed by view itself: the values of analyze\'s CSV
   }
 });
 
+test('a run with wheel_travel: the first plots are against it, the suspension\'s outputs first',
+     async () => {
+  // The slider-crank's CSV with two columns a suspension's run has (docs/format.md, view):
+  // wheel_travel increasing over the run, and toe.
+  const dir = scratch('space-travel');
+  const csv = path.join(dir, 'crank.csv'), html = path.join(dir, 'crank.html');
+  const r = kinegen('analyze', CRANK, '--t0', '0', '--t1', '1', '--steps', '20', '-o', csv);
+  assert.equal(r.code, 0, r.err);
+  const lines = fs.readFileSync(csv, 'utf8').trimEnd().split('\n');
+  fs.writeFileSync(csv, lines.map((l, k) => l + (k === 0 ? ',toe,wheel_travel'
+    : ',' + (0.001 * k) + ',' + (0.005 * k - 0.05))).join('\n') + '\n');
+  assert.equal(kinegen('view', CRANK, '--csv', csv, '-o', html).code, 0);
+  const { page, log, close } = await open(html);
+  try {
+    clean(log);
+    const got = await page.evaluate(() => ({
+      x: document.getElementById('kg-x').selectedOptions[0].textContent,
+      plots: window.kinegen.plots.map((p) =>
+        [window.kinegen.run.names[p.xc], p.ycs.map((c) => window.kinegen.run.names[c])]) }));
+    assert.equal(got.x, 'wheel_travel');
+    assert.deepEqual(got.plots[0], ['wheel_travel', ['toe']]);
+    assert.equal(got.plots[1][0], 'wheel_travel');
+  } finally {
+    await close();
+  }
+});
+
 test('a planar page carries no three.js; a spatial one carries it once', () => {
   const dir = scratch('space-size');
   const planar = path.join(dir, 'four_bar.html'), spatial = path.join(dir, 'crank.html');
