@@ -221,7 +221,6 @@ TEST_CASE("spatial: commands without spatial support refuse a spatial file, exit
       {"modes", file},
       {"linearize", file},
       with_run({"tolerance", file, "--tol", "omega=0.1"}),
-      with_run({"view", file, "-o", (out / "v.html").string()}),
       with_run({"animate", file, "-o", (out / "a.svg").string()}),
   };
   for (const auto& args : commands) {

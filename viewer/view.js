@@ -227,6 +227,27 @@
     plots.push(new Plot(xc, ycs));
   }
 
+  // The x of the first plots: t, or a spatial run's wheel_travel where it has one that
+  // increases (a suspension's outputs read best against the travel).
+  function defaultX() {
+    const travel = run.names.indexOf('wheel_travel');
+    return data.space === '3d' && travel >= 0 && increasing(run.column(travel)) ? travel
+      : run.time;
+  }
+
+  // A spatial run's first plots: the suspension's outputs where it has them, else the bodies'
+  // x, y, z that change; and the named points'.
+  function spacePlots(moves) {
+    const x = defaultX(), find = (n) => run.names.indexOf(n);
+    const suspension = ['toe', 'camber', 'caster', 'kpi', 'scrub_radius', 'trail',
+                        'track_change'].map(find).filter((c) => c >= 0 && c !== x);
+    if (suspension.length) addPlot(x, suspension);
+    else addPlot(x, data.scene.bodies.flatMap((b) => ['.x', '.y', '.z'].map((s) => find(b.name + s)))
+      .filter((c) => c >= 0 && moves(c)).slice(0, 8));
+    addPlot(x, data.scene.points.flatMap((p) => ['.x', '.y', '.z'].map((s) => find(p.name + s)))
+      .filter((c) => c >= 0).slice(0, 8));
+  }
+
   // The first plots: the bodies' angles, and the named points' or the force columns.
   function defaultPlots() {
     const names = run.names, find = (n) => names.indexOf(n);
@@ -246,6 +267,7 @@
       for (let k = 1; k < a.length; k++) if (a[k] !== a[0]) return true;
       return false;
     };
+    if (data.space === '3d') return spacePlots(moves);
     const of = (suffixes) => data.scene.bodies.flatMap((b) => suffixes.map((s) => find(b.name + s)))
       .filter((c) => c >= 0 && moves(c));
     const angles = of(['.phi']);
@@ -267,7 +289,7 @@
       ys.appendChild(o);
       if (c === run.time || looksIncreasing(run.column(c))) xs.appendChild(o.cloneNode(true));
     });
-    xs.value = run.time;
+    xs.value = defaultX();
     $('kg-filter').addEventListener('input', () => {
       const f = $('kg-filter').value.toLowerCase();
       for (const o of ys.options) o.hidden = f !== '' && !o.textContent.toLowerCase().includes(f);
@@ -313,9 +335,11 @@
       note('A long run: ' + data.total_rows + ' rows, of which the page keeps one in ' +
            data.stride + ' and the last (' + run.n + ' rows). Each value shown is the run\'s own ' +
            'at that row; kinegen view --max-rows keeps more.');
-    drawing = new K.Drawing(data, $('kg-drawing-box'));
+    // A spatial run is drawn in 3D (space.js, with three.js: only spatial pages have them).
+    drawing = data.space === '3d' ? await window.KinegenSpace.create(data, $('kg-drawing-box'))
+      : new K.Drawing(data, $('kg-drawing-box'));
     drawing.build(run, Math.max(1, Math.ceil(run.n / kPathPoints)));
-    hookHover(drawing.svg);
+    if (drawing.svg) hookHover(drawing.svg);
     const slider = $('kg-slider');
     slider.max = run.n - 1;
     slider.addEventListener('input', () => setRow(+slider.value, 'slider'));
@@ -332,7 +356,8 @@
     defaultPlots();
     if (data.modes) modesForm();
     window.kinegen = { data, get run() { return run; }, get row() { return row; }, setRow,
-                       plots, play, ready: true, loadMs: performance.now() };
+                       plots, play, ready: true, loadMs: performance.now(),
+                       space: data.space === '3d' ? drawing : undefined };
   }
 
   main().catch((e) => {

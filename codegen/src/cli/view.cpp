@@ -40,6 +40,11 @@ int run_view(const Common& c, const ViewArgs& o) {
   kc::BuildOptions build;
   build.free_as_state = !grid;
   const auto model = load(c, build);
+  if (model->mechanism().spatial && (!o.modes.empty() || o.forces))
+    throw kc::InputError(c.file, "space", model->mechanism().space_loc,
+                         std::string("spatial files (space: 3d) are not supported by `kinegen "
+                                     "view ") +
+                             (o.forces ? "--forces" : "--modes") + "` yet");
   kc::ViewOptions options;
   options.width = o.width;
   std::string html;

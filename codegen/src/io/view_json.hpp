@@ -1,5 +1,5 @@
-// The pieces of `kinegen view`'s page that its files share (view_page.cpp, view_scene.cpp):
-// a small JSON writer and the scene of the drawing.
+// The pieces of `kinegen view`'s page that its files share (view_page.cpp, view_scene.cpp,
+// view_space.cpp): a small JSON writer and the scene of the drawing.
 #pragma once
 
 #include <Eigen/Core>
@@ -51,5 +51,13 @@ class Columns {
 // run has their columns, reaction arrows; each element with its name and its columns.
 void write_scene(Json& json, const CompiledModel& model, const AnimateDrawing& drawing,
                  const Columns& columns);
+
+// A spatial file's scene (view_space.cpp): the bodies with their columns, every joint's and
+// driver's type, bodies and vector keys (si, sj, axis_i, ...) evaluated, the named points and
+// vectors; the page places each body from its 7 coordinates.
+void write_space_scene(Json& json, const CompiledModel& model, const Columns& columns);
+// The named points' offsets in their bodies, and a point of a body (or ground) at pose q.
+std::vector<Eigen::Vector3d> space_point_offsets(const CompiledModel& model);
+Eigen::Vector3d space_world(const Eigen::VectorXd& q, int body, const Eigen::Vector3d& s);
 
 }  // namespace kinegen::codegen::view

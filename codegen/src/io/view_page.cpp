@@ -103,6 +103,8 @@ void check_matches(const CompiledModel& model, const RunTable& run, const Column
   const int time = columns.find("t");
   ModelEvaluator<double> evaluator(model);
   Eigen::VectorXd phi(model.nc());
+  const auto offsets3 =
+      m.spatial ? view::space_point_offsets(model) : std::vector<Eigen::Vector3d>{};
   for (std::size_t k = 0; k < q.size(); ++k) {
     evaluator.phi(q[k].data(), time >= 0 ? run.values[time][k] : 0.0, phi.data());
     for (int r = 0; r < model.nc(); ++r) {
@@ -114,16 +116,22 @@ void check_matches(const CompiledModel& model, const RunTable& run, const Column
     }
     for (std::size_t p = 0; p < m.points.size(); ++p) {
       const int x = columns.find(m.points[p].name + ".x"),
-                y = columns.find(m.points[p].name + ".y");
-      if (x < 0 || y < 0) continue;
-      const Eigen::Vector2d at = world(q[k], m.points[p].body, model.point_offsets()[p]);
-      const Eigen::Vector2d given(run.values[x][k], run.values[y][k]);
-      if ((at - given).norm() <= tol) continue;
-      throw InputError(run.source, row_name(run, k, time), {},
-                       "point " + m.points[p].name + " is " +
-                           format_number((at - given).norm(), NumberStyle::kShort) +
-                           " away from where the positions put it in " + m.source +
-                           ": other --param values?");
+                y = columns.find(m.points[p].name + ".y"),
+                z = m.spatial ? columns.find(m.points[p].name + ".z") : -2;
+      if (x < 0 || y < 0 || z == -1) continue;
+      double away = 0;
+      if (m.spatial) {
+        const Eigen::Vector3d given(run.values[x][k], run.values[y][k], run.values[z][k]);
+        away = (view::space_world(q[k], m.points[p].body, offsets3[p]) - given).norm();
+      } else {
+        const Eigen::Vector2d given(run.values[x][k], run.values[y][k]);
+        away = (world(q[k], m.points[p].body, model.point_offsets()[p]) - given).norm();
+      }
+      if (away <= tol) continue;
+      throw InputError(
+          run.source, row_name(run, k, time), {},
+          "point " + m.points[p].name + " is " + format_number(away, NumberStyle::kShort) +
+              " away from where the positions put it in " + m.source + ": other --param values?");
     }
   }
 }
@@ -188,20 +196,31 @@ void header(Json& json, const CompiledModel& model, const ViewOptions& options) 
   json.close(']');
 }
 
-std::string page(const std::string& data, const std::string& blob) {
+// A spatial page adds three.js (space.html: its ES modules as text, which the page imports
+// from blob: URLs of its own making, the only scripts its policy then admits besides inline).
+std::string page(const std::string& data, const std::string& blob, bool spatial = false) {
   require_viewer();
   std::string out;
 #ifdef KINEGEN_HAVE_VIEWER
-  out.reserve(data.size() + blob.size() + (1 << 18));
+  out.reserve(data.size() + blob.size() + (spatial ? (1 << 20) : 0) + (1 << 18));
   for (const char* const* part = embedded::kViewerHead; *part; ++part) out += *part;
+  if (spatial) {
+    const std::string policy = "script-src 'unsafe-inline'";
+    const std::size_t at = out.find(policy);
+    if (at == std::string::npos) throw std::logic_error("the page's head lacks its script policy");
+    out.insert(at + policy.size(), " blob:");
+  }
   out += "<script type=\"application/json\" id=\"kinegen-data\">" + data + "</script>\n";
   out += "<script type=\"text/plain\" id=\"kinegen-values\">";
   out += blob;
   out += "</script>\n";
+  if (spatial)
+    for (const char* const* part = embedded::kViewerSpace; *part; ++part) out += *part;
   for (const char* const* part = embedded::kViewerTail; *part; ++part) out += *part;
 #else
   (void)data;
   (void)blob;
+  (void)spatial;
 #endif
   return out;
 }
@@ -232,7 +251,9 @@ std::string view_html(const CompiledModel& model, const RunTable& run, const Vie
   std::vector<int> q_columns;
   std::vector<Eigen::VectorXd> q = positions(model, run, columns, q_columns);
   check_matches(model, run, columns, q);
-  const AnimateDrawing drawing = animate_drawing(model, std::move(q), options.width);
+  const bool spatial = model.mechanism().spatial;
+  const AnimateDrawing drawing =
+      spatial ? AnimateDrawing{} : animate_drawing(model, std::move(q), options.width);
   Json json;
   json.open('{');
   header(json, model, options);
@@ -246,10 +267,13 @@ std::string view_html(const CompiledModel& model, const RunTable& run, const Vie
   json.close(']');
   std::string blob;
   write_values(json, run, blob);
-  json.key("scene").open('{');
-  view::write_scene(json, model, drawing, columns);
+  json.key("space").string(spatial ? "3d" : "2d").key("scene").open('{');
+  if (spatial)
+    view::write_space_scene(json, model, columns);
+  else
+    view::write_scene(json, model, drawing, columns);
   json.close('}').close('}');
-  return page(json.text(), blob);
+  return page(json.text(), blob, spatial);
 }
 
 std::string view_modes_html(const CompiledModel& model, const ModeSet& modes,

@@ -7,10 +7,12 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <set>
 #include <sstream>
 
 #include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/spatial.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/base/read_file.hpp"
@@ -208,12 +210,15 @@ RunTable analysis_table(const CompiledModel& model, const TimeGrid& grid, bool f
   require_kept_rows("view", static_cast<long long>(std::min(run.total_rows, max_rows)),
                     run.columns.size(), "--max-rows");
   run.stride = decimation_stride(run.total_rows, max_rows);
-  // Values as the CSV holds them (csv_row, 17 digits, read back): one column order.
+  // Values as the CSV holds them (csv_row, 17 digits, read back): one column order. Spatial
+  // files' rows carry their angular rates, points and vectors in 3D, as analyze's do.
+  const auto spatial = m.spatial ? std::make_unique<SpatialAnalysis>(model) : nullptr;
   std::vector<double> last;
   std::size_t row = 0;
   bool last_kept = false;
   const auto sink = [&](const StateRow& state) {
-    std::string text = csv_row(state, static_cast<int>(m.bodies.size()));
+    std::string text =
+        spatial ? spatial->csv_row(state) : csv_row(state, static_cast<int>(m.bodies.size()));
     text.pop_back();
     split_fields(text, fields);
     last.resize(fields.size());
