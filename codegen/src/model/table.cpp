@@ -237,6 +237,19 @@ TableCoverage table_coverage(const Mechanism& m) {
   return c;
 }
 
+void check_tables_hold(const Mechanism& m, double t) {
+  for (const Constraint& d : m.drivers) {
+    if (d.law.table_id < 0) continue;
+    const Spline& s = registered_table(d.law.table_id);
+    if (table_covers(s, t)) continue;
+    throw InputError(m.source, d.item + " table", d.law.table_loc,
+                     "table '" + d.law.table + "' does not hold the start, " + format_time(t) +
+                         " (its t runs from " + format_number(s.t.front()) + " to " +
+                         format_number(s.t.back()) +
+                         "; a table is never extrapolated: give it a period or more rows)");
+  }
+}
+
 std::string table_outside(const Mechanism& m, double t) {
   for (const Constraint& d : m.drivers) {
     if (d.law.table_id < 0) continue;

@@ -75,6 +75,9 @@ struct TableCoverage {
 TableCoverage table_coverage(const Mechanism& m);
 // Whether a table holds t: periodic, or t within its knots up to a few ulps of its ends.
 bool table_covers(const Spline& s, double t);
+// InputError naming the first driver whose table does not hold t, the start of a run (its
+// table's line and range): the file's fault, not a free item's value0.
+void check_tables_hold(const Mechanism& m, double t);
 // The driver (its item) whose table does not cover t, with the table's range, or "".
 std::string table_outside(const Mechanism& m, double t);
 
