@@ -1,18 +1,28 @@
 // libFuzzer target: the loader, the expression parser, the symbolic pipeline, the emitter, the
 // kinetostatics and the sensitivities on arbitrary text, then a short run of what the file asks
-// for: four steps of `analyze` (the block program, StepFactors, the Newton policy, sub-steps),
-// or for a file with `free:` a short `simulate` (the reduced dynamics on CVODE). Any input must
-// end in a model and a run, an InputError or an AnalysisError; anything else (a crash, a
-// sanitizer report, another exception, a hang) is a bug.
+// for: four steps of `analyze` (the block program, StepFactors, the Newton policy, sub-steps;
+// spatial files' continuation and branch checks), or for a file with `free:` a short `simulate`
+// (its stop_when, breakpoints, energy bound and force columns) by one of the methods and
+// tolerances, sometimes the high-precision reference, then what `linearize`, `modes` and
+// `equilibrium` do at t0. The run's settings come from a hash of the input, so that mutations
+// reach each of them. Any input must end in a model and a run, an InputError, a UsageError or
+// an AnalysisError; anything else (a crash, a sanitizer report, another exception, a hang) is
+// a bug.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <string>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/equilibrium.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/linearize.hpp"
 #include "kinegen/codegen/analysis/model_evaluator.hpp"
+#include "kinegen/codegen/analysis/reference_dynamics.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "kinegen/codegen/analysis/simulate.hpp"
+#include "kinegen/codegen/analysis/tangent.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
 
@@ -21,17 +31,36 @@ namespace kc = kinegen::codegen;
 namespace {
 
 // A short run, bounded in work: 4 analysis steps, or 0.1 s of simulated motion with at most
-// 2000 integrator steps.
-void run(const kc::CompiledModel& model) {
+// 2000 integrator steps (the reference: 0.01 s, 200 steps), then the linear analyses at t0.
+// `choice` (a hash of the input) picks the method, the integrator, the tolerances, the force
+// columns and, once in 16, the reference.
+void run(const kc::CompiledModel& model, unsigned choice) {
   if (model.mechanism().num_free() == 0) {
-    kc::run_analysis(model, {0, 1, 4}, [](const kc::StateRow&) {}, kc::AnalysisOptions{});
+    kc::run_analysis(
+        model, {0, 1, 4}, [](const kc::StateRow&) {}, kc::AnalysisOptions{});
     return;
   }
   const kc::ForceModel forces = kc::derive_forces(model);
-  kc::SimulateOptions options;
-  options.rtol = 1e-6;
+  static const double kRtols[] = {1e-6, 1e-8, 1e-11, 1e-3};
+  kc::SimulateOptions options = kc::simulate_options(
+      kRtols[choice % 4], std::nullopt, (choice >> 2) % 3 == 2 ? "augmented" : "minimal",
+      ((choice >> 4) % 3 == 0) ? "auto" : ((choice >> 4) % 3 == 1 ? "bdf" : "adams"), "--");
   options.max_steps = 2000;
-  kc::run_simulation(model, forces, {0, 0.1, 4}, [](const kc::SimulatedRow&) {}, options);
+  if ((choice >> 6) % 2) options.forces_columns = &forces;
+  if ((choice >> 7) % 4 == 0) options.max_step = 1e-3;
+  if ((choice >> 9) % 16 == 0) {
+    options.max_steps = 200;
+    kc::run_reference_simulation(
+        model, forces, {0, 0.01, 2}, 16, [](const kc::SimulatedRow&) {}, options);
+  } else {
+    kc::run_simulation(
+        model, forces, {0, 0.1, 4}, [](const kc::SimulatedRow&) {}, options);
+  }
+  kc::Linearizer linearizer(model, forces, 0);
+  const kc::OperatingPoint p = linearizer.initial();
+  (void)kc::linearize(linearizer, p);
+  (void)kc::modal_analysis(linearizer, p);
+  (void)kc::find_equilibrium(linearizer, p, kc::EquilibriumSearch::kNearest, 20);
 }
 
 }  // namespace
@@ -44,8 +73,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     kc::BuildOptions build;
     build.free_as_state = true;  // as simulate builds it; a file without free: is unchanged
-    auto model = kc::CompiledModel::from_mechanism(kc::parse_mechanism(text, "fuzz.yaml"), {},
-                                                   build);
+    auto model =
+        kc::CompiledModel::from_mechanism(kc::parse_mechanism(text, "fuzz.yaml"), {}, build);
     (void)kc::emit_header(*model);
     // Evaluate once at q0 so the lowered programs run too.
     kc::ModelEvaluator<double> eval(*model);
@@ -64,9 +93,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     for (int k = 0; k < model->symbols().num_params() && k < 8; ++k)
       names.push_back(model->symbols().param_name(k));
     (void)kc::build_sensitivity(*model, names);
-    run(*model);
+    run(*model, static_cast<unsigned>(std::hash<std::string>{}(text)));
   } catch (const kc::InputError&) {
     // Expected for invalid input.
+  } catch (const kc::UsageError&) {
+    // Expected where a setting does not apply to the file (the augmented method without
+    // free coordinates to move, a reference with more breakpoints than it takes).
   } catch (const kc::AnalysisError&) {
     // Expected for a mechanism that does not move as asked (a toggle, a lock-up).
   }

@@ -480,6 +480,8 @@ PYBIND11_MODULE(kinegen, m) {
   m.attr("InputError") = input_error;
   m.attr("UsageError") = usage_error;
   m.attr("AnalysisError") = analysis_error;
+  // For tests: how many tables the live Mechanism objects hold (equal tables count once).
+  m.def("_live_tables", [] { return kc::live_tables(); });
   kinegen::python::bind_page(m);
 
   py::class_<Mechanism>(m, "Mechanism", R"doc(A mechanism file (format: docs/format.md), read and compiled in-process.

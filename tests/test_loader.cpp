@@ -502,10 +502,11 @@ TEST_CASE("expression constraints use x_<body>, y_<body>, phi_<body>, parameters
 
 }  // namespace
 
-// Tables (issue 35, item 8): more than the 1000 tables a process once allowed, equal tables
-// sharing a number, and a table read without a lock while another thread registers thousands
-// of others (the registry growing past its first chunk) keeps its values.
-TEST_CASE("tables: many, shared when equal, read without a lock", "[loader][tables]") {
+// Tables belong to their model (issue 35, item 8): a table's slot lives as long as any copy
+// of a mechanism that uses it, is freed with the last one and its number reused; equal
+// tables share a slot; evaluation takes no lock, so a table read while other threads
+// register and free tables (growing the registry past its first chunk) keeps its values.
+TEST_CASE("tables are freed with the last mechanism that uses them", "[loader][tables]") {
   namespace fs = std::filesystem;
   const fs::path dir = fs::path(KINEGEN_TEST_TMP) / "loader_tables";
   fs::remove_all(dir);
@@ -525,39 +526,103 @@ TEST_CASE("tables: many, shared when equal, read without a lock", "[loader][tabl
         "  - {type: absolute_angle, body: block, value: 0}\n"
         "drivers:\n  - {type: absolute_x, body: block, table: x.csv}\n");
   const std::string mech = (dir / "m.yaml").string();
-  std::vector<int> ids;
+  const int before = kc::live_tables();
+  write("x.csv", table(2.0));
+  int first_id = -1;
+  {
+    auto model = kc::CompiledModel::from_file(mech);
+    first_id = model->mechanism().drivers[0].law.table_id;
+    CHECK(kc::live_tables() == before + 1);
+    double f[3];
+    REQUIRE(kc::registered_table(first_id).eval(2.5, f));
+    CHECK(f[0] == Approx(5.0).epsilon(1e-14));
+    // Another load of the same values shares the slot; a copy of the mechanism holds it.
+    kc::Mechanism copy = kc::load_mechanism(mech);
+    CHECK(copy.drivers[0].law.table_id == first_id);
+    CHECK(kc::live_tables() == before + 1);
+    model.reset();
+    CHECK(kc::live_tables() == before + 1);  // the copy still holds it
+    REQUIRE(kc::registered_table(first_id).eval(2.5, f));
+    CHECK(f[0] == Approx(5.0).epsilon(1e-14));
+  }
+  CHECK(kc::live_tables() == before);
+  CHECK_THROWS_AS(kc::registered_table(first_id), std::logic_error);
+  // Far more loads than the old process-wide limit of 1000, each of different values.
   for (int k = 0; k < 1100; ++k) {
     const double c = 1 + k * 1e-3;
     write("x.csv", table(c));
     const auto model = kc::CompiledModel::from_file(mech);
-    const int id = model->mechanism().drivers[0].law.table_id;
     double f[3];
-    REQUIRE(kc::registered_table(id).eval(3, f));
+    REQUIRE(kc::registered_table(model->mechanism().drivers[0].law.table_id).eval(3, f));
     REQUIRE(f[0] == Approx(3 * c).epsilon(1e-14));
-    ids.push_back(id);
   }
-  // The same values again: the same number.
-  write("x.csv", table(1 + 7 * 1e-3));
-  CHECK(kc::load_mechanism(mech).drivers[0].law.table_id == ids[7]);
+  CHECK(kc::live_tables() == before);
 
+  // A table read without a lock while another thread fills and frees 3000 others.
   write("x.csv", table(0.5));
-  const int id = kc::load_mechanism(mech).drivers[0].law.table_id;
+  const auto held = kc::CompiledModel::from_file(mech);
+  const int id = held->mechanism().drivers[0].law.table_id;
   std::atomic<bool> done{false};
   std::thread churn([&] {
+    std::vector<kc::TableRef> refs;
+    const kc::TableSource src{mech, "test", {}, false};
     for (int k = 0; k < 3000; ++k) {
-      const std::vector<double> t = {0, 1, 2, 3}, y = {0, k + 1.0, 0, 1};
-      (void)kc::register_table(kc::fit_not_a_knot(t, y));
+      std::vector<double> t = {0, 1, 2, 3}, y = {0, k + 1.0, 0, 1};
+      refs.push_back(kc::register_table(kc::fit_not_a_knot(t, y), src));
+      if (k % 3 == 2) refs.erase(refs.begin());
     }
     done = true;
   });
   bool right = true;
-  long reads = 0;
   while (!done) {
     double f[3];
     right = right && kc::registered_table(id).eval(1.5, f) && std::abs(f[0] - 0.75) <= 1e-15;
-    ++reads;
   }
   churn.join();
   CHECK(right);
+  CHECK(kc::live_tables() == before + 1);
+}
+
+// The registry under concurrent use: threads register and release tables at once, some equal
+// to one another (the sharing path races with a release of the same values), while a reader
+// reads a held table without a lock. Every reference keeps its own values, and at the end
+// only the held table is alive.
+TEST_CASE("tables: concurrent registration, sharing and release", "[loader][tables]") {
+  const kc::TableSource src{"concurrent.yaml", "test", {}, false};
+  const std::vector<double> t = {0, 1, 2, 3};
+  const auto spline = [&](double c) {
+    return kc::fit_not_a_knot(t, {0, c, 2 * c, 3 * c});  // c t
+  };
+  const auto near = [](double a, double b) { return std::abs(a - b) <= 1e-12 * std::abs(b); };
+  const int before = kc::live_tables();
+  const kc::TableRef held = kc::register_table(spline(-1), src);
+  std::atomic<int> finished{0};
+  std::atomic<bool> right{true};
+  std::vector<std::thread> workers;
+  for (int w = 0; w < 3; ++w)
+    workers.emplace_back([&, w] {
+      std::vector<std::pair<kc::TableRef, double>> refs;
+      for (int k = 0; k < 2000; ++k) {
+        // Half of the values are common to every thread (1..10), half the thread's own.
+        const double c = k % 2 ? 1 + k % 10 : 100 + 1e4 * w + k;
+        refs.emplace_back(kc::register_table(spline(c), src), c);
+        if (k % 4 == 3) refs.erase(refs.begin(), refs.begin() + 3);
+        for (const auto& [ref, value] : refs) {
+          double f[3];
+          if (!kc::registered_table(ref->id()).eval(1.5, f) || !near(f[0], 1.5 * value))
+            right = false;
+        }
+      }
+      ++finished;
+    });
+  long reads = 0;
+  while (finished < 3) {
+    double f[3];
+    if (!kc::registered_table(held->id()).eval(2.5, f) || !near(f[0], -2.5)) right = false;
+    ++reads;
+  }
+  for (auto& w : workers) w.join();
+  CHECK(right);
   CHECK(reads > 0);
+  CHECK(kc::live_tables() == before + 1);
 }

@@ -390,6 +390,75 @@ TEST_CASE("a non-finite stop_when names the item and its line, exit 1, the rows 
   CHECK(run.rows.rows() >= 1);
 }
 
+TEST_CASE("stop_when at t0: CVODE and --reference judge a value near 0 alike",
+          "[simulate_trust]") {
+  // The tip starts at height 0 and falls. tip.y + 1e-12 starts 1e-12 above 0, tip.y + 1e-6
+  // far above its error bound; whatever each verdict, every method gives the same one (the
+  // reference judged t0 by g > 0, CVODE by g > E).
+  for (const char* offset : {"1e-12", "1e-6"}) {
+    const fs::path yaml = write_yaml(std::string("t0_") + (offset[3] == '1' ? "near" : "above"),
+                                     pendulum(std::string("tip.y + ") + offset));
+    std::vector<std::size_t> rows;
+    for (const std::vector<std::string>& method :
+         {std::vector<std::string>{}, {"--method", "augmented"}, {"--reference", "16"}}) {
+      std::vector<std::string> args{"--t1", "0.2", "--steps", "4"};
+      args.insert(args.end(), method.begin(), method.end());
+      const Run run = simulate(yaml, args);
+      INFO(offset << " " << (method.empty() ? "minimal" : method[1]) << " stderr: " << run.r.err);
+      CHECK(run.r.exit_code == 0);
+      rows.push_back(run.rows.rows());
+    }
+    INFO(offset);
+    CHECK(rows[1] == rows[0]);
+    CHECK(rows[2] == rows[0]);
+    if (std::string(offset) == "1e-6") CHECK(rows[0] == 1u);
+  }
+}
+
+TEST_CASE("--reference refuses a stop_when that reads force columns, before any row",
+          "[simulate_trust]") {
+  // The reference has no rate for a force column, so nothing bounded its steps: on the cam it
+  // stepped over the contact's first loss (t = 0.6159, which CVODE finds) and stopped at a
+  // later crossing (0.6775) with exit 0.
+  const fs::path dir = scratch("reference_force_stop");
+  const fs::path out = dir / "out.csv";
+  const CommandResult r =
+      run_kinegen({"simulate", (fs::path(KINEGEN_SOURCE_DIR) / "examples/dynamics/cam_liftoff.yaml")
+                                   .string(),
+                   "--t1", "1", "--steps", "10", "--reference", "16", "-q", "-o", out.string()});
+  INFO("stderr: " << r.err);
+  CHECK(r.exit_code == 2);
+  CHECK(r.err.rfind("error: ", 0) == 0);
+  CHECK(r.err.find("cam_liftoff.yaml:52: stop_when: '-contact.fn' reads force columns") !=
+        std::string::npos);
+  CHECK(!fs::exists(out));
+}
+
+TEST_CASE("a driver's table that starts after t0 is named, not a free item's value0",
+          "[simulate_trust]") {
+  const fs::path dir = scratch("late_table");
+  write_text(dir / "late.csv", "t,value\n0.5,0\n1,0.5\n2,0.7\n3,0.2\n");
+  const fs::path yaml = dir / "late_table.yaml";
+  write_text(yaml,
+             "name: late_table\ngravity: [0, -9.81]\nbodies:\n"
+             "  - {name: rod, q0: [0, 0, 0], mass: 1, inertia: 0.08, com: [0.5, 0]}\n"
+             "  - {name: slide, q0: [0, 1, 0], mass: 1}\n"
+             "joints:\n  - {type: revolute, name: pivot, i: ground, j: rod}\n"
+             "  - {type: translational, name: rail, i: ground, j: slide, si: [0, 1], vi: [1, 0]}\n"
+             "drivers:\n  - {type: absolute_x, body: slide, table: late.csv}\n"
+             "free:\n  - {type: absolute_angle, name: theta, body: rod, value0: 0}\n");
+  for (const char* method : {"minimal", "augmented"}) {
+    const Run run = simulate(yaml, {"--t1", "2", "--steps", "4", "--method", method});
+    INFO(method << " stderr: " << run.r.err);
+    CHECK(run.r.exit_code == 2);
+    CHECK(run.r.err.find("late_table.yaml:10: drivers[0] (absolute_x) table: table 'late.csv' "
+                         "does not hold the start, t = 0 (its t runs from 0.5 to 3") !=
+          std::string::npos);
+    CHECK(run.r.err.find("value0") == std::string::npos);
+    CHECK(run.rows.rows() == 0);
+  }
+}
+
 // --- Tolerances, -v, and rows independent of the grid ----------------------------------------
 
 TEST_CASE("tolerances outside the usable range are usage errors naming it", "[simulate_trust]") {

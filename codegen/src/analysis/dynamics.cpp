@@ -261,6 +261,7 @@ void ReducedDynamics::check_counts_and_rank(double t0, const Eigen::VectorXd& q,
 
 void ReducedDynamics::check_at_t0(double t0) {
   const Mechanism& m = model_.mechanism();
+  check_tables_hold(m, t0);  // else the first solve would blame a value0
   const std::vector<int> free = m.free_drivers();
   Impl& w = *impl_;
   std::vector<int> fixed_rows;

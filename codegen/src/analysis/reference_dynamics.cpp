@@ -394,4 +394,83 @@ std::array<numeric, 2> ReferenceDynamics::energy(const ReferenceMotionState& s) 
   return {kinetic, potential};
 }
 
+// run_reference_simulation's double rows, and the checks before a run (reference_simulate.cpp
+// integrates).
+
+SimulatedRow to_simulated_row(const ReferenceSimulatedRow& r) {
+  SimulatedRow s;
+  s.state = to_state_row(r.row);
+  const auto vec = [](const std::vector<numeric>& v) {
+    Eigen::VectorXd d(v.size());
+    for (std::size_t k = 0; k < v.size(); ++k) d[k] = v[k].to_double();
+    return d;
+  };
+  s.z = vec(r.z);
+  s.zd = vec(r.zd);
+  s.zdd = vec(r.zdd);
+  for (const numeric& f : r.forces) s.state.forces.push_back(f.to_double());
+  s.kinetic = r.kinetic.to_double();
+  s.potential = r.potential.to_double();
+  s.work = r.work.to_double();
+  s.balance = r.balance.to_double();
+  return s;
+}
+
+void check_reference_digits(int digits) {
+  if (digits < kMinSimulateReferenceDigits || digits > kMaxSimulateReferenceDigits)
+    throw UsageError("--reference must be between " + std::to_string(kMinSimulateReferenceDigits) +
+                     " and " + std::to_string(kMaxSimulateReferenceDigits) + " digits, not " +
+                     std::to_string(digits));
+}
+
+void check_reference_stop_when(const CompiledModel& model) {
+  const Mechanism& m = model.mechanism();
+  if (!m.stop_when || model.symbolic().stop_force_columns.empty()) return;
+  throw InputError(m.source, "stop_when", m.stop_when->loc,
+                   "'" + m.stop_when->text +
+                       "' reads force columns, whose rate --reference does not have: it could "
+                       "not bound its steps by it and might step over the first crossing; run "
+                       "without --reference, or write stop_when without force columns");
+}
+
+namespace {
+
+// "" when every value of the row is finite, else which one is not (the outputs' accelerations
+// apart: an output that reads velocities has none, nan by the format).
+std::string finite_row(const SimulatedRow& r) {
+  const auto all = [](const Eigen::VectorXd& v) { return v.allFinite(); };
+  if (!all(r.state.q) || !all(r.state.qd) || !all(r.state.qdd)) return "a coordinate";
+  if (!all(r.z) || !all(r.zd) || !all(r.zdd)) return "a free coordinate";
+  for (const auto& p : r.state.points)
+    if (!p.r.allFinite() || !p.v.allFinite() || !p.a.allFinite()) return "a point";
+  for (const auto& o : r.state.outputs)
+    if (!std::isfinite(o[0]) || !std::isfinite(o[1])) return "an output";
+  for (double f : r.state.forces)
+    if (!std::isfinite(f)) return "a force column";
+  for (double e : {r.kinetic, r.potential, r.work, r.balance})
+    if (!std::isfinite(e)) return "an energy column";
+  return "";
+}
+
+}  // namespace
+
+ReferenceSimulationStats run_reference_simulation(
+    const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid, int digits,
+    const std::function<void(const SimulatedRow&)>& sink, const SimulateOptions& options) {
+  return run_reference_simulation_exact(
+      model, forces, grid, digits,
+      [&](const ReferenceSimulatedRow& row) {
+        const SimulatedRow r = to_simulated_row(row);
+        // Exact values beyond double's range (a table of 1e308) would round to inf: the run
+        // ends before such a row (docs/format.md, Simulation: a row is never non-finite).
+        std::string what = finite_row(r);
+        if (!what.empty())
+          throw AnalysisError(model.mechanism().source + ": reference simulation: at " +
+                              format_time(r.state.t) + " " + what +
+                              " is beyond double's range; the rows before are kept");
+        sink(r);
+      },
+      options);
+}
+
 }  // namespace kinegen::codegen

@@ -298,6 +298,7 @@ bool has_unknown_derivative(const ex& e) {
 // stop_when at a state in high precision: its tape, or, where it reads force columns,
 // the expression evaluated with them (ReferenceForces) substituted. Without force
 // columns its exact rate too: g' = dg/dt + dg/dq qd (at qdd = 0, one output) + dg/dqd qdd.
+// Its error bound at t0 is the double run's (stop_when_bound): both judge t0 alike.
 class StopFunction {
  public:
   StopFunction(const CompiledModel& model, const ForceModel& forces, ReferenceDynamics& dyn)
@@ -315,11 +316,15 @@ class StopFunction {
           rate0 += sym.stop_when.diff(s.q(k)) * s.qd(k);
           by_qd.push_back(sym.stop_when.diff(s.qd(k)));
         }
+        std::vector<ex> by_q;
+        for (int k = 0; k < s.nq(); ++k) by_q.push_back(sym.stop_when.diff(s.q(k)));
         bool known = !has_unknown_derivative(rate0);
         for (const ex& d : by_qd) known = known && !has_unknown_derivative(d);
+        for (const ex& d : by_q) known = known && !has_unknown_derivative(d);
         if (known) {
           outputs.push_back(rate0);
           outputs.insert(outputs.end(), by_qd.begin(), by_qd.end());
+          outputs.insert(outputs.end(), by_q.begin(), by_q.end());
           has_rate_ = true;
         }
       } catch (const std::exception&) {
@@ -340,6 +345,34 @@ class StopFunction {
   }
   bool active() const { return active_; }
   bool has_rate() const { return has_rate_; }
+
+  // Whether g > E at st (t0), E as the double run computes it (stop_when_bound): rtol |g|
+  // plus, where the rate is known, each coordinate's and rate's atol share. A g within E of
+  // 0 at t0 is no crossing, for every method alike.
+  bool above_bound(const ReferenceMotionState& st, const SimulateOptions& options) {
+    const numeric g = value_and_rate(st, nullptr);
+    const std::size_t nq = st.q.size();
+    std::vector<double> by_q, by_qd;
+    try {
+      if (handle_ >= 0 && has_rate_) {
+        const Vector v = dyn_.evaluator().evaluate(handle_, st.q, st.qd, st.t);
+        for (std::size_t k = 0; k < nq; ++k) {
+          by_qd.push_back(v[2 + k].to_double());
+          by_q.push_back(v[2 + nq + k].to_double());
+        }
+      }
+    } catch (const std::exception&) {
+      by_q.clear();  // a derivative that does not evaluate adds no share, as in a double run
+      by_qd.clear();
+    }
+    // The shares where the double run has them (its program's rate), so that both agree.
+    const bool known =
+        model_.stop_programs().has_rate && by_q.size() == nq && by_qd.size() == nq;
+    const double bound = stop_when_bound(std::abs(g.to_double()), known ? by_q.data() : nullptr,
+                                         known ? by_qd.data() : nullptr,
+                                         model_.symbolic().coordinate_scales, options);
+    return g.to_double() > bound;
+  }
 
   numeric operator()(const ReferenceMotionState& st) { return value_and_rate(st, nullptr); }
 
@@ -563,37 +596,12 @@ class StateBreakpoints {
 
 }  // namespace
 
-SimulatedRow to_simulated_row(const ReferenceSimulatedRow& r) {
-  SimulatedRow s;
-  s.state = to_state_row(r.row);
-  const auto vec = [](const std::vector<numeric>& v) {
-    Eigen::VectorXd d(v.size());
-    for (std::size_t k = 0; k < v.size(); ++k) d[k] = v[k].to_double();
-    return d;
-  };
-  s.z = vec(r.z);
-  s.zd = vec(r.zd);
-  s.zdd = vec(r.zdd);
-  for (const numeric& f : r.forces) s.state.forces.push_back(f.to_double());
-  s.kinetic = r.kinetic.to_double();
-  s.potential = r.potential.to_double();
-  s.work = r.work.to_double();
-  s.balance = r.balance.to_double();
-  return s;
-}
-
-void check_reference_digits(int digits) {
-  if (digits < kMinSimulateReferenceDigits || digits > kMaxSimulateReferenceDigits)
-    throw UsageError("--reference must be between " + std::to_string(kMinSimulateReferenceDigits) +
-                     " and " + std::to_string(kMaxSimulateReferenceDigits) + " digits, not " +
-                     std::to_string(digits));
-}
-
 ReferenceSimulationStats run_reference_simulation_exact(
     const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid, int digits,
     const std::function<void(const ReferenceSimulatedRow&)>& sink, const SimulateOptions& options) {
   check_reference_digits(digits);
   check_input_coverage(model, grid.t0, grid.t1);
+  check_reference_stop_when(model);
   const int columns = extrapolation_columns(digits);
   ReferenceDynamics dyn(model, forces, digits + guard_digits(columns), grid.t0);
   const DigitsGuard guard(dyn.digits());
@@ -630,14 +638,14 @@ ReferenceSimulationStats run_reference_simulation_exact(
   const numeric root_tolerance =
       numeric(10).power(-(digits - 5)) *
       dyn.to_float(exact_numeric(std::max(std::abs(grid.t1), grid.t1 - grid.t0)));
-  // stop_when (docs/format.md, Simulation): g and g' at the last point; a g > 0 at t0 stops
-  // there, a g = 0 at t0 is no crossing (monitoring starts once g < 0).
+  // stop_when (docs/format.md, Simulation): g and g' at the last point; a g above its error
+  // bound at t0 stops there, a g within it is no crossing (monitoring starts once g < 0).
   numeric g, g_rate;
   double g_scale = 1;
   if (stop.active()) {
     g = stop.value_and_rate(p.state, &g_rate);
     g_scale = std::max(g_scale, bounded(g));
-    if (g.is_positive()) {
+    if (stop.above_bound(p.state, options)) {
       gbs.stats.stopped = true;
       gbs.stats.stop_time = p.t.to_double();
       return gbs.stats;
@@ -731,46 +739,6 @@ ReferenceSimulationStats run_reference_simulation_exact(
     throw AnalysisError(file + ": interrupted at " + format_time(p.t.to_double()));
   }
   return gbs.stats;
-}
-
-namespace {
-
-// "" when every value of the row is finite, else which one is not (the outputs' accelerations
-// apart: an output that reads velocities has none, nan by the format).
-std::string finite_row(const SimulatedRow& r) {
-  const auto all = [](const Eigen::VectorXd& v) { return v.allFinite(); };
-  if (!all(r.state.q) || !all(r.state.qd) || !all(r.state.qdd)) return "a coordinate";
-  if (!all(r.z) || !all(r.zd) || !all(r.zdd)) return "a free coordinate";
-  for (const auto& p : r.state.points)
-    if (!p.r.allFinite() || !p.v.allFinite() || !p.a.allFinite()) return "a point";
-  for (const auto& o : r.state.outputs)
-    if (!std::isfinite(o[0]) || !std::isfinite(o[1])) return "an output";
-  for (double f : r.state.forces)
-    if (!std::isfinite(f)) return "a force column";
-  for (double e : {r.kinetic, r.potential, r.work, r.balance})
-    if (!std::isfinite(e)) return "an energy column";
-  return "";
-}
-
-}  // namespace
-
-ReferenceSimulationStats run_reference_simulation(
-    const CompiledModel& model, const ForceModel& forces, const TimeGrid& grid, int digits,
-    const std::function<void(const SimulatedRow&)>& sink, const SimulateOptions& options) {
-  return run_reference_simulation_exact(
-      model, forces, grid, digits,
-      [&](const ReferenceSimulatedRow& row) {
-        const SimulatedRow r = to_simulated_row(row);
-        // Exact values beyond double's range (a table of 1e308) would round to inf: the run
-        // ends before such a row (docs/format.md, Simulation: a row is never non-finite).
-        std::string what = finite_row(r);
-        if (!what.empty())
-          throw AnalysisError(model.mechanism().source + ": reference simulation: at " +
-                              format_time(r.state.t) + " " + what +
-                              " is beyond double's range; the rows before are kept");
-        sink(r);
-      },
-      options);
 }
 
 }  // namespace kinegen::codegen

@@ -465,16 +465,12 @@ class Integration {
     }
     gscale_ = std::max(gscale_, std::abs(out.g));
     const double dt = before ? t - before->t : 0;
-    out.bound = o_.rtol * gscale_;
+    const int nq = static_cast<int>(s.q.size());
+    out.bound = stop_when_bound(gscale_, has_rate_ ? &stop_values_[2 + nq] : nullptr,
+                                has_rate_ ? &stop_values_[2] : nullptr, sym.coordinate_scales, o_);
     if (has_rate_) {
-      const int nq = static_cast<int>(s.q.size());
-      const auto& scales = sym.coordinate_scales;
       out.rate = stop_values_[1];
-      for (int k = 0; k < nq; ++k) {
-        out.rate += stop_values_[2 + k] * s.qdd[k];
-        const double atol = o_.atol * scales[k];
-        out.bound += (std::abs(stop_values_[2 + k]) + std::abs(stop_values_[2 + nq + k])) * atol;
-      }
+      for (int k = 0; k < nq; ++k) out.rate += stop_values_[2 + k] * s.qdd[k];
       for (std::size_t j = 0; j < out.forces.size(); ++j)
         if (dt > 0)
           out.rate += stop_values_[2 + 2 * nq + j] * (out.forces[j] - before->forces[j]) / dt;

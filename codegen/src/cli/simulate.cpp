@@ -89,6 +89,7 @@ int run_simulate(const Common& c, const SimulateArgs& o) {
   build.free_as_state = true;
   auto model = load(c, build);
   kc::check_input_coverage(*model, o.t0, o.t1);  // before the output file is opened
+  if (o.reference_digits != 0) kc::check_reference_stop_when(*model);
   const kc::ForceModel forces = kc::derive_forces(*model);
   std::vector<std::string> force_names;
   if (o.with_forces) {

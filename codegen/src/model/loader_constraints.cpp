@@ -198,12 +198,8 @@ void Loader::read_law(const YAML::Node& c, const std::string& item, Constraint& 
           "a periodic table must start at t = 0 (its first t is " + format_number(t.front()) + ")");
     const Spline spline = law.period ? fit_periodic(t, v) : fit_not_a_knot(t, v);
     check_spline(spline, law.table, src);
-    try {
-      law.table_id = register_table(spline);
-    } catch (const std::length_error& e) {
-      fail(item + " table", loc_of(table),
-           std::string(e.what()) + "; load fewer different tables in one process");
-    }
+    law.table_ref = register_table(spline, src);
+    law.table_id = law.table_ref->id();
     return;
   }
   const YAML::Node f = c["f"];

@@ -74,22 +74,25 @@ std::vector<double> solve(const std::vector<Eigen::Triplet<double>>& entries,
   return std::vector<double>(m.data(), m.data() + m.size());
 }
 
-// The tables, by number. A number's spline is reached through two levels of atomic pointers,
-// so that evaluation takes no lock while registration (under the mutex) adds chunks: a chunk,
-// once made, is never moved or freed, and a slot's spline is published (release) before its
-// number is handed out.
+// The live tables. A number's spline is reached through two levels of atomic pointers, so
+// that evaluation takes no lock while registration and release (under the mutex) change
+// slots: a chunk, once made, is never moved or freed, a slot's spline is published (release)
+// before its number is handed out, and it is cleared only when no mechanism holds the number.
 constexpr int kChunkSize = 1024;
 constexpr int kChunks = kMaxTables / kChunkSize;
 
 struct Registry {
-  std::mutex mutex;  // registration
+  std::mutex mutex;  // registration and release
   std::atomic<std::atomic<const Spline*>*> chunks[kChunks] = {};
-  int next = 0;                                       // the next number
-  std::unordered_multimap<std::size_t, int> by_hash;  // for sharing equal tables
+  std::vector<int> free_ids;  // released numbers, reused first
+  int next = 0;               // numbers below it have been used
+  int live = 0;
+  // The live tables by a hash of their values, for sharing equal ones.
+  std::unordered_multimap<std::size_t, std::pair<int, std::weak_ptr<const TableSlot>>> by_hash;
 };
 
 Registry& registry() {
-  static Registry* r = new Registry;  // never destroyed: tables are read until the exit
+  static Registry* r = new Registry;  // never destroyed: slots may be released at exit
   return *r;
 }
 
@@ -114,44 +117,65 @@ std::atomic<const Spline*>* slot_of(Registry& r, int id) {
 
 }  // namespace
 
-int register_table(const Spline& spline) {
+TableSlot::~TableSlot() {
+  Registry& r = registry();
+  std::lock_guard<std::mutex> lock(r.mutex);
+  const Spline* spline = slot_of(r, id_)->exchange(nullptr, std::memory_order_acq_rel);
+  const auto [first, last] = r.by_hash.equal_range(hash_of(*spline));
+  for (auto it = first; it != last; ++it)
+    if (it->second.first == id_) {
+      r.by_hash.erase(it);
+      break;
+    }
+  delete spline;
+  r.free_ids.push_back(id_);
+  --r.live;
+}
+
+TableRef register_table(const Spline& spline, const TableSource& source) {
   Registry& r = registry();
   const std::size_t h = hash_of(spline);
   std::lock_guard<std::mutex> lock(r.mutex);
   const auto [first, last] = r.by_hash.equal_range(h);
   for (auto it = first; it != last; ++it)
-    if (same(*slot_of(r, it->second)->load(std::memory_order_relaxed), spline)) return it->second;
-  if (r.next >= kMaxTables)
-    throw std::length_error("more than " + std::to_string(kMaxTables) +
-                            " different tables in one process");
-  const int id = r.next++;
-  auto& chunk = r.chunks[id / kChunkSize];
-  if (!chunk.load(std::memory_order_relaxed))
-    chunk.store(new std::atomic<const Spline*>[kChunkSize](), std::memory_order_release);
+    if (TableRef held = it->second.second.lock();
+        held && same(*slot_of(r, held->id())->load(std::memory_order_relaxed), spline))
+      return held;
+  int id = 0;
+  if (!r.free_ids.empty()) {
+    id = r.free_ids.back();
+    r.free_ids.pop_back();
+  } else {
+    if (r.next >= kMaxTables)
+      fail(source, "more than " + std::to_string(kMaxTables) +
+                       " different tables are in use at once in this process; release "
+                       "mechanisms that are no longer needed");
+    id = r.next++;
+    auto& chunk = r.chunks[id / kChunkSize];
+    if (!chunk.load(std::memory_order_relaxed))
+      chunk.store(new std::atomic<const Spline*>[kChunkSize](), std::memory_order_release);
+  }
   slot_of(r, id)->store(new Spline(spline), std::memory_order_release);
-  r.by_hash.emplace(h, id);
-  return id;
+  TableRef ref = std::make_shared<const TableSlot>(id);
+  r.by_hash.emplace(h, std::make_pair(id, std::weak_ptr<const TableSlot>(ref)));
+  ++r.live;
+  return ref;
 }
 
 const Spline& registered_table(int id) {
   std::atomic<const Spline*>* slot = slot_of(registry(), id);
   const Spline* spline = slot ? slot->load(std::memory_order_acquire) : nullptr;
-  if (!spline) throw std::logic_error("table " + std::to_string(id) + " is not registered");
+  if (!spline)
+    throw std::logic_error("table " + std::to_string(id) +
+                           " is not registered (its mechanism is gone)");
   return *spline;
 }
 
-namespace {
-
-// register_table, its limit an InputError naming the table's file, item and line.
-int register_from(const Spline& spline, const TableSource& source) {
-  try {
-    return register_table(spline);
-  } catch (const std::length_error& e) {
-    fail(source, std::string(e.what()) + "; load fewer different tables in one process");
-  }
+int live_tables() {
+  Registry& r = registry();
+  std::lock_guard<std::mutex> lock(r.mutex);
+  return r.live;
 }
-
-}  // namespace
 
 GiNaC::numeric spline_high_precision(const Spline& s, int order, const GiNaC::numeric& x) {
   using GiNaC::numeric;
@@ -213,6 +237,19 @@ TableCoverage table_coverage(const Mechanism& m) {
   return c;
 }
 
+void check_tables_hold(const Mechanism& m, double t) {
+  for (const Constraint& d : m.drivers) {
+    if (d.law.table_id < 0) continue;
+    const Spline& s = registered_table(d.law.table_id);
+    if (table_covers(s, t)) continue;
+    throw InputError(m.source, d.item + " table", d.law.table_loc,
+                     "table '" + d.law.table + "' does not hold the start, " + format_time(t) +
+                         " (its t runs from " + format_number(s.t.front()) + " to " +
+                         format_number(s.t.back()) +
+                         "; a table is never extrapolated: give it a period or more rows)");
+  }
+}
+
 std::string table_outside(const Mechanism& m, double t) {
   for (const Constraint& d : m.drivers) {
     if (d.law.table_id < 0) continue;
@@ -235,7 +272,8 @@ bool apply_load_input(Mechanism& m, const std::string& name, const std::string& 
       const TableSource src{m.source, l.item + " --input " + name, l.loc, false};
       std::vector<double> t, v;
       read_table(fs::absolute(path).string(), src, t, v);
-      in.table_id = register_from(fit_not_a_knot(t, v), src);
+      in.table_ref = register_table(fit_not_a_knot(t, v), src);
+      in.table_id = in.table_ref->id();
       return true;
     }
   return false;
@@ -264,7 +302,8 @@ void apply_inputs(Mechanism& m, const std::vector<std::pair<std::string, std::st
     driver->law.table = path;
     const Spline spline = fit_not_a_knot(t, v);
     check_spline(spline, path, src);
-    driver->law.table_id = register_from(spline, src);
+    driver->law.table_ref = register_table(spline, src);
+    driver->law.table_id = driver->law.table_ref->id();
   }
   if (!required) return;
   for (const Constraint& d : m.drivers) {

@@ -43,6 +43,10 @@ inline constexpr int kMaxSimulateReferenceDigits = 60;
 // kMaxSimulateReferenceDigits: the command line checks before it writes anything, and
 // run_reference_simulation_exact again for its other callers.
 void check_reference_digits(int digits);
+// InputError, naming stop_when's line, when it reads force columns (`-J.fn`): the reference
+// has no rate for them, so nothing would bound its steps near a crossing (a brief excursion
+// would be stepped over). The command line checks before it writes anything.
+void check_reference_stop_when(const CompiledModel& model);
 
 // A state of the equations of motion in high precision.
 struct ReferenceMotionState {

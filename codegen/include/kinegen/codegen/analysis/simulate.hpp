@@ -8,6 +8,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -107,6 +108,19 @@ struct SimulateSummary {
   bool stopped = false;
   double stop_time = 0;
 };
+
+// stop_when's error bound E (docs/format.md, Simulation): rtol times its scale g_scale (the
+// largest |EXPR| so far) plus each coordinate's and rate's atol share, |dEXPR/dq_k| and
+// |dEXPR/dqd_k| (by_q, by_qd: one per coordinate, or null where they are not known) times
+// atol times the coordinate's scale. A value within E of 0 at t0 is no crossing: CVODE's runs
+// and the reference judge t0 by this one rule.
+inline double stop_when_bound(double g_scale, const double* by_q, const double* by_qd,
+                              const std::vector<double>& scales, const SimulateOptions& options) {
+  double bound = options.rtol * g_scale;
+  for (std::size_t k = 0; by_q && by_qd && k < scales.size(); ++k)
+    bound += (std::abs(by_q[k]) + std::abs(by_qd[k])) * options.atol * scales[k];
+  return bound;
+}
 
 // SimulateOptions from the settings as a user names them (the command line's --rtol, --atol,
 // --method, --integrator with prefix "--"; the Python module's keywords with ""), each checked:

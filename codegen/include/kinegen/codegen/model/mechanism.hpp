@@ -6,6 +6,7 @@
 
 #include <array>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -89,12 +90,16 @@ struct DriverPiece {
   SourceLoc loc;
 };
 
+class TableSlot;  // a registered table's slot (table.hpp)
+
 struct DriverLaw {
   std::vector<DriverPiece> pieces;  // `f: [{until: T1, f: E1}, ..., {f: En}]`
   std::optional<Expr> period;       // `period: T`
   std::string table;                // `table: FILE.csv` (as written)
   SourceLoc table_loc;
   int table_id = -1;   // its fitted spline (table.hpp's registry)
+  // Holds table_id's slot: the table lives as long as any copy of the mechanism using it.
+  std::shared_ptr<const TableSlot> table_ref;
   bool input = false;  // `f: input`
   bool plain() const { return pieces.empty() && table_id < 0 && !input; }
 };
@@ -172,6 +177,7 @@ struct Load {
     std::string name;
     int index = 0;
     int table_id = -1;
+    std::shared_ptr<const TableSlot> table_ref;  // holds table_id's slot (table.hpp)
   };
   std::vector<Input> inputs;
 };

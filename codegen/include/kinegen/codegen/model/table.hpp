@@ -9,6 +9,7 @@
 #include <ginac/ginac.h>
 
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -26,13 +27,37 @@ struct Spline {
   bool eval(double x, double* f) const;
 };
 
-// The tables of every mechanism loaded in this process, by number (kinegen_table's id in
-// functions.hpp): registering the same spline twice gives the same number. Entries are never
-// removed or moved, so a reference stays valid. Thread-safe.
-// The most tables a process registers (numbers 0 .. kMaxTables - 1).
+// The tables of the mechanisms alive in this process, by number (kinegen_table's id in
+// functions.hpp). A table belongs to the mechanisms that use it: each holds a TableRef
+// (DriverLaw::table_ref, Load::Input::table_ref), and the slot is freed when the last one
+// goes, its number then reused. Registering a spline equal to a live table's gives that
+// table's slot. Thread-safe.
+class TableSlot {
+ public:
+  explicit TableSlot(int id) : id_(id) {}
+  ~TableSlot();  // frees the slot
+  TableSlot(const TableSlot&) = delete;
+  TableSlot& operator=(const TableSlot&) = delete;
+  int id() const { return id_; }
+
+ private:
+  int id_;
+};
+using TableRef = std::shared_ptr<const TableSlot>;
+
+// At most this many different tables alive at once (equal tables share a slot).
 inline constexpr int kMaxTables = 1 << 20;
-int register_table(const Spline& spline);
+
+struct TableSource;
+// Throws InputError naming `source` (the file, the item and its line) when kMaxTables
+// tables are alive.
+TableRef register_table(const Spline& spline, const TableSource& source);
+// The table of a live slot, without a lock (a slot's spline is set before its number is
+// handed out, and freed only when no mechanism holds it). Throws std::logic_error for a
+// number that is not live.
 const Spline& registered_table(int id);
+// How many tables are alive (for tests).
+int live_tables();
 
 // The order-th derivative (0..2) of a spline at x in CLN arithmetic (the reference), with the
 // knots taken exactly; x's precision is kept. Throws AnalysisError outside a table that does
@@ -50,6 +75,9 @@ struct TableCoverage {
 TableCoverage table_coverage(const Mechanism& m);
 // Whether a table holds t: periodic, or t within its knots up to a few ulps of its ends.
 bool table_covers(const Spline& s, double t);
+// InputError naming the first driver whose table does not hold t, the start of a run (its
+// table's line and range): the file's fault, not a free item's value0.
+void check_tables_hold(const Mechanism& m, double t);
 // The driver (its item) whose table does not cover t, with the table's range, or "".
 std::string table_outside(const Mechanism& m, double t);
 
