@@ -30,12 +30,13 @@ bool has_unknown_derivative(const ex& e) {
   return false;
 }
 
-void collect_symbols(const ex& e, std::vector<GiNaC::symbol>& out) {
+// Kept as ex: a copy into GiNaC::symbol would slice a coordinate's realsymbol, which the symbol
+// table then no longer knows (and the rate would silently fall back to differences).
+void collect_symbols(const ex& e, std::vector<ex>& out) {
   if (GiNaC::is_a<GiNaC::symbol>(e)) {
-    const auto& s = GiNaC::ex_to<GiNaC::symbol>(e);
     for (const auto& known : out)
-      if (known.is_equal(s)) return;
-    out.push_back(s);
+      if (known.is_equal(e)) return;
+    out.push_back(e);
   }
   for (std::size_t k = 0; k < e.nops(); ++k) collect_symbols(e.op(k), out);
 }
@@ -151,10 +152,10 @@ std::vector<GiNaC::ex> stop_when_rate(const SymbolicModel& model, const SymbolTa
   const ex& g = model.stop_when;
   try {
     // The force columns' symbols, in stop_force_columns order: the extra parameters.
-    std::vector<GiNaC::symbol> symbols;
+    std::vector<ex> symbols;
     collect_symbols(g, symbols);
     std::vector<ex> forces(model.stop_force_columns.size(), ex(0));
-    for (const GiNaC::symbol& symbol : symbols) {
+    for (const ex& symbol : symbols) {
       const Input in = s.classify(symbol);
       const int extra = in.index - s.num_params();
       if (in.kind == InputKind::kParam && extra >= 0 && extra < static_cast<int>(forces.size()))
