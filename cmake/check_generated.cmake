@@ -5,6 +5,8 @@
 file(REMOVE_RECURSE "${SCRATCH}")
 file(MAKE_DIRECTORY "${SCRATCH}")
 file(GLOB mechanisms "${EXAMPLES}/*.yaml" "${EXAMPLES}/*/*.yaml")
+# Spatial examples have no generated code yet (docs/format.md, Spatial mechanisms).
+list(FILTER mechanisms EXCLUDE REGEX "/spatial/[^/]*\\.yaml$")
 set(stale "")
 foreach(mech IN LISTS mechanisms)
   execute_process(COMMAND "${KINEGEN}" generate "${mech}" -o "${SCRATCH}"

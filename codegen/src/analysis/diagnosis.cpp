@@ -13,10 +13,15 @@ namespace kinegen::codegen {
 
 namespace {
 
-std::vector<int> dependent_rows(const Eigen::MatrixXd& scaled, double tol) {
-  std::vector<int> dependent;
+std::vector<int> dependent_rows(const Eigen::MatrixXd& scaled, double tol, int tail_first) {
+  std::vector<int> dependent, order;
+  // A spatial file's normalization rows (the last ones) come first: they are the tool's own,
+  // and the dependent row to name is one of the file's joints or drivers.
+  for (int r = static_cast<int>(scaled.rows()) - tail_first; r < scaled.rows(); ++r)
+    order.push_back(r);
+  for (int r = 0; r < scaled.rows() - tail_first; ++r) order.push_back(r);
   Eigen::MatrixXd kept(0, scaled.cols());
-  for (int r = 0; r < scaled.rows(); ++r) {
+  for (int r : order) {
     Eigen::MatrixXd trial(kept.rows() + 1, scaled.cols());
     trial << kept, scaled.row(r);
     Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(trial.transpose());
@@ -125,7 +130,8 @@ void check_redundancy(const CompiledModel& model, const Eigen::VectorXd& q, doub
                       const AnalysisOptions& options) {
   if (model.nc() <= model.nq()) return;
   const Eigen::MatrixXd scaled = scaled_jacobian(model, jacobian_at(model, q, t));
-  const std::vector<int> dependent = dependent_rows(scaled, 1e-9);
+  const std::vector<int> dependent =
+      dependent_rows(scaled, 1e-9, static_cast<int>(model.mechanism().normalization.size()));
   if (dependent.empty()) return;
   std::string names;
   for (int r : dependent) names += (names.empty() ? "" : "; ") + model.row_label(r);
@@ -261,7 +267,8 @@ std::string redundant_constraints(const CompiledModel& model, const Eigen::Vecto
   if (model.nc() <= model.nq()) return "";
   const Eigen::MatrixXd scaled = scaled_jacobian(model, jacobian_at(model, q, t));
   std::string names;
-  for (int r : dependent_rows(scaled, 1e-9))
+  for (int r : dependent_rows(scaled, 1e-9,
+                              static_cast<int>(model.mechanism().normalization.size())))
     names += (names.empty() ? "" : "; ") + model.row_label(r);
   return names;
 }

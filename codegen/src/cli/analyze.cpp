@@ -8,6 +8,7 @@
 
 #include "cli.hpp"
 #include "kinegen/codegen/analysis/spatial.hpp"
+#include "kinegen/codegen/analysis/suspension.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/reference.hpp"
@@ -43,6 +44,52 @@ void refuse_spatial_options(const Common& c, const AnalyzeArgs& o, const kc::Com
                                option + "` yet");
 }
 
+// The CSV rows: spatial files' carry their angular rates, points and vectors in 3D; a
+// suspension's are kept until the run ends, since its motion ratios need all of them
+// (docs/format.md, Suspension analysis), and its design position is solved before any row.
+class RowWriter {
+ public:
+  RowWriter(const kc::CompiledModel& model, const AnalyzeArgs& o) : model_(model) {
+    if (model.mechanism().spatial) spatial_ = std::make_unique<kc::SpatialAnalysis>(model);
+    if (!model.mechanism().suspension) return;
+    kc::require_kept_rows("analyze with a suspension:", o.steps + 1LL,
+                          static_cast<std::size_t>(3 * model.nq()));
+    kc::AnalysisOptions options;
+    options.block_solver = o.solver != "dense";
+    suspension_ = std::make_unique<kc::SuspensionRows>(model, options);
+  }
+  std::string header(std::string h) const {
+    h.pop_back();  // the line break
+    for (const auto& name : kc::SuspensionRows::columns(model_.mechanism())) h += "," + name;
+    return h + "\n";
+  }
+  void take(const kc::StateRow& row, kc::OutputFile& file) {
+    if (!suspension_) return write(row, {}, file);
+    kept_.push_back(row);
+    suspension_->apply(kept_.back());
+  }
+  void finish(kc::OutputFile& file) {
+    if (!suspension_) return;
+    const auto ratios = suspension_->motion_ratios(kept_);
+    for (std::size_t k = 0; k < kept_.size(); ++k) write(kept_[k], ratios[k], file);
+  }
+
+ private:
+  void write(const kc::StateRow& row, const std::vector<double>& extra, kc::OutputFile& file) {
+    std::string text =
+        spatial_ ? spatial_->csv_row(row)
+                 : kc::csv_row(row, static_cast<int>(model_.mechanism().bodies.size()));
+    text.pop_back();
+    for (double v : extra) text += "," + kc::format_number(v);
+    file.stream() << text << "\n";
+    file.check();  // a full disk or a closed pipe ends the run now, not after it
+  }
+  const kc::CompiledModel& model_;
+  std::unique_ptr<kc::SpatialAnalysis> spatial_;
+  std::unique_ptr<kc::SuspensionRows> suspension_;
+  std::vector<kc::StateRow> kept_;
+};
+
 int run_analyze(const Common& c, const AnalyzeArgs& o) {
   auto model = load(c);
   refuse_spatial_options(c, o, *model);
@@ -69,21 +116,15 @@ int run_analyze(const Common& c, const AnalyzeArgs& o) {
     forces = std::make_unique<kc::ForceModel>(kc::forces_for_analysis(*model, o.t0));
     force_names = kc::force_columns(model->mechanism());
   }
-  // Spatial files' rows carry their angular rates, points and vectors in 3D.
-  const auto spatial = model->mechanism().spatial
-                           ? std::make_unique<kc::SpatialAnalysis>(*model)
-                           : std::unique_ptr<kc::SpatialAnalysis>();
+  RowWriter writer(*model, o);  // solves a suspension's design position
   kc::OutputFile file(o.output.empty() ? "-" : o.output);
-  std::ostream& out = file.stream();
-  out << kc::csv_header(model->mechanism(), force_names, sensitivity.names);
+  file.stream() << writer.header(kc::csv_header(model->mechanism(), force_names, sensitivity.names));
   int status = 0;
   int rows = 0;
   double t_last = 0;
   try {
     const auto sink = [&](const kc::StateRow& row) {
-      out << (spatial ? spatial->csv_row(row)
-                      : kc::csv_row(row, static_cast<int>(model->mechanism().bodies.size())));
-      file.check();  // a full disk or a closed pipe ends the run now, not after it
+      writer.take(row, file);
       ++rows;
       t_last = row.t;
     };
@@ -114,6 +155,7 @@ int run_analyze(const Common& c, const AnalyzeArgs& o) {
   } catch (const kc::Interrupted&) {
     status = interrupted(c.file, rows, t_last);  // as a failure: the rows so far are kept
   }
+  writer.finish(file);
   // Nothing solved: a file is left as it was; standard output gets the header, as before.
   if (rows > 0 || status == 0 || !file.replaces_target()) file.commit();
   return status;

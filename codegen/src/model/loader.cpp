@@ -41,7 +41,8 @@ Mechanism Loader::load(const YAML::Node& root) {
   if (!root.IsMap()) fail("file", loc_of(root), "the top level must be a mapping of keys");
   check_keys(root, "file", {"name"},
              {"space", "parameters", "definitions", "bodies", "coordinates", "joints", "drivers",
-              "points", "vectors", "outputs", "gravity", "forces", "free", "stop_when"});
+              "points", "vectors", "outputs", "gravity", "forces", "free", "stop_when",
+              "suspension"});
   Mechanism m;
   m.source = source_;
   read_space(root, m);
@@ -59,6 +60,8 @@ Mechanism Loader::load(const YAML::Node& root) {
   if (root["vectors"]) read_vectors(root["vectors"], m);
   add_normalization(m);
   if (root["outputs"]) read_outputs(root["outputs"], m);
+  for (auto it = root.begin(); it != root.end(); ++it)
+    if (it->first.Scalar() == "suspension") read_suspension(it->second, loc_of(it->first), m);
   if (root["gravity"]) {
     m.forces.gravity = vec2_of(root["gravity"], "gravity");
     m.forces.gravity_loc = loc_of(root["gravity"]);

@@ -55,6 +55,11 @@ class Loader {
   void read_spatial_pose(const YAML::Node& b, const std::string& item, Body& body);
   void read_vectors(const YAML::Node& node, Mechanism& m);
   void add_normalization(Mechanism& m);
+  // `suspension:` (loader_suspension.cpp): validated, its outputs appended to m.outputs.
+  // `key`: where the block's key stands (its messages point there).
+  void read_suspension(const YAML::Node& node, SourceLoc key, Mechanism& m);
+  // Its `springs:`: the outputs (indices) that give a spring's length.
+  std::vector<int> read_springs(const YAML::Node& springs, const Mechanism& m);
   // A kJoint key: the index of the joint it names.
   int joint_ref(const YAML::Node& node, const Mechanism& m, const std::string& item);
   bool spatial_ = false;

@@ -401,6 +401,7 @@ SymbolicModel derive(const Mechanism& m, SymbolTable& s,
   SymbolicModel model;
   model.param_values = parameter_values(m, s, overrides);
   const Builder builder(m, s, model.param_values);
+  if (m.suspension) model.design_t = check_suspension(m, s, model.param_values);
 
   for (const auto* c : m.constraints()) {
     const auto rows = builder.equations(*c);

@@ -112,6 +112,10 @@ std::vector<GiNaC::ex> spatial_q0(const Mechanism& m, const SymbolTable& s,
 // to use them.
 void define_spatial_names(const Mechanism& m, SymbolTable& s, const SymbolicModel& model);
 Expr spatial_output_text(const Mechanism& m, const Expr& e);
+// A `suspension:` block's numbers (suspension.cpp): InputError for a tire radius not > 0 or a
+// zero spin axis; returns design_t.
+double check_suspension(const Mechanism& m, const SymbolTable& s,
+                        const std::vector<GiNaC::numeric>& values);
 
 // A driver's law in pieces, with a period, from a table or an input, as one expression
 // in t (driver_law.cpp). Its boundaries are checked by driver_law_warnings, which

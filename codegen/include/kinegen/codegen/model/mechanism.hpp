@@ -189,6 +189,22 @@ struct ForceSpec {
   std::vector<Load> loads;
 };
 
+// A spatial file's `suspension:` block (docs/format.md, Suspension analysis): one corner's
+// parts, by name. The loader appends its outputs (toe ... track_change) to Mechanism::outputs,
+// from `first_output` on; the analysis subtracts the design position's value from
+// wheel_travel and track_change and adds a motion ratio column per spring.
+struct Suspension {
+  SourceLoc loc;
+  int sigma = 1;  // +1 left, -1 right
+  int upright = kGround;
+  std::string wheel_center, spin_axis, steer_upper, steer_lower;  // points, a vector
+  Expr tire_radius;
+  Expr design_t{"0", {}};
+  // Outputs (by index into Mechanism::outputs) whose value is a spring's length.
+  std::vector<int> springs;
+  int first_output = 0;  // toe; the others follow in the order of the table
+};
+
 struct Mechanism {
   // `space: 3d`: bodies have q = [x, y, z, e0, e1, e2, e3] (docs/format.md, Spatial mechanisms).
   bool spatial = false;
@@ -208,6 +224,7 @@ struct Mechanism {
   // tool's own: after the drivers in Phi, and not counted among the joints.
   std::vector<Constraint> normalization;
   std::vector<Output> outputs;
+  std::optional<Suspension> suspension;  // spatial files only
   ForceSpec forces;  // masses, gravity and loads (`analyze --forces`)
   // docs/format.md, `stop_when`: `simulate` ends where this crosses 0 from below.
   std::optional<Expr> stop_when;

@@ -145,6 +145,8 @@ struct SymbolicModel {
   std::vector<GiNaC::ex> free_values, free_rates;
   // The largest length scale (the v1 header member; the solvers use coordinate_scales).
   double length_scale = 1.0;
+  // A `suspension:` block's design_t (docs/format.md, Suspension analysis); 0 without one.
+  double design_t = 0;
   // `stop_when:`, in q, qd, t, the parameters and, as extra parameters
   // (SymbolTable::define_extra), the force columns it reads: stop_force_columns[k] is the
   // force_columns index extra parameter k stands for. Empty when the file has none.
