@@ -353,6 +353,32 @@ TEST_CASE("suspension: bad input is one error line naming the item and its line,
   }
 }
 
+TEST_CASE("suspension: a steer axis given lower point first is refused at the design position",
+          "[suspension]") {
+  // Read the other way round, k points down: caster and kpi would be half a turn off, with
+  // no other sign of it.
+  std::string yaml = kinegen::test::read_text(source("examples/spatial/double_wishbone.yaml"));
+  const std::string from = "steer_axis: [UBJ, LBJ]";
+  const auto at = yaml.find(from);
+  REQUIRE(at != std::string::npos);
+  yaml.replace(at, from.size(), "steer_axis: [LBJ, UBJ]");
+  const auto dir = kinegen::test::scratch_dir("suspension", "steer_order");
+  const auto path = dir / "swapped.yaml";
+  const auto out = dir / "out.csv";
+  kinegen::test::write_text(path, yaml);
+  const auto r = kinegen_cli(
+      {"analyze", path.string(), "--t0", "0", "--t1", "1", "--steps", "4", "-o", out.string()});
+  INFO(r.err);
+  CHECK(r.exit_code == 2);
+  CHECK(r.err.rfind("error: ", 0) == 0);
+  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  const int line =
+      1 + static_cast<int>(std::count(yaml.begin(), yaml.begin() + yaml.find("suspension:"), '\n'));
+  CHECK(r.err.find(":" + std::to_string(line) + ":") != std::string::npos);
+  CHECK(r.err.find("steer_axis: 'LBJ' is not above 'UBJ'") != std::string::npos);
+  CHECK(!std::filesystem::exists(out));
+}
+
 // ---- Bricard's linkage (tests/mechanisms/spatial_bricard.yaml). -----------------------------
 
 // Joint k's point and axis at the file's assembled pose; joint k joins body k - 1 (0: ground)

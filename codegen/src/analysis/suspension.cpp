@@ -14,7 +14,7 @@ namespace kinegen::codegen {
 namespace {
 // The order loader_suspension.cpp appends the outputs in: toe, camber, caster, kpi,
 // contact_x, contact_y, contact_z, scrub_radius, trail, wheel_travel, track_change.
-constexpr int kWheelTravel = 9, kTrackChange = 10;
+constexpr int kCaster = 2, kWheelTravel = 9, kTrackChange = 10;
 }  // namespace
 
 SuspensionRows::SuspensionRows(const CompiledModel& model, const AnalysisOptions& options)
@@ -28,10 +28,12 @@ SuspensionRows::SuspensionRows(const CompiledModel& model, const AnalysisOptions
   quiet.sensitivity = nullptr;
   quiet.forces = nullptr;
   bool solved = false;
+  double caster0 = 0;
   try {
     run_analysis(
         model, {t, t, 0},
         [&](const StateRow& row) {
+          caster0 = row.outputs[s.first_output + kCaster][0];
           travel0_ = row.outputs[travel_][0];
           track0_ = row.outputs[track_][0];
           solved = true;
@@ -42,6 +44,13 @@ SuspensionRows::SuspensionRows(const CompiledModel& model, const AnalysisOptions
                         "design_t = " + format_number(t) + ")");
   }
   if (!solved) throw AnalysisError(m_.source + ": the suspension's design position was not solved");
+  // caster = atan2(-k_x, k_z) is within a quarter turn exactly when k points up: steer_axis
+  // given lower point first would turn caster and kpi by half a turn, silently.
+  if (!(std::abs(caster0) < M_PI / 2))
+    throw InputError(m_.source, "suspension", s.loc,
+                     "steer_axis: '" + s.steer_upper + "' is not above '" + s.steer_lower +
+                         "' at the design position (t = " + format_number(t) +
+                         "); the upper point comes first");
 }
 
 std::vector<std::string> SuspensionRows::columns(const Mechanism& m) {
