@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "support/csv_columns.hpp"
 #include "support/files.hpp"
 #include "support/run_command.hpp"
 
@@ -25,25 +26,6 @@ kinegen::test::CommandResult kinegen_cli(const std::vector<std::string>& args) {
   std::vector<std::string> argv{KINEGEN_EXE};
   argv.insert(argv.end(), args.begin(), args.end());
   return kinegen::test::run_command(argv);
-}
-
-// The CSV as columns by name.
-std::map<std::string, std::vector<double>> columns(const std::string& csv) {
-  std::istringstream in(csv);
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> names;
-  std::istringstream header(line);
-  for (std::string n; std::getline(header, n, ',');) names.push_back(n);
-  std::map<std::string, std::vector<double>> out;
-  while (std::getline(in, line)) {
-    std::istringstream row(line);
-    std::size_t k = 0;
-    // strtod: a subnormal value (the noise of a coordinate that is 0) is a value too.
-    for (std::string v; std::getline(row, v, ','); ++k)
-      out[names.at(k)].push_back(std::strtod(v.c_str(), nullptr));
-  }
-  return out;
 }
 
 // The slider's x, dx/dtheta and d2x/dtheta2 (x^2 = u(theta)).
@@ -67,7 +49,7 @@ TEST_CASE("spatial analyze: the slider-crank against its closed form", "[spatial
         {"analyze", mechanism("spatial_slider_crank"), "--t0", t0, "--t1", "1.3", "--steps", "40"});
     INFO("t0 " << t0 << "\n" << r.err);
     REQUIRE(r.exit_code == 0);
-    auto c = columns(r.out);
+    auto c = kinegen::test::csv_columns(r.out);
     const auto& t = c["t"];
     REQUIRE(t.size() == 41);
     double worst_x = 0, worst_v = 0, worst_a = 0, worst_p = 0, worst_unit = 0, worst_rot = 0;
@@ -185,7 +167,7 @@ outputs:
                               "6.25", "--steps", "62"});
   INFO(r.err);
   REQUIRE(r.exit_code == 0);
-  auto c = columns(r.out);
+  auto c = kinegen::test::csv_columns(r.out);
   const double pi = std::acos(-1.0);
   for (std::size_t k = 0; k < c["t"].size(); ++k) {
     const double t = c["t"][k];

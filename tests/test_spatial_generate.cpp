@@ -17,6 +17,7 @@
 
 #include "spatial_all_types.hpp"
 #include "spatial_slider_crank.hpp"
+#include "support/csv_columns.hpp"
 #include "support/files.hpp"
 #include "support/run_command.hpp"
 
@@ -28,25 +29,6 @@ constexpr double kOmega = 6;
 
 std::string mechanism(const std::string& name) {
   return std::string(KINEGEN_SOURCE_DIR) + "/tests/mechanisms/" + name + ".yaml";
-}
-
-// The CSV as columns by name.
-std::map<std::string, std::vector<double>> csv_columns(const std::string& csv) {
-  std::istringstream in(csv);
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> names;
-  std::istringstream header(line);
-  for (std::string n; std::getline(header, n, ',');) names.push_back(n);
-  std::map<std::string, std::vector<double>> out;
-  while (std::getline(in, line)) {
-    std::istringstream row(line);
-    std::size_t k = 0;
-    // strtod: a subnormal value (the noise of a coordinate that is 0) is a value too.
-    for (std::string v; std::getline(row, v, ','); ++k)
-      out[names.at(k)].push_back(std::strtod(v.c_str(), nullptr));
-  }
-  return out;
 }
 
 // The slider's x at crank angle th (the closed form), and the crank pin's y and z.
@@ -147,7 +129,7 @@ TEST_CASE("spatial generate: the header's step agrees with analyze", "[spatial][
                                   "0.3", "--t1", "1.3", "--steps", "40"});
   INFO(r.err);
   REQUIRE(r.exit_code == 0);
-  auto c = csv_columns(r.out);
+  auto c = kinegen::test::csv_columns(r.out);
   const auto& times = c["t"];
   REQUIRE(times.size() == 41);
   kinegen::Solver<Crank> solver;

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "support/csv_columns.hpp"
 #include "support/files.hpp"
 #include "support/run_command.hpp"
 
@@ -33,24 +34,6 @@ kinegen::test::CommandResult kinegen_cli(const std::vector<std::string>& args) {
   return kinegen::test::run_command(argv);
 }
 
-// The CSV as columns by name (strtod: "nan" and subnormal numbers too).
-Columns columns(const std::string& csv) {
-  std::istringstream in(csv);
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> names;
-  std::istringstream header(line);
-  for (std::string n; std::getline(header, n, ',');) names.push_back(n);
-  Columns out;
-  while (std::getline(in, line)) {
-    std::istringstream row(line);
-    std::size_t k = 0;
-    for (std::string v; std::getline(row, v, ','); ++k)
-      out[names.at(k)].push_back(std::strtod(v.c_str(), nullptr));
-  }
-  return out;
-}
-
 Columns analyze(const std::string& file, double t0, double t1, int steps,
                 const std::vector<std::string>& extra = {}) {
   std::vector<std::string> args{"analyze", file,
@@ -61,7 +44,7 @@ Columns analyze(const std::string& file, double t0, double t1, int steps,
   const auto r = kinegen_cli(args);
   INFO(file << "\n" << r.err);
   REQUIRE(r.exit_code == 0);
-  return columns(r.out);
+  return kinegen::test::csv_columns(r.out);
 }
 
 // A rotation by `angle` about the unit `axis` (Rodrigues).
@@ -444,7 +427,7 @@ TEST_CASE("Bricard's linkage is solved through its redundant row against a loop 
   CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
   CHECK(r.err.find("redundant") != std::string::npos);
   CHECK(r.err.find("r6") != std::string::npos);
-  const auto col = columns(r.out);
+  const auto col = kinegen::test::csv_columns(r.out);
   // Gauss-Newton on the 12 closure equations in the other 5 angles, from `rest`.
   Eigen::Matrix<double, 5, 1> rest = Eigen::Matrix<double, 5, 1>::Zero();
   const auto close = [&](double first) {
