@@ -1,18 +1,20 @@
 // libFuzzer target: the loader, the expression parser, the symbolic pipeline, the emitter, the
 // kinetostatics and the sensitivities on arbitrary text, then a short run of what the file asks
 // for: four steps of `analyze` (the block program, StepFactors, the Newton policy, sub-steps;
-// spatial files' continuation and branch checks), or for a file with `free:` a short `simulate`
-// (its stop_when, breakpoints, energy bound and force columns) by one of the methods and
-// tolerances, sometimes the high-precision reference, then what `linearize`, `modes` and
-// `equilibrium` do at t0. The run's settings come from a hash of the input, so that mutations
-// reach each of them. Any input must end in a model and a run, an InputError, a UsageError or
-// an AnalysisError; anything else (a crash, a sanitizer report, another exception, a hang) is
-// a bug.
+// spatial files' continuation and branch checks; a suspension: block's design solve and rows), or
+// for a file with `free:` a short `simulate` (its stop_when, breakpoints, energy bound and force
+// columns) by one of the methods and tolerances, sometimes the high-precision reference, then what
+// `linearize`, `modes` and `equilibrium` do at t0. The run's settings come from a hash of the
+// input, so that mutations reach each of them. Any input must end in a model and a run, an
+// InputError, a UsageError or an AnalysisError; anything else (a crash, a sanitizer report, another
+// exception, a hang) is a bug.
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/equilibrium.hpp"
@@ -22,6 +24,7 @@
 #include "kinegen/codegen/analysis/reference_dynamics.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
 #include "kinegen/codegen/analysis/simulate.hpp"
+#include "kinegen/codegen/analysis/suspension.hpp"
 #include "kinegen/codegen/analysis/tangent.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/emit/emit_cpp.hpp"
@@ -36,8 +39,20 @@ namespace {
 // columns and, once in 16, the reference.
 void run(const kc::CompiledModel& model, unsigned choice) {
   if (model.mechanism().num_free() == 0) {
+    // A suspension: block adds its design solve and, per row, the travel from it and the
+    // motion ratios over the run.
+    std::unique_ptr<kc::SuspensionRows> suspension;
+    if (model.mechanism().suspension)
+      suspension = std::make_unique<kc::SuspensionRows>(model, kc::AnalysisOptions{});
+    std::vector<kc::StateRow> rows;
     kc::run_analysis(
-        model, {0, 1, 4}, [](const kc::StateRow&) {}, kc::AnalysisOptions{});
+        model, {0, 1, 4},
+        [&](const kc::StateRow& row) {
+          rows.push_back(row);
+          if (suspension) suspension->apply(rows.back());
+        },
+        kc::AnalysisOptions{});
+    if (suspension) (void)suspension->motion_ratios(rows);
     return;
   }
   const kc::ForceModel forces = kc::derive_forces(model);
