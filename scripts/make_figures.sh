@@ -64,6 +64,10 @@ rm -rf "$dir"
 # Rack-and-pinion steering over one cycle of the wheel, lock to lock.
 "$kinegen" animate examples/gears/steering.yaml --t0 0 --t1 6.283185307179586 --steps 120 \
   --width 480 -o "$out/steering.svg"
+# The double wishbone corner's toe, camber, caster and kingpin inclination over wheel and rack
+# travel.
+scripts/plot_suspension.sh "$kinegen" examples/spatial/double_wishbone.yaml \
+  "$out/suspension_double_wishbone.png" --rack rack
 # kinegen view's page, in headless Chromium (playwright-core from viewer/node_modules: npm ci).
 if [[ -d viewer/node_modules/playwright-core ]] && command -v node >/dev/null; then
   node viewer/screenshots.mjs "$kinegen"
