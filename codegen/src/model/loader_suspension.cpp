@@ -129,7 +129,9 @@ void Loader::read_suspension(const YAML::Node& node, SourceLoc loc, Mechanism& m
   // The outputs share the names of the file's outputs, points, vectors, parameters and
   // definitions: a clash would make a column or an expression ambiguous.
   const auto outputs = suspension_outputs(s);
-  for (const auto& [name, text] : outputs) {
+  for (const auto& output : outputs) {
+    // Not a structured binding: clang before 16 cannot capture one in the lambda below.
+    const std::string& name = output.first;
     const auto clash = [&](const auto& list) {
       for (const auto& x : list)
         if (x.name == name) return true;
