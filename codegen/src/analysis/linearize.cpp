@@ -140,7 +140,9 @@ LinearModel linearize(Linearizer& linearizer, const OperatingPoint& p) {
   out.a.bottomLeftCorner(nf, nf) = d_z;
   out.a.bottomRightCorner(nf, nf) = d_zd;
   out.b = Eigen::MatrixXd::Zero(2 * nf, nu);
-  out.b.bottomRows(nf) = d_u;
+  // A block of an empty matrix offsets its null data pointer (undefined behaviour that clang's
+  // UBSan reports): no inputs, no block.
+  if (nu > 0) out.b.bottomRows(nf) = d_u;
   return out;
 }
 
