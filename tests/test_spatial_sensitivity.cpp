@@ -253,10 +253,10 @@ TEST_CASE("spatial tolerance: the worst case bounds a Monte Carlo spread", "[spa
   cg::ToleranceOptions options;
   options.tolerances = cg::parse_tolerances({"lbj_z=1e-4", "tro_z=2e-4", "radius=1e-3"});
   options.grid = {0, 1, 4};
-  options.monte_carlo = 60;
+  options.monte_carlo = 20;  // the bound holds for any number of samples
   options.seed = 3;
   const auto r = cg::tolerance_analysis(*model, options);
-  REQUIRE(r.samples == 60);
+  REQUIRE(r.samples == 20);
   int moved = 0;
   for (std::size_t k = 0; k < r.t.size(); ++k)
     for (std::size_t q = 0; q < r.quantities.size(); ++q) {

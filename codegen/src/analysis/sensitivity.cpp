@@ -124,8 +124,13 @@ void design_offsets(const CompiledModel& model, SensitivityModel& s) {
   options.sensitivity = &s;
   options.warn = [](const std::string&) {};
   Eigen::MatrixXd at_design;
-  run_analysis(
-      model, {t, t, 0}, [&](const StateRow& row) { at_design = row.doutputs_dp; }, options);
+  try {
+    run_analysis(
+        model, {t, t, 0}, [&](const StateRow& row) { at_design = row.doutputs_dp; }, options);
+  } catch (const AnalysisError& e) {
+    throw AnalysisError(std::string(e.what()) + " (solving the suspension's design position, " +
+                        "design_t = " + format_number(t) + ", for the sensitivities)");
+  }
   s.output_offsets = Eigen::MatrixXd::Zero(at_design.rows(), at_design.cols());
   for (int o : {first + 9, first + 10}) s.output_offsets.row(o) = at_design.row(o);
 }
