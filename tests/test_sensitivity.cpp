@@ -45,8 +45,8 @@ std::vector<std::string> example_files() {
 }
 
 // Every planar mechanism that analyzes over t in [0, 1]: the examples and the test mechanisms
-// except all_types.yaml (a loader test that is singular by design) and the spatial ones (whose
-// sensitivities are not built yet: refused).
+// except all_types.yaml (a loader test that is singular by design) and the spatial ones
+// (test_spatial_sensitivity.cpp).
 std::vector<std::string> analyzable_files() {
   auto files = example_files();
   for (const auto& f : yaml_files(fs::path(KINEGEN_SOURCE_DIR) / "tests" / "mechanisms")) {

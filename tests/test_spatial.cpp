@@ -220,7 +220,6 @@ TEST_CASE("spatial: commands without spatial support refuse a spatial file, exit
       {"equilibrium", file},
       {"modes", file},
       {"linearize", file},
-      with_run({"tolerance", file, "--tol", "omega=0.1"}),
       with_run({"animate", file, "-o", (out / "a.svg").string()}),
   };
   for (const auto& args : commands) {

@@ -233,7 +233,7 @@ std::vector<double> SpatialAnalysis::columns(const Eigen::VectorXd& q, const Eig
   return out;
 }
 
-std::string SpatialAnalysis::csv_row(const StateRow& row) const {
+std::string SpatialAnalysis::csv_row(const StateRow& row, const std::vector<double>& extra) const {
   const int nb = static_cast<int>(impl_->model.mechanism().bodies.size());
   const std::vector<double> rates = columns(row.q, row.qd, row.qdd);
   std::string s = format_number(row.t);
@@ -245,6 +245,12 @@ std::string SpatialAnalysis::csv_row(const StateRow& row) const {
   for (; at < rates.size(); ++at) s += "," + format_number(rates[at]);
   for (const auto& o : row.outputs)
     for (double v : o) s += "," + format_number(v);
+  for (double v : extra) s += "," + format_number(v);
+  // Sensitivities, as sensitivity_columns names them: per parameter the coordinates, the
+  // points' and vectors' x, y, z, the outputs.
+  for (Eigen::Index k = 0; k < row.dq_dp.cols(); ++k)
+    for (const Eigen::MatrixXd* d : {&row.dq_dp, &row.dpoints_dp, &row.doutputs_dp})
+      for (Eigen::Index i = 0; i < d->rows(); ++i) s += "," + format_number((*d)(i, k));
   return s + "\n";
 }
 

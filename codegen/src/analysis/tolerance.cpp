@@ -14,15 +14,6 @@ namespace kinegen::codegen {
 
 namespace {
 
-// The positions a row reports, in CSV order: q, then the points' x, y.
-Eigen::VectorXd row_values(const StateRow& row) {
-  Eigen::VectorXd v(row.q.size() + 2 * static_cast<Eigen::Index>(row.points.size()));
-  v.head(row.q.size()) = row.q;
-  for (std::size_t p = 0; p < row.points.size(); ++p)
-    v.segment<2>(row.q.size() + 2 * p) = row.points[p].r;
-  return v;
-}
-
 // A uniform draw in [-1, 1) from the 53 high bits: the same on every platform, unlike
 // std::uniform_real_distribution.
 double symmetric_unit(std::mt19937_64& rng) {
@@ -114,11 +105,16 @@ void monte_carlo(const CompiledModel& model, const ToleranceOptions& options,
       drawn += (k ? ", " : "") + names[k] + " = " + format_number(v);
     }
     try {
-      // Default BuildOptions and AnalysisOptions: no progress, no warnings; a sample is silent.
-      const auto sample = CompiledModel::from_mechanism(m, overrides);
+      // Default BuildOptions (but a spatial file's) and AnalysisOptions: no progress, no
+      // warnings; a sample is silent.
+      BuildOptions build;
+      build.spatial = model.build_options().spatial;
+      const auto sample = CompiledModel::from_mechanism(m, overrides, build);
+      const auto offsets = spatial_offsets(*sample);  // the sample's own points and vectors
       std::size_t r = 0;
       run_analysis(*sample, options.grid, [&](const StateRow& row) {
-        moments[r].add(row_values(row) - nominal[r], s + 1);  // deviations from the nominal
+        // Deviations from the nominal.
+        moments[r].add(position_values(m, offsets, row) - nominal[r], s + 1);
         ++r;
       });
     } catch (const AnalysisError& e) {
@@ -193,7 +189,7 @@ ToleranceResult tolerance_analysis(const CompiledModel& model, const ToleranceOp
         result.t.push_back(row.t);
         result.worst.emplace_back(worst.data(), worst.data() + nqty);
         result.rss.emplace_back(rss.data(), rss.data() + nqty);
-        nominal.push_back(row_values(row));
+        nominal.push_back(position_values(m, sensitivity.local3, row));
       },
       analysis);
 

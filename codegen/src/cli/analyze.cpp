@@ -34,8 +34,7 @@ struct AnalyzeArgs {
 // What analyze cannot do on a spatial file yet (docs/format.md, Spatial mechanisms).
 void refuse_spatial_options(const Common& c, const AnalyzeArgs& o, const kc::CompiledModel& m) {
   if (!m.mechanism().spatial) return;
-  for (const auto& [given, option] : {std::pair{!o.sensitivity_list.empty(), "--sensitivity"},
-                                      std::pair{o.with_forces, "--forces"},
+  for (const auto& [given, option] : {std::pair{o.with_forces, "--forces"},
                                       std::pair{o.reference_digits != 0, "--reference-digits"}})
     if (given)
       throw kc::InputError(c.file, "space", m.mechanism().space_loc,
@@ -58,10 +57,10 @@ class RowWriter {
     options.block_solver = o.solver != "dense";
     suspension_ = std::make_unique<kc::SuspensionRows>(model, options);
   }
-  std::string header(std::string h) const {
-    h.pop_back();  // the line break
-    for (const auto& name : kc::SuspensionRows::columns(model_.mechanism())) h += "," + name;
-    return h + "\n";
+  // The motion ratios come after the force columns and before the sensitivities.
+  std::string header(std::vector<std::string> forces, const std::vector<std::string>& p) const {
+    for (const auto& name : kc::SuspensionRows::columns(model_.mechanism())) forces.push_back(name);
+    return kc::csv_header(model_.mechanism(), forces, p);
   }
   void take(const kc::StateRow& row, kc::OutputFile& file) {
     if (!suspension_) return write(row, {}, file);
@@ -76,12 +75,10 @@ class RowWriter {
 
  private:
   void write(const kc::StateRow& row, const std::vector<double>& extra, kc::OutputFile& file) {
-    std::string text =
-        spatial_ ? spatial_->csv_row(row)
-                 : kc::csv_row(row, static_cast<int>(model_.mechanism().bodies.size()));
-    text.pop_back();
-    for (double v : extra) text += "," + kc::format_number(v);
-    file.stream() << text << "\n";
+    // Only spatial files have a suspension, so `extra` is empty on planar ones.
+    file.stream() << (spatial_
+                          ? spatial_->csv_row(row, extra)
+                          : kc::csv_row(row, static_cast<int>(model_.mechanism().bodies.size())));
     file.check();  // a full disk or a closed pipe ends the run now, not after it
   }
   const kc::CompiledModel& model_;
@@ -118,7 +115,7 @@ int run_analyze(const Common& c, const AnalyzeArgs& o) {
   }
   RowWriter writer(*model, o);  // solves a suspension's design position
   kc::OutputFile file(o.output.empty() ? "-" : o.output);
-  file.stream() << writer.header(kc::csv_header(model->mechanism(), force_names, sensitivity.names));
+  file.stream() << writer.header(force_names, sensitivity.names);
   int status = 0;
   int rows = 0;
   double t_last = 0;

@@ -75,7 +75,7 @@ std::unique_ptr<kc::CompiledModel> load(const Common& c, kc::BuildOptions build,
   build.inputs_required = inputs_required;
   // The commands that take spatial files so far (docs/format.md, Spatial mechanisms).
   build.spatial = c.command == "eval" || c.command == "check" || c.command == "analyze" ||
-                  c.command == "generate" || c.command == "view";
+                  c.command == "generate" || c.command == "view" || c.command == "tolerance";
   build.user = "`kinegen " + c.command + "`";
   for (const std::string& in : c.inputs) {
     const auto eq = in.find('=');

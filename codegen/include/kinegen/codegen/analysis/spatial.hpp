@@ -35,8 +35,9 @@ class SpatialAnalysis {
   std::vector<double> columns(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                               const Eigen::VectorXd& qdd) const;
   // A row of the CSV (csv_header's columns for a spatial file): t, per body its coordinates
-  // and columns() after them, the points', vectors' and outputs' columns.
-  std::string csv_row(const StateRow& row) const;
+  // and columns() after them, the points', vectors' and outputs' columns, `extra` (a
+  // suspension's motion ratios), then the sensitivities when the row has them.
+  std::string csv_row(const StateRow& row, const std::vector<double>& extra = {}) const;
 
  private:
   struct Impl;
