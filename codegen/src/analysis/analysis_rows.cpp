@@ -1,0 +1,54 @@
+// AnalysisRows (analysis_rows.hpp): a run's CSV lines, with a suspension's design-position
+// offsets and motion ratios.
+#include "kinegen/codegen/analysis/analysis_rows.hpp"
+
+#include <string>
+#include <vector>
+
+#include "kinegen/codegen/analysis/spatial.hpp"
+#include "kinegen/codegen/analysis/suspension.hpp"
+
+namespace kinegen::codegen {
+
+AnalysisRows::AnalysisRows(const CompiledModel& model, const AnalysisOptions& options,
+                           long long rows, const std::string& what)
+    : model_(model) {
+  if (model.mechanism().spatial) spatial_ = std::make_unique<SpatialAnalysis>(model);
+  if (!model.mechanism().suspension) return;
+  require_kept_rows(what + " with a suspension:", rows, static_cast<std::size_t>(3 * model.nq()));
+  suspension_ = std::make_unique<SuspensionRows>(model, options);
+}
+
+AnalysisRows::~AnalysisRows() = default;
+
+std::string AnalysisRows::header(const std::vector<std::string>& forces,
+                                 const std::vector<std::string>& sensitivity) const {
+  std::string h = csv_header(model_.mechanism(), forces, sensitivity);
+  h.pop_back();  // the line break
+  for (const auto& name : SuspensionRows::columns(model_.mechanism())) h += "," + name;
+  return h + "\n";
+}
+
+void AnalysisRows::take(const StateRow& row, const LineSink& line) {
+  if (!suspension_) return line(text(row, {}));
+  kept_.push_back(row);
+  suspension_->apply(kept_.back());
+}
+
+void AnalysisRows::finish(const LineSink& line) {
+  if (!suspension_) return;
+  const auto ratios = suspension_->motion_ratios(kept_);
+  for (std::size_t k = 0; k < kept_.size(); ++k) line(text(kept_[k], ratios[k]));
+  kept_.clear();
+}
+
+std::string AnalysisRows::text(const StateRow& row, const std::vector<double>& extra) const {
+  std::string s = spatial_ ? spatial_->csv_row(row)
+                           : csv_row(row, static_cast<int>(model_.mechanism().bodies.size()));
+  if (extra.empty()) return s;
+  s.pop_back();
+  for (double v : extra) s += "," + format_number(v);
+  return s + "\n";
+}
+
+}  // namespace kinegen::codegen
