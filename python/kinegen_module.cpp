@@ -27,6 +27,7 @@
 
 #include "dynamics_api.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/analysis_rows.hpp"
 #include "kinegen/codegen/analysis/check.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/model_evaluator.hpp"
@@ -195,6 +196,8 @@ class Mechanism {
                              "paths, e.g. inputs={'crank': 'crank.csv'}");
       build_.inputs.emplace_back(py::str(name), py::str(file));
     }
+    // Spatial files as the command line takes them: each method refuses what they lack.
+    build_.spatial = true;
     std::vector<std::string> warnings;
     translate(path_, [&] {
       Locked locked;
@@ -206,6 +209,8 @@ class Mechanism {
       coordinates_ = kc::coordinate_labels(model_->mechanism());
       parameters_ = model_->parameter_table();
       warnings = model_->symbolic().warnings;
+      spatial_ = model_->mechanism().spatial;
+      space_loc_ = model_->mechanism().space_loc;
     });
     // The file's warnings (a jump at a driver's boundary), as the command line prints them
     // when it loads the file.
@@ -243,6 +248,7 @@ class Mechanism {
       if (!std::isfinite(t0) || !std::isfinite(t1))
         throw kc::UsageError("--t0 and --t1 must be finite");
       check_span(t0, t1);
+      refuse_spatial(forces ? "analyze(forces=True)" : nullptr);
       kc::SensitivityModel sens;
       kc::AnalysisOptions options;
       std::unique_ptr<kc::ForceModel> force_model;
@@ -260,20 +266,21 @@ class Mechanism {
         options.forces = force_model.get();
       }
       options.warn = [&](const std::string& w) { warnings.push_back(one_line(w)); };
-      std::string header = kc::csv_header(m->mechanism(), force_names, sens.names);
+      // The command line's lines (analysis_rows.hpp), read back; a suspension's design position
+      // is solved here, before any row.
+      kc::AnalysisRows rows(*m, options, steps + 1LL, "analyze");
+      std::string header = rows.header(force_names, sens.names);
       header.pop_back();
       columns = split(header);
       // The rows are kept (unlike the command line's, which stream): bounded as tolerance's.
       kc::require_kept_rows("analyze", steps + 1LL, columns.size());
+      const auto keep = [&](std::string line) {
+        line.pop_back();
+        for (const auto& item : split(line)) values.push_back(std::strtod(item.c_str(), nullptr));
+      };
       kc::run_analysis(
-          *m, {t0, t1, steps},
-          [&](const kc::StateRow& row) {
-            std::string line = kc::csv_row(row, static_cast<int>(m->mechanism().bodies.size()));
-            line.pop_back();
-            for (const auto& item : split(line))
-              values.push_back(std::strtod(item.c_str(), nullptr));
-          },
-          options);
+          *m, {t0, t1, steps}, [&](const kc::StateRow& row) { rows.take(row, keep); }, options);
+      rows.finish(keep);
     });
     warn_all(warnings);
     py::dict out;
@@ -397,6 +404,8 @@ class Mechanism {
     std::string failure;
     std::string html = translate(path_, [&] {
       if (args.t0 && args.t1) check_span(*args.t0, *args.t1);
+      refuse_spatial(!args.modes.empty() ? "view(modes=...)"
+                                         : (args.forces ? "view(forces=True)" : nullptr));
       return kinegen::python::view_html(*model_, args, &warnings, &failure);
     });
     warn_all(warnings);
@@ -423,8 +432,9 @@ class Mechanism {
   // into the module's exceptions. Its methods take the library's lock themselves
   // around their library work, and build their Python results after it.
   template <class F>
-  auto with_dynamics(F&& f) {
+  auto with_dynamics(const char* method, F&& f) {
     return translate(path_, [&] {
+      refuse_spatial(method);
       if (!dynamics_) dynamics_ = std::make_unique<kinegen::python::DynamicsApi>(*model_);
       return f(*dynamics_);
     });
@@ -436,6 +446,17 @@ class Mechanism {
   int nc() const { return nc_; }
 
  private:
+  // What spatial files do not have yet (docs/format.md, Spatial mechanisms): dynamics, modes,
+  // equilibria and forces.
+  // InputError, as the command line's refusal of a spatial file.
+  void refuse_spatial(const char* method) const {
+    if (!spatial_ || !method) return;
+    throw kc::InputError(path_, "space", space_loc_,
+                         std::string("spatial files (space: 3d) are not supported by "
+                                     "Mechanism.") +
+                             method + " yet");
+  }
+
   std::string path_;
   std::vector<kc::ParamOverride> overrides_;
   kc::BuildOptions build_;
@@ -443,6 +464,8 @@ class Mechanism {
   std::unique_ptr<kinegen::python::DynamicsApi> dynamics_;  // the same
   std::string name_;
   int nq_ = 0, nc_ = 0;
+  bool spatial_ = false;
+  kc::SourceLoc space_loc_;
   std::vector<std::string> coordinates_;
   std::vector<std::pair<std::string, double>> parameters_;
 };
@@ -450,7 +473,8 @@ class Mechanism {
 }  // namespace
 
 PYBIND11_MODULE(kinegen, m) {
-  m.doc() = "kinegen: planar mechanism kinematics (the kinegen command line, in-process)";
+  m.doc() =
+      "kinegen: planar and spatial mechanism kinematics (the kinegen command line, in-process)";
   // Function-local statics that run Python code when first used (numpy's C API table imports
   // numpy, which may let another thread take the GIL) are made here, at import, where no other
   // thread can be inside this module: two threads' first calls would otherwise wait for each
@@ -484,7 +508,8 @@ PYBIND11_MODULE(kinegen, m) {
   m.def("_live_tables", [] { return kc::live_tables(); });
   kinegen::python::bind_page(m);
 
-  py::class_<Mechanism>(m, "Mechanism", R"doc(A mechanism file (format: docs/format.md), read and compiled in-process.
+  py::class_<Mechanism>(
+      m, "Mechanism", R"doc(A mechanism file (format: docs/format.md), read and compiled in-process.
 
 Mechanism(path, params={}, inputs={}) reads the YAML file; params overrides its parameters
 (numbers or expression strings), inputs gives each input driver (f: input) its table
@@ -517,9 +542,9 @@ message.
           },
           py::arg("t0"), py::arg("t1"), py::arg("steps"), py::arg("forces") = false,
           py::arg("sensitivity") = py::list(),
-           "Position, velocity and acceleration at t_k = t0 + k (t1 - t0) / steps: a dict from "
-           "the CSV's column names to numpy arrays, in the CSV's order; sensitivity=[p, ...] "
-           "adds the d(C)/d(p) columns.")
+          "Position, velocity and acceleration at t_k = t0 + k (t1 - t0) / steps: a dict from "
+          "the CSV's column names to numpy arrays, in the CSV's order; sensitivity=[p, ...] "
+          "adds the d(C)/d(p) columns.")
       .def("eval", &Mechanism::eval, py::arg("q") = py::none(), py::arg("qd") = py::none(),
            py::arg("t") = 0.0,
            "Phi, Phi_q, nu and gamma at (q, qd, t) (q defaults to q0, qd to zeros).")
@@ -549,7 +574,7 @@ message.
             kinegen::python::SimulateArgs a{t0,     t1,         steps,  rtol,       atol,
                                             method, integrator, forces, allow_drift};
             std::vector<std::string> warnings;
-            py::dict rows = mech.with_dynamics([&](auto& d) {
+            py::dict rows = mech.with_dynamics("simulate", [&](auto& d) {
               check_span(t0, t1);
               return d.simulate(a, warnings);
             });
@@ -558,16 +583,15 @@ message.
           },
           py::arg("t1"), py::arg("steps"), py::kw_only(), py::arg("rtol") = 1e-8,
           py::arg("atol") = py::none(), py::arg("method") = "minimal", py::arg("t0") = 0.0,
-          py::arg("integrator") = "auto", py::arg("forces") = false,
-          py::arg("allow_drift") = false,
+          py::arg("integrator") = "auto", py::arg("forces") = false, py::arg("allow_drift") = false,
           "Forward dynamics (kinegen simulate): rows at t0 + k (t1 - t0) / steps, a dict from "
           "simulate's CSV column names to numpy arrays, in the CSV's order. atol defaults to "
           "1e-2 rtol; allow_drift: an energy balance past its bound warns instead of raising.")
       .def(
           "dynamics",
-          [](Mechanism& mech, double t, const std::vector<double>& z,
-             const std::vector<double>& zd, kinegen::python::OptionalValues u) {
-            return mech.with_dynamics([&](auto& d) { return d.dynamics(t, z, zd, u); });
+          [](Mechanism& mech, double t, const std::vector<double>& z, const std::vector<double>& zd,
+             kinegen::python::OptionalValues u) {
+            return mech.with_dynamics("dynamics", [&](auto& d) { return d.dynamics(t, z, zd, u); });
           },
           py::arg("t"), py::arg("z"), py::arg("zd"), py::arg("u") = py::none(),
           "zdd at (t, z, zd, u): the free coordinates' accelerations under the forces, u the "
@@ -577,7 +601,8 @@ message.
           "equilibrium",
           [](Mechanism& mech, double t, kinegen::python::OptionalValues u,
              kinegen::python::OptionalValues start, bool nearest) {
-            return mech.with_dynamics([&](auto& d) { return d.equilibrium(t, u, start, nearest); });
+            return mech.with_dynamics("equilibrium",
+                                      [&](auto& d) { return d.equilibrium(t, u, start, nearest); });
           },
           py::kw_only(), py::arg("t") = 0.0, py::arg("u") = py::none(),
           py::arg("start") = py::none(), py::arg("nearest") = false,
@@ -589,30 +614,39 @@ message.
           "modes",
           [](Mechanism& mech, double t, kinegen::python::OptionalValues z,
              kinegen::python::OptionalValues u) {
-            return mech.with_dynamics([&](auto& d) { return d.modes(t, z, u); });
+            return mech.with_dynamics("modes", [&](auto& d) { return d.modes(t, z, u); });
           },
-          py::kw_only(), py::arg("t") = 0.0, py::arg("z") = py::none(),
-          py::arg("u") = py::none(),
+          py::kw_only(), py::arg("t") = 0.0, py::arg("z") = py::none(), py::arg("u") = py::none(),
           "kinegen modes: about the equilibrium (or z), M_z, K_z, C_z, the frequencies (Hz), "
           "damping ratios and shapes (one row of dq per mode).")
       .def(
           "linearize",
           [](Mechanism& mech, double t, kinegen::python::OptionalValues z,
              kinegen::python::OptionalValues zd, kinegen::python::OptionalValues u) {
-            return mech.with_dynamics([&](auto& d) { return d.linearize(t, z, zd, u); });
+            return mech.with_dynamics("linearize",
+                                      [&](auto& d) { return d.linearize(t, z, zd, u); });
           },
-          py::kw_only(), py::arg("t") = 0.0, py::arg("z") = py::none(),
-          py::arg("zd") = py::none(), py::arg("u") = py::none(),
+          py::kw_only(), py::arg("t") = 0.0, py::arg("z") = py::none(), py::arg("zd") = py::none(),
+          py::arg("u") = py::none(),
           "kinegen linearize: the exact A and B of x' = f(x, u), x = (z, zd), at the point "
           "(defaults value0, v0, zeros), as a dict of numpy arrays with the names of x and u.")
       .def_property_readonly(
-          "free", [](Mechanism& mech) { return mech.with_dynamics([](auto& d) { return d.free_names(); }); },
+          "free",
+          [](Mechanism& mech) {
+            return mech.with_dynamics(nullptr, [](auto& d) { return d.free_names(); });
+          },
           "Names of the free coordinates z, in order.")
       .def_property_readonly(
-          "inputs", [](Mechanism& mech) { return mech.with_dynamics([](auto& d) { return d.input_names(); }); },
-          "Names of the run-time inputs u (f: input drivers' D, D_v, D_a; loads' inputs), in order.")
-      .def_property_readonly("coordinates", &Mechanism::coordinates,
-                             "Names of the coordinates q, in order (body.x, body.y, body.phi).")
+          "inputs",
+          [](Mechanism& mech) {
+            return mech.with_dynamics(nullptr, [](auto& d) { return d.input_names(); });
+          },
+          "Names of the run-time inputs u (f: input drivers' D, D_v, D_a; loads' inputs), in "
+          "order.")
+      .def_property_readonly(
+          "coordinates", &Mechanism::coordinates,
+          "Names of the coordinates q, in order (body.x, body.y, body.phi; in a spatial "
+          "file body.x, body.y, body.z, body.e0 .. body.e3).")
       .def_property_readonly("parameters", &Mechanism::parameters,
                              "Parameter values after the overrides, in file order.")
       .def_property_readonly("name", &Mechanism::name, "The file's name: key.")

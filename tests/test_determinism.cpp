@@ -25,13 +25,7 @@ std::vector<fs::path> shipped_mechanisms() {
   std::vector<fs::path> files;
   for (const char* dir : {"examples", "tests/mechanisms"})
     for (const auto& entry : fs::recursive_directory_iterator(fs::path(KINEGEN_SOURCE_DIR) / dir))
-      // Files with a `suspension:` block are left out, a known defect: the order of their
-      // output rates' terms (the suspension's .v and .a) still differs between processes
-      // (double_wishbone.yaml every time, macpherson.yaml now and then); their headers are
-      // not committed in generated/.
-      if (entry.path().extension() == ".yaml" &&
-          read_text(entry.path()).find("\nsuspension:") == std::string::npos)
-        files.push_back(entry.path());
+      if (entry.path().extension() == ".yaml") files.push_back(entry.path());
   std::sort(files.begin(), files.end());
   return files;
 }

@@ -26,7 +26,7 @@ def has_free_coordinates(path):
 def examples():
     # The single-file examples and those in folders (cams, forces, gears, slots, ...) that
     # `analyze` drives as they are: all but the free-motion ones (examples/dynamics) and the
-    # spatial ones (examples/spatial), which the module does not take yet.
+    # spatial ones (examples/spatial), which have no sensitivities yet: test_spatial.py.
     return sorted(str(p) for pattern in ("*.yaml", "*/*.yaml")
                   for p in (SOURCE / "examples").glob(pattern)
                   if not has_free_coordinates(p) and p.parent.name != "spatial")

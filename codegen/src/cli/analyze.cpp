@@ -7,9 +7,8 @@
 #include <vector>
 
 #include "cli.hpp"
-#include "kinegen/codegen/analysis/spatial.hpp"
-#include "kinegen/codegen/analysis/suspension.hpp"
 #include "kinegen/codegen/analysis/analysis.hpp"
+#include "kinegen/codegen/analysis/analysis_rows.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
 #include "kinegen/codegen/analysis/reference.hpp"
 #include "kinegen/codegen/analysis/sensitivity.hpp"
@@ -43,48 +42,34 @@ void refuse_spatial_options(const Common& c, const AnalyzeArgs& o, const kc::Com
                                option + "` yet");
 }
 
-// The CSV rows: spatial files' carry their angular rates, points and vectors in 3D; a
-// suspension's are kept until the run ends, since its motion ratios need all of them
-// (docs/format.md, Suspension analysis), and its design position is solved before any row.
+// The CSV's lines (analysis_rows.hpp: spatial files' 3D columns, a suspension's offsets and
+// motion ratios), each written as it comes: a full disk or a closed pipe ends the run now.
 class RowWriter {
  public:
-  RowWriter(const kc::CompiledModel& model, const AnalyzeArgs& o) : model_(model) {
-    if (model.mechanism().spatial) spatial_ = std::make_unique<kc::SpatialAnalysis>(model);
-    if (!model.mechanism().suspension) return;
-    kc::require_kept_rows("analyze with a suspension:", o.steps + 1LL,
-                          static_cast<std::size_t>(3 * model.nq()));
-    kc::AnalysisOptions options;
-    options.block_solver = o.solver != "dense";
-    suspension_ = std::make_unique<kc::SuspensionRows>(model, options);
-  }
-  // The motion ratios come after the force columns and before the sensitivities.
-  std::string header(std::vector<std::string> forces, const std::vector<std::string>& p) const {
-    for (const auto& name : kc::SuspensionRows::columns(model_.mechanism())) forces.push_back(name);
-    return kc::csv_header(model_.mechanism(), forces, p);
+  RowWriter(const kc::CompiledModel& model, const AnalyzeArgs& o)
+      : rows_(model, options(o), o.steps + 1LL, "analyze") {}
+  std::string header(const std::vector<std::string>& forces,
+                     const std::vector<std::string>& sensitivity) const {
+    return rows_.header(forces, sensitivity);
   }
   void take(const kc::StateRow& row, kc::OutputFile& file) {
-    if (!suspension_) return write(row, {}, file);
-    kept_.push_back(row);
-    suspension_->apply(kept_.back());
+    rows_.take(row, [&](const std::string& line) { write(line, file); });
   }
   void finish(kc::OutputFile& file) {
-    if (!suspension_) return;
-    const auto ratios = suspension_->motion_ratios(kept_);
-    for (std::size_t k = 0; k < kept_.size(); ++k) write(kept_[k], ratios[k], file);
+    rows_.finish([&](const std::string& line) { write(line, file); });
   }
 
  private:
-  void write(const kc::StateRow& row, const std::vector<double>& extra, kc::OutputFile& file) {
-    // Only spatial files have a suspension, so `extra` is empty on planar ones.
-    file.stream() << (spatial_
-                          ? spatial_->csv_row(row, extra)
-                          : kc::csv_row(row, static_cast<int>(model_.mechanism().bodies.size())));
-    file.check();  // a full disk or a closed pipe ends the run now, not after it
+  static kc::AnalysisOptions options(const AnalyzeArgs& o) {
+    kc::AnalysisOptions options;
+    options.block_solver = o.solver != "dense";
+    return options;
   }
-  const kc::CompiledModel& model_;
-  std::unique_ptr<kc::SpatialAnalysis> spatial_;
-  std::unique_ptr<kc::SuspensionRows> suspension_;
-  std::vector<kc::StateRow> kept_;
+  static void write(const std::string& line, kc::OutputFile& file) {
+    file.stream() << line;
+    file.check();
+  }
+  kc::AnalysisRows rows_;
 };
 
 int run_analyze(const Common& c, const AnalyzeArgs& o) {

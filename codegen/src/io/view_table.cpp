@@ -11,8 +11,8 @@
 #include <set>
 #include <sstream>
 
+#include "kinegen/codegen/analysis/analysis_rows.hpp"
 #include "kinegen/codegen/analysis/forces.hpp"
-#include "kinegen/codegen/analysis/spatial.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
 #include "kinegen/codegen/base/interrupt.hpp"
 #include "kinegen/codegen/base/read_file.hpp"
@@ -197,10 +197,13 @@ RunTable analysis_table(const CompiledModel& model, const TimeGrid& grid, bool f
     force_names = force_columns(m);
     options.forces = &force_model;
   }
+  // The lines analyze writes (analysis_rows.hpp), read back: one column order, and a
+  // suspension's travel and motion ratios as analyze gives them.
+  AnalysisRows lines(model, options, grid.steps + 1LL, "view");
   RunTable run;
   run.source = "the analysis (t = " + format_number(grid.t0) + " .. " + format_number(grid.t1) +
                ", " + std::to_string(grid.steps) + " steps)";
-  std::string header = csv_header(m, force_names, {});
+  std::string header = lines.header(force_names, {});
   header.pop_back();
   std::vector<std::string_view> fields;
   split_fields(header, fields);
@@ -210,16 +213,12 @@ RunTable analysis_table(const CompiledModel& model, const TimeGrid& grid, bool f
   require_kept_rows("view", static_cast<long long>(std::min(run.total_rows, max_rows)),
                     run.columns.size(), "--max-rows");
   run.stride = decimation_stride(run.total_rows, max_rows);
-  // Values as the CSV holds them (csv_row, 17 digits, read back): one column order. Spatial
-  // files' rows carry their angular rates, points and vectors in 3D, as analyze's do.
-  const auto spatial = m.spatial ? std::make_unique<SpatialAnalysis>(model) : nullptr;
   std::vector<double> last;
-  std::size_t row = 0;
+  std::size_t row = 0, solved = 0;
   bool last_kept = false;
-  const auto sink = [&](const StateRow& state) {
-    std::string text =
-        spatial ? spatial->csv_row(state) : csv_row(state, static_cast<int>(m.bodies.size()));
-    text.pop_back();
+  const auto keep = [&](const std::string& line) {
+    std::string_view text(line);
+    text.remove_suffix(1);  // the line break
     split_fields(text, fields);
     last.resize(fields.size());
     for (std::size_t c = 0; c < fields.size(); ++c)
@@ -230,14 +229,23 @@ RunTable analysis_table(const CompiledModel& model, const TimeGrid& grid, bool f
     ++row;
   };
   try {
-    run_analysis(model, grid, sink, options);
+    run_analysis(
+        model, grid,
+        [&](const StateRow& state) {
+          ++solved;
+          lines.take(state, keep);
+        },
+        options);
   } catch (const AnalysisError& e) {
-    if (row == 0 || !failure) throw;
+    if (solved == 0 || !failure) throw;
     *failure = e.what();
+    run.total_rows = solved;
+    lines.finish(keep);
     if (!last_kept)
       for (std::size_t c = 0; c < last.size(); ++c) run.values[c].push_back(last[c]);
-    run.total_rows = row;
+    return run;
   }
+  lines.finish(keep);
   return run;
 }
 

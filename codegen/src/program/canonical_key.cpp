@@ -151,8 +151,10 @@ const std::string& CanonicalKey::key(const ex& e) {
     for (const auto& part : parts) k += "," + part;
     k += ")";
   } else if (is_flipped_power(e)) {
+    // Keyed as the product -1 * (-u)^n it equals: GiNaC holds that term of a sum as the power
+    // (-u)^n in one process and as the product -u^n in another, and both must sort alike.
     const auto [pk, negated] = factor_key(e);
-    k = negated ? "-" + pk : pk;
+    k = negated ? "*(" + key(GiNaC::numeric(-1)) + "," + pk + ")" : pk;
   } else {
     k = key_plain(e);
   }
