@@ -17,6 +17,7 @@
 #include "kinegen/codegen/base/format.hpp"
 #include "kinegen/codegen/model/mechanism.hpp"
 #include "kinegen/codegen/model/table.hpp"
+#include "kinegen/codegen/symbolic/functions.hpp"
 
 namespace {
 
@@ -581,6 +582,37 @@ TEST_CASE("tables are freed with the last mechanism that uses them", "[loader][t
   churn.join();
   CHECK(right);
   CHECK(kc::live_tables() == before + 1);
+}
+
+// A number kept past its table's release (an expression or an evaluator that outlived its
+// mechanism) is an error, also once the slot holds another table: the number carries the
+// slot's generation. Before, the reused slot's number read the new table's values.
+TEST_CASE("a table number kept past its release reads no other table", "[loader][tables]") {
+  const kc::TableSource src{"stale.yaml", "test", {}, false};
+  const std::vector<double> t = {0, 1, 2, 3};
+  kc::TableRef first = kc::register_table(kc::fit_not_a_knot(t, {0, 2, 4, 6}), src);  // 2 t
+  const int stale = first->id();
+  const GiNaC::symbol x("x");
+  const GiNaC::ex read = kc::kinegen_table(stale, 0, x);  // an expression that keeps the number
+  const auto at = [&](double v) {
+    return GiNaC::ex_to<GiNaC::numeric>(read.subs(x == v).evalf()).to_double();
+  };
+  CHECK(at(1.5) == Approx(3.0));
+  first.reset();
+  // The freed slot is the next one handed out (the last freed, reused first).
+  const kc::TableRef second = kc::register_table(kc::fit_not_a_knot(t, {0, 3, 6, 9}), src);
+  CHECK(second->id() % kc::kMaxTables == stale % kc::kMaxTables);
+  CHECK(second->id() != stale);
+  double f[3];
+  REQUIRE(kc::registered_table(second->id()).eval(1.5, f));
+  CHECK(f[0] == Approx(4.5));
+  try {
+    kc::registered_table(stale).eval(1.5, f);
+    FAIL("the stale number read a table, f = " << f[0]);
+  } catch (const std::logic_error& e) {
+    CHECK(std::string(e.what()).find("no longer registered") != std::string::npos);
+  }
+  CHECK_THROWS_AS(at(1.5), std::logic_error);
 }
 
 // The registry under concurrent use: threads register and release tables at once, some equal

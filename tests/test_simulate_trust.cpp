@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "kinegen/codegen/analysis/forces.hpp"
+#include "kinegen/codegen/analysis/reference_dynamics.hpp"
 #include "kinegen/codegen/analysis/simulate.hpp"
 #include "support/files.hpp"
 #include "support/run_command.hpp"
@@ -417,6 +418,64 @@ TEST_CASE("stop_when at t0: CVODE and --reference judge a value near 0 alike",
     // rate) the bound was rtol |g| alone and the run stopped at t0.
     if (std::string(offset) == "1e-12") CHECK(rows[0] == 5u);
   }
+}
+
+TEST_CASE("stop_when within its bound above 0 at t0 that then rises stops where it passes E",
+          "[simulate_trust][stop_when]") {
+  // A block sliding at a constant v: x = v t exactly. g = tip.x + d starts at d in (0, E0],
+  // E0 = rtol d + atol scale_x (docs/format.md, stop_when: dg/dx = 1), so t0 is no stop; g
+  // then rises and never goes below 0. Every method stops where g passes E0: at (E0 - d) / v,
+  // chosen to be 0.3. (It ran to t1 before: monitoring started only once g < 0.)
+  kc::SimulateOptions o;
+  const auto text = [](double v, double d) {
+    std::ostringstream y;
+    y.precision(17);
+    y << "name: slider\nparameters: {m: 1, v: " << v << ", d: " << d << "}\n"
+      << "bodies:\n  - {name: block, q0: [0, 0, 0], mass: m}\n"
+      << "joints:\n  - {type: translational, name: guide, i: ground, j: block, vi: [1, 0]}\n"
+      << "free:\n  - {type: absolute_x, name: x, body: block, value0: 0, v0: v}\n"
+      << "points:\n  - {name: tip, body: block, s: [0, 0]}\nstop_when: \"tip.x + d\"\n";
+    return y.str();
+  };
+  kc::BuildOptions build;
+  build.free_as_state = true;
+  const double scale_x =
+      kc::CompiledModel::from_mechanism(kc::parse_mechanism(text(1, 0), "slider.yaml"), {}, build)
+          ->symbolic()
+          .coordinate_scales[0];
+  const double d = 0.5 * o.atol * scale_x;
+  const double bound = o.rtol * d + o.atol * scale_x;
+  const double v = (bound - d) / 0.3;
+  const fs::path yaml = write_yaml("rises_within_bound", text(v, d));
+  const auto model = kc::CompiledModel::from_file(yaml.string(), {}, build);
+  const kc::ForceModel forces = kc::derive_forces(*model);
+  for (const kc::Method method : {kc::Method::kMinimal, kc::Method::kAugmented}) {
+    o.method = method;
+    std::vector<double> times;
+    const kc::SimulateSummary s = kc::run_simulation(
+        *model, forces, {0, 1, 4},
+        [&](const kc::SimulatedRow& row) { times.push_back(row.state.t); }, o);
+    INFO("method " << static_cast<int>(method));
+    CHECK(s.stopped);
+    CHECK(s.stop_time == Approx(0.3).epsilon(1e-9));
+    CHECK(s.stop_bound == Approx(bound).epsilon(1e-12));
+    CHECK(times.back() == s.stop_time);
+    CHECK(times.size() == 3u);  // t = 0, 0.25 and the stop
+  }
+  std::vector<double> times;
+  const kc::ReferenceSimulationStats r = kc::run_reference_simulation(
+      *model, forces, {0, 1, 4}, 20,
+      [&](const kc::SimulatedRow& row) { times.push_back(row.state.t); }, {});
+  CHECK(r.stopped);
+  CHECK(r.stop_time == Approx(0.3).epsilon(1e-9));
+  CHECK(times.size() == 3u);
+  // The command line says so.
+  const Run run = simulate(yaml, {"--t1", "1", "--steps", "4"});
+  INFO("stderr: " << run.r.err);
+  CHECK(run.r.exit_code == 0);
+  CHECK(run.rows.rows() == 3u);
+  CHECK(run.r.err.find("stopped at t = 0.3") != std::string::npos);
+  CHECK(run.r.err.find("tip.x + d rose past its error bound at t0") != std::string::npos);
 }
 
 TEST_CASE("--reference refuses a stop_when that reads force columns, before any row",

@@ -346,10 +346,10 @@ class StopFunction {
   bool active() const { return active_; }
   bool has_rate() const { return has_rate_; }
 
-  // Whether g > E at st (t0), E as the double run computes it (stop_when_bound): rtol |g|
-  // plus, where the rate is known, each coordinate's and rate's atol share. A g within E of
-  // 0 at t0 is no crossing, for every method alike.
-  bool above_bound(const ReferenceMotionState& st, const SimulateOptions& options) {
+  // The rule at t0 (StopWhenLevel) with E as the double run computes it (stop_when_bound):
+  // rtol |g| plus, where the rate is known, each coordinate's and rate's atol share, so that
+  // every method judges t0 alike.
+  StopWhenLevel level_at_t0(const ReferenceMotionState& st, const SimulateOptions& options) {
     const numeric g = value_and_rate(st, nullptr);
     const std::size_t nq = st.q.size();
     std::vector<double> by_q, by_qd;
@@ -371,10 +371,15 @@ class StopFunction {
     const double bound = stop_when_bound(std::abs(g.to_double()), known ? by_q.data() : nullptr,
                                          known ? by_qd.data() : nullptr,
                                          model_.symbolic().coordinate_scales, options);
-    return g.to_double() > bound;
+    return StopWhenLevel(g.to_double(), bound);
   }
 
   numeric operator()(const ReferenceMotionState& st) { return value_and_rate(st, nullptr); }
+  numeric rate(const ReferenceMotionState& st) {
+    numeric r;
+    value_and_rate(st, &r);
+    return r;
+  }
 
   // g at st and, when rate is given and has_rate(), g' there. Throws StopWhenError when g is
   // not a finite real number.
@@ -539,12 +544,13 @@ StepPoint locate_root(const Extrapolation& gbs, F&& f, const StepPoint& a, numer
   return b;
 }
 
-// stop_when's root between two accepted points (g(a) < 0 <= g(b)).
-StepPoint find_root(const Extrapolation& gbs, StopFunction& stop, const StepPoint& a,
-                    const numeric& ga, const StepPoint& b, const numeric& gb,
+// stop_when's root between two accepted points (g(a) < level <= g(b)).
+StepPoint find_root(const Extrapolation& gbs, StopFunction& stop, const numeric& level,
+                    const StepPoint& a, const numeric& ga, const StepPoint& b, const numeric& gb,
                     const numeric& tolerance) {
   return locate_root(
-      gbs, [&](const ReferenceMotionState& s) { return stop(s); }, a, ga, b, gb, tolerance);
+      gbs, [&](const ReferenceMotionState& s) { return stop(s) - level; }, a, ga - level, b,
+      gb - level, tolerance);
 }
 
 // The drivers' and loads' kinks that depend on the state (analysis/breakpoints.hpp): each
@@ -638,14 +644,15 @@ ReferenceSimulationStats run_reference_simulation_exact(
   const numeric root_tolerance =
       numeric(10).power(-(digits - 5)) *
       dyn.to_float(exact_numeric(std::max(std::abs(grid.t1), grid.t1 - grid.t0)));
-  // stop_when (docs/format.md, Simulation): g and g' at the last point; a g above its error
-  // bound at t0 stops there, a g within it is no crossing (monitoring starts once g < 0).
+  // stop_when (docs/format.md, Simulation): g and g' at the last point; the rule at t0 and the
+  // level to cross (StopWhenLevel).
   numeric g, g_rate;
   double g_scale = 1;
+  StopWhenLevel level = stop.active() ? stop.level_at_t0(p.state, options) : StopWhenLevel(0, 0);
   if (stop.active()) {
     g = stop.value_and_rate(p.state, &g_rate);
     g_scale = std::max(g_scale, bounded(g));
-    if (stop.above_bound(p.state, options)) {
+    if (level.stops_at_t0()) {
       gbs.stats.stopped = true;
       gbs.stats.stop_time = p.t.to_double();
       return gbs.stats;
@@ -669,6 +676,7 @@ ReferenceSimulationStats run_reference_simulation_exact(
     emit(root);
     gbs.stats.stopped = true;
     gbs.stats.stop_time = root.t.to_double();
+    gbs.stats.stop_bound = level.bound();
     return gbs.stats;
   };
   try {
@@ -708,23 +716,21 @@ ReferenceSimulationStats run_reference_simulation_exact(
           if (kinks.active()) kink_values = kinks.values(p.state);
           if (!stop.active()) continue;
           g_scale = std::max(g_scale, bounded(g_new));
-          if (g.is_negative() && !g_new.is_negative())
-            return stopped(find_root(before, stop, previous, g, p, g_new, root_tolerance));
+          const numeric l = dyn.to_float(exact_numeric(level.level()));
+          if ((g - l).is_negative() && !(g_new - l).is_negative())
+            return stopped(find_root(before, stop, l, previous, g, p, g_new, root_tolerance));
           // A local maximum inside the step (g' from + to -) that reaches 0: the first crossing
           // lies before it.
-          if (stop.has_rate() && g.is_negative() && g_rate.is_positive() &&
+          if (stop.has_rate() && (g - l).is_negative() && g_rate.is_positive() &&
               rate_new.is_negative()) {
-            const auto rate = [&](const ReferenceMotionState& st) {
-              numeric r;
-              stop.value_and_rate(st, &r);
-              return r;
-            };
+            const auto rate = [&](const ReferenceMotionState& st) { return stop.rate(st); };
             const StepPoint top =
                 locate_root(before, rate, previous, g_rate, p, rate_new, root_tolerance);
             const numeric g_top = stop(top.state);
-            if (!g_top.is_negative())
-              return stopped(find_root(before, stop, previous, g, top, g_top, root_tolerance));
+            if (!(g_top - l).is_negative())
+              return stopped(find_root(before, stop, l, previous, g, top, g_top, root_tolerance));
           }
+          level.see(g_new.is_negative());
           g = g_new;
           g_rate = rate_new;
         } catch (const StopWhenError&) {

@@ -223,8 +223,8 @@ class Integration {
       if (!sym.stop_force_columns.empty())
         stop_forces_ = std::make_unique<ForceSolver>(model, forces);
       last_ = stop_sample(t0, nullptr);
-      // A zero at t0 (to its error bound) is no crossing; above 0 there, the run stops at t0.
-      if (last_.g > last_.bound) {
+      level_ = StopWhenLevel(last_.g, last_.bound);
+      if (level_.stops_at_t0()) {
         stopped_ = true;
         stop_time_ = t0;
       }
@@ -290,6 +290,7 @@ class Integration {
     }
     s.stopped = stopped_;
     s.stop_time = stop_time_;
+    s.stop_bound = stop_bound_;
     return s;
   }
 
@@ -508,16 +509,19 @@ class Integration {
         h = std::max(h / 2, floor);
       }
       if (crossing(a, b)) return;
+      level_.see(b.g < 0);
       a = b;
     }
     last_ = end;
   }
 
-  // Whether stop_when crosses 0 from below between samples a and b (a sign change, or a local
-  // maximum >= 0 between them); if so, stops the run there.
+  // Whether stop_when crosses its level (StopWhenLevel: 0, or its bound at t0) from below
+  // between samples a and b (a sign change, or a local maximum at or above it between them);
+  // if so, stops the run there.
   bool crossing(const StopSample& a, const StopSample& b) {
-    if (!(a.g < 0)) return false;
-    if (b.g >= 0) return stop_between(a, b);
+    const double level = level_.level();
+    if (!(a.g < level)) return false;
+    if (b.g >= level) return stop_between(a, b);
     if (has_rate_ && a.rate > 0 && b.rate < 0) {
       // A local maximum between them: where the rate changes sign (the Illinois method).
       StopSample lo = a, hi = b;
@@ -527,7 +531,7 @@ class Integration {
         double tm = hi.t - rhi * (hi.t - lo.t) / (rhi - rlo);
         if (!(tm > lo.t && tm < hi.t)) tm = 0.5 * (lo.t + hi.t);
         const StopSample m = stop_sample_at(tm, lo);
-        if (m.g >= 0) return stop_between(lo, m);
+        if (m.g >= level) return stop_between(lo, m);
         if (m.rate > 0) {
           lo = m;
           rlo = m.rate;
@@ -544,29 +548,31 @@ class Integration {
     return false;
   }
 
-  // The crossing between a (g < 0) and b (g >= 0), by the Illinois method on the dense output:
-  // the run stops at the first time found with g >= 0.
+  // The crossing between a (g < level) and b (g >= level), by the Illinois method on the dense
+  // output: the run stops at the first time found with g >= level.
   bool stop_between(StopSample a, StopSample b) {
-    double ga = a.g, gb = b.g;
+    const double level = level_.level();
+    double ga = a.g - level, gb = b.g - level;
     int side = 0;
     for (int it = 0; it < 200 && b.t - a.t > time_tolerance(b.t); ++it) {
       double tm = b.t - gb * (b.t - a.t) / (gb - ga);
       if (!(tm > a.t && tm < b.t)) tm = 0.5 * (a.t + b.t);
       const StopSample m = stop_sample_at(tm, a);
-      if (m.g >= 0) {
+      if (m.g >= level) {
         b = m;
-        gb = m.g;
+        gb = m.g - level;
         if (side == 1) ga /= 2;
         side = 1;
       } else {
         a = m;
-        ga = m.g;
+        ga = m.g - level;
         if (side == -1) gb /= 2;
         side = -1;
       }
     }
     stopped_ = true;
     stop_time_ = b.t;
+    stop_bound_ = level_.bound();
     return true;
   }
   static double time_tolerance(double t) { return 4 * kEps * std::max(std::abs(t), 1e-300); }
@@ -677,7 +683,8 @@ class Integration {
   std::vector<double> stop_values_;
   std::unique_ptr<ForceSolver> stop_forces_;
   bool has_rate_ = false, stopped_ = false;
-  double stop_time_ = 0, gscale_ = 0;
+  double stop_time_ = 0, stop_bound_ = 0, gscale_ = 0;
+  StopWhenLevel level_{0, 0};
   StopSample last_;  // at the last step's end
 };
 

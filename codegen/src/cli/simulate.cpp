@@ -62,17 +62,21 @@ std::function<void(double)> progress_after_a_second(double t0, double t1) {
   };
 }
 
-// The line that says stop_when ended the run (CVODE's and the reference's alike).
-void report_stop(const kc::Mechanism& m, double t) {
+// The line that says stop_when ended the run (CVODE's and the reference's alike); bound: 0, or
+// the error bound at t0 that EXPR, within it above 0 there, rose past (StopWhenLevel).
+void report_stop(const kc::Mechanism& m, double t, double bound) {
   std::cerr << "stopped at " << kc::format_time(t) << ": " << one_line(m.stop_when->text)
-            << " crossed 0\n";
+            << (bound > 0 ? " rose past its error bound at t0, " + kc::format_number(bound) +
+                                " (it started within it, above 0)"
+                          : std::string(" crossed 0"))
+            << "\n";
 }
 
 // What the run did: the stop_when line, the drift warning, and with -v the integrator's
 // figures.
 void report(const kc::Mechanism& m, const kc::SimulateSummary& s) {
   kc::Log& log = kc::Log::global();
-  if (s.stopped) report_stop(m, s.stop_time);
+  if (s.stopped) report_stop(m, s.stop_time, s.stop_bound);
   if (s.drifted) log.warning(m.source + ": " + s.drift);
   log.detail("integrator " + s.integrator + ": " + std::to_string(s.steps) + " steps, " +
              std::to_string(s.evaluations) + " evaluations, " +
@@ -116,7 +120,7 @@ int run_simulate(const Common& c, const SimulateArgs& o) {
     if (o.reference_digits != 0) {
       const auto stats = kc::run_reference_simulation(*model, forces, {o.t0, o.t1, o.steps},
                                                       o.reference_digits, sink, options);
-      if (stats.stopped) report_stop(model->mechanism(), stats.stop_time);
+      if (stats.stopped) report_stop(model->mechanism(), stats.stop_time, stats.stop_bound);
     } else {
       const kc::SimulateSummary s =
           kc::run_simulation(*model, forces, {o.t0, o.t1, o.steps}, sink, options);

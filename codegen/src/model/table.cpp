@@ -78,12 +78,22 @@ std::vector<double> solve(const std::vector<Eigen::Triplet<double>>& entries,
 // that evaluation takes no lock while registration and release (under the mutex) change
 // slots: a chunk, once made, is never moved or freed, a slot's spline is published (release)
 // before its number is handed out, and it is cleared only when no mechanism holds the number.
+// A number is the slot's index plus kMaxTables times its generation, which each release
+// advances: a number kept past its table's release (an expression or an evaluator that
+// outlived its mechanism) no longer matches its slot, also once the slot holds another table.
 constexpr int kChunkSize = 1024;
 constexpr int kChunks = kMaxTables / kChunkSize;
+// Every number fits an int; a slot whose generations are used up is not reused.
+constexpr int kGenerations = static_cast<int>(std::numeric_limits<int>::max() / kMaxTables);
+
+struct Slot {
+  std::atomic<const Spline*> spline{nullptr};
+  std::atomic<int> generation{0};
+};
 
 struct Registry {
   std::mutex mutex;  // registration and release
-  std::atomic<std::atomic<const Spline*>*> chunks[kChunks] = {};
+  std::atomic<Slot*> chunks[kChunks] = {};
   std::vector<int> free_ids;  // released numbers, reused first
   int next = 0;               // numbers below it have been used
   int live = 0;
@@ -109,10 +119,12 @@ bool same(const Spline& a, const Spline& b) {
          a.period == b.period && a.rise == b.rise;
 }
 
-std::atomic<const Spline*>* slot_of(Registry& r, int id) {
-  if (id < 0 || id >= kMaxTables) return nullptr;
-  std::atomic<const Spline*>* chunk = r.chunks[id / kChunkSize].load(std::memory_order_acquire);
-  return chunk ? &chunk[id % kChunkSize] : nullptr;
+// The slot of a number (of any generation), or null.
+Slot* slot_of(Registry& r, int id) {
+  if (id < 0) return nullptr;
+  const int index = id % kMaxTables;
+  Slot* chunk = r.chunks[index / kChunkSize].load(std::memory_order_acquire);
+  return chunk ? &chunk[index % kChunkSize] : nullptr;
 }
 
 }  // namespace
@@ -120,7 +132,10 @@ std::atomic<const Spline*>* slot_of(Registry& r, int id) {
 TableSlot::~TableSlot() {
   Registry& r = registry();
   std::lock_guard<std::mutex> lock(r.mutex);
-  const Spline* spline = slot_of(r, id_)->exchange(nullptr, std::memory_order_acq_rel);
+  Slot& slot = *slot_of(r, id_);
+  const int generation = slot.generation.load(std::memory_order_relaxed) + 1;
+  slot.generation.store(generation, std::memory_order_release);
+  const Spline* spline = slot.spline.exchange(nullptr, std::memory_order_acq_rel);
   const auto [first, last] = r.by_hash.equal_range(hash_of(*spline));
   for (auto it = first; it != last; ++it)
     if (it->second.first == id_) {
@@ -128,7 +143,7 @@ TableSlot::~TableSlot() {
       break;
     }
   delete spline;
-  r.free_ids.push_back(id_);
+  if (generation < kGenerations) r.free_ids.push_back(id_ % kMaxTables);
   --r.live;
 }
 
@@ -139,23 +154,25 @@ TableRef register_table(const Spline& spline, const TableSource& source) {
   const auto [first, last] = r.by_hash.equal_range(h);
   for (auto it = first; it != last; ++it)
     if (TableRef held = it->second.second.lock();
-        held && same(*slot_of(r, held->id())->load(std::memory_order_relaxed), spline))
+        held && same(*slot_of(r, held->id())->spline.load(std::memory_order_relaxed), spline))
       return held;
-  int id = 0;
+  int index = 0;
   if (!r.free_ids.empty()) {
-    id = r.free_ids.back();
+    index = r.free_ids.back();
     r.free_ids.pop_back();
   } else {
     if (r.next >= kMaxTables)
       fail(source, "more than " + std::to_string(kMaxTables) +
                        " different tables are in use at once in this process; release "
                        "mechanisms that are no longer needed");
-    id = r.next++;
-    auto& chunk = r.chunks[id / kChunkSize];
+    index = r.next++;
+    auto& chunk = r.chunks[index / kChunkSize];
     if (!chunk.load(std::memory_order_relaxed))
-      chunk.store(new std::atomic<const Spline*>[kChunkSize](), std::memory_order_release);
+      chunk.store(new Slot[kChunkSize](), std::memory_order_release);
   }
-  slot_of(r, id)->store(new Spline(spline), std::memory_order_release);
+  Slot& slot = *slot_of(r, index);
+  const int id = index + kMaxTables * slot.generation.load(std::memory_order_relaxed);
+  slot.spline.store(new Spline(spline), std::memory_order_release);
   TableRef ref = std::make_shared<const TableSlot>(id);
   r.by_hash.emplace(h, std::make_pair(id, std::weak_ptr<const TableSlot>(ref)));
   ++r.live;
@@ -163,11 +180,12 @@ TableRef register_table(const Spline& spline, const TableSource& source) {
 }
 
 const Spline& registered_table(int id) {
-  std::atomic<const Spline*>* slot = slot_of(registry(), id);
-  const Spline* spline = slot ? slot->load(std::memory_order_acquire) : nullptr;
-  if (!spline)
+  Slot* slot = slot_of(registry(), id);
+  const Spline* spline = slot ? slot->spline.load(std::memory_order_acquire) : nullptr;
+  if (!spline || slot->generation.load(std::memory_order_acquire) != id / kMaxTables)
     throw std::logic_error("table " + std::to_string(id) +
-                           " is not registered (its mechanism is gone)");
+                           " is no longer registered: the mechanism that owned it is gone, and "
+                           "an expression or evaluator that read it outlived it");
   return *spline;
 }
 

@@ -16,11 +16,11 @@ using GiNaC::numeric;
 
 namespace {
 
-// The largest table number.
-constexpr long kMaxTableNumber = kMaxTables - 1;
+// The largest table number: a slot's index and its generation (table.cpp).
+constexpr long kMaxTableNumber = std::numeric_limits<int>::max();
 
 // A law's number, a derivative's order, a driver's index or a table's number (up to
-// `largest`: the table registry holds up to 2^20 of them, table.cpp).
+// `largest`).
 int small_integer(const ex& e, const char* what, long largest = 1000) {
   if (!GiNaC::is_a<numeric>(e) || !GiNaC::ex_to<numeric>(e).is_integer() ||
       GiNaC::ex_to<numeric>(e).is_negative() || GiNaC::ex_to<numeric>(e) > largest)

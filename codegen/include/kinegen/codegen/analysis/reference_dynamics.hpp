@@ -121,9 +121,10 @@ SimulatedRow to_simulated_row(const ReferenceSimulatedRow& row);
 struct ReferenceSimulationStats {
   long steps = 0, rejected = 0, evaluations = 0;
   int largest_column = 0;  // of the extrapolation tableau (order 2 * column)
-  // A stop_when crossing (or stop_when > 0 at t0) ended the run at stop_time.
+  // A stop_when crossing (or stop_when > 0 at t0) ended the run at stop_time; stop_bound as
+  // SimulateSummary's.
   bool stopped = false;
-  double stop_time = 0;
+  double stop_time = 0, stop_bound = 0;
 };
 
 // Integrates over the grid like run_simulation (rows at the grid's times, one at a stop_when

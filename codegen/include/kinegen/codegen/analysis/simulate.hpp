@@ -104,9 +104,10 @@ struct SimulateSummary {
   // With allow_drift: the balance passed its bound (the largest excess, its time, the limit).
   bool drifted = false;
   std::string drift;
-  // A stop_when crossing ended the run at stop_time.
+  // A stop_when crossing ended the run at stop_time; stop_bound: 0 when EXPR crossed 0, else
+  // its error bound at t0 that EXPR rose past (StopWhenLevel).
   bool stopped = false;
-  double stop_time = 0;
+  double stop_time = 0, stop_bound = 0;
 };
 
 // stop_when's error bound E (docs/format.md, Simulation): rtol times its scale g_scale (the
@@ -121,6 +122,32 @@ inline double stop_when_bound(double g_scale, const double* by_q, const double* 
     bound += (std::abs(by_q[k]) + std::abs(by_qd[k])) * options.atol * scales[k];
   return bound;
 }
+
+// stop_when's rule at and after t0 (docs/format.md, stop_when), one for CVODE's runs and the
+// reference: g0 and E0 are EXPR and its error bound at t0. Above E0 the run stops at t0. A g0
+// in (0, E0] may be a zero (no crossing) or above 0 (a stop): the run stops once EXPR exceeds
+// E0 (then it was never below 0), unless EXPR goes below 0 first; otherwise at the first
+// crossing of 0 from below.
+class StopWhenLevel {
+ public:
+  StopWhenLevel(double g0, double bound0)
+      : at_t0_(g0 > bound0),
+        bound0_(bound0),
+        level_(g0 > 0 && !at_t0_ ? std::nextafter(bound0, HUGE_VAL) : 0) {}
+  bool stops_at_t0() const { return at_t0_; }
+  // The run stops where EXPR passes from below level() to level() or above.
+  double level() const { return level_; }
+  // 0 while the level is 0, else E0: for the message saying what EXPR crossed.
+  double bound() const { return level_ > 0 ? bound0_ : 0; }
+  // EXPR seen along the run, below 0 or not: once below 0, the level is 0.
+  void see(bool below_0) {
+    if (below_0) level_ = 0;
+  }
+
+ private:
+  bool at_t0_;
+  double bound0_, level_;
+};
 
 // SimulateOptions from the settings as a user names them (the command line's --rtol, --atol,
 // --method, --integrator with prefix "--"; the Python module's keywords with ""), each checked:

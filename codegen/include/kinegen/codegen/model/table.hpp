@@ -30,8 +30,9 @@ struct Spline {
 // The tables of the mechanisms alive in this process, by number (kinegen_table's id in
 // functions.hpp). A table belongs to the mechanisms that use it: each holds a TableRef
 // (DriverLaw::table_ref, Load::Input::table_ref), and the slot is freed when the last one
-// goes, its number then reused. Registering a spline equal to a live table's gives that
-// table's slot. Thread-safe.
+// goes, the slot then reused under a new number (a generation tag: a number kept past its
+// table's release never reads another table). Registering a spline equal to a live table's
+// gives that table's slot. Thread-safe.
 class TableSlot {
  public:
   explicit TableSlot(int id) : id_(id) {}
@@ -54,7 +55,7 @@ struct TableSource;
 TableRef register_table(const Spline& spline, const TableSource& source);
 // The table of a live slot, without a lock (a slot's spline is set before its number is
 // handed out, and freed only when no mechanism holds it). Throws std::logic_error for a
-// number that is not live.
+// number that is not live: one whose table was released, also when its slot holds another.
 const Spline& registered_table(int id);
 // How many tables are alive (for tests).
 int live_tables();
