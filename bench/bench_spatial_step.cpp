@@ -49,31 +49,34 @@ void wheel_centre(const double* q, double w[3]) {
 // Largest differences, hand against generated, at a few times each solved from the start.
 void check_agreement() {
   double d_pos = 0, d_rate = 0, d_acc = 0;
-  for (const double t : {0.0, 0.2, 0.5, 0.77, 1.0}) {
-    kinegen::Solver<Model> solver;
-    auto q = solver.initial_estimate(), qd = q, qdd = q;
-    qd.setZero();
-    qdd.setZero();
-    Hand::State h;
-    if (!solver.step(t, q, qd, qdd) || !Hand().step(t, h)) {
-      std::printf("agreement check: a solve failed at t = %g\n", t);
-      return;
+  for (const double rack : {0.0, 0.02, -0.03})
+    for (const double t : {0.0, 0.2, 0.5, 0.77, 1.0}) {
+      Model::Params params;
+      params.rack = rack;
+      kinegen::Solver<Model> solver(params);
+      auto q = solver.initial_estimate(), qd = q, qdd = q;
+      qd.setZero();
+      qdd.setZero();
+      Hand::State h;
+      if (!solver.step(t, q, qd, qdd) || !Hand(params.travel, rack).step(t, h)) {
+        std::printf("agreement check: a solve failed at t = %g, rack %g\n", t, rack);
+        return;
+      }
+      double v[Model::num_outputs], vd[Model::num_outputs], va[Model::num_outputs], w[3];
+      Model::outputs(q.data(), qd.data(), qdd.data(), t, params, v, vd, va);
+      wheel_centre(q.data(), w);
+      for (int i = 0; i < 3; ++i) d_pos = std::max(d_pos, std::abs(w[i] - h.w[i][0]));
+      d_rate = std::max(d_rate, std::abs(vd[kWheelZ] - h.w[2][1]));
+      d_acc = std::max(d_acc, std::abs(va[kWheelZ] - h.w[2][2]));
+      for (int i = 0; i < 4; ++i) {
+        d_pos = std::max(d_pos, std::abs(v[kToe + i] - h.angles[i][0]));
+        d_rate = std::max(d_rate, std::abs(vd[kToe + i] - h.angles[i][1]));
+        d_acc = std::max(d_acc, std::abs(va[kToe + i] - h.angles[i][2]));
+      }
     }
-    double v[Model::num_outputs], vd[Model::num_outputs], va[Model::num_outputs], w[3];
-    Model::outputs(q.data(), qd.data(), qdd.data(), t, Model::Params{}, v, vd, va);
-    wheel_centre(q.data(), w);
-    for (int i = 0; i < 3; ++i) d_pos = std::max(d_pos, std::abs(w[i] - h.w[i][0]));
-    d_rate = std::max(d_rate, std::abs(vd[kWheelZ] - h.w[2][1]));
-    d_acc = std::max(d_acc, std::abs(va[kWheelZ] - h.w[2][2]));
-    for (int i = 0; i < 4; ++i) {
-      d_pos = std::max(d_pos, std::abs(v[kToe + i] - h.angles[i][0]));
-      d_rate = std::max(d_rate, std::abs(vd[kToe + i] - h.angles[i][1]));
-      d_acc = std::max(d_acc, std::abs(va[kToe + i] - h.angles[i][2]));
-    }
-  }
   std::printf(
-      "hand-written against generated at t = 0, 0.2, 0.5, 0.77, 1 (W in m; toe, camber, caster,\n"
-      "kpi in rad): values %.1e, rates %.1e, accelerations %.1e (%s 1e-9)\n",
+      "hand-written against generated at t = 0, 0.2, 0.5, 0.77, 1, rack 0, 0.02, -0.03 m (W in m;\n"
+      "toe, camber, caster, kpi in rad): values %.1e, rates %.1e, accelerations %.1e (%s 1e-9)\n",
       d_pos, d_rate, d_acc, std::max({d_pos, d_rate, d_acc}) < 1e-9 ? "within" : "NOT within");
 }
 
@@ -88,6 +91,18 @@ struct Generated {
       Model::outputs(q.data(), qd.data(), qdd.data(), t, Model::Params{}, v, vd, va);
     }
     g_checksum += v[kToe] + va[kToe];
+    return true;
+  }
+};
+
+// The generated step without the outputs: what the outputs cost.
+struct GeneratedStepOnly {
+  kinegen::Solver<Model> solver;
+  kinegen::Solver<Model>::Vector q = solver.initial_estimate(), qd = q * 0, qdd = q * 0;
+  bool chunk(int k0) {
+    for (int k = k0; k < k0 + kChunk; ++k)
+      if (!solver.step(k * kDt, q, qd, qdd)) return false;
+    g_checksum += qdd[kUpright];
     return true;
   }
 };
@@ -132,15 +147,17 @@ int main() {
   auto q = first.initial_estimate(), qd = q, qdd = q;
   if (!first.step(0.0, q, qd, qdd)) return 1;
   Generated generated;
+  GeneratedStepOnly step_only;
   Dense dense(q);
   HandRun hand;
   // Interleaved: each chunk of the trajectory is timed for the three in turn.
-  double t_gen = 1e300, t_dense = 1e300, t_hand = 1e300;
+  double t_gen = 1e300, t_step = 1e300, t_dense = 1e300, t_hand = 1e300;
   auto best = [](double& t, auto&& chunk) {
     t = std::min(t, kinegen::bench::best_ns(1, kChunk, [&](int) { return chunk(); }));
   };
   for (int c = 0; c < kChunks; ++c) {
     best(t_gen, [&] { return generated.chunk(c * kChunk); });
+    best(t_step, [&] { return step_only.chunk(c * kChunk); });
     best(t_dense, [&] { return dense.chunk(c * kChunk); });
     best(t_hand, [&] { return hand.chunk(c * kChunk); });
   }
@@ -149,6 +166,8 @@ int main() {
       "best of %d interleaved chunks of %d steps, t from 0 to 1 (+-80 mm of wheel travel)\n",
       Model::nq, kChunks, kChunk);
   std::printf("  generated step + outputs  %8.0f ns\n", t_gen);
+  std::printf("  (generated step alone      %8.0f ns: the 12 outputs with rates cost the rest)\n",
+              t_step);
   std::printf("  generic dense Newton      %8.0f ns  (%.1fx the generated)\n", t_dense,
               t_dense / t_gen);
   std::printf("  hand-written closure      %8.0f ns  (%.1fx the generated)\n", t_hand,
