@@ -5,6 +5,7 @@
 
 #include "kinegen/codegen/analysis/analysis.hpp"
 #include "kinegen/codegen/analysis/evaluator.hpp"
+#include "kinegen/codegen/analysis/suspension.hpp"
 #include "kinegen/codegen/constraints/registry.hpp"
 
 namespace kinegen::codegen {
@@ -115,8 +116,7 @@ void refuse_carried_parameters(const CompiledModel& model, const std::vector<int
 }
 
 // A suspension's wheel_travel and track_change are differences from the design position
-// (analysis/suspension.cpp, whose output order this repeats: wheel_travel is the suspension's
-// tenth output, track_change its eleventh), so their d/dp subtract the d/dp there.
+// (analysis/suspension.hpp), so their d/dp subtract the d/dp there.
 void design_offsets(const CompiledModel& model, SensitivityModel& s) {
   const int first = model.mechanism().suspension->first_output;
   const double t = model.symbolic().design_t;
@@ -132,7 +132,8 @@ void design_offsets(const CompiledModel& model, SensitivityModel& s) {
                         "design_t = " + format_number(t) + ", for the sensitivities)");
   }
   s.output_offsets = Eigen::MatrixXd::Zero(at_design.rows(), at_design.cols());
-  for (int o : {first + 9, first + 10}) s.output_offsets.row(o) = at_design.row(o);
+  for (int o : {first + SuspensionRows::kWheelTravel, first + SuspensionRows::kTrackChange})
+    s.output_offsets.row(o) = at_design.row(o);
 }
 
 }  // namespace

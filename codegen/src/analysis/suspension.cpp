@@ -14,14 +14,14 @@ namespace kinegen::codegen {
 namespace {
 // The order loader_suspension.cpp appends the outputs in: toe, camber, caster, kpi,
 // contact_x, contact_y, contact_z, scrub_radius, trail, wheel_travel, track_change.
-constexpr int kCaster = 2, kWheelTravel = 9, kTrackChange = 10;
+constexpr int kCaster = 2;
 }  // namespace
 
 SuspensionRows::SuspensionRows(const CompiledModel& model, const AnalysisOptions& options)
     : m_(model.mechanism()) {
   const Suspension& s = *m_.suspension;
-  travel_ = s.first_output + kWheelTravel;
-  track_ = s.first_output + kTrackChange;
+  travel_ = s.first_output + SuspensionRows::kWheelTravel;
+  track_ = s.first_output + SuspensionRows::kTrackChange;
   const double t = model.symbolic().design_t;
   AnalysisOptions quiet = options;
   quiet.warn = [](const std::string&) {};

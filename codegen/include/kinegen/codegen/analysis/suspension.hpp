@@ -12,6 +12,9 @@ namespace kinegen::codegen {
 
 class SuspensionRows {
  public:
+  // wheel_travel's and track_change's places among the suspension's outputs (after
+  // Suspension::first_output), in the order loader_suspension.cpp appends them.
+  static constexpr int kWheelTravel = 9, kTrackChange = 10;
   // Solves the design position (at design_t, from the q0 pose as the first solve of any
   // analysis does): AnalysisError if it fails. `options` as the run's (its warnings are not
   // repeated here).
