@@ -3,26 +3,14 @@
 errors that carry the command line's error: line."""
 import json
 import math
-import subprocess
 
 import numpy as np
 import pytest
 
 import kinegen
-from conftest import examples, EXE
+from conftest import examples, read_csv, run
 
 TURN = "6.283185307179586"
-
-
-def run(*args):
-    return subprocess.run([EXE, *args], capture_output=True, text=True)
-
-
-def read_csv(path):
-    with open(path) as f:
-        header = f.readline().rstrip("\n").split(",")
-        rows = [[float(v) for v in line.rstrip("\n").split(",")] for line in f]
-    return header, np.array(rows)
 
 
 def cli_error(result):

@@ -4,26 +4,14 @@ design position and its motion ratios included), and one error naming the method
 spatial files do not have yet."""
 import json
 import re
-import subprocess
 
 import numpy as np
 import pytest
 
 import kinegen
-from conftest import EXE
+from conftest import read_csv, run
 
 SPATIAL = ["slider_crank", "double_wishbone", "macpherson"]
-
-
-def run(*args):
-    return subprocess.run([EXE, *args], capture_output=True, text=True)
-
-
-def read_csv(path):
-    with open(path) as f:
-        header = f.readline().rstrip("\n").split(",")
-        rows = [[float(v) for v in line.rstrip("\n").split(",")] for line in f]
-    return header, np.array(rows)
 
 
 def example(source, name):
