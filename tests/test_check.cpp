@@ -13,7 +13,7 @@
 #include "kinegen/codegen/analysis/check.hpp"
 #include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/base/diagnostics.hpp"
-#include "support/run_command.hpp"
+#include "support/cli.hpp"
 
 namespace {
 
@@ -28,11 +28,7 @@ std::vector<std::string> example_files() {
   return f;
 }
 
-kinegen::test::CommandResult kinegen_cli(const std::vector<std::string>& args) {
-  std::vector<std::string> argv{KINEGEN_EXE};
-  argv.insert(argv.end(), args.begin(), args.end());
-  return kinegen::test::run_command(argv);
-}
+using kinegen::test::kinegen_cli;
 
 std::string describe(const std::vector<cg::CheckRow>& rows) {
   std::ostringstream os;

@@ -11,11 +11,11 @@
 #include <string>
 #include <vector>
 
+#include "kinegen/codegen/analysis/evaluator.hpp"
 #include "kinegen/codegen/analysis/model_evaluator.hpp"
 #include "kinegen/codegen/compile/compiled_model.hpp"
-#include "kinegen/codegen/analysis/evaluator.hpp"
+#include "support/cli.hpp"
 #include "support/files.hpp"
-#include "support/run_command.hpp"
 
 namespace {
 
@@ -31,11 +31,7 @@ std::unique_ptr<kc::CompiledModel> spatial_model(const std::string& path) {
   return kc::CompiledModel::from_file(path, {}, build);
 }
 
-kinegen::test::CommandResult kinegen_cli(const std::vector<std::string>& args) {
-  std::vector<std::string> argv{KINEGEN_EXE};
-  argv.insert(argv.end(), args.begin(), args.end());
-  return kinegen::test::run_command(argv);
-}
+using kinegen::test::kinegen_cli;
 
 // A unit quaternion's Euler parameters [e0, e1, e2, e3].
 Eigen::Vector4d euler(const Eigen::Quaterniond& r) { return {r.w(), r.x(), r.y(), r.z()}; }

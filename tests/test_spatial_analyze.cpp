@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
+#include "support/cli.hpp"
 #include "support/csv_columns.hpp"
 #include "support/files.hpp"
-#include "support/run_command.hpp"
 
 namespace {
 
@@ -22,11 +22,7 @@ std::string mechanism(const std::string& name) {
   return std::string(KINEGEN_SOURCE_DIR) + "/tests/mechanisms/" + name + ".yaml";
 }
 
-kinegen::test::CommandResult kinegen_cli(const std::vector<std::string>& args) {
-  std::vector<std::string> argv{KINEGEN_EXE};
-  argv.insert(argv.end(), args.begin(), args.end());
-  return kinegen::test::run_command(argv);
-}
+using kinegen::test::kinegen_cli;
 
 // The slider's x, dx/dtheta and d2x/dtheta2 (x^2 = u(theta)).
 struct Slider {

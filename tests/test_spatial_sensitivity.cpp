@@ -16,9 +16,9 @@
 
 #include "kinegen/codegen/analysis/tolerance.hpp"
 #include "kinegen/codegen/compile/compiled_model.hpp"
+#include "support/cli.hpp"
 #include "support/csv_columns.hpp"
 #include "support/files.hpp"
-#include "support/run_command.hpp"
 
 namespace {
 
@@ -29,11 +29,7 @@ std::string mechanism(const std::string& name) {
   return std::string(KINEGEN_SOURCE_DIR) + "/tests/mechanisms/" + name + ".yaml";
 }
 
-kinegen::test::CommandResult kinegen_cli(const std::vector<std::string>& args) {
-  std::vector<std::string> argv{KINEGEN_EXE};
-  argv.insert(argv.end(), args.begin(), args.end());
-  return kinegen::test::run_command(argv);
-}
+using kinegen::test::kinegen_cli;
 
 std::string replaced(std::string text, const std::string& from, const std::string& to) {
   const auto at = text.find(from);

@@ -16,9 +16,9 @@
 #include <string>
 #include <vector>
 
+#include "support/cli.hpp"
 #include "support/csv_columns.hpp"
 #include "support/files.hpp"
-#include "support/run_command.hpp"
 
 namespace {
 
@@ -28,11 +28,7 @@ using Columns = std::map<std::string, std::vector<double>>;
 
 std::string source(const std::string& path) { return std::string(KINEGEN_SOURCE_DIR) + "/" + path; }
 
-kinegen::test::CommandResult kinegen_cli(const std::vector<std::string>& args) {
-  std::vector<std::string> argv{KINEGEN_EXE};
-  argv.insert(argv.end(), args.begin(), args.end());
-  return kinegen::test::run_command(argv);
-}
+using kinegen::test::kinegen_cli;
 
 Columns analyze(const std::string& file, double t0, double t1, int steps,
                 const std::vector<std::string>& extra = {}) {
